@@ -1,0 +1,26 @@
+// Setup-time errors in JSON inputs: every message names the file, the JSON
+// pointer of the offending value, what is wrong and how to fix it.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace fabrik {
+
+class ConfigError : public std::runtime_error {
+ public:
+  ConfigError(const std::string& file, const std::string& pointer, const std::string& problem,
+              const std::string& fix)
+      : std::runtime_error(file + ": at " + (pointer.empty() ? std::string("/") : pointer) +
+                           ": " + problem + (fix.empty() ? "" : ". Fix: " + fix)),
+        file_(file),
+        pointer_(pointer.empty() ? "/" : pointer) {}
+  const std::string& file() const { return file_; }
+  const std::string& pointer() const { return pointer_; }
+
+ private:
+  std::string file_;
+  std::string pointer_;
+};
+
+}  // namespace fabrik

@@ -1,0 +1,218 @@
+#include "fabrik_solver.hpp"
+
+#include <algorithm>
+#include <cassert>
+
+#include "rotation_fit.hpp"
+
+namespace fabrik {
+
+FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options)
+    : model_(model),
+      targets_(model, std::move(targets)),
+      options_(options),
+      n_seg_(static_cast<int>(model.segments.size())) {
+  n_pass_ = std::max<int>(1, static_cast<int>(targets_.levels().size()));
+  active_.assign(static_cast<std::size_t>(n_pass_ * n_seg_), 0);
+  int max_drivers = 0;
+  for (int s = 0; s < n_seg_; ++s)
+    max_drivers = std::max(max_drivers, static_cast<int>(targets_.on_segment(s).size()) +
+                                            model.segments[s].child_count);
+  drivers_.resize(static_cast<std::size_t>(max_drivers));
+  start_.resize(model.segments.size());
+  distances_m_.assign(targets_.targets().size(), 0.0);
+  previous_m_.assign(targets_.targets().size(), 0.0);
+  level_previous_m_.assign(targets_.targets().size(), 0.0);
+}
+
+void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
+  std::fill(active_.begin(), active_.end(), std::uint8_t{0});
+  for (int i = 0; i < targets_.size(); ++i) {
+    if (!visible[i]) continue;
+    const int pass = options_.use_priorities ? targets_.level_index(i) : 0;
+    for (int s = model_.points[targets_.targets()[i].point].segment; s >= 0;
+         s = model_.segments[s].parent) {
+      std::uint8_t& flag = active_[pass * n_seg_ + s];
+      if (flag) break;  // the rest of the path is already marked
+      flag = 1;
+    }
+  }
+}
+
+// Collects the points of segment s that this pass pulls on: its own visible
+// targets, and the joint of every active child, pulled to that child's base.
+int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
+                         std::span<const std::uint8_t> visible, const Posture& posture) {
+  int n = 0;
+  for (int t : targets_.on_segment(s)) {
+    if (!visible[t]) continue;
+    if (options_.use_priorities && targets_.level_index(t) != pass) continue;
+    const Target& target = targets_.targets()[t];
+    drivers_[n++] = {model_.points[target.point].p_local_m, target_world_m[t], target.weight};
+  }
+  const Segment& seg = model_.segments[s];
+  for (int k = 0; k < seg.child_count; ++k) {
+    const int c = model_.child_ids[seg.first_child + k];
+    if (!active(pass, c)) continue;
+    drivers_[n++] = {model_.points[model_.segments[c].parent_point].p_local_m,
+                     posture.segments[c].base_world_m, 1.0};
+  }
+  return n;
+}
+
+// Forward reaching for one segment: each driver proposes a base position (the
+// classic FABRIK step along the line from its desired position to the current
+// base); the base moves to their weighted mean, then the segment turns about it.
+void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double weight_sum = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const Driver& d = drivers_[k];
+    const Eigen::Vector3d to_base = pose.base_world_m - d.d_world;
+    const double dist = to_base.norm();
+    const Eigen::Vector3d candidate = dist > 1e-12
+                                          ? Eigen::Vector3d(d.d_world + to_base * (d.a_local.norm() / dist))
+                                          : Eigen::Vector3d(d.d_world - pose.r_world * d.a_local);
+    sum += d.weight * candidate;
+    weight_sum += d.weight;
+  }
+  rotate_about_base(n, sum / weight_sum, pose);
+}
+
+// Turns the segment about its (new) base so its drivers point at their desired
+// positions, then puts the base there. Paper rule: the direction to the mean
+// driver is aligned with the direction to the mean desired position. Rigid
+// rule: least-squares rotation of all driver directions.
+void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const {
+  if (options_.segment_fit == SegmentFit::paper) {
+    Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
+    double weight_sum = 0.0;
+    for (int k = 0; k < n; ++k) {
+      mean_local += drivers_[k].weight * drivers_[k].a_local;
+      mean_desired += drivers_[k].weight * drivers_[k].d_world;
+      weight_sum += drivers_[k].weight;
+    }
+    const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
+    const Eigen::Vector3d b = mean_desired / weight_sum - base_m;      // P_i(f) -> M(f)
+    pose.set_rotation(rotate_minimal(pose.q_world, a, b));
+  } else {
+    Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
+    for (int k = 0; k < n; ++k)
+      cross.noalias() +=
+          drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
+    pose.set_rotation(fit_rotation(cross, pose.q_world));
+  }
+  pose.base_world_m = base_m;
+}
+
+// A free root is not pulled along a chain: it is placed by a weighted rigid
+// fit (Kabsch, about the centroid) of its drivers.
+void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
+  Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
+  double weight_sum = 0.0;
+  for (int k = 0; k < n; ++k) {
+    mean_local += drivers_[k].weight * drivers_[k].a_local;
+    mean_desired += drivers_[k].weight * drivers_[k].d_world;
+    weight_sum += drivers_[k].weight;
+  }
+  mean_local /= weight_sum;
+  mean_desired /= weight_sum;
+  Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < n; ++k)
+    cross.noalias() += drivers_[k].weight * (drivers_[k].d_world - mean_desired) *
+                       (drivers_[k].a_local - mean_local).transpose();
+  pose.set_rotation(fit_rotation(cross, pose.q_world));
+  pose.base_world_m = mean_desired - pose.r_world * mean_local;
+}
+
+void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_world_m,
+                           std::span<const std::uint8_t> visible, Posture& posture) {
+  for (int s = n_seg_ - 1; s >= 0; --s) {
+    if (!active(pass, s)) continue;
+    const bool root = s == 0;
+    if (root && options_.root == RootMode::fixed) continue;  // the backward pass pins it
+    const int n = gather(pass, s, target_world_m, visible, posture);
+    if (root && options_.segment_fit == SegmentFit::rigid)
+      free_root_fit(n, posture.segments[s]);
+    else
+      place_with_candidates(n, posture.segments[s]);
+  }
+}
+
+void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
+                            std::span<const std::uint8_t> visible, Posture& posture,
+                            const Eigen::Vector3d& root_pin_m) {
+  for (int s = 0; s < n_seg_; ++s) {
+    SegmentPose& pose = posture.segments[s];
+    const Segment& seg = model_.segments[s];
+    if (s == 0) {
+      if (options_.root == RootMode::free) continue;  // placed by the forward pass
+      const int n = gather(pass, s, target_world_m, visible, posture);
+      rotate_about_base(n, root_pin_m, pose);
+      continue;
+    }
+    const Eigen::Vector3d base_m = posture.point_world_m(model_, seg.parent_point);
+    if (!active(pass, s)) {
+      // Nothing below pulls on this segment: it rides rigidly on its parent.
+      const SegmentPose& parent_now = posture.segments[seg.parent];
+      const SegmentPose& parent_then = start_[seg.parent];
+      pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
+      pose.base_world_m = base_m;
+      continue;
+    }
+    const int n = gather(pass, s, target_world_m, visible, posture);
+    rotate_about_base(n, base_m, pose);
+  }
+}
+
+// True when this level's targets are within tolerance or stopped moving since
+// the previous pass of the level.
+bool FabrikSolver::level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
+                                 std::span<const std::uint8_t> visible, const Posture& posture) {
+  double max_m = 0.0, change_m = 0.0;
+  for (int i = 0; i < targets_.size(); ++i) {
+    if (!visible[i] || (options_.use_priorities && targets_.level_index(i) != pass)) continue;
+    const double d =
+        (posture.point_world_m(model_, targets_.targets()[i].point) - target_world_m[i]).norm();
+    max_m = std::max(max_m, d);
+    change_m = std::max(change_m, std::abs(d - level_previous_m_[i]));
+    level_previous_m_[i] = d;
+  }
+  return max_m <= options_.tolerance_m || change_m <= options_.stall_tolerance_m;
+}
+
+SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
+                                std::span<const std::uint8_t> visible, Posture& posture) {
+  assert(static_cast<int>(target_world_m.size()) == targets_.size());
+  assert(static_cast<int>(visible.size()) == targets_.size());
+  assert(static_cast<int>(posture.segments.size()) == n_seg_);
+  mark_active(visible);
+  const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
+  SolveResult result =
+      targets_.measure(model_, posture, target_world_m, visible, distances_m_);
+  int total_passes = 0;
+  for (int iteration = 0;; ++iteration) {
+    if (should_stop(options_, iteration, distances_m_, previous_m_, result)) return result;
+    const int passes = options_.use_priorities ? n_pass_ : 1;
+    int active_levels = 0;
+    for (int pass = 0; pass < passes; ++pass) active_levels += active(pass, 0);
+    // With a single level the convergence loop itself repeats the pass.
+    const int level_passes = active_levels > 1 ? options_.level_passes : 1;
+    for (int pass = 0; pass < passes; ++pass) {  // weakest level first
+      if (!active(pass, 0)) continue;
+      for (int k = 0; k < level_passes; ++k) {
+        std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
+        forward(pass, target_world_m, visible, posture);
+        backward(pass, target_world_m, visible, posture, root_pin_m);
+        ++total_passes;
+        if (level_passes > 1 && level_settled(pass, target_world_m, visible, posture) && k > 0) break;
+      }
+    }
+    std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
+    result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);
+    result.iterations = iteration + 1;
+    result.passes = total_passes;
+  }
+}
+
+}  // namespace fabrik

@@ -1,0 +1,72 @@
+// Prioritized FABRIK on a tree of rigid segments (Moya & Colloud 2013, built
+// on Aristidou & Lasenby 2011). Every iteration of the convergence loop runs
+// the priority loop, weakest level first; each level does one forward
+// reaching pass (leaves to root) and one backward pass (root to leaves) with
+// that level's targets only, so the last, strongest level is best fulfilled.
+//
+// solve() never allocates: all scratch space is sized in the constructor.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "model.hpp"
+#include "posture.hpp"
+#include "solve_types.hpp"
+#include "target_set.hpp"
+
+namespace fabrik {
+
+class FabrikSolver {
+ public:
+  // The model must outlive the solver.
+  FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options);
+
+  // target_world_m[i] and visible[i] belong to targets()[i]. `posture` is the
+  // start (warm start: the previous frame's result) and receives the result.
+  SolveResult solve(std::span<const Eigen::Vector3d> target_world_m,
+                    std::span<const std::uint8_t> visible, Posture& posture);
+
+  const std::vector<Target>& targets() const { return targets_.targets(); }
+  const SolverOptions& options() const { return options_; }
+  void set_options(const SolverOptions& options) { options_ = options; }
+  // Distance of each target to its point after the last solve (NaN if not visible).
+  std::span<const double> target_distances_m() const { return distances_m_; }
+
+ private:
+  struct Driver {            // one point of a segment pulled towards a position
+    Eigen::Vector3d a_local;  // the point, relative to the segment base
+    Eigen::Vector3d d_world;  // where it should go
+    double weight;
+  };
+
+  void mark_active(std::span<const std::uint8_t> visible);
+  bool active(int pass, int s) const { return active_[pass * n_seg_ + s] != 0; }
+  int gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
+             std::span<const std::uint8_t> visible, const Posture& posture);
+  void forward(int pass, std::span<const Eigen::Vector3d> target_world_m,
+               std::span<const std::uint8_t> visible, Posture& posture);
+  void backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
+                std::span<const std::uint8_t> visible, Posture& posture,
+                const Eigen::Vector3d& root_pin_m);
+  bool level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
+                     std::span<const std::uint8_t> visible, const Posture& posture);
+  void place_with_candidates(int n, SegmentPose& pose) const;
+  void free_root_fit(int n, SegmentPose& pose) const;
+  void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
+
+  const Model& model_;
+  TargetSet targets_;
+  SolverOptions options_;
+  int n_seg_ = 0;
+  int n_pass_ = 0;                     // priority levels, or 1 without priorities
+  std::vector<std::uint8_t> active_;   // [pass][segment]: a visible target in the subtree
+  std::vector<Driver> drivers_;        // scratch for one segment
+  std::vector<SegmentPose> start_;     // posture at the start of a pass
+  std::vector<double> distances_m_, previous_m_;
+  std::vector<double> level_previous_m_;  // per target, between passes of one level
+};
+
+}  // namespace fabrik

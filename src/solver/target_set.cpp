@@ -1,0 +1,89 @@
+#include "target_set.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace fabrik {
+
+TargetSet::TargetSet(const Model& model, std::vector<Target> targets)
+    : targets_(std::move(targets)) {
+  const int n_seg = static_cast<int>(model.segments.size());
+  for (const Target& t : targets_) {
+    if (t.point < 0 || t.point >= static_cast<int>(model.points.size()))
+      throw std::invalid_argument("target point index out of range");
+    if (!(t.weight > 0.0) || !std::isfinite(t.weight))
+      throw std::invalid_argument("target weight must be positive and finite");
+    levels_.push_back(t.level);
+  }
+  std::sort(levels_.begin(), levels_.end());
+  levels_.erase(std::unique(levels_.begin(), levels_.end()), levels_.end());
+  for (const Target& t : targets_)
+    level_index_.push_back(static_cast<int>(
+        std::lower_bound(levels_.begin(), levels_.end(), t.level) - levels_.begin()));
+
+  seg_first_.assign(n_seg, 0);
+  seg_count_.assign(n_seg, 0);
+  for (const Target& t : targets_) ++seg_count_[model.points[t.point].segment];
+  for (int s = 1; s < n_seg; ++s) seg_first_[s] = seg_first_[s - 1] + seg_count_[s - 1];
+  by_segment_.assign(targets_.size(), -1);
+  std::vector<int> fill(n_seg, 0);
+  for (int i = 0; i < size(); ++i) {
+    const int s = model.points[targets_[i].point].segment;
+    by_segment_[seg_first_[s] + fill[s]++] = i;
+  }
+}
+
+SolveResult TargetSet::measure(const Model& model, const Posture& posture,
+                               std::span<const Eigen::Vector3d> target_world_m,
+                               std::span<const std::uint8_t> visible,
+                               std::span<double> distances_m) const {
+  SolveResult r;
+  double sum_sq = 0.0;
+  for (int i = 0; i < size(); ++i) {
+    if (!visible[i]) {
+      distances_m[i] = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    const double d = (posture.point_world_m(model, targets_[i].point) - target_world_m[i]).norm();
+    distances_m[i] = d;
+    sum_sq += d * d;
+    ++r.visible_targets;
+    if (d > r.max_m || r.worst_target < 0) {
+      r.max_m = d;
+      r.worst_target = i;
+    }
+  }
+  if (r.visible_targets > 0) r.rms_m = std::sqrt(sum_sq / r.visible_targets);
+  return r;
+}
+
+bool should_stop(const SolverOptions& options, int iteration, std::span<const double> distances_m,
+                 std::span<const double> previous_m, SolveResult& result) {
+  if (result.visible_targets == 0) {
+    result.status = SolveStatus::no_targets;
+    return true;
+  }
+  if (result.max_m <= options.tolerance_m) {
+    result.status = SolveStatus::converged;
+    return true;
+  }
+  if (iteration > 0) {
+    double change_m = 0.0;
+    for (std::size_t i = 0; i < distances_m.size(); ++i)
+      if (!std::isnan(distances_m[i]))
+        change_m = std::max(change_m, std::abs(distances_m[i] - previous_m[i]));
+    if (change_m <= options.stall_tolerance_m) {
+      result.status = SolveStatus::stalled;
+      return true;
+    }
+  }
+  if (iteration >= options.max_iterations) {
+    result.status = SolveStatus::max_iterations;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace fabrik

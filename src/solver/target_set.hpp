@@ -1,0 +1,50 @@
+// Targets indexed for the solvers: grouped by segment and by priority level,
+// with the per-solve bookkeeping (distances, convergence) both solver
+// families share. Everything is sized once, at construction.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "model.hpp"
+#include "posture.hpp"
+#include "solve_types.hpp"
+
+namespace fabrik {
+
+class TargetSet {
+ public:
+  TargetSet(const Model& model, std::vector<Target> targets);
+
+  const std::vector<Target>& targets() const { return targets_; }
+  int size() const { return static_cast<int>(targets_.size()); }
+  // Distinct levels, weakest first.
+  const std::vector<int>& levels() const { return levels_; }
+  int level_index(int target) const { return level_index_[target]; }
+  // Targets on segment s: ids()[first, first + count).
+  std::span<const int> on_segment(int s) const {
+    return {by_segment_.data() + seg_first_[s], static_cast<std::size_t>(seg_count_[s])};
+  }
+
+  // Distance of every target to its point (NaN for invisible ones) and the
+  // summary over visible ones.
+  SolveResult measure(const Model& model, const Posture& posture,
+                      std::span<const Eigen::Vector3d> target_world_m,
+                      std::span<const std::uint8_t> visible, std::span<double> distances_m) const;
+
+ private:
+  std::vector<Target> targets_;
+  std::vector<int> levels_;
+  std::vector<int> level_index_;
+  std::vector<int> by_segment_;
+  std::vector<int> seg_first_, seg_count_;
+};
+
+// Checks the per-iteration stopping rules shared by all iterative solvers.
+// Returns true (and sets result.status) when the solve should stop.
+bool should_stop(const SolverOptions& options, int iteration, std::span<const double> distances_m,
+                 std::span<const double> previous_m, SolveResult& result);
+
+}  // namespace fabrik

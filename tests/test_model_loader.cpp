@@ -1,0 +1,115 @@
+// The model loader: shipped models load; each kind of bad model is rejected
+// with its own message naming the file and JSON pointer.
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+
+#include "config/config_error.hpp"
+#include "config/json_reader.hpp"
+#include "config/model_loader.hpp"
+
+using namespace fabrik;
+using nlohmann::json;
+
+namespace {
+json good() {
+  return json::parse(R"({
+    "format": "fabrikd-model/1", "name": "t", "units": "mm",
+    "segments": [
+      {"name": "a", "base": "root", "points": {"j1": [0, 100, 0]}, "markers": {"M1": [10, 50, 0]}},
+      {"name": "b", "parent": "a", "base": "j1", "points": {"tip": [0, 100, 0]}}
+    ]})");
+}
+
+// Loads `doc` and returns the error message (fails the test if it loads).
+std::string error_of(const json& doc) {
+  try {
+    load_model(doc, "bad.json");
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  FAIL("the model loaded but should have been rejected");
+  return "";
+}
+}  // namespace
+
+TEST_CASE("Shipped models load with the expected shape", "[loader]") {
+  const Model paper = load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/paper_upper_body.json");
+  CHECK(paper.segments.size() == 6);
+  const Segment& trunk = paper.segments[paper.find_segment("trunk")];
+  CHECK(trunk.point_count == 3);  // the subbase segment: spine + two shoulders
+  CHECK(trunk.child_count == 2);
+  const Model body = load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/fullbody.json");
+  CHECK(body.segments.size() >= 12);
+  int markers = 0;
+  for (const Point& p : body.points) markers += p.kind == PointKind::marker;
+  CHECK(markers >= 30);
+}
+
+TEST_CASE("Units are converted to metres once, at loading", "[loader]") {
+  const Model m = load_model(good(), "t.json");
+  CHECK(m.points[m.find_point("j1")].p_local_m.y() == Approx(0.1));
+}
+
+TEST_CASE("Each kind of bad model has its own clear message", "[loader]") {
+  struct Case {
+    const char* what;
+    std::function<void(json&)> edit;
+    const char* expect_pointer;
+    const char* expect_text;
+  };
+  const std::vector<Case> cases{
+      {"missing units", [](json& d) { d.erase("units"); }, "at /units", "'units' is missing"},
+      {"bad unit", [](json& d) { d["units"] = "inch"; }, "at /units", "unknown unit 'inch'"},
+      {"unknown key", [](json& d) { d["segments"][0]["pionts"] = json::object(); },
+       "at /segments/0/pionts", "did you mean 'points'"},
+      {"segments not array", [](json& d) { d["segments"] = 3; }, "at /segments", "expected an array"},
+      {"no segments", [](json& d) { d["segments"] = json::array(); }, "at /segments", "no segments"},
+      {"duplicate segment", [](json& d) { d["segments"][1]["name"] = "a"; }, "at /segments/1/name",
+       "used twice"},
+      {"unknown parent", [](json& d) { d["segments"][1]["parent"] = "zz"; }, "at /segments/1/parent",
+       "unknown parent segment 'zz'"},
+      {"two roots", [](json& d) { d["segments"][1].erase("parent"); }, "at /segments/1/parent",
+       "two root segments"},
+      {"base not in parent", [](json& d) { d["segments"][1]["base"] = "tip0"; }, "at /segments/1/base",
+       "is not a point of parent segment"},
+      {"base is a marker", [](json& d) { d["segments"][1]["base"] = "M1"; }, "at /segments/1/base",
+       "is a marker"},
+      {"point not a vector", [](json& d) { d["segments"][0]["points"]["j1"] = json::array({1, 2}); },
+       "at /segments/0/points/j1", "expected [x, y, z]"},
+      {"point not a number", [](json& d) { d["segments"][0]["points"]["j1"] = json::array({1, "x", 2}); },
+       "at /segments/0/points/j1/1", "expected a number"},
+      {"duplicate point", [](json& d) { d["segments"][1]["points"]["M1"] = json::array({0, 1, 0}); },
+       "at /segments/1/points/M1", "used twice"},
+      {"no extent", [](json& d) { d["segments"][1]["points"]["tip"] = json::array({0, 0, 0}); },
+       "at /segments/1/points", "no extent"},
+      {"cycle", [](json& d) {
+         d["segments"][0]["parent"] = "b";
+         d["segments"][0]["base"] = "tip";
+       }, "at /segments", "root"},
+      {"bad format", [](json& d) { d["format"] = "other/2"; }, "at /format", "unsupported format"},
+  };
+  for (const Case& c : cases) {
+    json doc = good();
+    c.edit(doc);
+    const std::string msg = error_of(doc);
+    CAPTURE(c.what, msg);
+    CHECK(msg.rfind("bad.json: ", 0) == 0);
+    CHECK_THAT(msg, Catch::Contains(c.expect_pointer));
+    CHECK_THAT(msg, Catch::Contains(c.expect_text));
+    CHECK_THAT(msg, Catch::Contains("Fix: "));
+  }
+}
+
+TEST_CASE("JSON syntax errors name the line and column", "[loader]") {
+  try {
+    JsonReader::parse("{\n  \"units\": \"m\",\n  oops\n}", "broken.json");
+    FAIL("parsed");
+  } catch (const ConfigError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("broken.json"));
+    CHECK_THAT(e.what(), Catch::Contains("line 3"));
+  }
+}
+
+TEST_CASE("A missing model file is a clear error", "[loader]") {
+  CHECK_THROWS_WITH(load_model_file("/nonexistent/model.json"), Catch::Contains("cannot open"));
+}

@@ -1,0 +1,94 @@
+#include "test_models.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "config/model_loader.hpp"
+#include "solver/model_builder.hpp"
+
+namespace fabrik::test {
+
+Model chain_model(int n, double length_m) {
+  std::vector<SegmentSpec> specs;
+  for (int i = 0; i < n; ++i) {
+    SegmentSpec s;
+    s.name = "seg" + std::to_string(i);
+    s.parent = i == 0 ? "" : "seg" + std::to_string(i - 1);
+    s.base = "j" + std::to_string(i);
+    const double bend = (i % 2 == 0 ? 0.1 : -0.05) * length_m;
+    s.points.push_back({"j" + std::to_string(i + 1), {bend, length_m, 0.02 * length_m}, false});
+    specs.push_back(s);
+  }
+  return build_model("chain", specs, Eigen::Vector3d::Zero());
+}
+
+Model paper_model() {
+  return load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/paper_upper_body.json");
+}
+
+Model fullbody_model() {
+  return load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/fullbody.json");
+}
+
+Model random_tree_model(std::mt19937_64& rng, int n_segments) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  std::uniform_int_distribution<int> n_points(1, 4);
+  auto random_offset = [&] {
+    Eigen::Vector3d v(unit(rng), unit(rng), unit(rng));
+    while (v.norm() < 0.1) v = Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    const double len = 0.05 + 0.45 * (unit(rng) + 1.0) / 2.0;
+    return Eigen::Vector3d(v.normalized() * len);
+  };
+  std::vector<SegmentSpec> specs;
+  std::vector<std::string> free_joints;  // joint points not yet used as a base
+  int point_id = 0;
+  for (int s = 0; s < n_segments; ++s) {
+    SegmentSpec spec;
+    spec.name = "s" + std::to_string(s);
+    if (s == 0) {
+      spec.base = "root";
+    } else {
+      if (free_joints.empty()) break;
+      std::uniform_int_distribution<std::size_t> pick(0, free_joints.size() - 1);
+      const std::size_t k = pick(rng);
+      spec.base = free_joints[k];
+      free_joints.erase(free_joints.begin() + static_cast<long>(k));
+      for (const SegmentSpec& other : specs)
+        for (const PointSpec& p : other.points)
+          if (p.name == spec.base) spec.parent = other.name;
+    }
+    const int n = n_points(rng);
+    for (int k = 0; k < n; ++k) {
+      const bool marker = k > 0 && (unit(rng) > 0.2);
+      PointSpec p{(marker ? "m" : "p") + std::to_string(point_id++), random_offset(), marker};
+      if (!marker) free_joints.push_back(p.name);
+      spec.points.push_back(p);
+    }
+    specs.push_back(spec);
+  }
+  return build_model("random", specs, Eigen::Vector3d::Zero());
+}
+
+double max_rigidity_error(const Model& model, const Posture& posture) {
+  const Posture rest = Posture::rest(model);
+  double worst = 0.0;
+  for (const Segment& seg : model.segments)
+    for (int i = seg.first_point; i < seg.first_point + seg.point_count; ++i)
+      for (int j = i + 1; j < seg.first_point + seg.point_count; ++j) {
+        const double d0 = (rest.point_world_m(model, i) - rest.point_world_m(model, j)).norm();
+        const double d1 = (posture.point_world_m(model, i) - posture.point_world_m(model, j)).norm();
+        if (d0 > 0) worst = std::max(worst, std::abs(d1 - d0) / d0);
+      }
+  return worst;
+}
+
+double max_joint_gap_m(const Model& model, const Posture& posture) {
+  double worst = 0.0;
+  for (std::size_t s = 1; s < model.segments.size(); ++s)
+    worst = std::max(worst, (posture.point_world_m(model, model.segments[s].parent_point) -
+                             posture.segments[s].base_world_m)
+                                .norm());
+  return worst;
+}
+
+}  // namespace fabrik::test

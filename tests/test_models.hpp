@@ -1,0 +1,30 @@
+// Models and checks shared by the solver tests.
+#pragma once
+
+#include <random>
+#include <string>
+#include <vector>
+
+#include "solver/model.hpp"
+#include "solver/posture.hpp"
+
+namespace fabrik::test {
+
+// A straight-ish chain of n segments of the given length along +Y, slightly
+// bent so FABRIK has a plane to bend in.
+Model chain_model(int n, double length_m);
+// The paper's upper body, loaded from config/models/paper_upper_body.json.
+Model paper_model();
+// The built-in full-body model (config/models/fullbody.json).
+Model fullbody_model();
+// A random tree: up to `n_segments` segments, each with 1-4 points, some of
+// them markers; all lengths in [0.05, 0.5] m.
+Model random_tree_model(std::mt19937_64& rng, int n_segments);
+
+// Largest relative change of any point-to-point distance within a segment
+// between the rest posture and `posture`.
+double max_rigidity_error(const Model& model, const Posture& posture);
+// Largest distance between a joint as placed by the parent and the child's base.
+double max_joint_gap_m(const Model& model, const Posture& posture);
+
+}  // namespace fabrik::test

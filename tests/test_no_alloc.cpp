@@ -1,0 +1,114 @@
+// Proves that solve() performs no heap allocation: this test binary replaces
+// the global operator new with a counting one.
+#include <atomic>
+#include <catch2/catch.hpp>
+#include <cstdlib>
+#include <new>
+
+#include "solver/fabrik_solver.hpp"
+#include "solver/jacobian_solver.hpp"
+#include "synth/synthetic_motion.hpp"
+#include "test_models.hpp"
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+void* operator new(std::size_t n) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n) { return operator new(n); }
+void* operator new(std::size_t n, std::align_val_t al) {
+  g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::aligned_alloc(static_cast<std::size_t>(al), (n + static_cast<std::size_t>(al) - 1) &
+                                                                     ~(static_cast<std::size_t>(al) - 1)))
+    return p;
+  throw std::bad_alloc();
+}
+void* operator new[](std::size_t n, std::align_val_t al) { return operator new(n, al); }
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete[](void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+
+using namespace fabrik;
+
+namespace {
+struct Scene {
+  Model model = test::fullbody_model();
+  std::vector<Target> targets;
+  std::vector<int> points;
+  std::vector<Eigen::Vector3d> pos;
+  std::vector<std::uint8_t> visible;
+  Scene() {
+    for (int p = 0; p < static_cast<int>(model.points.size()); ++p)
+      if (model.points[p].kind == PointKind::marker) {
+        targets.push_back({p, p % 3, 1.0});  // three priority levels
+        points.push_back(p);
+      }
+    pos.resize(points.size());
+    visible.assign(points.size(), 1);
+    visible[5] = 0;  // one occluded marker
+  }
+};
+}  // namespace
+
+TEST_CASE("The counting allocator sees allocations (the test can fail)", "[alloc]") {
+  const long before = g_allocations.load();
+  auto* v = new std::vector<int>(100);
+  delete v;
+  CHECK(g_allocations.load() - before >= 2);
+}
+
+TEST_CASE("FabrikSolver::solve performs no heap allocation", "[alloc]") {
+  Scene scene;
+  SyntheticMotion motion(scene.model, MotionSettings{});
+  Posture truth = Posture::rest(scene.model);
+  for (SegmentFit fit : {SegmentFit::paper, SegmentFit::rigid})
+    for (bool prio : {false, true}) {
+      SolverOptions o;
+      o.segment_fit = fit;
+      o.root = RootMode::free;
+      o.use_priorities = prio;
+      FabrikSolver solver(scene.model, scene.targets, o);
+      Posture posture = Posture::rest(scene.model);
+      long allocations = 0;
+      for (int frame = 0; frame < 50; ++frame) {
+        motion.posture_at(frame / 100.0, truth);
+        motion.sample(truth, scene.points, 0.001, scene.pos);
+        const long before = g_allocations.load();
+        const SolveResult r = solver.solve(scene.pos, scene.visible, posture);
+        allocations += g_allocations.load() - before;
+        REQUIRE(r.visible_targets == static_cast<int>(scene.points.size()) - 1);
+      }
+      CAPTURE(static_cast<int>(fit), prio);
+      CHECK(allocations == 0);
+    }
+}
+
+TEST_CASE("JacobianSolver::solve performs no heap allocation", "[alloc]") {
+  Scene scene;
+  SyntheticMotion motion(scene.model, MotionSettings{});
+  Posture truth = Posture::rest(scene.model);
+  motion.posture_at(0.3, truth);
+  motion.sample(truth, scene.points, 0.0, scene.pos);
+  for (JacobianMethod method : {JacobianMethod::transpose, JacobianMethod::damped_least_squares}) {
+    SolverOptions o;
+    o.root = RootMode::free;
+    o.max_iterations = 20;
+    JacobianSolver solver(scene.model, scene.targets, o, {method, 0.01, 0.2});
+    Posture posture = Posture::rest(scene.model);
+    const long before = g_allocations.load();
+    const SolveResult r = solver.solve(scene.pos, scene.visible, posture);
+    const long allocations = g_allocations.load() - before;  // read before Catch allocates
+    CAPTURE(static_cast<int>(method));
+    CHECK(allocations == 0);
+    CHECK(r.iterations > 0);
+  }
+}
