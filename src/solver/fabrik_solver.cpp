@@ -27,16 +27,28 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
   std::fill(active_.begin(), active_.end(), std::uint8_t{0});
+  const bool anchors = options_.use_priorities && options_.anchor_weight > 0.0;
   for (int i = 0; i < targets_.size(); ++i) {
     if (!visible[i]) continue;
-    const int pass = options_.use_priorities ? targets_.level_index(i) : 0;
-    for (int s = model_.points[targets_.targets()[i].point].segment; s >= 0;
-         s = model_.segments[s].parent) {
-      std::uint8_t& flag = active_[pass * n_seg_ + s];
-      if (flag) break;  // the rest of the path is already marked
-      flag = 1;
+    const int own = options_.use_priorities ? targets_.level_index(i) : 0;
+    for (int pass = anchors ? 0 : own; pass <= own; ++pass) {
+      const std::uint8_t bit = pass == own ? kOwn : kAnchor;
+      for (int s = model_.points[targets_.targets()[i].point].segment; s >= 0;
+           s = model_.segments[s].parent) {
+        std::uint8_t& flag = active_[pass * n_seg_ + s];
+        if (flag & bit) break;  // the rest of the path is already marked
+        flag |= bit;
+      }
     }
   }
+}
+
+double FabrikSolver::pass_weight(int pass, int t) const {
+  const double w = targets_.targets()[t].weight;
+  if (!options_.use_priorities) return w;
+  const int level = targets_.level_index(t);
+  if (level == pass) return w;
+  return level > pass ? w * options_.anchor_weight : 0.0;
 }
 
 // Collects the points of segment s that this pass pulls on: its own visible
@@ -45,17 +57,17 @@ int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> targe
                          std::span<const std::uint8_t> visible, const Posture& posture) {
   int n = 0;
   for (int t : targets_.on_segment(s)) {
-    if (!visible[t]) continue;
-    if (options_.use_priorities && targets_.level_index(t) != pass) continue;
-    const Target& target = targets_.targets()[t];
-    drivers_[n++] = {model_.points[target.point].p_local_m, target_world_m[t], target.weight};
+    const double weight = visible[t] ? pass_weight(pass, t) : 0.0;
+    if (weight <= 0.0) continue;
+    drivers_[n++] = {model_.points[targets_.targets()[t].point].p_local_m, target_world_m[t], weight};
   }
   const Segment& seg = model_.segments[s];
   for (int k = 0; k < seg.child_count; ++k) {
     const int c = model_.child_ids[seg.first_child + k];
-    if (!active(pass, c)) continue;
+    const std::uint8_t act = activity(pass, c);
+    if (!act) continue;
     drivers_[n++] = {model_.points[model_.segments[c].parent_point].p_local_m,
-                     posture.segments[c].base_world_m, 1.0};
+                     posture.segments[c].base_world_m, act & kAnchor ? options_.anchor_weight : 1.0};
   }
   return n;
 }
@@ -95,12 +107,17 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m, Segme
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
     const Eigen::Vector3d b = mean_desired / weight_sum - base_m;      // P_i(f) -> M(f)
     pose.set_rotation(rotate_minimal(pose.q_world, a, b));
+  } else if (n == 1) {
+    // One driver: the least-squares rotation nearest the current one is the
+    // minimal rotation (the rule above), which is exact and much cheaper.
+    pose.set_rotation(
+        rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local, drivers_[0].d_world - base_m));
   } else {
     Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
     for (int k = 0; k < n; ++k)
       cross.noalias() +=
           drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
-    pose.set_rotation(fit_rotation(cross, pose.q_world));
+    pose.set_rotation(fit_rotation(cross, pose.q_world, 2));
   }
   pose.base_world_m = base_m;
 }
@@ -121,7 +138,7 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
   for (int k = 0; k < n; ++k)
     cross.noalias() += drivers_[k].weight * (drivers_[k].d_world - mean_desired) *
                        (drivers_[k].a_local - mean_local).transpose();
-  pose.set_rotation(fit_rotation(cross, pose.q_world));
+  pose.set_rotation(fit_rotation(cross, pose.q_world, 2));
   pose.base_world_m = mean_desired - pose.r_world * mean_local;
 }
 
@@ -191,15 +208,22 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
   SolveResult result =
       targets_.measure(model_, posture, target_world_m, visible, distances_m_);
   int total_passes = 0;
+  StopRule stop(options_);
   for (int iteration = 0;; ++iteration) {
-    if (should_stop(options_, iteration, distances_m_, previous_m_, result)) return result;
+    if (stop.should_stop(iteration, distances_m_, previous_m_, result)) return result;
     const int passes = options_.use_priorities ? n_pass_ : 1;
-    int active_levels = 0;
-    for (int pass = 0; pass < passes; ++pass) active_levels += active(pass, 0);
-    // With a single level the convergence loop itself repeats the pass.
-    const int level_passes = active_levels > 1 ? options_.level_passes : 1;
+    int active_levels = 0, strongest = -1;
+    for (int pass = 0; pass < passes; ++pass)
+      if (activity(pass, 0) & kOwn) {
+        ++active_levels;
+        strongest = pass;
+      }
     for (int pass = 0; pass < passes; ++pass) {  // weakest level first
-      if (!active(pass, 0)) continue;
+      if (!(activity(pass, 0) & kOwn)) continue;
+      // The strongest level is revisited until it settles, so that it ends
+      // each iteration as well met as it can be; with a single level the
+      // convergence loop itself repeats the pass.
+      const int level_passes = active_levels > 1 && pass == strongest ? options_.level_passes : 1;
       for (int k = 0; k < level_passes; ++k) {
         std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
         forward(pass, target_world_m, visible, posture);

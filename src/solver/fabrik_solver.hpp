@@ -43,7 +43,13 @@ class FabrikSolver {
   };
 
   void mark_active(std::span<const std::uint8_t> visible);
+  // Per pass and segment: kOwn if the subtree has a visible target of the
+  // pass's level, kAnchor if it has one of a stronger level.
+  static constexpr std::uint8_t kOwn = 1, kAnchor = 2;
   bool active(int pass, int s) const { return active_[pass * n_seg_ + s] != 0; }
+  std::uint8_t activity(int pass, int s) const { return active_[pass * n_seg_ + s]; }
+  // The weight a target has in a pass: 0 if it does not take part.
+  double pass_weight(int pass, int target) const;
   int gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
              std::span<const std::uint8_t> visible, const Posture& posture);
   void forward(int pass, std::span<const Eigen::Vector3d> target_world_m,

@@ -113,8 +113,9 @@ SolveResult JacobianSolver::solve(std::span<const Eigen::Vector3d> target_world_
   assert(static_cast<int>(target_world_m.size()) == targets_.size());
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
   SolveResult result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);
+  StopRule stop(options_);
   for (int iteration = 0;; ++iteration) {
-    if (should_stop(options_, iteration, distances_m_, previous_m_, result)) return result;
+    if (stop.should_stop(iteration, distances_m_, previous_m_, result)) return result;
     for (int s = 0; s < n_seg_; ++s) joint_world_m_[s] = posture.segments[s].base_world_m;
     for (int i = 0; i < targets_.size(); ++i)
       x_world_m_[i] = posture.point_world_m(model_, targets_.targets()[i].point);

@@ -27,15 +27,21 @@ enum class RootMode {
 struct SolverOptions {
   double tolerance_m = 1e-3;         // converged when every visible target is this close
   int max_iterations = 64;           // per solve
-  double stall_tolerance_m = 1e-7;   // stalled when no target distance changes more per iteration
+  double stall_tolerance_m = 1e-6;   // stalled when no target distance will change more (StopRule)
   SegmentFit segment_fit = SegmentFit::paper;
   RootMode root = RootMode::fixed;
   bool use_priorities = true;        // false: all levels are solved together, in one pass
-  // Passes of one level per visit of the priority loop: the level is revisited
-  // until its own targets settle (tolerance or stall), at most this often.
-  // 1 is the paper's literal loop, where a weak level can cost the strongest
-  // one accuracy in a conflict (tests/test_solver.cpp shows by how much).
-  int level_passes = 100;
+  // Passes of the strongest level per iteration: it is revisited until its
+  // targets settle (tolerance or stall), at most this often, so it ends every
+  // iteration as well met as it can be. 1 is the paper's literal loop.
+  int level_passes = 8;
+  // In the pass of a level, targets of stronger levels take part too, with
+  // their weight times this factor: they hold what the stronger levels
+  // reached, so a weak level moves the body mostly where the strong ones
+  // leave it free (their null space, in Baerlocher & Boulic's terms).
+  // 0 disables it (the paper's literal loop, where each level pulls alone):
+  // then a weak level can cost the strongest one accuracy in a conflict.
+  double anchor_weight = 1000.0;
 };
 
 enum class SolveStatus : std::uint8_t {

@@ -59,13 +59,13 @@ SolveResult TargetSet::measure(const Model& model, const Posture& posture,
   return r;
 }
 
-bool should_stop(const SolverOptions& options, int iteration, std::span<const double> distances_m,
-                 std::span<const double> previous_m, SolveResult& result) {
+bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
+                           std::span<const double> previous_m, SolveResult& result) {
   if (result.visible_targets == 0) {
     result.status = SolveStatus::no_targets;
     return true;
   }
-  if (result.max_m <= options.tolerance_m) {
+  if (result.max_m <= options_.tolerance_m) {
     result.status = SolveStatus::converged;
     return true;
   }
@@ -74,12 +74,20 @@ bool should_stop(const SolverOptions& options, int iteration, std::span<const do
     for (std::size_t i = 0; i < distances_m.size(); ++i)
       if (!std::isnan(distances_m[i]))
         change_m = std::max(change_m, std::abs(distances_m[i] - previous_m[i]));
-    if (change_m <= options.stall_tolerance_m) {
+    double remaining_m = change_m;
+    if (iteration > 1 && change_m < last_change_m_) {
+      const double rate = change_m / last_change_m_;
+      remaining_m = change_m * rate / (1.0 - rate);
+    } else if (iteration > 1) {
+      remaining_m = change_m * 1e6;  // not contracting: only a tiny change itself may stop
+    }
+    last_change_m_ = change_m;
+    if (change_m <= options_.stall_tolerance_m || remaining_m <= options_.stall_tolerance_m) {
       result.status = SolveStatus::stalled;
       return true;
     }
   }
-  if (iteration >= options.max_iterations) {
+  if (iteration >= options_.max_iterations) {
     result.status = SolveStatus::max_iterations;
     return true;
   }

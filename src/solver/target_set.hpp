@@ -42,9 +42,22 @@ class TargetSet {
   std::vector<int> seg_first_, seg_count_;
 };
 
-// Checks the per-iteration stopping rules shared by all iterative solvers.
-// Returns true (and sets result.status) when the solve should stop.
-bool should_stop(const SolverOptions& options, int iteration, std::span<const double> distances_m,
-                 std::span<const double> previous_m, SolveResult& result);
+// The per-iteration stopping rules shared by all iterative solvers: within
+// tolerance; stalled; out of iterations. A solve is stalled when the target
+// distances will change by less than the stall tolerance from now on, as
+// estimated from the last two changes assuming linear (geometric)
+// convergence: remaining = change * rate / (1 - rate). A fast solver stops
+// soon after it has converged, a slowly creeping one keeps going.
+class StopRule {
+ public:
+  explicit StopRule(const SolverOptions& options) : options_(options) {}
+  // Returns true (and sets result.status) when the solve should stop.
+  bool should_stop(int iteration, std::span<const double> distances_m,
+                   std::span<const double> previous_m, SolveResult& result);
+
+ private:
+  const SolverOptions& options_;
+  double last_change_m_ = 0.0;
+};
 
 }  // namespace fabrik

@@ -1,0 +1,54 @@
+// `fabrik`: the command-line tool (benchmarks now; file tools later).
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+#include <iostream>
+
+#include "bench/bench.hpp"
+#include "version.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"fabrik: prioritized FABRIK inverse kinematics for motion capture"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string(fabrik::kVersion));
+
+  CLI::App* bench = app.add_subcommand("bench", "Benchmarks that print figures");
+  bench->require_subcommand(1);
+
+  fabrik::bench::PaperOptions paper;
+  bool paper_json = false;
+  CLI::App* b_paper = bench->add_subcommand(
+      "paper", "The paper's experiment: FABRIK with and without priorities against the Jacobian transpose");
+  b_paper->add_option("--experiment", paper.experiment, "Experiment JSON (default: the embedded config/paper_experiment.json)");
+  b_paper->add_option("--repeats", paper.repeats, "Solves per algorithm (default: the experiment's)");
+  b_paper->add_flag("--json", paper_json, "Print one JSON object instead of a table");
+
+  fabrik::bench::FullbodyOptions body;
+  bool body_json = false;
+  CLI::App* b_body = bench->add_subcommand("fullbody", "Full-body tracking of synthetic motion, warm-started");
+  b_body->add_option("--frames", body.frames, "Frames to track")->check(CLI::Range(2, 10000000));
+  b_body->add_option("--rate", body.rate_hz, "Frame rate (Hz)")->check(CLI::Range(1.0, 100000.0));
+  b_body->add_option("--noise-mm", body.noise_mm, "Marker noise, standard deviation per axis (mm)")->check(CLI::Range(0.0, 100.0));
+  b_body->add_option("--seed", body.seed, "Motion and noise seed");
+  b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")->check(CLI::IsMember({"paper", "rigid"}));
+  b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    if (b_paper->parsed()) {
+      const auto r = fabrik::bench::run_paper(paper);
+      std::cout << (paper_json ? r.dump(2) + "\n" : fabrik::bench::paper_table(r));
+    } else if (b_body->parsed()) {
+      const auto r = fabrik::bench::run_fullbody(body);
+      std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fabrik: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,30 @@
+// Benchmarks behind `fabrik bench ...`: they print figures, they do not pass
+// or fail (except that a broken setup is an error).
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace fabrik::bench {
+
+struct PaperOptions {
+  std::string experiment = "paper_experiment.json";  // file, or the embedded default
+  int repeats = 0;                                   // 0: the experiment's own count
+};
+// The paper's experiment: FABRIK without and with priorities against the
+// Jacobian transpose, from the same start; times, errors, posture checks.
+nlohmann::json run_paper(const PaperOptions& options);
+std::string paper_table(const nlohmann::json& result);
+
+struct FullbodyOptions {
+  int frames = 2000;
+  double rate_hz = 100.0;
+  double noise_mm = 1.0;
+  unsigned seed = 1;
+  std::string segment_fit = "rigid";
+};
+// Tracking of the built-in full-body model on smooth synthetic motion.
+nlohmann::json run_fullbody(const FullbodyOptions& options);
+std::string fullbody_table(const nlohmann::json& result);
+
+}  // namespace fabrik::bench

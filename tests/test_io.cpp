@@ -1,0 +1,560 @@
+// Marker files: TRC and C3D round trips in every number format, the real recordings in the
+// shared data folder (facts from its SOURCES.md and read off the files by eye), and broken files
+// (missing, truncated, garbage, absurd counts) failing with a FormatError that names the file.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iterator>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "io/marker_trial.hpp"
+
+using namespace fabrik::io;
+namespace fs = std::filesystem;
+
+namespace {
+const std::string kDataDir = FABRIK_SHARED_DATA_DIR;
+
+// A unique path under the temp directory, removed when the test ends.
+class TempFile {
+ public:
+  explicit TempFile(const std::string& extension) {
+    static std::mt19937_64 rng{std::random_device{}()};
+    path_ = (fs::temp_directory_path() /
+             ("fabrik_test_io_" + std::to_string(rng()) + extension))
+                .string();
+  }
+  ~TempFile() {
+    std::error_code ec;
+    fs::remove(path_, ec);
+  }
+  TempFile(const TempFile&) = delete;
+  TempFile& operator=(const TempFile&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+// The path of a shared data file, or "" (with a warning) when it is not there.
+std::string data_file(const std::string& name) {
+  const std::string path = kDataDir + "/" + name;
+  if (!fs::exists(path)) {
+    WARN("skipped: " << path << " not found");
+    return "";
+  }
+  return path;
+}
+
+std::vector<char> read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+void write_bytes(const std::string& path, const std::vector<char>& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  write_bytes(path, std::vector<char>(text.begin(), text.end()));
+}
+
+// Offset of the first occurrence of `what` in `bytes` (fails the test if absent).
+std::size_t find_bytes(const std::vector<char>& bytes, const std::string& what) {
+  const auto it = std::search(bytes.begin(), bytes.end(), what.begin(), what.end());
+  REQUIRE(it != bytes.end());
+  return static_cast<std::size_t>(it - bytes.begin());
+}
+
+// The FormatError message of `read` (fails the test if it succeeds or throws anything else).
+std::string error_of(const std::function<void()>& read) {
+  try {
+    read();
+  } catch (const FormatError& e) {
+    return e.what();
+  }
+  FAIL("the file was read but should have been rejected");
+  return "";
+}
+
+// Smooth motion of `markers` markers within 2 m of the origin; every 7th sample missing.
+MarkerTrial make_trial(std::size_t markers, std::size_t frames, bool gaps) {
+  MarkerTrial t;
+  for (std::size_t m = 0; m < markers; ++m) t.labels.push_back("M" + std::to_string(m + 1));
+  t.rate_hz = 120.0;
+  t.first_frame = 7;
+  for (std::size_t f = 0; f < frames; ++f) {
+    for (std::size_t m = 0; m < markers; ++m) {
+      const double a = 0.05 * static_cast<double>(f) + 0.7 * static_cast<double>(m);
+      Eigen::Vector3d p(1.9 * std::sin(a), 1.2 + 0.5 * std::cos(1.3 * a), -0.8 * std::sin(0.4 * a));
+      if (gaps && (f * markers + m) % 7 == 3) p.setConstant(std::nan(""));
+      t.positions_m.push_back(p);
+    }
+  }
+  return t;
+}
+
+// Same labels, rate, first frame and NaN pattern; positions within `tol_m`.
+void check_same(const MarkerTrial& a, const MarkerTrial& b, double tol_m) {
+  REQUIRE(a.labels == b.labels);
+  REQUIRE(a.frames() == b.frames());
+  CHECK(a.rate_hz == Approx(b.rate_hz).epsilon(1e-7));
+  CHECK(a.first_frame == b.first_frame);
+  double worst_m = 0.0;
+  std::size_t nan_mismatches = 0;
+  for (std::size_t i = 0; i < a.positions_m.size(); ++i) {
+    const bool a_nan = a.positions_m[i].hasNaN(), b_nan = b.positions_m[i].hasNaN();
+    if (a_nan != b_nan) ++nan_mismatches;
+    if (!a_nan && !b_nan) {
+      worst_m = std::max(worst_m, (a.positions_m[i] - b.positions_m[i]).cwiseAbs().maxCoeff());
+    }
+  }
+  CHECK(nan_mismatches == 0);
+  CHECK(worst_m <= tol_m);
+}
+
+std::size_t count_missing(const MarkerTrial& t) {
+  return static_cast<std::size_t>(std::count_if(t.positions_m.begin(), t.positions_m.end(),
+                                                [](const Eigen::Vector3d& p) { return p.hasNaN(); }));
+}
+
+void check_position(const MarkerTrial& t, std::size_t frame, const std::string& label,
+                    const Eigen::Vector3d& expected_m, double tol_m) {
+  const int m = t.find(label);
+  REQUIRE(m >= 0);
+  INFO(label << " at frame index " << frame << ": " << t.at(frame, std::size_t(m)).transpose());
+  CHECK((t.at(frame, std::size_t(m)) - expected_m).cwiseAbs().maxCoeff() <= tol_m);
+}
+}  // namespace
+
+TEST_CASE("MarkerTrial indexes frame-major and derives time from frame and rate", "[io]") {
+  MarkerTrial t;
+  t.labels = {"A", "B"};
+  t.rate_hz = 60.0;
+  for (int i = 0; i < 6; ++i) t.positions_m.emplace_back(i, 0, 0);
+  CHECK(t.frames() == 3);
+  CHECK(t.markers() == 2);
+  CHECK(t.at(1, 0).x() == 2.0);
+  CHECK(t.at(2, 1).x() == 5.0);
+  t.at(2, 1).y() = 9.0;
+  CHECK(t.positions_m[5].y() == 9.0);
+  CHECK(t.time_s(30) == 0.5);
+  CHECK(t.find("B") == 1);
+  CHECK(t.find("C") == -1);
+}
+
+TEST_CASE("TRC round trip keeps labels, rate, first frame, gaps and positions", "[io][trc]") {
+  const MarkerTrial original = make_trial(5, 40, true);
+  for (const std::string units : {"mm", "m"}) {
+    INFO("units " << units);
+    TempFile file(".trc");
+    write_trc(file.path(), original, units);
+    check_same(read_trc(file.path()), original, 1e-6);
+
+    // The header OpenSim and Mokka expect, and empty fields for a missing marker.
+    std::ifstream in(file.path());
+    std::string line1, line2, line3, line4, line5, line6, row1;
+    std::getline(in, line1);
+    std::getline(in, line2);
+    std::getline(in, line3);
+    std::getline(in, line4);
+    std::getline(in, line5);
+    std::getline(in, line6);
+    std::getline(in, row1);
+    CHECK(line1.rfind("PathFileType\t4\t(X/Y/Z)\t", 0) == 0);
+    CHECK(line2 ==
+          "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\t"
+          "OrigDataStartFrame\tOrigNumFrames");
+    CHECK(line3 == "120\t120\t40\t5\t" + units + "\t120\t7\t40");
+    CHECK(line4 == "Frame#\tTime\tM1\t\t\tM2\t\t\tM3\t\t\tM4\t\t\tM5\t\t");
+    CHECK(line5.rfind("\t\tX1\tY1\tZ1\tX2", 0) == 0);
+    CHECK(line6.empty());
+    // Sample 3 (frame 0, marker M4) is missing: columns 12-14 empty.
+    CHECK(row1.rfind("7\t0\t", 0) == 0);
+    CHECK(row1.find("\t\t\t\t") != std::string::npos);
+  }
+}
+
+TEST_CASE("TRC reader tolerates CRLF, trailing tabs, blank lines and short rows", "[io][trc]") {
+  TempFile file(".trc");
+  write_text(file.path(),
+             "PathFileType\t4\t(X/Y/Z)\tx.trc\r\n"
+             "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\r\n"
+             "100.00\t100.00\t   3\t2\tmm\r\n"
+             "Frame#\tTime\tA\t\t\tB\t\t\t\r\n"
+             "\t\tX1\tY1\tZ1\tX2\tY2\tZ2\t\r\n"
+             "\r\n"
+             "10\t0.000\t1000\t2000\t-3000\t4\t5\t6\t\t\r\n"
+             "11\t0.010\t\t\t\t4.5\t5\t+6e0\r\n"
+             "12\t0.020\t1\t2\r\n"
+             "\r\n"
+             "\t\r\n");
+  const MarkerTrial t = read_trc(file.path());
+  REQUIRE(t.labels == std::vector<std::string>{"A", "B"});
+  REQUIRE(t.frames() == 3);
+  CHECK(t.rate_hz == 100.0);
+  CHECK(t.first_frame == 10);
+  CHECK(t.at(0, 0).isApprox(Eigen::Vector3d(1.0, 2.0, -3.0)));
+  CHECK(t.at(0, 1).isApprox(Eigen::Vector3d(0.004, 0.005, 0.006)));
+  CHECK(t.at(1, 0).hasNaN());  // empty fields
+  CHECK(t.at(1, 1).isApprox(Eigen::Vector3d(0.0045, 0.005, 0.006)));
+  CHECK(t.at(2, 0).hasNaN());  // a row cut short: Z missing
+  CHECK(t.at(2, 1).hasNaN());  // and B absent
+  CHECK(t.time_s(2) == Approx(0.02));
+}
+
+TEST_CASE("TRC reader rejects broken files with the path and the problem", "[io][trc]") {
+  const std::string header =
+      "PathFileType\t4\t(X/Y/Z)\tx.trc\n"
+      "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\n";
+  const std::string names = "Frame#\tTime\tA\t\t\n\t\tX1\tY1\tZ1\n\n";
+  struct Case {
+    const char* what;
+    std::string text;
+    const char* expected;
+  };
+  const std::vector<Case> cases = {
+      {"unsupported units", header + "60\t60\t1\t1\tcm\n" + names + "1\t0\t1\t2\t3\n", "Units"},
+      {"a word for a number", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\tabc\t3\n",
+       "line 7, column 4: 'abc' is not a number"},
+      {"fewer rows than NumFrames", header + "60\t60\t3\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
+       "file ends after 1 of the 3 frames"},
+      {"more rows than NumFrames", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n" +
+                                       "2\t0\t1\t2\t3\n",
+       "more data rows than NumFrames"},
+      {"labels disagree with NumMarkers", header + "60\t60\t1\t2\tmm\n" + names,
+       "names 1 markers but NumMarkers is 2"},
+      {"zero rate", header + "0\t0\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n", "DataRate"},
+      {"values past the last marker", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\t4\n",
+       "values beyond"},
+      {"header cut short", header, "file ends inside the header"},
+      {"not a TRC file", "hello\n", "not a TRC file"},
+      {"binary garbage", std::string("\x00\x50\xff\x10", 4), "not a TRC file"},
+  };
+  for (const Case& c : cases) {
+    INFO(c.what);
+    TempFile file(".trc");
+    write_text(file.path(), c.text);
+    const std::string message = error_of([&] { read_trc(file.path()); });
+    CHECK(message.rfind(file.path() + ": ", 0) == 0);
+    CHECK_THAT(message, Catch::Contains(c.expected));
+  }
+  const std::string missing = (fs::temp_directory_path() / "fabrik_no_such_file.trc").string();
+  CHECK_THAT(error_of([&] { read_trc(missing); }), Catch::StartsWith(missing + ": file not found"));
+}
+
+TEST_CASE("subject01_walk1.trc: 41 markers, 151 frames at 60 Hz, mm read as metres",
+          "[io][trc][data]") {
+  const std::string path = data_file("subject01_walk1.trc");
+  if (path.empty()) return;
+  const MarkerTrial t = read_trc(path);
+  CHECK(t.markers() == 41);
+  CHECK(t.frames() == 151);
+  CHECK(t.rate_hz == 60.0);
+  CHECK(t.first_frame == 1);
+  CHECK(t.labels.front() == "R.ASIS");
+  CHECK(t.labels.back() == "Top.Head");
+  CHECK(t.find("R.Knee.Med") == -1);  // medial markers are in the static trial only
+  CHECK(count_missing(t) == 0);       // "no gaps"
+  CHECK(t.time_s(150) == Approx(2.5));
+  // Values read off the file: row 1 and row 151.
+  check_position(t, 0, "R.ASIS", {0.61724762, 1.05527502, 0.17078198}, 1e-12);
+  check_position(t, 0, "Top.Head", {0.74933246, 1.74760767, 0.04674146}, 1e-12);
+  check_position(t, 150, "Top.Head", {0.61413971, 1.77627051, 0.02329867}, 1e-12);
+}
+
+TEST_CASE("subject01_static.trc: 49 markers, 300 frames, with the medial markers",
+          "[io][trc][data]") {
+  const std::string path = data_file("subject01_static.trc");
+  if (path.empty()) return;
+  const MarkerTrial t = read_trc(path);
+  CHECK(t.markers() == 49);
+  CHECK(t.frames() == 300);
+  CHECK(t.rate_hz == 60.0);
+  CHECK(t.find("R.Knee.Med") >= 0);
+  CHECK(t.find("L.Ankle.Med") >= 0);
+  CHECK(count_missing(t) == 0);
+  check_position(t, 0, "R.ASIS", {0.60866431, 1.07271313, 0.15744215}, 1e-12);
+  check_position(t, 299, "Top.Head", {0.57306628, 1.81821582, 0.03806445}, 1e-12);
+}
+
+TEST_CASE("arm26_elbow_flex.trc: 3 markers, 121 frames at 120 Hz", "[io][trc][data]") {
+  const std::string path = data_file("arm26_elbow_flex.trc");
+  if (path.empty()) return;
+  const MarkerTrial t = read_trc(path);
+  CHECK(t.labels ==
+        std::vector<std::string>{"r_acromion", "r_humerus_epicondyle", "r_radius_styloid"});
+  CHECK(t.frames() == 121);
+  CHECK(t.rate_hz == 120.0);
+  check_position(t, 0, "r_acromion", {-0.01305452443, 0.83950547557, 0.1695054756}, 1e-12);
+  check_position(t, 120, "r_radius_styloid", {0.2310167559, 0.5005158582, 0.2309769121}, 1e-12);
+}
+
+TEST_CASE("Vicon.c3d: 51 points, 100 Hz, 580 frames, 305 missing samples, SCAP_CP gap of 71",
+          "[io][c3d][data]") {
+  const std::string path = data_file("Vicon.c3d");
+  if (path.empty()) return;
+  const MarkerTrial t = read_c3d(path);
+  REQUIRE(t.markers() == 51);
+  REQUIRE(t.frames() == 580);
+  CHECK(t.rate_hz == 100.0);
+  CHECK(t.first_frame == 1);
+  CHECK(t.labels.front() == "boite:gauche_ext");
+  CHECK(t.labels.back() == "Daphnee:LATH");
+
+  std::size_t missing = 0, markers_with_gaps = 0, longest = 0;
+  std::string longest_label;
+  for (std::size_t m = 0; m < t.markers(); ++m) {
+    std::size_t run = 0, count = 0;
+    for (std::size_t f = 0; f < t.frames(); ++f) {
+      run = t.at(f, m).hasNaN() ? run + 1 : 0;
+      if (run > 0) ++count;
+      if (run > longest) {
+        longest = run;
+        longest_label = t.labels[m];
+      }
+    }
+    missing += count;
+    if (count > 0) ++markers_with_gaps;
+  }
+  CHECK(missing == 305);
+  CHECK(markers_with_gaps == 13);
+  CHECK(longest == 71);
+  CHECK(longest_label == "Daphnee:SCAP_CP");
+  // First sample of the file (float data in mm).
+  check_position(t, 0, "boite:gauche_ext", {0.0441627884, -0.2768619385, 0.6756968384}, 1e-9);
+}
+
+TEST_CASE("Optotrak.c3d declares 1149 frames but holds 29: rejected, or read on request",
+          "[io][c3d][data]") {
+  const std::string path = data_file("Optotrak.c3d");
+  if (path.empty()) return;
+  const std::string message = error_of([&] { read_c3d(path); });
+  CHECK_THAT(message, Catch::StartsWith(path + ": 3D data: truncated"));
+  CHECK_THAT(message, Catch::Contains("holds 29 complete of the 1149 frames"));
+
+  const MarkerTrial t = read_c3d(path, C3dReadOptions{.allow_truncated_data = true});
+  REQUIRE(t.markers() == 54);
+  REQUIRE(t.frames() == 29);
+  CHECK(t.rate_hz == 30.0);
+  CHECK(t.first_frame == 1);
+  CHECK(t.labels.front() == "Marker_1");
+  CHECK(t.labels.back() == "Marker_54");
+  // Float data with residual -1 for the missing: Marker_52 and _53 throughout, _54 once.
+  CHECK(count_missing(t) == 59);
+  for (std::size_t f = 0; f < t.frames(); ++f) {
+    CHECK(t.at(f, 51).hasNaN());
+    CHECK(t.at(f, 52).hasNaN());
+    CHECK(t.at(f, 53).hasNaN() == (f == 0));
+  }
+  check_position(t, 0, "Marker_1", {0.3263137512, 0.3286311340, -0.3661706238}, 1e-9);
+}
+
+TEST_CASE("C3D round trip in every processor, number type and unit", "[io][c3d]") {
+  const MarkerTrial original = make_trial(6, 50, true);
+  double max_abs_m = 0.0;
+  for (const Eigen::Vector3d& p : original.positions_m) {
+    if (p.allFinite()) max_abs_m = std::max(max_abs_m, p.cwiseAbs().maxCoeff());
+  }
+  for (const C3dProcessor processor : {C3dProcessor::intel, C3dProcessor::dec, C3dProcessor::mips}) {
+    for (const bool float_data : {false, true}) {
+      for (const std::string units : {"mm", "m"}) {
+        INFO("processor " << static_cast<int>(processor) << ", float " << float_data << ", "
+                          << units);
+        TempFile file(".c3d");
+        write_c3d(file.path(), original, processor, float_data, units);
+        const MarkerTrial back = read_c3d(file.path());
+        // int16 data: half the scale (largest coordinate / 32000); float: float precision.
+        const double tol_m = float_data ? 1e-6 : 0.5 * max_abs_m / 32000.0 * 1.0001;
+        check_same(back, original, tol_m);
+      }
+    }
+  }
+}
+
+TEST_CASE("C3D writer stores numbers in each processor's byte order", "[io][c3d]") {
+  // Known answers worked out from the spec, independent of the reader: 100.0 and 1.0 and -0.5
+  // as Intel (little-endian IEEE), MIPS (big-endian IEEE), DEC (VAX F: word-swapped, x4).
+  MarkerTrial t;
+  t.labels = {"A", "B", "C"};
+  t.rate_hz = 100.0;
+  t.positions_m = {{1.0, -0.5, 0.0}, {0.1, 0.2, 0.3}, {0.0, 0.0, 0.0}};
+  struct Expected {
+    C3dProcessor processor;
+    int byte;
+    std::vector<unsigned char> points, rate, one, minus_half;
+  };
+  const std::vector<Expected> cases = {
+      {C3dProcessor::intel, 84, {3, 0}, {0, 0, 0xC8, 0x42}, {0, 0, 0x80, 0x3F}, {0, 0, 0, 0xBF}},
+      {C3dProcessor::dec, 85, {3, 0}, {0xC8, 0x43, 0, 0}, {0x80, 0x40, 0, 0}, {0x00, 0xC0, 0, 0}},
+      {C3dProcessor::mips, 86, {0, 3}, {0x42, 0xC8, 0, 0}, {0x3F, 0x80, 0, 0}, {0xBF, 0, 0, 0}},
+  };
+  for (const Expected& e : cases) {
+    INFO("processor byte " << e.byte);
+    TempFile file(".c3d");
+    write_c3d(file.path(), t, e.processor, true, "m");
+    const std::vector<char> b = read_bytes(file.path());
+    REQUIRE(b.size() >= 1024);
+    const auto bytes = [&](std::size_t at, std::size_t n) {
+      return std::vector<unsigned char>(b.begin() + static_cast<std::ptrdiff_t>(at),
+                                        b.begin() + static_cast<std::ptrdiff_t>(at + n));
+    };
+    CHECK(b[1] == 0x50);
+    CHECK(static_cast<unsigned char>(b[512 + 3]) == e.byte);
+    CHECK(bytes(2, 2) == e.points);
+    CHECK(bytes(20, 4) == e.rate);
+    const std::vector<unsigned char> start = bytes(16, 2);
+    const std::size_t data_block = e.processor == C3dProcessor::mips
+                                       ? std::size_t(start[0]) << 8 | start[1]
+                                       : std::size_t(start[1]) << 8 | start[0];
+    const std::size_t data = (data_block - 1) * 512;
+    REQUIRE(b.size() >= data + 16);
+    CHECK(bytes(data, 4) == e.one);
+    CHECK(bytes(data + 4, 4) == e.minus_half);
+    CHECK(read_c3d(file.path()).at(0, 0).isApprox(Eigen::Vector3d(1.0, -0.5, 0.0)));
+  }
+}
+
+TEST_CASE("More than 255 markers go through POINT:LABELS2", "[io][c3d]") {
+  const MarkerTrial original = make_trial(300, 3, true);
+  TempFile file(".c3d");
+  write_c3d(file.path(), original, C3dProcessor::intel, true);
+  const std::vector<char> b = read_bytes(file.path());
+  CHECK(std::search(b.begin(), b.end(), std::begin("LABELS2"), std::end("LABELS2") - 1) !=
+        b.end());
+  check_same(read_c3d(file.path()), original, 1e-6);
+}
+
+TEST_CASE("Vicon.c3d written as TRC reads back the same", "[io][c3d][trc][data]") {
+  const std::string path = data_file("Vicon.c3d");
+  if (path.empty()) return;
+  const MarkerTrial c3d = read_c3d(path);
+  TempFile file(".trc");
+  write_trc(file.path(), c3d);
+  check_same(read_trc(file.path()), c3d, 1e-6);
+}
+
+TEST_CASE("read_trial picks the reader by extension, in any case", "[io]") {
+  const MarkerTrial original = make_trial(2, 4, false);
+  TempFile trc(".TRC"), c3d(".C3d"), other(".txt");
+  write_trc(trc.path(), original);
+  write_c3d(c3d.path(), original, C3dProcessor::intel, true);
+  write_trc(other.path(), original);
+  check_same(read_trial(trc.path()), original, 1e-6);
+  check_same(read_trial(c3d.path()), original, 1e-6);
+  CHECK_THAT(error_of([&] { read_trial(other.path()); }),
+             Catch::StartsWith(other.path() + ": unknown file type '.txt'"));
+}
+
+TEST_CASE("Broken C3D files throw FormatError naming the file and the problem", "[io][c3d]") {
+  TempFile good(".c3d");
+  write_c3d(good.path(), make_trial(3, 20, true), C3dProcessor::intel, false);
+  const std::vector<char> valid = read_bytes(good.path());
+  REQUIRE(read_c3d(good.path()).frames() == 20);
+
+  TempFile bad(".c3d");
+  const auto message_for = [&](const std::vector<char>& bytes) {
+    write_bytes(bad.path(), bytes);
+    const std::string m = error_of([&] { read_c3d(bad.path()); });
+    CHECK_THAT(m, Catch::StartsWith(bad.path() + ": "));
+    return m;
+  };
+  const auto patched = [&](const std::string& after, std::size_t skip,
+                           const std::vector<char>& with) {
+    std::vector<char> b = valid;
+    const std::size_t at = find_bytes(b, after) + after.size() + skip;
+    std::copy(with.begin(), with.end(), b.begin() + static_cast<std::ptrdiff_t>(at));
+    return b;
+  };
+
+  SECTION("missing file") {
+    const std::string missing = (fs::temp_directory_path() / "fabrik_no_such_file.c3d").string();
+    CHECK_THAT(error_of([&] { read_c3d(missing); }),
+               Catch::StartsWith(missing + ": file not found"));
+  }
+  SECTION("empty and short files") {
+    CHECK_THAT(message_for({}), Catch::Contains("fewer than the 512"));
+    CHECK_THAT(message_for(std::vector<char>(valid.begin(), valid.begin() + 600)),
+               Catch::Contains("parameter section: truncated"));
+  }
+  SECTION("garbage") {
+    std::mt19937 rng(7);
+    std::vector<char> noise(4096);
+    for (char& c : noise) c = static_cast<char>(rng() & 0xFF);
+    noise[1] = 0x51;
+    CHECK_THAT(message_for(noise), Catch::Contains("header: not a C3D file"));
+    noise[1] = 0x50;
+    noise[0] = 2;
+    noise[512 + 3] = 0;
+    CHECK_THAT(message_for(noise), Catch::Contains("unknown processor type 0"));
+  }
+  SECTION("data cut short") {
+    // 15 frames of 3 points x 4 int16 words, and part of the 16th.
+    const std::size_t data_block = std::size_t(static_cast<unsigned char>(valid[17])) << 8 |
+                                   static_cast<unsigned char>(valid[16]);
+    const std::size_t keep = (data_block - 1) * 512 + 15 * 3 * 8 + 10;
+    REQUIRE(keep < valid.size());
+    std::vector<char> cut(valid.begin(), valid.begin() + static_cast<std::ptrdiff_t>(keep));
+    CHECK_THAT(message_for(cut),
+               Catch::Contains("3D data: truncated: the file holds 15 complete of the 20 frames"));
+    write_bytes(bad.path(), cut);
+    CHECK(read_c3d(bad.path(), {.allow_truncated_data = true}).frames() == 15);
+  }
+  SECTION("absurd counts are caught before allocating") {
+    // POINT:USED (the first USED: POINT is the first group) = 32767 points.
+    CHECK_THAT(message_for(patched("USED", 4, {'\xff', '\x7f'})),
+               Catch::Contains("holds 0 complete of the 20 frames"));
+    // TRIAL:ACTUAL_END_FIELD's high word: about 4 billion frames.
+    CHECK_THAT(message_for(patched("ACTUAL_END_FIELD", 7, {'\xff', '\xff'})),
+               Catch::Contains("3D data: truncated"));
+  }
+  SECTION("parameters missing or wrong") {
+    CHECK_THAT(message_for(patched("LABEL", 0, {'X'})),
+               Catch::Contains("parameter section: POINT:LABELS missing"));
+    CHECK_THAT(message_for(patched("UNITS", 5, {'i', 'n'})),
+               Catch::Contains("POINT:UNITS 'in' is not supported"));
+    CHECK_THAT(message_for(patched("SCALE", 4, {0, 0, 0, 0})), Catch::Contains("POINT:SCALE"));
+    CHECK_THAT(message_for(patched("POINT", 0, {'\x00', '\x80'})),
+               Catch::Contains("points backwards"));
+  }
+}
+
+TEST_CASE("Any truncation or corruption of a C3D gives a trial or a FormatError", "[io][c3d]") {
+  TempFile good(".c3d"), bad(".c3d");
+  write_c3d(good.path(), make_trial(4, 30, true), C3dProcessor::mips, false);
+  const std::vector<char> valid = read_bytes(good.path());
+  std::size_t rejected = 0, read = 0, other = 0;
+  const auto attempt = [&](const std::vector<char>& bytes) {
+    write_bytes(bad.path(), bytes);
+    try {
+      const MarkerTrial t = read_c3d(bad.path());
+      CHECK(t.positions_m.size() == t.frames() * t.markers());
+      ++read;
+    } catch (const FormatError&) {
+      ++rejected;
+    } catch (...) {
+      ++other;
+    }
+  };
+  for (std::size_t size = 0; size < valid.size(); size += 7) {
+    attempt(std::vector<char>(valid.begin(), valid.begin() + static_cast<std::ptrdiff_t>(size)));
+  }
+  std::mt19937 rng(42);
+  for (int i = 0; i < 3000; ++i) {
+    std::vector<char> b = valid;
+    const int changes = 1 + static_cast<int>(rng() % 4);
+    for (int c = 0; c < changes; ++c) b[rng() % 1024] = static_cast<char>(rng() & 0xFF);
+    attempt(b);
+  }
+  CHECK(other == 0);
+  CHECK(rejected > 0);
+  CHECK(read > 0);
+}
