@@ -27,8 +27,7 @@ class TempFile {
  public:
   explicit TempFile(const std::string& extension) {
     static std::mt19937_64 rng{std::random_device{}()};
-    path_ = (fs::temp_directory_path() /
-             ("fabrik_test_io_" + std::to_string(rng()) + extension))
+    path_ = (fs::temp_directory_path() / ("fabrik_test_io_" + std::to_string(rng()) + extension))
                 .string();
   }
   ~TempFile() {
@@ -122,8 +121,9 @@ void check_same(const MarkerTrial& a, const MarkerTrial& b, double tol_m) {
 }
 
 std::size_t count_missing(const MarkerTrial& t) {
-  return static_cast<std::size_t>(std::count_if(t.positions_m.begin(), t.positions_m.end(),
-                                                [](const Eigen::Vector3d& p) { return p.hasNaN(); }));
+  return static_cast<std::size_t>(
+      std::count_if(t.positions_m.begin(), t.positions_m.end(),
+                    [](const Eigen::Vector3d& p) { return p.hasNaN(); }));
 }
 
 void check_position(const MarkerTrial& t, std::size_t frame, const std::string& label,
@@ -227,8 +227,8 @@ TEST_CASE("TRC reader rejects broken files with the path and the problem", "[io]
        "line 7, column 4: 'abc' is not a number"},
       {"fewer rows than NumFrames", header + "60\t60\t3\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
        "file ends after 1 of the 3 frames"},
-      {"more rows than NumFrames", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n" +
-                                       "2\t0\t1\t2\t3\n",
+      {"more rows than NumFrames",
+       header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n" + "2\t0\t1\t2\t3\n",
        "more data rows than NumFrames"},
       {"labels disagree with NumMarkers", header + "60\t60\t1\t2\tmm\n" + names,
        "names 1 markers but NumMarkers is 2"},
@@ -364,7 +364,8 @@ TEST_CASE("C3D round trip in every processor, number type and unit", "[io][c3d]"
   for (const Eigen::Vector3d& p : original.positions_m) {
     if (p.allFinite()) max_abs_m = std::max(max_abs_m, p.cwiseAbs().maxCoeff());
   }
-  for (const C3dProcessor processor : {C3dProcessor::intel, C3dProcessor::dec, C3dProcessor::mips}) {
+  for (const C3dProcessor processor :
+       {C3dProcessor::intel, C3dProcessor::dec, C3dProcessor::mips}) {
     for (const bool float_data : {false, true}) {
       for (const std::string units : {"mm", "m"}) {
         INFO("processor " << static_cast<int>(processor) << ", float " << float_data << ", "
@@ -428,8 +429,7 @@ TEST_CASE("More than 255 markers go through POINT:LABELS2", "[io][c3d]") {
   TempFile file(".c3d");
   write_c3d(file.path(), original, C3dProcessor::intel, true);
   const std::vector<char> b = read_bytes(file.path());
-  CHECK(std::search(b.begin(), b.end(), std::begin("LABELS2"), std::end("LABELS2") - 1) !=
-        b.end());
+  CHECK(std::search(b.begin(), b.end(), std::begin("LABELS2"), std::end("LABELS2") - 1) != b.end());
   check_same(read_c3d(file.path()), original, 1e-6);
 }
 

@@ -33,12 +33,14 @@ std::string error_of(const json& doc) {
 }  // namespace
 
 TEST_CASE("Shipped models load with the expected shape", "[loader]") {
-  const Model paper = load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/paper_upper_body.json");
+  const Model paper =
+      load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/paper_upper_body.json");
   CHECK(paper.segments.size() == 6);
   const Segment& trunk = paper.segments[paper.find_segment("trunk")];
   CHECK(trunk.point_count == 3);  // the subbase segment: spine + two shoulders
   CHECK(trunk.child_count == 2);
-  const Model body = load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/fullbody.json");
+  const Model body =
+      load_model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/fullbody.json");
   CHECK(body.segments.size() >= 12);
   int markers = 0;
   for (const Point& p : body.points) markers += p.kind == PointKind::marker;
@@ -62,30 +64,46 @@ TEST_CASE("Each kind of bad model has its own clear message", "[loader]") {
       {"bad unit", [](json& d) { d["units"] = "inch"; }, "at /units", "unknown unit 'inch'"},
       {"unknown key", [](json& d) { d["segments"][0]["pionts"] = json::object(); },
        "at /segments/0/pionts", "did you mean 'points'"},
-      {"segments not array", [](json& d) { d["segments"] = 3; }, "at /segments", "expected an array"},
-      {"no segments", [](json& d) { d["segments"] = json::array(); }, "at /segments", "no segments"},
+      {"segments not array", [](json& d) { d["segments"] = 3; }, "at /segments",
+       "expected an array"},
+      {"no segments", [](json& d) { d["segments"] = json::array(); }, "at /segments",
+       "no segments"},
       {"duplicate segment", [](json& d) { d["segments"][1]["name"] = "a"; }, "at /segments/1/name",
        "used twice"},
-      {"unknown parent", [](json& d) { d["segments"][1]["parent"] = "zz"; }, "at /segments/1/parent",
-       "unknown parent segment 'zz'"},
+      {"unknown parent", [](json& d) { d["segments"][1]["parent"] = "zz"; },
+       "at /segments/1/parent", "unknown parent segment 'zz'"},
       {"two roots", [](json& d) { d["segments"][1].erase("parent"); }, "at /segments/1/parent",
        "two root segments"},
-      {"base not in parent", [](json& d) { d["segments"][1]["base"] = "tip0"; }, "at /segments/1/base",
-       "is not a point of parent segment"},
+      {"base not in parent", [](json& d) { d["segments"][1]["base"] = "tip0"; },
+       "at /segments/1/base", "is not a point of parent segment"},
       {"base is a marker", [](json& d) { d["segments"][1]["base"] = "M1"; }, "at /segments/1/base",
        "is a marker"},
-      {"point not a vector", [](json& d) { d["segments"][0]["points"]["j1"] = json::array({1, 2}); },
+      {"point not a vector",
+       [](json& d) {
+         d["segments"][0]["points"]["j1"] = json::array({1, 2});
+       },
        "at /segments/0/points/j1", "expected [x, y, z]"},
-      {"point not a number", [](json& d) { d["segments"][0]["points"]["j1"] = json::array({1, "x", 2}); },
+      {"point not a number",
+       [](json& d) {
+         d["segments"][0]["points"]["j1"] = json::array({1, "x", 2});
+       },
        "at /segments/0/points/j1/1", "expected a number"},
-      {"duplicate point", [](json& d) { d["segments"][1]["points"]["M1"] = json::array({0, 1, 0}); },
+      {"duplicate point",
+       [](json& d) {
+         d["segments"][1]["points"]["M1"] = json::array({0, 1, 0});
+       },
        "at /segments/1/points/M1", "used twice"},
-      {"no extent", [](json& d) { d["segments"][1]["points"]["tip"] = json::array({0, 0, 0}); },
+      {"no extent",
+       [](json& d) {
+         d["segments"][1]["points"]["tip"] = json::array({0, 0, 0});
+       },
        "at /segments/1/points", "no extent"},
-      {"cycle", [](json& d) {
+      {"cycle",
+       [](json& d) {
          d["segments"][0]["parent"] = "b";
          d["segments"][0]["base"] = "tip";
-       }, "at /segments", "root"},
+       },
+       "at /segments", "root"},
       {"bad format", [](json& d) { d["format"] = "other/2"; }, "at /format", "unsupported format"},
   };
   for (const Case& c : cases) {

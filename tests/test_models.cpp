@@ -76,7 +76,8 @@ double max_rigidity_error(const Model& model, const Posture& posture) {
     for (int i = seg.first_point; i < seg.first_point + seg.point_count; ++i)
       for (int j = i + 1; j < seg.first_point + seg.point_count; ++j) {
         const double d0 = (rest.point_world_m(model, i) - rest.point_world_m(model, j)).norm();
-        const double d1 = (posture.point_world_m(model, i) - posture.point_world_m(model, j)).norm();
+        const double d1 =
+            (posture.point_world_m(model, i) - posture.point_world_m(model, j)).norm();
         if (d0 > 0) worst = std::max(worst, std::abs(d1 - d0) / d0);
       }
   return worst;

@@ -16,7 +16,9 @@ namespace {
 
 constexpr double kRigidRel = 1e-9;
 
-std::vector<std::uint8_t> all_visible(std::size_t n) { return std::vector<std::uint8_t>(n, 1); }
+std::vector<std::uint8_t> all_visible(std::size_t n) {
+  return std::vector<std::uint8_t>(n, 1);
+}
 
 double chain_length_m(const Model& m) {
   double len = 0.0;
@@ -65,10 +67,12 @@ TEST_CASE("An unreachable target leaves the chain straight towards it", "[fabrik
     FabrikSolver solver(m, {{m.find_point("j5"), 0, 1.0}}, options_for(fit));
     Posture posture = Posture::rest(m);
     const Eigen::Vector3d target(1.5, 0.4, -0.9);
-    const SolveResult r = solver.solve(std::vector<Eigen::Vector3d>{target}, all_visible(1), posture);
+    const SolveResult r =
+        solver.solve(std::vector<Eigen::Vector3d>{target}, all_visible(1), posture);
     CHECK(r.status != SolveStatus::converged);
     const Eigen::Vector3d u = target.normalized();
-    for (int s = 0; s < 5; ++s) CHECK(off_line_m(posture.segments[s].base_world_m, {0, 0, 0}, u) < 1e-5);
+    for (int s = 0; s < 5; ++s)
+      CHECK(off_line_m(posture.segments[s].base_world_m, {0, 0, 0}, u) < 1e-5);
     CHECK(r.max_m == Approx(target.norm() - chain_length_m(m)).margin(1e-6));
     CHECK(max_rigidity_error(m, posture) < kRigidRel);
   }
@@ -76,7 +80,8 @@ TEST_CASE("An unreachable target leaves the chain straight towards it", "[fabrik
 
 TEST_CASE("Subbase segments keep their shape under every option", "[fabrik][subbase]") {
   const Model m = test::paper_model();
-  const std::vector<Target> targets{{m.find_point("r_wrist"), 1, 1.0}, {m.find_point("l_wrist"), 0, 1.0}};
+  const std::vector<Target> targets{{m.find_point("r_wrist"), 1, 1.0},
+                                    {m.find_point("l_wrist"), 0, 1.0}};
   const std::vector<Eigen::Vector3d> pos{{0.6, 0.5, 0.4}, {-0.3, 0.9, 0.3}};
   for (SegmentFit fit : {SegmentFit::paper, SegmentFit::rigid})
     for (bool prio : {false, true})
@@ -116,11 +121,12 @@ TEST_CASE("Priorities: the strongest level does no worse than alone, within tole
   }
 }
 
-TEST_CASE("Without priorities a symmetric conflict is balanced; with them the strong side wins",
+TEST_CASE("Without priorities a symmetric conflict is balanced, with them the strong side wins",
           "[fabrik][priority]") {
   const Model m = test::paper_model();
   const std::vector<Eigen::Vector3d> pos{{1.0, 0.9, 0.6}, {-1.0, 0.9, 0.6}};
-  const std::vector<Target> targets{{m.find_point("r_wrist"), 1, 1.0}, {m.find_point("l_wrist"), 0, 1.0}};
+  const std::vector<Target> targets{{m.find_point("r_wrist"), 1, 1.0},
+                                    {m.find_point("l_wrist"), 0, 1.0}};
   SolverOptions o = options_for(SegmentFit::paper);
   o.use_priorities = false;
   FabrikSolver flat(m, targets, o);
@@ -218,7 +224,7 @@ TEST_CASE("Jacobian baselines reach a reachable target and keep segments rigid",
   }
 }
 
-TEST_CASE("Property: random trees keep geometry; the rigid fit never ends worse than it starts",
+TEST_CASE("Property: random trees keep geometry and the rigid fit never ends worse than it starts",
           "[fabrik][property]") {
   std::mt19937_64 rng(20261121);
   for (int trial = 0; trial < 120; ++trial) {
@@ -229,7 +235,8 @@ TEST_CASE("Property: random trees keep geometry; the rigid fit never ends worse 
     std::uniform_real_distribution<double> weight(0.5, 2.0), angle(-1.2, 1.2);
     std::vector<Target> targets;
     for (int p = 0; p < static_cast<int>(m.points.size()); ++p)
-      if (m.points[p].kind != PointKind::base && coin(rng) == 0) targets.push_back({p, level(rng), weight(rng)});
+      if (m.points[p].kind != PointKind::base && coin(rng) == 0)
+        targets.push_back({p, level(rng), weight(rng)});
     if (targets.empty()) targets.push_back({static_cast<int>(m.points.size()) - 1, 0, 1.0});
     int strongest = 0;
     for (const Target& t : targets) strongest = std::max(strongest, t.level);
@@ -260,7 +267,8 @@ TEST_CASE("Property: random trees keep geometry; the rigid fit never ends worse 
           o.use_priorities = prio;
           FabrikSolver solver(m, targets, o);
           Posture posture = Posture::rest(m);
-          if (root == RootMode::fixed) posture.segments[0].base_world_m = goal.segments[0].base_world_m;
+          if (root == RootMode::fixed)
+            posture.segments[0].base_world_m = goal.segments[0].base_world_m;
           connect_joints(m, posture);
           const double start_sq = error_sq(posture, prio);
           const SolveResult r = solver.solve(pos, visible, posture);

@@ -18,19 +18,25 @@ int main(int argc, char** argv) {
   fabrik::bench::PaperOptions paper;
   bool paper_json = false;
   CLI::App* b_paper = bench->add_subcommand(
-      "paper", "The paper's experiment: FABRIK with and without priorities against the Jacobian transpose");
-  b_paper->add_option("--experiment", paper.experiment, "Experiment JSON (default: the embedded config/paper_experiment.json)");
-  b_paper->add_option("--repeats", paper.repeats, "Solves per algorithm (default: the experiment's)");
+      "paper",
+      "The paper's experiment: FABRIK with and without priorities against the Jacobian transpose");
+  b_paper->add_option("--experiment", paper.experiment,
+                      "Experiment JSON (default: the embedded config/paper_experiment.json)");
+  b_paper->add_option("--repeats", paper.repeats,
+                      "Solves per algorithm (default: the experiment's)");
   b_paper->add_flag("--json", paper_json, "Print one JSON object instead of a table");
 
   fabrik::bench::FullbodyOptions body;
   bool body_json = false;
-  CLI::App* b_body = bench->add_subcommand("fullbody", "Full-body tracking of synthetic motion, warm-started");
+  CLI::App* b_body =
+      bench->add_subcommand("fullbody", "Full-body tracking of synthetic motion, warm-started");
   b_body->add_option("--frames", body.frames, "Frames to track")->check(CLI::Range(2, 10000000));
   b_body->add_option("--rate", body.rate_hz, "Frame rate (Hz)")->check(CLI::Range(1.0, 100000.0));
-  b_body->add_option("--noise-mm", body.noise_mm, "Marker noise, standard deviation per axis (mm)")->check(CLI::Range(0.0, 100.0));
+  b_body->add_option("--noise-mm", body.noise_mm, "Marker noise, standard deviation per axis (mm)")
+      ->check(CLI::Range(0.0, 100.0));
   b_body->add_option("--seed", body.seed, "Motion and noise seed");
-  b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")->check(CLI::IsMember({"paper", "rigid"}));
+  b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")
+      ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
 
   try {

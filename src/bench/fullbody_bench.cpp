@@ -28,8 +28,8 @@ json run_fullbody(const FullbodyOptions& options) {
   SolverOptions o;
   o.root = RootMode::free;
   o.segment_fit = options.segment_fit == "paper" ? SegmentFit::paper : SegmentFit::rigid;
-  o.tolerance_m = 0.1e-3;        // below the marker noise: stopping is by stall
-  o.stall_tolerance_m = 0.05e-3; // per iteration, well below the marker noise
+  o.tolerance_m = 0.1e-3;         // below the marker noise: stopping is by stall
+  o.stall_tolerance_m = 0.05e-3;  // per iteration, well below the marker noise
   o.max_iterations = 50;
   FabrikSolver solver(m, targets, o);
 
@@ -56,37 +56,54 @@ json run_fullbody(const FullbodyOptions& options) {
     iterations.push_back(r.iterations);
     passes.push_back(r.passes);
     double sq = 0.0;
-    for (const Joint& j : m.joints) sq += (posture.point_world_m(m, j.point) - truth.point_world_m(m, j.point)).squaredNorm();
+    for (const Joint& j : m.joints)
+      sq += (posture.point_world_m(m, j.point) - truth.point_world_m(m, j.point)).squaredNorm();
     joint_err_mm.push_back(std::sqrt(sq / static_cast<double>(m.joints.size())) * 1e3);
   }
   json out;
   out["benchmark"] = "fullbody";
-  out["model"] = {{"name", m.name}, {"segments", m.segments.size()}, {"markers", points.size()}, {"joints", m.joints.size()}};
-  out["motion"] = {{"frames", options.frames}, {"rate_hz", options.rate_hz}, {"noise_mm", options.noise_mm}, {"seed", options.seed}};
-  out["solver"] = {{"segment_fit", options.segment_fit}, {"root", "free"}, {"stall_tolerance_mm", o.stall_tolerance_m * 1e3},
-                   {"max_iterations", o.max_iterations}, {"warm_start", true}};
-  out["solve_us"] = {{"median", quantile(times_us, 0.5)}, {"p99", quantile(times_us, 0.99)}, {"max", quantile(times_us, 1.0)}};
+  out["model"] = {{"name", m.name},
+                  {"segments", m.segments.size()},
+                  {"markers", points.size()},
+                  {"joints", m.joints.size()}};
+  out["motion"] = {{"frames", options.frames},
+                   {"rate_hz", options.rate_hz},
+                   {"noise_mm", options.noise_mm},
+                   {"seed", options.seed}};
+  out["solver"] = {{"segment_fit", options.segment_fit},
+                   {"root", "free"},
+                   {"stall_tolerance_mm", o.stall_tolerance_m * 1e3},
+                   {"max_iterations", o.max_iterations},
+                   {"warm_start", true}};
+  out["solve_us"] = {{"median", quantile(times_us, 0.5)},
+                     {"p99", quantile(times_us, 0.99)},
+                     {"max", quantile(times_us, 1.0)}};
   out["iterations_mean"] = mean(iterations);
   out["passes_mean"] = mean(passes);
   out["marker_residual_mm"] = {{"rms_mean", mean(rms_mm)}, {"max", max_residual_mm}};
-  out["joint_centre_error_mm"] = {{"rms_mean", mean(joint_err_mm)}, {"p99", quantile(joint_err_mm, 0.99)}};
+  out["joint_centre_error_mm"] = {{"rms_mean", mean(joint_err_mm)},
+                                  {"p99", quantile(joint_err_mm, 0.99)}};
   return out;
 }
 
 std::string fullbody_table(const json& r) {
   char buf[1024];
   std::snprintf(buf, sizeof buf,
-                "Full-body tracking: %d segments, %d markers, %d frames at %g Hz, noise %g mm, %s fit, warm start\n"
+                "Full-body tracking: %d segments, %d markers, %d frames at %g Hz, noise %g mm, %s "
+                "fit, warm start\n"
                 "  solve per frame   median %.2f us   p99 %.2f us   max %.2f us\n"
                 "  iterations        mean %.2f (reaching passes %.2f)\n"
                 "  marker residual   RMS %.3f mm (mean over frames), max %.3f mm\n"
                 "  joint centres     RMS error %.3f mm against the truth (p99 %.3f mm)\n",
-                r["model"]["segments"].get<int>(), r["model"]["markers"].get<int>(), r["motion"]["frames"].get<int>(),
-                r["motion"]["rate_hz"].get<double>(), r["motion"]["noise_mm"].get<double>(),
-                r["solver"]["segment_fit"].get<std::string>().c_str(), r["solve_us"]["median"].get<double>(),
-                r["solve_us"]["p99"].get<double>(), r["solve_us"]["max"].get<double>(), r["iterations_mean"].get<double>(),
+                r["model"]["segments"].get<int>(), r["model"]["markers"].get<int>(),
+                r["motion"]["frames"].get<int>(), r["motion"]["rate_hz"].get<double>(),
+                r["motion"]["noise_mm"].get<double>(),
+                r["solver"]["segment_fit"].get<std::string>().c_str(),
+                r["solve_us"]["median"].get<double>(), r["solve_us"]["p99"].get<double>(),
+                r["solve_us"]["max"].get<double>(), r["iterations_mean"].get<double>(),
                 r["passes_mean"].get<double>(), r["marker_residual_mm"]["rms_mean"].get<double>(),
-                r["marker_residual_mm"]["max"].get<double>(), r["joint_centre_error_mm"]["rms_mean"].get<double>(),
+                r["marker_residual_mm"]["max"].get<double>(),
+                r["joint_centre_error_mm"]["rms_mean"].get<double>(),
                 r["joint_centre_error_mm"]["p99"].get<double>());
   return buf;
 }

@@ -102,7 +102,8 @@ json posture_json(const Model& m, const Posture& p) {
   json segments = json::array();  // each segment as its list of point names, base first
   for (const Segment& s : m.segments) {
     json names = json::array();
-    for (int k = s.first_point; k < s.first_point + s.point_count; ++k) names.push_back(m.points[k].name);
+    for (int k = s.first_point; k < s.first_point + s.point_count; ++k)
+      names.push_back(m.points[k].name);
     segments.push_back({{"name", s.name}, {"points", names}});
   }
   return {{"points_m", joints}, {"segments", segments}};
@@ -110,7 +111,8 @@ json posture_json(const Model& m, const Posture& p) {
 
 json run_json(const Experiment& e, const Run& run) {
   json errors = json::object();
-  for (std::size_t i = 0; i < e.targets.size(); ++i) errors[e.target_names[i]] = run.distances_m[i] * 1e3;
+  for (std::size_t i = 0; i < e.targets.size(); ++i)
+    errors[e.target_names[i]] = run.distances_m[i] * 1e3;
   return {{"median_us", quantile(run.times_us, 0.5)},
           {"p99_us", quantile(run.times_us, 0.99)},
           {"runs", run.times_us.size()},
@@ -136,7 +138,8 @@ json run_paper(const PaperOptions& options) {
   const Experiment e = load_experiment(options.experiment);
   const int repeats = options.repeats > 0 ? options.repeats : e.repeats;
   if (e.targets.size() != 2 || e.targets[0].level <= e.targets[1].level)
-    throw ConfigError(options.experiment, "/targets", "the paper experiment needs two targets, the first stronger",
+    throw ConfigError(options.experiment, "/targets",
+                      "the paper experiment needs two targets, the first stronger",
                       "list the high-priority wrist first with the higher level");
   const Model& m = e.model;
 
@@ -162,7 +165,6 @@ json run_paper(const PaperOptions& options) {
   JacobianSolver jt(m, e.targets, flat, {JacobianMethod::transpose, 0.0, 0.2});
   const Run r_jt = time_solver(jt, e, std::max(5, repeats / 10));
 
-
   // Geometry of the ideal prioritized posture: the chain from the root to
   // the strong wrist straight towards its target.
   const double tol_m = e.solver.tolerance_m;
@@ -181,7 +183,8 @@ json run_paper(const PaperOptions& options) {
 
   // The weak wrist's best error given a straight strong chain: the subbase
   // segment may only twist about u, so the weak shoulder lies on a circle.
-  int branch = m.points[weak_pt].segment;  // the weak side's segment that hangs off the shared chain
+  int branch =
+      m.points[weak_pt].segment;  // the weak side's segment that hangs off the shared chain
   double weak_arm_m = m.points[weak_pt].p_local_m.norm();
   auto on_chain = [&](int seg) { return m.is_ancestor_or_self(seg, m.points[strong_pt].segment); };
   while (!on_chain(m.segments[branch].parent)) {
@@ -192,7 +195,8 @@ json run_paper(const PaperOptions& options) {
   const Eigen::Vector3d weak_joint_local = m.points[m.segments[branch].parent_point].p_local_m;
   int strong_child = m.points[strong_pt].segment;  // the strong side's child of the subbase
   while (m.segments[strong_child].parent != subbase) strong_child = m.segments[strong_child].parent;
-  const Eigen::Vector3d strong_joint_local = m.points[m.segments[strong_child].parent_point].p_local_m;
+  const Eigen::Vector3d strong_joint_local =
+      m.points[m.segments[strong_child].parent_point].p_local_m;
   double to_subbase_m = 0.0;  // from the root to the subbase's base along the chain
   for (int s = subbase; m.segments[s].parent >= 0; s = m.segments[s].parent)
     to_subbase_m += m.points[m.segments[s].parent_point].p_local_m.norm();
@@ -202,22 +206,24 @@ json run_paper(const PaperOptions& options) {
   const double radius = (weak_joint_local - along * r_hat).norm();
   const Eigen::Vector3d v = t_weak - (sub_base_m + along * u);
   const double v_par = v.dot(u), v_perp = (v - v_par * u).norm();
-  const double weak_min_m =
-      std::max(0.0, std::hypot(v_par, v_perp - radius) - weak_arm_m);
+  const double weak_min_m = std::max(0.0, std::hypot(v_par, v_perp - radius) - weak_arm_m);
 
   // Checks.
   const double flat_r = r_flat.distances_m[0], flat_l = r_flat.distances_m[1];
   double straight_m = 0.0;
-  for (int p : chain_points) straight_m = std::max(straight_m, off_line_m(r_prio.posture.point_world_m(m, p), root_m, u));
+  for (int p : chain_points)
+    straight_m = std::max(straight_m, off_line_m(r_prio.posture.point_world_m(m, p), root_m, u));
   const double prio_strong = r_prio.distances_m[0], prio_weak = r_prio.distances_m[1];
   json checks = json::object();
-  checks["flat_balanced"] = check(std::abs(flat_r - flat_l) <= tol_m, std::abs(flat_r - flat_l) * 1e3, tol_m * 1e3, "mm",
-                                  "without priorities the two wrist errors are equal (posture centred)");
-  checks["prioritized_chain_straight"] =
-      check(straight_m <= tol_m, straight_m * 1e3, tol_m * 1e3, "mm",
-            "with priorities every joint from the root to the strong wrist lies on the line root-target");
+  checks["flat_balanced"] =
+      check(std::abs(flat_r - flat_l) <= tol_m, std::abs(flat_r - flat_l) * 1e3, tol_m * 1e3, "mm",
+            "without priorities the two wrist errors are equal (posture centred)");
+  checks["prioritized_chain_straight"] = check(
+      straight_m <= tol_m, straight_m * 1e3, tol_m * 1e3, "mm",
+      "with priorities every joint from the root to the strong wrist lies on the line root-target");
   checks["prioritized_strong_at_minimum"] =
-      check(std::abs(prio_strong - strong_min_m) <= tol_m, (prio_strong - strong_min_m) * 1e3, tol_m * 1e3, "mm",
+      check(std::abs(prio_strong - strong_min_m) <= tol_m, (prio_strong - strong_min_m) * 1e3,
+            tol_m * 1e3, "mm",
             "strong wrist error minus the geometric minimum |target - root| - chain length");
   checks["prioritized_weak_at_constrained_minimum"] =
       check(prio_weak - weak_min_m <= tol_m, (prio_weak - weak_min_m) * 1e3, tol_m * 1e3, "mm",
@@ -235,12 +241,14 @@ json run_paper(const PaperOptions& options) {
   out["experiment"] = options.experiment;
   out["model"] = m.name;
   out["tolerance_mm"] = tol_m * 1e3;
-  out["geometric_minimum_mm"] = {{"strong", strong_min_m * 1e3}, {"weak_given_strong", weak_min_m * 1e3}};
+  out["geometric_minimum_mm"] = {{"strong", strong_min_m * 1e3},
+                                 {"weak_given_strong", weak_min_m * 1e3}};
   json targets = json::array();
   for (std::size_t i = 0; i < e.targets.size(); ++i)
-    targets.push_back({{"point", e.target_names[i]},
-                       {"level", e.targets[i].level},
-                       {"position_m", {e.positions_m[i].x(), e.positions_m[i].y(), e.positions_m[i].z()}}});
+    targets.push_back(
+        {{"point", e.target_names[i]},
+         {"level", e.targets[i].level},
+         {"position_m", {e.positions_m[i].x(), e.positions_m[i].y(), e.positions_m[i].z()}}});
   out["targets"] = targets;
   out["root_m"] = {root_m.x(), root_m.y(), root_m.z()};
   out["segment_fit"] = e.solver.segment_fit == SegmentFit::paper ? "paper" : "rigid";
@@ -249,10 +257,12 @@ json run_paper(const PaperOptions& options) {
                        {"fabrik_paper_rule", run_json(e, r_flat_paper)},
                        {"fabrik_prioritized_paper_rule", run_json(e, r_prio_paper)},
                        {"jacobian_transpose", run_json(e, r_jt)}};
-  out["ratios"] = {{"jt_over_fabrik", t_jt / t_flat}, {"jt_over_prioritized", t_jt / t_prio},
+  out["ratios"] = {{"jt_over_fabrik", t_jt / t_flat},
+                   {"jt_over_prioritized", t_jt / t_prio},
                    {"jt_over_fabrik_paper_rule", t_jt / quantile(r_flat_paper.times_us, 0.5)},
                    {"jt_over_prioritized_paper_rule", t_jt / quantile(r_prio_paper.times_us, 0.5)},
-                   {"paper_jt_over_fabrik", 25.0}, {"paper_jt_over_prioritized", 7.0}};
+                   {"paper_jt_over_fabrik", 25.0},
+                   {"paper_jt_over_prioritized", 7.0}};
   out["checks"] = checks;
   out["all_checks_pass"] = all;
   return out;
@@ -262,30 +272,36 @@ std::string paper_table(const json& r) {
   std::string s;
   char line[256];
   std::snprintf(line, sizeof line,
-                "Paper experiment (Moya & Colloud 2013, Fig. 2, in 3D), tolerance %.3g mm, segment fit %s\n\n",
+                "Paper experiment (Moya & Colloud 2013, Fig. 2, in 3D), tolerance %.3g mm, segment "
+                "fit %s\n\n",
                 r["tolerance_mm"].get<double>(), r["segment_fit"].get<std::string>().c_str());
   s += line;
-  s += "algorithm                        median_us    p99_us  iterations  passes  status          strong_mm  weak_mm\n";
-  for (const char* name : {"fabrik", "fabrik_prioritized", "fabrik_paper_rule", "fabrik_prioritized_paper_rule",
-                           "jacobian_transpose"}) {
+  s += "algorithm                        median_us    p99_us  iterations  passes  status          "
+       "strong_mm  weak_mm\n";
+  for (const char* name : {"fabrik", "fabrik_prioritized", "fabrik_paper_rule",
+                           "fabrik_prioritized_paper_rule", "jacobian_transpose"}) {
     const json& a = r["algorithms"][name];
     const auto& err = a["error_mm"];
     const auto it = err.begin();
     std::snprintf(line, sizeof line, "%-32s %9.2f %9.2f %11d %7d  %-14s %9.2f %8.2f\n", name,
-                  a["median_us"].get<double>(), a["p99_us"].get<double>(), a["iterations"].get<int>(),
-                  a["passes"].get<int>(), a["status"].get<std::string>().c_str(),
+                  a["median_us"].get<double>(), a["p99_us"].get<double>(),
+                  a["iterations"].get<int>(), a["passes"].get<int>(),
+                  a["status"].get<std::string>().c_str(),
                   err[r["targets"][0]["point"].get<std::string>()].get<double>(),
                   err[r["targets"][1]["point"].get<std::string>()].get<double>());
     (void)it;
     s += line;
   }
-  std::snprintf(line, sizeof line, "\nJT / FABRIK             %8.1fx  (paper: 25x)\nJT / prioritized FABRIK %8.1fx  (paper: 7x)\n\n",
-                r["ratios"]["jt_over_fabrik"].get<double>(), r["ratios"]["jt_over_prioritized"].get<double>());
+  std::snprintf(line, sizeof line,
+                "\nJT / FABRIK             %8.1fx  (paper: 25x)\nJT / prioritized FABRIK %8.1fx  "
+                "(paper: 7x)\n\n",
+                r["ratios"]["jt_over_fabrik"].get<double>(),
+                r["ratios"]["jt_over_prioritized"].get<double>());
   s += line;
   for (const auto& [name, c] : r["checks"].items()) {
-    std::snprintf(line, sizeof line, "%-4s %-40s %10.4f %s (limit %g)\n", c["pass"].get<bool>() ? "ok" : "FAIL",
-                  name.c_str(), c["value"].get<double>(), c["unit"].get<std::string>().c_str(),
-                  c["limit"].get<double>());
+    std::snprintf(line, sizeof line, "%-4s %-40s %10.4f %s (limit %g)\n",
+                  c["pass"].get<bool>() ? "ok" : "FAIL", name.c_str(), c["value"].get<double>(),
+                  c["unit"].get<std::string>().c_str(), c["limit"].get<double>());
     s += line;
   }
   return s;

@@ -11,8 +11,8 @@ class ConfigError : public std::runtime_error {
  public:
   ConfigError(const std::string& file, const std::string& pointer, const std::string& problem,
               const std::string& fix)
-      : std::runtime_error(file + ": at " + (pointer.empty() ? std::string("/") : pointer) +
-                           ": " + problem + (fix.empty() ? "" : ". Fix: " + fix)),
+      : std::runtime_error(file + ": at " + (pointer.empty() ? std::string("/") : pointer) + ": " +
+                           problem + (fix.empty() ? "" : ". Fix: " + fix)),
         file_(file),
         pointer_(pointer.empty() ? "/" : pointer) {}
   const std::string& file() const { return file_; }

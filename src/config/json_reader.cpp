@@ -37,9 +37,12 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
 std::string json_pointer_token(const std::string& key) {
   std::string out;
   for (char c : key) {
-    if (c == '~') out += "~0";
-    else if (c == '/') out += "~1";
-    else out += c;
+    if (c == '~')
+      out += "~0";
+    else if (c == '/')
+      out += "~1";
+    else
+      out += c;
   }
   return out;
 }
@@ -60,8 +63,9 @@ nlohmann::json JsonReader::parse(std::string_view text, const std::string& file)
     }
     std::string what = e.what();
     if (auto pos = what.find("syntax error"); pos != std::string::npos) what = what.substr(pos);
-    throw ConfigError(file, "", "not valid JSON (line " + std::to_string(line) + ", column " +
-                                    std::to_string(col) + "): " + what,
+    throw ConfigError(file, "",
+                      "not valid JSON (line " + std::to_string(line) + ", column " +
+                          std::to_string(col) + "): " + what,
                       "correct the JSON syntax at that position");
   }
 }
@@ -122,9 +126,9 @@ const JsonReader& JsonReader::only_keys(std::initializer_list<std::string_view> 
       }
     }
     JsonReader(*it, file_, pointer_ + "/" + json_pointer_token(key))
-        .fail("unknown field '" + key + "'",
-              best.empty() ? "remove it (allowed here: " + list + ")"
-                           : "did you mean '" + std::string(best) + "'?");
+        .fail("unknown field '" + key + "'", best.empty()
+                                                 ? "remove it (allowed here: " + list + ")"
+                                                 : "did you mean '" + std::string(best) + "'?");
   }
   return *this;
 }
@@ -164,7 +168,8 @@ long long JsonReader::as_integer(long long min, long long max) const {
 }
 
 bool JsonReader::as_bool() const {
-  if (!value_.is_boolean()) fail("expected true or false, found " + type_name(value_), "use true or false");
+  if (!value_.is_boolean())
+    fail("expected true or false, found " + type_name(value_), "use true or false");
   return value_.get<bool>();
 }
 
@@ -173,7 +178,8 @@ Eigen::Vector3d JsonReader::as_vec3() const {
     fail("expected [x, y, z], found " + type_name(value_) +
              (value_.is_array() ? " of " + std::to_string(value_.size()) + " elements" : ""),
          "give three numbers");
-  return {at(std::size_t{0}).as_number(), at(std::size_t{1}).as_number(), at(std::size_t{2}).as_number()};
+  return {at(std::size_t{0}).as_number(), at(std::size_t{1}).as_number(),
+          at(std::size_t{2}).as_number()};
 }
 
 std::string JsonReader::get(const std::string& key, const std::string& fallback) const {

@@ -38,11 +38,11 @@ class JsonReader {
   const JsonReader& only_keys(std::initializer_list<std::string_view> allowed) const;
 
   std::string as_string() const;
-  double as_number() const;                          // finite
-  double as_number(double min, double max) const;    // finite, in [min, max]
+  double as_number() const;                        // finite
+  double as_number(double min, double max) const;  // finite, in [min, max]
   long long as_integer(long long min, long long max) const;
   bool as_bool() const;
-  Eigen::Vector3d as_vec3() const;                   // [x, y, z], finite
+  Eigen::Vector3d as_vec3() const;  // [x, y, z], finite
 
   // The same with a default when the key is absent.
   std::string get(const std::string& key, const std::string& fallback) const;

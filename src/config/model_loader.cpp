@@ -30,9 +30,9 @@ Model load_model(const nlohmann::json& doc, const std::string& file) {
                            "use \"fabrikd-model/1\"");
   const std::string name = root.get("name", std::string("model"));
   const double scale = metres_per_unit(root.at("units"));
-  const Eigen::Vector3d root_m =
-      root.has("root_position") ? Eigen::Vector3d(root.at("root_position").as_vec3() * scale)
-                                : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d root_m = root.has("root_position")
+                                     ? Eigen::Vector3d(root.at("root_position").as_vec3() * scale)
+                                     : Eigen::Vector3d::Zero();
   const JsonReader segs = root.at("segments");
   segs.expect_array();
   std::vector<SegmentSpec> specs;
@@ -41,7 +41,8 @@ Model load_model(const nlohmann::json& doc, const std::string& file) {
     s.only_keys({"name", "parent", "base", "points", "markers", "description"});
     SegmentSpec spec;
     spec.name = s.at("name").as_string();
-    spec.parent = s.has("parent") && !s.at("parent").value().is_null() ? s.at("parent").as_string() : "";
+    spec.parent =
+        s.has("parent") && !s.at("parent").value().is_null() ? s.at("parent").as_string() : "";
     spec.base = s.at("base").as_string();
     if (s.has("points")) read_points(s.at("points"), scale, false, spec.points);
     if (s.has("markers")) read_points(s.at("markers"), scale, true, spec.points);

@@ -65,9 +65,7 @@ class Numbers {
     b[0] = p_ == C3dProcessor::mips ? hi : lo;
     b[1] = p_ == C3dProcessor::mips ? lo : hi;
   }
-  void put_i16(std::uint8_t* b, std::int16_t v) const {
-    put_u16(b, static_cast<std::uint16_t>(v));
-  }
+  void put_i16(std::uint8_t* b, std::int16_t v) const { put_u16(b, static_cast<std::uint16_t>(v)); }
 
   // `v` must be finite (callers write missing samples as zeros).
   void put_f32(std::uint8_t* b, float v) const {
@@ -87,8 +85,8 @@ class Numbers {
       if (exponent > 255) throw std::invalid_argument("write_c3d: value too large for DEC");
       if (exponent >= 1) {  // smaller values flush to zero, as DEC has no denormals
         const auto fraction = static_cast<std::uint32_t>(std::ldexp(m, 24)) - 0x800000u;
-        high = (v < 0.0f ? 0x8000u : 0u) | static_cast<std::uint32_t>(exponent) << 7 |
-               fraction >> 16;
+        high =
+            (v < 0.0f ? 0x8000u : 0u) | static_cast<std::uint32_t>(exponent) << 7 | fraction >> 16;
         low = fraction & 0xFFFF;
       }
     }
@@ -146,8 +144,7 @@ class C3dReader {
   void read_at(std::uint64_t offset, std::uint8_t* out, std::size_t bytes, const char* part) {
     if (offset > file_bytes_ || bytes > file_bytes_ - offset) {
       fail(std::string(part) + ": truncated (needs bytes " + std::to_string(offset) + " to " +
-           std::to_string(offset + bytes) + ", the file has " + std::to_string(file_bytes_) +
-           ")");
+           std::to_string(offset + bytes) + ", the file has " + std::to_string(file_bytes_) + ")");
     }
     in_.seekg(static_cast<std::streamoff>(offset));
     in_.read(reinterpret_cast<char*>(out), static_cast<std::streamsize>(bytes));
@@ -345,11 +342,11 @@ class C3dReader {
       const std::uint64_t available = file_bytes_ > data_offset ? file_bytes_ - data_offset : 0;
       const std::uint64_t complete = available / frame_bytes;
       if (complete < frames) {
-        const std::string held = "the file holds " + std::to_string(complete) + " complete of the " +
-                                 std::to_string(frames) + " frames it declares (" +
-                                 std::to_string(frame_bytes) + " bytes each from byte " +
-                                 std::to_string(data_offset) + "; the file has " +
-                                 std::to_string(file_bytes_) + " bytes)";
+        const std::string held = "the file holds " + std::to_string(complete) +
+                                 " complete of the " + std::to_string(frames) +
+                                 " frames it declares (" + std::to_string(frame_bytes) +
+                                 " bytes each from byte " + std::to_string(data_offset) +
+                                 "; the file has " + std::to_string(file_bytes_) + " bytes)";
         if (!options_.allow_truncated_data) fail("3D data: truncated: " + held);
         if (complete == 0) fail("3D data: " + held);
         frames = complete;
@@ -386,7 +383,7 @@ class C3dReader {
             p = Eigen::Vector3d(num_.f32(w), num_.f32(w + 4), num_.f32(w + 8));
             valid = residual_valid(num_.f32(w + 12));
           } else {
-            p = Eigen::Vector3d(num_.i16(w), num_.i16(w + 2), num_.i16(w + 4)) * static_cast<float>(scale) * 1.001;
+            p = Eigen::Vector3d(num_.i16(w), num_.i16(w + 2), num_.i16(w + 4)) * scale;
             valid = num_.i16(w + 6) >= 0;
           }
           trial.positions_m[(f0 + f) * points + m] = valid && p.allFinite() ? p * to_m : missing;
@@ -432,8 +429,8 @@ class C3dReader {
       for (std::string& s : strings(more)) out.push_back(std::move(s));
     }
     if (out.size() < points) {
-      fail("parameter section: POINT:LABELS holds " + std::to_string(out.size()) +
-           " labels for " + std::to_string(points) + " points");
+      fail("parameter section: POINT:LABELS holds " + std::to_string(out.size()) + " labels for " +
+           std::to_string(points) + " points");
     }
     out.resize(points);
     return out;
@@ -563,8 +560,7 @@ void write_c3d(const std::string& path, const MarkerTrial& trial, C3dProcessor p
     ParameterWriter w(num);
     w.group(1, "POINT");
     w.int16s(1, "USED", {static_cast<std::uint16_t>(points)}, true);
-    w.int16s(1, "FRAMES", {static_cast<std::uint16_t>(std::min<std::size_t>(frames, 65535))},
-             true);
+    w.int16s(1, "FRAMES", {static_cast<std::uint16_t>(std::min<std::size_t>(frames, 65535))}, true);
     w.int16s(1, "DATA_START", {data_start}, true);
     w.float32(1, "SCALE", float_data ? -scale : scale);
     w.float32(1, "RATE", static_cast<float>(trial.rate_hz));
@@ -590,7 +586,7 @@ void write_c3d(const std::string& path, const MarkerTrial& trial, C3dProcessor p
                                         static_cast<std::uint16_t>(v >> 16)};
     };
     w.int16s(3, "ACTUAL_START_FIELD", split(first), false);
-    w.int16s(3, "ACTUAL_END_FIELD", split(frames == 0 ? first - 1 : last), false);
+    w.int16s(3, "ACTUAL_END_FIELD", split(last), false);
     return w.finish();
   };
   // 4 bytes of section header, the records, and a zero name length after them.
@@ -605,8 +601,7 @@ void write_c3d(const std::string& path, const MarkerTrial& trial, C3dProcessor p
   num.put_u16(&head[2], static_cast<std::uint16_t>(points));
   num.put_u16(&head[4], 0);  // analog values per frame
   num.put_u16(&head[6], static_cast<std::uint16_t>(std::min<std::uint64_t>(first, 65535)));
-  num.put_u16(&head[8], static_cast<std::uint16_t>(
-                            std::min<std::uint64_t>(frames == 0 ? first - 1 : last, 65535)));
+  num.put_u16(&head[8], static_cast<std::uint16_t>(std::min<std::uint64_t>(last, 65535)));
   num.put_u16(&head[10], 0);  // max interpolation gap
   num.put_f32(&head[12], float_data ? -scale : scale);
   num.put_u16(&head[16], data_start);

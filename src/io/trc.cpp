@@ -181,8 +181,7 @@ class TrcParser {
 
   void header_line(std::string& line) {
     if (!next_line(line)) {
-      fail("file ends inside the header, at line " + std::to_string(line_number_ + 1) +
-           " of 5");
+      fail("file ends inside the header, at line " + std::to_string(line_number_ + 1) + " of 5");
     }
   }
 
@@ -212,9 +211,9 @@ class TrcParser {
 
 void append_number(std::string& out, double v, int decimals) {
   char buf[400];  // fixed notation of the largest double with 9 decimals fits
-  const auto r = decimals < 0 ? std::to_chars(buf, buf + sizeof buf, v)
-                              : std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed,
-                                              decimals);
+  const auto r = decimals < 0
+                     ? std::to_chars(buf, buf + sizeof buf, v)
+                     : std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
   out.append(buf, r.ptr);
 }
 }  // namespace

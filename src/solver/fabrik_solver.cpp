@@ -59,7 +59,8 @@ int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> targe
   for (int t : targets_.on_segment(s)) {
     const double weight = visible[t] ? pass_weight(pass, t) : 0.0;
     if (weight <= 0.0) continue;
-    drivers_[n++] = {model_.points[targets_.targets()[t].point].p_local_m, target_world_m[t], weight};
+    drivers_[n++] = {model_.points[targets_.targets()[t].point].p_local_m, target_world_m[t],
+                     weight};
   }
   const Segment& seg = model_.segments[s];
   for (int k = 0; k < seg.child_count; ++k) {
@@ -67,7 +68,8 @@ int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> targe
     const std::uint8_t act = activity(pass, c);
     if (!act) continue;
     drivers_[n++] = {model_.points[model_.segments[c].parent_point].p_local_m,
-                     posture.segments[c].base_world_m, act & kAnchor ? options_.anchor_weight : 1.0};
+                     posture.segments[c].base_world_m,
+                     act & kAnchor ? options_.anchor_weight : 1.0};
   }
   return n;
 }
@@ -82,9 +84,9 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
     const Driver& d = drivers_[k];
     const Eigen::Vector3d to_base = pose.base_world_m - d.d_world;
     const double dist = to_base.norm();
-    const Eigen::Vector3d candidate = dist > 1e-12
-                                          ? Eigen::Vector3d(d.d_world + to_base * (d.a_local.norm() / dist))
-                                          : Eigen::Vector3d(d.d_world - pose.r_world * d.a_local);
+    const Eigen::Vector3d candidate =
+        dist > 1e-12 ? Eigen::Vector3d(d.d_world + to_base * (d.a_local.norm() / dist))
+                     : Eigen::Vector3d(d.d_world - pose.r_world * d.a_local);
     sum += d.weight * candidate;
     weight_sum += d.weight;
   }
@@ -95,7 +97,8 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
 // positions, then puts the base there. Paper rule: the direction to the mean
 // driver is aligned with the direction to the mean desired position. Rigid
 // rule: least-squares rotation of all driver directions.
-void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const {
+void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
+                                     SegmentPose& pose) const {
   if (options_.segment_fit == SegmentFit::paper) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
     double weight_sum = 0.0;
@@ -105,13 +108,13 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m, Segme
       weight_sum += drivers_[k].weight;
     }
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
-    const Eigen::Vector3d b = mean_desired / weight_sum - base_m;      // P_i(f) -> M(f)
+    const Eigen::Vector3d b = mean_desired / weight_sum - base_m;        // P_i(f) -> M(f)
     pose.set_rotation(rotate_minimal(pose.q_world, a, b));
   } else if (n == 1) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
-    pose.set_rotation(
-        rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local, drivers_[0].d_world - base_m));
+    pose.set_rotation(rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local,
+                                     drivers_[0].d_world - base_m));
   } else {
     Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
     for (int k = 0; k < n; ++k)
@@ -205,8 +208,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
   assert(static_cast<int>(posture.segments.size()) == n_seg_);
   mark_active(visible);
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
-  SolveResult result =
-      targets_.measure(model_, posture, target_world_m, visible, distances_m_);
+  SolveResult result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);
   int total_passes = 0;
   StopRule stop(options_);
   for (int iteration = 0;; ++iteration) {
@@ -229,7 +231,8 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
         forward(pass, target_world_m, visible, posture);
         backward(pass, target_world_m, visible, posture, root_pin_m);
         ++total_passes;
-        if (level_passes > 1 && level_settled(pass, target_world_m, visible, posture) && k > 0) break;
+        if (level_passes > 1 && level_settled(pass, target_world_m, visible, posture) && k > 0)
+          break;
       }
     }
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());

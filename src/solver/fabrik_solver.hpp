@@ -36,7 +36,7 @@ class FabrikSolver {
   std::span<const double> target_distances_m() const { return distances_m_; }
 
  private:
-  struct Driver {            // one point of a segment pulled towards a position
+  struct Driver {             // one point of a segment pulled towards a position
     Eigen::Vector3d a_local;  // the point, relative to the segment base
     Eigen::Vector3d d_world;  // where it should go
     double weight;
@@ -67,10 +67,10 @@ class FabrikSolver {
   TargetSet targets_;
   SolverOptions options_;
   int n_seg_ = 0;
-  int n_pass_ = 0;                     // priority levels, or 1 without priorities
-  std::vector<std::uint8_t> active_;   // [pass][segment]: a visible target in the subtree
-  std::vector<Driver> drivers_;        // scratch for one segment
-  std::vector<SegmentPose> start_;     // posture at the start of a pass
+  int n_pass_ = 0;                    // priority levels, or 1 without priorities
+  std::vector<std::uint8_t> active_;  // [pass][segment]: a visible target in the subtree
+  std::vector<Driver> drivers_;       // scratch for one segment
+  std::vector<SegmentPose> start_;    // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
 };

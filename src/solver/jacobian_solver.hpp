@@ -21,14 +21,14 @@
 namespace fabrik {
 
 enum class JacobianMethod {
-  transpose,              // dq = alpha J^T e, alpha by Buss's optimal step for J J^T e
-  damped_least_squares,   // dq = (J^T J + lambda^2 I)^-1 J^T e
+  transpose,             // dq = alpha J^T e, alpha by Buss's optimal step for J J^T e
+  damped_least_squares,  // dq = (J^T J + lambda^2 I)^-1 J^T e
 };
 
 struct JacobianOptions {
   JacobianMethod method = JacobianMethod::transpose;
-  double damping_m = 0.05;      // lambda for DLS, a length as the rows are in metres
-  double max_step_rad = 0.2;    // per-iteration cap on any joint's rotation
+  double damping_m = 0.05;    // lambda for DLS, a length as the rows are in metres
+  double max_step_rad = 0.2;  // per-iteration cap on any joint's rotation
 };
 
 class JacobianSolver {
@@ -54,13 +54,13 @@ class JacobianSolver {
   SolverOptions options_;
   JacobianOptions jacobian_;
   int n_seg_ = 0;
-  int n_dof_ = 0;                       // 3 per segment, +3 for a free root
+  int n_dof_ = 0;                               // 3 per segment, +3 for a free root
   std::vector<Eigen::Vector3d> joint_world_m_;  // base of each segment at the current posture
   std::vector<Eigen::Vector3d> x_world_m_;      // each target's point at the current posture
-  Eigen::VectorXd dq_;                          // the step: per segment omega, then root translation
-  Eigen::MatrixXd jac_;                         // 3 * targets x dofs
-  Eigen::MatrixXd normal_;                      // dofs x dofs
-  Eigen::VectorXd err_;                         // 3 * targets
+  Eigen::VectorXd dq_;      // the step: per segment omega, then root translation
+  Eigen::MatrixXd jac_;     // 3 * targets x dofs
+  Eigen::MatrixXd normal_;  // dofs x dofs
+  Eigen::VectorXd err_;     // 3 * targets
   std::vector<Eigen::Quaterniond> old_q_;
   std::vector<double> distances_m_, previous_m_;
 };

@@ -14,10 +14,10 @@ enum class PointKind { base, joint, end_site, marker };
 
 struct Point {
   std::string name;
-  int segment = -1;            // owning segment
+  int segment = -1;  // owning segment
   PointKind kind = PointKind::end_site;
   Eigen::Vector3d p_local_m{0, 0, 0};  // in the segment frame, relative to its base
-  int child_segment = -1;      // for kind == joint: the segment whose base sits here
+  int child_segment = -1;              // for kind == joint: the segment whose base sits here
 };
 
 struct Segment {
@@ -27,7 +27,7 @@ struct Segment {
   int base_point = -1;    // our own base point (local origin)
   int first_point = 0;    // our points are points[first_point, first_point + point_count)
   int point_count = 0;
-  int first_child = 0;    // our children are child_ids[first_child, first_child + child_count)
+  int first_child = 0;  // our children are child_ids[first_child, first_child + child_count)
   int child_count = 0;
 };
 

@@ -8,7 +8,9 @@ namespace fabrik {
 namespace {
 constexpr double kMinExtentM = 1e-9;
 
-std::string quoted(const std::string& s) { return "'" + s + "'"; }
+std::string quoted(const std::string& s) {
+  return "'" + s + "'";
+}
 }  // namespace
 
 Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs,
@@ -33,7 +35,8 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
                              quoted(spec.name) + "): exactly one segment has no parent");
       root = s;
     }
-    if (spec.base.empty()) throw ModelError(s, -1, "base", "segment " + quoted(spec.name) + " has no base joint");
+    if (spec.base.empty())
+      throw ModelError(s, -1, "base", "segment " + quoted(spec.name) + " has no base joint");
     if (spec.points.empty())
       throw ModelError(s, -1, "points", "segment " + quoted(spec.name) + " has no points");
     bool extent = false;
@@ -43,17 +46,21 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
       if (!ps.p_local_m.allFinite())
         throw ModelError(s, p, "position", "point " + quoted(ps.name) + " is not finite");
       if (ps.name == spec.base)
-        throw ModelError(s, p, "name",
-                         "point " + quoted(ps.name) + " repeats the segment's own base (the base is the origin, do not list it)");
+        throw ModelError(
+            s, p, "name",
+            "point " + quoted(ps.name) +
+                " repeats the segment's own base (the base is the origin, do not list it)");
       if (!point_owner.emplace(ps.name, std::make_pair(s, p)).second)
         throw ModelError(s, p, "name", "point name " + quoted(ps.name) + " is used twice");
       extent = extent || ps.p_local_m.norm() > kMinExtentM;
     }
     if (!extent)
-      throw ModelError(s, -1, "points",
-                       "segment " + quoted(spec.name) + " has no extent: all its points sit on its base");
+      throw ModelError(
+          s, -1, "points",
+          "segment " + quoted(spec.name) + " has no extent: all its points sit on its base");
   }
-  if (root < 0) throw ModelError(-1, -1, "segments", "no root segment: exactly one segment has no parent");
+  if (root < 0)
+    throw ModelError(-1, -1, "segments", "no root segment: exactly one segment has no parent");
 
   // Parents and bases: each base is a non-marker point of the parent, used once.
   std::set<std::string> used_bases;
@@ -77,7 +84,8 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
       throw ModelError(s, -1, "base", "base " + quoted(spec.base) + " is a marker, not a joint");
     if (!used_bases.insert(spec.base).second)
       throw ModelError(s, -1, "base",
-                       "joint " + quoted(spec.base) + " is the base of two segments: a joint links exactly two segments");
+                       "joint " + quoted(spec.base) +
+                           " is the base of two segments: a joint links exactly two segments");
     children[parent->second].push_back(s);
   }
 
@@ -89,8 +97,9 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
     std::set<int> reached(order.begin(), order.end());
     for (int s = 0; s < static_cast<int>(specs.size()); ++s)
       if (!reached.count(s))
-        throw ModelError(s, -1, "parent",
-                         "segment " + quoted(specs[s].name) + " is not connected to the root (parent cycle)");
+        throw ModelError(
+            s, -1, "parent",
+            "segment " + quoted(specs[s].name) + " is not connected to the root (parent cycle)");
   }
 
   Model model;

@@ -14,8 +14,8 @@ namespace fabrik {
 
 struct SegmentPose {
   Eigen::Quaterniond q_world{Eigen::Quaterniond::Identity()};  // segment frame -> world
-  Eigen::Matrix3d r_world{Eigen::Matrix3d::Identity()};       // cached q_world
-  Eigen::Vector3d base_world_m{0, 0, 0};                      // world position of the base
+  Eigen::Matrix3d r_world{Eigen::Matrix3d::Identity()};        // cached q_world
+  Eigen::Vector3d base_world_m{0, 0, 0};                       // world position of the base
 
   void set_rotation(const Eigen::Quaterniond& q) {
     q_world = q.normalized();

@@ -48,17 +48,21 @@ inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterni
     const double h00 = trace - m(0, 0), h11 = trace - m(1, 1), h22 = trace - m(2, 2);
     const double h01 = -0.5 * (m(0, 1) + m(1, 0)), h02 = -0.5 * (m(0, 2) + m(2, 0));
     const double h12 = -0.5 * (m(1, 2) + m(2, 1));
-    const double c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22, c02 = h01 * h12 - h02 * h11;
+    const double c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22,
+                 c02 = h01 * h12 - h02 * h11;
     const double det = h00 * c00 + h01 * c01 + h02 * c02;
     Eigen::Vector3d omega;
-    if (trace > 0.0 && h00 > 0.0 && h00 * h11 - h01 * h01 > 0.0 && det > 1e-18 * trace * trace * trace) {
-      const double c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12, c22 = h00 * h11 - h01 * h01;
+    if (trace > 0.0 && h00 > 0.0 && h00 * h11 - h01 * h01 > 0.0 &&
+        det > 1e-18 * trace * trace * trace) {
+      const double c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12,
+                   c22 = h00 * h11 - h01 * h01;
       omega = Eigen::Vector3d(c00 * torque.x() + c01 * torque.y() + c02 * torque.z(),
                               c01 * torque.x() + c11 * torque.y() + c12 * torque.z(),
                               c02 * torque.x() + c12 * torque.y() + c22 * torque.z()) /
               det;  // Newton step
     } else {
-      omega = torque / (std::abs(trace) + 1e-9 * a.norm() + 1e-300);  // far or singular: gradient step
+      omega =
+          torque / (std::abs(trace) + 1e-9 * a.norm() + 1e-300);  // far or singular: gradient step
     }
     const double angle_rad = omega.norm();
     if (!(angle_rad > kAngleTolRad)) break;  // also stops on NaN
@@ -67,7 +71,8 @@ inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterni
     const double half = 0.5 * omega.norm();
     const double sinc = half < 1e-4 ? 1.0 - half * half / 6.0 : std::sin(half) / half;
     const Eigen::Quaterniond turn(half < 1e-4 ? 1.0 - 0.5 * half * half : std::cos(half),
-                                  0.5 * sinc * omega.x(), 0.5 * sinc * omega.y(), 0.5 * sinc * omega.z());
+                                  0.5 * sinc * omega.x(), 0.5 * sinc * omega.y(),
+                                  0.5 * sinc * omega.z());
     q = (turn * q).normalized();
     if (angle_rad < 1e-8) break;  // quadratic convergence: the next step would be negligible
   }

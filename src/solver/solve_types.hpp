@@ -25,12 +25,12 @@ enum class RootMode {
 };
 
 struct SolverOptions {
-  double tolerance_m = 1e-3;         // converged when every visible target is this close
-  int max_iterations = 64;           // per solve
-  double stall_tolerance_m = 1e-6;   // stalled when no target distance will change more (StopRule)
+  double tolerance_m = 1e-3;        // converged when every visible target is this close
+  int max_iterations = 64;          // per solve
+  double stall_tolerance_m = 1e-6;  // stalled when no target distance will change more (StopRule)
   SegmentFit segment_fit = SegmentFit::paper;
   RootMode root = RootMode::fixed;
-  bool use_priorities = true;        // false: all levels are solved together, in one pass
+  bool use_priorities = true;  // false: all levels are solved together, in one pass
   // Passes of the strongest level per iteration: it is revisited until its
   // targets settle (tolerance or stall), at most this often, so it ends every
   // iteration as well met as it can be. 1 is the paper's literal loop.
@@ -53,22 +53,26 @@ enum class SolveStatus : std::uint8_t {
 
 inline std::string_view to_string(SolveStatus s) {
   switch (s) {
-    case SolveStatus::converged: return "converged";
-    case SolveStatus::stalled: return "stalled";
-    case SolveStatus::max_iterations: return "max_iterations";
-    case SolveStatus::no_targets: return "no_targets";
+    case SolveStatus::converged:
+      return "converged";
+    case SolveStatus::stalled:
+      return "stalled";
+    case SolveStatus::max_iterations:
+      return "max_iterations";
+    case SolveStatus::no_targets:
+      return "no_targets";
   }
   return "unknown";
 }
 
 struct SolveResult {
   SolveStatus status = SolveStatus::no_targets;
-  int iterations = 0;      // of the convergence loop
-  int passes = 0;          // forward + backward reaching passes, over all levels
+  int iterations = 0;  // of the convergence loop
+  int passes = 0;      // forward + backward reaching passes, over all levels
   int visible_targets = 0;
-  double rms_m = 0.0;      // over visible targets, unweighted
+  double rms_m = 0.0;  // over visible targets, unweighted
   double max_m = 0.0;
-  int worst_target = -1;   // index into the solver's targets, -1 if none visible
+  int worst_target = -1;  // index into the solver's targets, -1 if none visible
 };
 
 }  // namespace fabrik

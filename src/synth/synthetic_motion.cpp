@@ -11,9 +11,11 @@ SyntheticMotion::SyntheticMotion(const Model& model, MotionSettings settings)
   for (std::size_t s = 0; s < model.segments.size(); ++s) {
     // Flexion (about the lateral axis) swings most, twist least, as in gait.
     const Eigen::Vector3d share(0.35, 0.25, 1.0);
-    amplitude_rad_.emplace_back(share.cwiseProduct(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_))) *
-                                settings.max_swing_rad);
-    phase_rad_.emplace_back(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_)) * 2.0 * std::numbers::pi);
+    amplitude_rad_.emplace_back(
+        share.cwiseProduct(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_))) *
+        settings.max_swing_rad);
+    phase_rad_.emplace_back(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_)) * 2.0 *
+                            std::numbers::pi);
   }
   q_local_.resize(model.segments.size());
 }
@@ -24,9 +26,11 @@ void SyntheticMotion::posture_at(double t_s, Posture& posture) {
     const Eigen::Vector3d& a = amplitude_rad_[s];
     const Eigen::Vector3d& ph = phase_rad_[s];
     if (s == 0) {
-      const double yaw = settings_.move_root ? settings_.root_turn_rad * std::sin(0.3 * w * t_s) : 0.0;
-      q_local_[s] = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
-                    Eigen::AngleAxisd(0.2 * a.z() * std::sin(w * t_s + ph.z()), Eigen::Vector3d::UnitZ());
+      const double yaw =
+          settings_.move_root ? settings_.root_turn_rad * std::sin(0.3 * w * t_s) : 0.0;
+      q_local_[s] =
+          Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(0.2 * a.z() * std::sin(w * t_s + ph.z()), Eigen::Vector3d::UnitZ());
       continue;
     }
     q_local_[s] = Eigen::AngleAxisd(a.x() * std::sin(w * t_s + ph.x()), Eigen::Vector3d::UnitX()) *
@@ -47,7 +51,8 @@ void SyntheticMotion::sample(const Posture& posture, std::span<const int> points
   std::normal_distribution<double> noise(0.0, 1.0);
   for (std::size_t i = 0; i < points.size(); ++i) {
     out_world_m[i] = posture.point_world_m(model_, points[i]);
-    if (noise_m > 0.0) out_world_m[i] += Eigen::Vector3d(noise(rng_), noise(rng_), noise(rng_)) * noise_m;
+    if (noise_m > 0.0)
+      out_world_m[i] += Eigen::Vector3d(noise(rng_), noise(rng_), noise(rng_)) * noise_m;
   }
 }
 

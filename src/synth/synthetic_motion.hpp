@@ -17,10 +17,10 @@ namespace fabrik {
 
 struct MotionSettings {
   unsigned seed = 1;
-  double frequency_hz = 0.9;        // about a gait cycle
-  double max_swing_rad = 0.6;       // per-axis amplitude limit of a joint
-  double root_travel_m = 0.5;       // root moves back and forth this far
-  double root_turn_rad = 0.5;       // and turns this much about the vertical (Y)
+  double frequency_hz = 0.9;   // about a gait cycle
+  double max_swing_rad = 0.6;  // per-axis amplitude limit of a joint
+  double root_travel_m = 0.5;  // root moves back and forth this far
+  double root_turn_rad = 0.5;  // and turns this much about the vertical (Y)
   bool move_root = true;
 };
 
