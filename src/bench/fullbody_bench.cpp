@@ -28,8 +28,8 @@ json run_fullbody(const FullbodyOptions& options) {
   SolverOptions o;
   o.root = RootMode::free;
   o.segment_fit = options.segment_fit == "paper" ? SegmentFit::paper : SegmentFit::rigid;
-  o.tolerance_m = 0.1e-3;         // below the marker noise: stopping is by stall
-  o.stall_tolerance_m = 0.05e-3;  // per iteration, well below the marker noise
+  o.tolerance_m = 0.1e-3;        // below the marker noise: stopping is by stall
+  o.stall_tolerance_m = 0.1e-3;  // per iteration, a tenth of the marker noise
   o.max_iterations = 50;
   FabrikSolver solver(m, targets, o);
 

@@ -120,7 +120,9 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
     for (int k = 0; k < n; ++k)
       cross.noalias() +=
           drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
-    pose.set_rotation(fit_rotation(cross, pose.q_world, 2));
+    // One Newton step per visit: the convergence loop revisits the segment, so
+    // an exact inner fit buys nothing (same iterations, same residuals).
+    pose.set_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
   }
   pose.base_world_m = base_m;
 }
@@ -141,7 +143,9 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
   for (int k = 0; k < n; ++k)
     cross.noalias() += drivers_[k].weight * (drivers_[k].d_world - mean_desired) *
                        (drivers_[k].a_local - mean_local).transpose();
-  pose.set_rotation(fit_rotation(cross, pose.q_world, 2));
+  // One Newton step per visit: the convergence loop revisits the segment, so
+  // an exact inner fit buys nothing (same iterations, same residuals).
+  pose.set_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
   pose.base_world_m = mean_desired - pose.r_world * mean_local;
 }
 

@@ -36,12 +36,14 @@ inline Eigen::Quaterniond rotate_minimal(const Eigen::Quaterniond& q, const Eige
 // converges in a few steps. When A is rank-deficient the Hessian is singular
 // about the undetermined axis, where the torque is zero too: the result is
 // the rotation nearest the start, with no spurious twist.
+// `r` is q as a matrix (callers have it cached).
 inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterniond q,
-                                       int max_steps = 12) {
+                                       Eigen::Matrix3d r, int max_steps = 12) {
   constexpr double kAngleTolRad = 1e-12;
   constexpr double kMaxStepRad = 1.0;
   for (int step = 0; step < max_steps; ++step) {
-    const Eigen::Matrix3d m = a * q.toRotationMatrix().transpose();
+    if (step > 0) r = q.toRotationMatrix();
+    const Eigen::Matrix3d m = a * r.transpose();
     const Eigen::Vector3d torque(m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1));
     const double trace = m.trace();
     // h = trace I - sym(m), solved by its adjugate (symmetric 3x3).
