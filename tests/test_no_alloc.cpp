@@ -68,11 +68,8 @@ struct Scene {
   std::vector<Eigen::Vector3d> pos;
   std::vector<std::uint8_t> visible;
   Scene() {
-    for (int p = 0; p < static_cast<int>(model.points.size()); ++p)
-      if (model.points[p].kind == PointKind::marker) {
-        targets.push_back({p, p % 3, 1.0});  // three priority levels
-        points.push_back(p);
-      }
+    points = model.marker_points();
+    for (int p : points) targets.push_back({p, p % 3, 1.0});  // three priority levels
     pos.resize(points.size());
     visible.assign(points.size(), 1);
     visible[5] = 0;  // one occluded marker

@@ -166,13 +166,9 @@ TEST_CASE("Warm start converges in fewer iterations than a cold start", "[fabrik
 
 TEST_CASE("A free root is placed by its own targets", "[fabrik][root]") {
   const Model m = test::fullbody_model();
+  const std::vector<int> points = m.marker_points();
   std::vector<Target> targets;
-  std::vector<int> points;
-  for (int p = 0; p < static_cast<int>(m.points.size()); ++p)
-    if (m.points[p].kind == PointKind::marker) {
-      targets.push_back({p, 0, 1.0});
-      points.push_back(p);
-    }
+  for (int p : points) targets.push_back({p, 0, 1.0});
   MotionSettings ms;
   ms.seed = 3;
   SyntheticMotion motion(m, ms);

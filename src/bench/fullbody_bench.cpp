@@ -18,13 +18,9 @@ using nlohmann::json;
 json run_fullbody(const FullbodyOptions& options) {
   const std::string path = "models/fullbody.json";
   const Model m = load_model(JsonReader::parse(read_config_text(path), path), path);
+  const std::vector<int> points = m.marker_points();
   std::vector<Target> targets;
-  std::vector<int> points;
-  for (int p = 0; p < static_cast<int>(m.points.size()); ++p)
-    if (m.points[p].kind == PointKind::marker) {
-      targets.push_back({p, 0, 1.0});
-      points.push_back(p);
-    }
+  for (int p : points) targets.push_back({p, 0, 1.0});
   SolverOptions o;
   o.root = RootMode::free;
   o.segment_fit = options.segment_fit == "paper" ? SegmentFit::paper : SegmentFit::rigid;

@@ -28,4 +28,11 @@ bool Model::is_ancestor_or_self(int ancestor, int seg) const {
   return false;
 }
 
+std::vector<int> Model::marker_points() const {
+  std::vector<int> out;
+  for (int i = 0; i < static_cast<int>(points.size()); ++i)
+    if (points[i].kind == PointKind::marker) out.push_back(i);
+  return out;
+}
+
 }  // namespace fabrik

@@ -50,6 +50,8 @@ struct Model {
   int max_points_per_segment() const;
   // True if segment `ancestor` is `seg` or lies on the path from `seg` to the root.
   bool is_ancestor_or_self(int ancestor, int seg) const;
+  // Indices of every marker point, in model order.
+  std::vector<int> marker_points() const;
 };
 
 }  // namespace fabrik
