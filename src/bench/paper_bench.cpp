@@ -282,14 +282,12 @@ std::string paper_table(const json& r) {
                            "fabrik_prioritized_paper_rule", "jacobian_transpose"}) {
     const json& a = r["algorithms"][name];
     const auto& err = a["error_mm"];
-    const auto it = err.begin();
     std::snprintf(line, sizeof line, "%-32s %9.2f %9.2f %11d %7d  %-14s %9.2f %8.2f\n", name,
                   a["median_us"].get<double>(), a["p99_us"].get<double>(),
                   a["iterations"].get<int>(), a["passes"].get<int>(),
                   a["status"].get<std::string>().c_str(),
                   err[r["targets"][0]["point"].get<std::string>()].get<double>(),
                   err[r["targets"][1]["point"].get<std::string>()].get<double>());
-    (void)it;
     s += line;
   }
   std::snprintf(line, sizeof line,

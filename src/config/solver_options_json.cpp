@@ -1,6 +1,24 @@
 #include "solver_options_json.hpp"
 
+#include <initializer_list>
+#include <utility>
+
 namespace fabrik {
+
+namespace {
+// One of a few named values; the error lists them.
+template <class T>
+T read_choice(const JsonReader& value, const std::string& what,
+              std::initializer_list<std::pair<const char*, T>> choices) {
+  const std::string v = value.as_string();
+  std::string names;
+  for (const auto& [name, choice] : choices) {
+    if (v == name) return choice;
+    names += (names.empty() ? "\"" : " or \"") + std::string(name) + "\"";
+  }
+  value.fail("unknown " + what + " '" + v + "'", "use " + names);
+}
+}  // namespace
 
 SolverOptions read_solver_options(const JsonReader& solver, SolverOptions o) {
   solver.only_keys({"tolerance_mm", "stall_tolerance_mm", "max_iterations", "level_passes",
@@ -14,26 +32,13 @@ SolverOptions read_solver_options(const JsonReader& solver, SolverOptions o) {
       solver.get("level_passes", static_cast<long long>(o.level_passes), 1LL, 100000LL));
   o.use_priorities = solver.get("priorities", o.use_priorities);
   o.anchor_weight = solver.get("anchor_weight", o.anchor_weight, 0.0, 1e9);
-  if (solver.has("segment_fit")) {
-    const JsonReader fit = solver.at("segment_fit");
-    const std::string v = fit.as_string();
-    if (v == "paper")
-      o.segment_fit = SegmentFit::paper;
-    else if (v == "rigid")
-      o.segment_fit = SegmentFit::rigid;
-    else
-      fit.fail("unknown segment fit '" + v + "'", "use \"paper\" or \"rigid\"");
-  }
-  if (solver.has("root")) {
-    const JsonReader root = solver.at("root");
-    const std::string v = root.as_string();
-    if (v == "fixed")
-      o.root = RootMode::fixed;
-    else if (v == "free")
-      o.root = RootMode::free;
-    else
-      root.fail("unknown root mode '" + v + "'", "use \"fixed\" or \"free\"");
-  }
+  if (solver.has("segment_fit"))
+    o.segment_fit =
+        read_choice<SegmentFit>(solver.at("segment_fit"), "segment fit",
+                                {{"paper", SegmentFit::paper}, {"rigid", SegmentFit::rigid}});
+  if (solver.has("root"))
+    o.root = read_choice<RootMode>(solver.at("root"), "root mode",
+                                   {{"fixed", RootMode::fixed}, {"free", RootMode::free}});
   return o;
 }
 

@@ -39,8 +39,7 @@ JacobianSolver::JacobianSolver(const Model& model, std::vector<Target> targets,
 
 // Jacobian transpose with the step length that minimises |e - alpha J J^T e|.
 void JacobianSolver::step_transpose(std::span<const Eigen::Vector3d> target_world_m,
-                                    std::span<const std::uint8_t> visible,
-                                    const Posture& /*posture*/) {
+                                    std::span<const std::uint8_t> visible) {
   dq_.setZero();
   for (int i = 0; i < targets_.size(); ++i) {
     if (!visible[i]) continue;
@@ -65,7 +64,7 @@ void JacobianSolver::step_transpose(std::span<const Eigen::Vector3d> target_worl
 }
 
 void JacobianSolver::step_dls(std::span<const Eigen::Vector3d> target_world_m,
-                              std::span<const std::uint8_t> visible, const Posture& /*posture*/) {
+                              std::span<const std::uint8_t> visible) {
   jac_.setZero();
   err_.setZero();
   for (int i = 0; i < targets_.size(); ++i) {
@@ -120,9 +119,9 @@ SolveResult JacobianSolver::solve(std::span<const Eigen::Vector3d> target_world_
     for (int i = 0; i < targets_.size(); ++i)
       x_world_m_[i] = posture.point_world_m(model_, targets_.targets()[i].point);
     if (jacobian_.method == JacobianMethod::transpose)
-      step_transpose(target_world_m, visible, posture);
+      step_transpose(target_world_m, visible);
     else
-      step_dls(target_world_m, visible, posture);
+      step_dls(target_world_m, visible);
     apply(posture, root_pin_m);
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
     result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);

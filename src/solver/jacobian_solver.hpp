@@ -44,9 +44,9 @@ class JacobianSolver {
 
  private:
   void step_transpose(std::span<const Eigen::Vector3d> target_world_m,
-                      std::span<const std::uint8_t> visible, const Posture& posture);
+                      std::span<const std::uint8_t> visible);
   void step_dls(std::span<const Eigen::Vector3d> target_world_m,
-                std::span<const std::uint8_t> visible, const Posture& posture);
+                std::span<const std::uint8_t> visible);
   void apply(Posture& posture, const Eigen::Vector3d& root_pin_m);
 
   const Model& model_;
