@@ -1,0 +1,43 @@
+// The daemon config (`fabrikd-config/1`, docs/daemon-config.md and
+// proto/daemon-config.schema.json), validated on load: every error names the
+// file, the JSON pointer and the fix. Lengths are converted to metres here.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "tracking/tracker.hpp"
+
+namespace fabrik {
+
+enum class SocketMode { bind, connect };
+enum class Encoding { json, msgpack };
+
+struct Endpoint {
+  std::string address;
+  SocketMode mode = SocketMode::bind;
+};
+
+struct DaemonConfig {
+  std::string file;  // where it came from ("<embedded>/default.json" for the default)
+  std::string description;
+  TrackerSetup tracker;
+  Endpoint input{"tcp://127.0.0.1:5555", SocketMode::bind};
+  Endpoint output{"tcp://127.0.0.1:5556", SocketMode::bind};
+  double input_m_per_unit = 1e-3;   // for frames without "units"
+  double output_m_per_unit = 1e-3;  // pose positions and residuals
+  std::string output_units = "mm";
+  Encoding output_encoding = Encoding::json;
+  std::size_t max_payload_bytes = 1 << 20;
+  double stats_interval_s = 1.0;
+  std::string log_level = "info";
+};
+
+// Throws ConfigError. `file` is used in messages and to resolve a relative
+// model path; embedded config files (default.json, models/*.json) resolve too.
+DaemonConfig load_daemon_config(const std::string& text, const std::string& file);
+DaemonConfig load_daemon_config_file(const std::string& path);
+// The embedded config/default.json.
+DaemonConfig default_daemon_config();
+
+}  // namespace fabrik

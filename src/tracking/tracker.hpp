@@ -1,0 +1,94 @@
+// The per-frame tracking pipeline shared by fabrikd, `fabrik solve` and the
+// benchmarks: measured markers (metres, world frame) -> targets with
+// priorities and the occlusion policy -> warm-started FABRIK -> joint
+// centres, gap-filled model markers and residuals. Solver types only: no I/O,
+// no JSON, no logging; every buffer is sized in the constructor, so track()
+// does not allocate.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "solver/fabrik_solver.hpp"
+#include "solver/model.hpp"
+#include "solver/posture.hpp"
+
+namespace fabrik {
+
+// A named measured marker that pulls one model point.
+struct MarkerTarget {
+  std::string marker;  // name in the marker stream
+  int point = -1;      // index into Model::points
+  int level = 0;       // priority level, higher is stronger
+  double weight = 1.0;
+};
+
+struct OcclusionPolicy {
+  // An occluded marker's last measured position keeps pulling its point for
+  // this long, as a target of `hold_level`; 0 turns holding off.
+  double hold_s = 0.0;
+  int hold_level = -1;
+};
+
+struct TrackerSetup {
+  std::shared_ptr<const Model> model;
+  std::vector<MarkerTarget> markers;
+  SolverOptions solver;
+  OcclusionPolicy occlusion;
+};
+
+// The outcome of one frame. Spans stay valid until the next track() call.
+struct TrackResult {
+  SolveResult solve;
+  double solve_us = 0.0;                               // wall time of the solve itself
+  std::span<const Eigen::Vector3d> joints_world_m;     // per Model::joints
+  std::span<const Eigen::Vector3d> markers_world_m;    // per marker of the setup: model position
+  std::span<const std::uint8_t> occluded;              // per marker: no valid measurement
+  std::span<const std::uint8_t> held;                  // per marker: occluded but held
+  int occluded_count = 0;
+  // Residual between measured and model positions over the markers measured
+  // in this frame (held ones excluded), metres.
+  double residual_rms_m = 0.0;
+  double residual_max_m = 0.0;
+  int residual_count = 0;
+  int worst_marker = -1;  // index into the setup's markers, -1 if none measured
+};
+
+class Tracker {
+ public:
+  explicit Tracker(TrackerSetup setup);
+
+  const TrackerSetup& setup() const { return setup_; }
+  const Model& model() const { return *setup_.model; }
+  int marker_count() const { return static_cast<int>(setup_.markers.size()); }
+
+  // One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
+  // occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
+  // frame's time (for the hold policy).
+  const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                           std::span<const std::uint8_t> visible);
+
+  // Forget the previous frame: the next one starts cold from the rest posture.
+  void reset();
+  const Posture& posture() const { return posture_; }
+
+ private:
+  TrackerSetup setup_;
+  FabrikSolver solver_;
+  Posture posture_;
+  bool warm_ = false;
+  int n_ = 0;                                    // markers
+  std::vector<Eigen::Vector3d> target_world_m_;  // [n_]: measured, [n_, 2n_): held
+  std::vector<std::uint8_t> target_visible_;
+  std::vector<Eigen::Vector3d> last_seen_m_;
+  std::vector<double> last_seen_s_;
+  std::vector<Eigen::Vector3d> joints_m_, markers_m_;
+  std::vector<std::uint8_t> occluded_, held_;
+  TrackResult result_;
+};
+
+}  // namespace fabrik
