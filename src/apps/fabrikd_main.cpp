@@ -2,6 +2,7 @@
 // busy port) exit with code 2 and a message that names the fix; once running,
 // no message can stop it: only SIGINT/SIGTERM (clean stop) and SIGHUP
 // (reload the config, keeping the old one if the new one is invalid).
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -77,6 +78,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  spdlog::set_default_logger(spdlog::stderr_color_mt("fabrikd"));  // stdout stays clean
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
   try {
     fabrik::DaemonConfig config = load(o);

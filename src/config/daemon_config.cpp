@@ -136,11 +136,13 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
 
   if (root.has("input")) {
     const JsonReader in = root.at("input");
-    in.only_keys({"endpoint", "mode", "units", "max_payload_bytes"});
+    in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames"});
     c.input = read_endpoint(in, c.input);
     if (in.has("units")) c.input_m_per_unit = metres_per_unit(in.at("units"));
     c.max_payload_bytes = static_cast<std::size_t>(
         in.get("max_payload_bytes", static_cast<long long>(c.max_payload_bytes), 64LL, 1LL << 30));
+    c.max_backlog_frames = static_cast<int>(
+        in.get("max_backlog_frames", static_cast<long long>(c.max_backlog_frames), 1LL, 10000LL));
   }
   if (root.has("output")) {
     const JsonReader out = root.at("output");

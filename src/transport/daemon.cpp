@@ -48,7 +48,10 @@ struct Daemon::State {
   std::unique_ptr<Tracker> tracker;
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
-  MarkerFrame slots[2];  // the newest valid frame and the one being decoded
+  // Valid frames waiting to be solved, oldest first, in a ring with one
+  // slot more than the backlog limit: the spare one is decoded into.
+  std::vector<MarkerFrame> ring;
+  std::vector<Clock::time_point> received_at;
 };
 
 std::unique_ptr<Daemon::State> Daemon::make_state(DaemonConfig config, State* old) {
@@ -62,8 +65,9 @@ std::unique_ptr<Daemon::State> Daemon::make_state(DaemonConfig config, State* ol
                                              config.output_encoding == Encoding::msgpack
                                                  ? PayloadEncoding::msgpack
                                                  : PayloadEncoding::json);
-  s->slots[0] = s->decoder->make_frame();
-  s->slots[1] = s->decoder->make_frame();
+  s->ring.resize(config.max_backlog_frames + 1);
+  for (MarkerFrame& f : s->ring) f = s->decoder->make_frame();
+  s->received_at.resize(s->ring.size());
   // Sockets are reopened only when their endpoint changed, so a reload of
   // the solver settings does not disturb connected clients. New sockets are
   // opened before old ones are taken over: if one fails, the old state is whole.
@@ -118,8 +122,9 @@ void Daemon::send(const char* topic, const std::string& payload) {
 
 void Daemon::drain_and_solve() {
   State& s = *state_;
-  int newest = -1;  // slot of the newest valid frame
-  Clock::time_point newest_received{};
+  const int ring_size = static_cast<int>(s.ring.size());
+  const int backlog_limit = ring_size - 1;
+  int first = 0, count = 0;  // the valid frames: ring[first, first + count)
   std::string error;
   for (int n = 0; n < kMaxBatch; ++n) {
     if (!s.sub.recv(parts_[0], zmq::recv_flags::dontwait)) break;
@@ -143,8 +148,8 @@ void Daemon::drain_and_solve() {
       bad_input_log_.warn("bad input: {}", last_error_);
       continue;
     }
-    const int slot = newest == 0 ? 1 : 0;
-    MarkerFrame& f = s.slots[slot];
+    const int slot = (first + count) % ring_size;
+    MarkerFrame& f = s.ring[slot];
     const std::span<const std::uint8_t> payload(static_cast<const std::uint8_t*>(parts_[1].data()),
                                                 parts_[1].size());
     if (!s.decoder->decode(payload, f, error)) {
@@ -159,21 +164,27 @@ void Daemon::drain_and_solve() {
         if (unknown_seen_.size() < kMaxUnknownLogged && unknown_seen_.insert(name).second)
           spdlog::warn("marker '{}' is not in the model: ignored (reported once)", name);
     }
-    if (newest >= 0) ++counters_.frames_dropped;  // superseded before it was solved
-    newest = slot;
-    newest_received = received;
+    s.received_at[slot] = received;
+    if (count == backlog_limit) {
+      first = (first + 1) % ring_size;  // the oldest waiting frame gives way
+      ++counters_.frames_dropped;
+    } else {
+      ++count;
+    }
   }
-  if (newest >= 0) {
-    const MarkerFrame& f = s.slots[newest];
+  for (int k = 0; k < count; ++k) {
+    const int slot = (first + k) % ring_size;
+    const MarkerFrame& f = s.ring[slot];
     const double time_s =
-        f.has_time ? f.time_s : std::chrono::duration<double>(newest_received - started_).count();
+        f.has_time ? f.time_s
+                   : std::chrono::duration<double>(s.received_at[slot] - started_).count();
     const TrackResult& r = s.tracker->track(time_s, f.p_world_m, f.visible);
     s.encoder->encode({f.frame, f.has_time, f.time_s}, r, out_);
     send("pose", out_);
     ++counters_.frames_out;
     ++interval_frames_out_;
     solve_us_.add(r.solve_us);
-    queue_us_.add(us_between(newest_received, Clock::now()));
+    queue_us_.add(us_between(s.received_at[slot], Clock::now()));
   }
   std::lock_guard lock(snapshot_mutex_);
   snapshot_ = counters_;

@@ -1,9 +1,11 @@
 // fabrikd's loop: marker frames in on a SUB socket, poses and stats out on a
 // PUB socket (../shared/wire-contract.md, proto/). One thread does it all:
 // drain what is queued, decode every frame (so bad ones are counted), solve
-// only the newest valid one (older ones are dropped and counted: latency
-// stays bounded when input outpaces the solver), publish without ever
-// blocking (PUB drops for a slow subscriber), and send stats every interval.
+// the newest valid ones in order, at most `max_backlog_frames` per wake-up
+// (older ones are dropped and counted: when input outpaces the solver the
+// newest frames win and latency stays bounded, while a short stall of the
+// thread loses nothing), publish without ever blocking (PUB drops for a slow
+// subscriber), and send stats every interval.
 #pragma once
 
 #include <atomic>
