@@ -180,9 +180,14 @@ void Daemon::drain_and_solve() {
                    : std::chrono::duration<double>(s.received_at[slot] - started_).count();
     const TrackResult& r = s.tracker->track(time_s, f.p_world_m, f.visible);
     s.encoder->encode({f.frame, f.has_time, f.time_s}, r, out_);
-    send("pose", out_);
     ++counters_.frames_out;
     ++interval_frames_out_;
+    {
+      // Counters first, so whoever has seen a pose sees the counts that include it.
+      std::lock_guard lock(snapshot_mutex_);
+      snapshot_ = counters_;
+    }
+    send("pose", out_);
     solve_us_.add(r.solve_us);
     queue_us_.add(us_between(s.received_at[slot], Clock::now()));
   }
