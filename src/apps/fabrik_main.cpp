@@ -6,6 +6,7 @@
 
 #include "bench/bench.hpp"
 #include "bench/latency_bench.hpp"
+#include "solve_command.hpp"
 #include "version.hpp"
 
 int main(int argc, char** argv) {
@@ -54,12 +55,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"json", "msgpack"}));
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
+  fabrik::apps::add_solve_command(app);
+
   try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
-  try {
+    app.parse(argc, argv);  // subcommands with callbacks run here
     if (b_paper->parsed()) {
       const auto r = fabrik::bench::run_paper(paper);
       std::cout << (paper_json ? r.dump(2) + "\n" : fabrik::bench::paper_table(r));
@@ -70,6 +69,8 @@ int main(int argc, char** argv) {
       const auto r = fabrik::bench::run_fullbody(body);
       std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));
     }
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fabrik: %s\n", e.what());
     return 2;

@@ -1,0 +1,80 @@
+#include "solve_command.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "offline/solve_trial.hpp"
+
+namespace fabrik::apps {
+
+namespace {
+
+struct SolveOptions {
+  std::string config, input, output, markers_output, report;
+  bool quiet = false;
+};
+
+void progress_bar(std::size_t done, std::size_t total) {
+  const int width = 40;
+  const int filled = total ? static_cast<int>(width * done / total) : width;
+  std::fprintf(stderr, "\r  [%.*s%*s] %zu/%zu frames", filled,
+               "########################################", width - filled, "", done, total);
+  if (done == total) std::fputc('\n', stderr);
+}
+
+void run(const SolveOptions& o) {
+  const DaemonConfig config =
+      o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
+  const io::MarkerTrial trial = io::read_trial(o.input);
+  if (!o.quiet)
+    std::fprintf(stderr, "fabrik solve: %s (%zu frames at %g Hz, %zu markers) with %s\n",
+                 o.input.c_str(), trial.frames(), trial.rate_hz, trial.markers(),
+                 config.file.c_str());
+  const TrialSolution s = solve_trial(config, trial, o.quiet ? nullptr : progress_bar);
+  write_trial_file(o.output, s.joints);
+  if (!o.markers_output.empty()) write_trial_file(o.markers_output, s.markers);
+  const nlohmann::json summary = solution_summary(s);
+  if (!o.report.empty()) {
+    std::ofstream out(o.report);
+    if (!out) throw std::runtime_error(o.report + ": cannot write the report");
+    out << summary.dump(2) << '\n';
+  }
+  const auto& r = summary["residual_mm"];
+  std::printf(
+      "frames            %zu\n"
+      "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
+      "frame %zu)\n"
+      "solve             p50 %.1f us, p99 %.1f us, %.1f iterations on average\n"
+      "joint centres     %s\n",
+      summary["frames"].get<std::size_t>(), r["rms_mean"].get<double>(), r["rms_max"].get<double>(),
+      r["max"].get<double>(), r["max_marker"].get<std::string>().c_str(),
+      r["max_frame"].get<std::size_t>(), summary["solve_us"]["p50"].get<double>(),
+      summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
+      o.output.c_str());
+  if (!s.missing_in_trial.empty())
+    std::printf("not in the trial   %zu tracked markers (%s...)\n", s.missing_in_trial.size(),
+                s.missing_in_trial.front().c_str());
+  if (!s.ignored_in_trial.empty())
+    std::printf("not tracked        %zu trial labels (%s...)\n", s.ignored_in_trial.size(),
+                s.ignored_in_trial.front().c_str());
+}
+
+}  // namespace
+
+void add_solve_command(CLI::App& app) {
+  auto o = std::make_shared<SolveOptions>();
+  CLI::App* c =
+      app.add_subcommand("solve", "Track a recorded trial offline, through the daemon's pipeline");
+  c->add_option("--config", o->config, "Daemon config (default: the embedded default)");
+  c->add_option("--input", o->input, "Trial, .trc or .c3d")->required()->check(CLI::ExistingFile);
+  c->add_option("--output", o->output, "Joint centres, .trc (mm) or .csv")->required();
+  c->add_option("--markers", o->markers_output,
+                "Also write the model's (gap-filled) markers, .trc or .csv");
+  c->add_option("--report", o->report, "Write the summary as JSON");
+  c->add_flag("--quiet", o->quiet, "No progress bar");
+  c->callback([o] { run(*o); });
+}
+
+}  // namespace fabrik::apps

@@ -1,0 +1,143 @@
+#include "solve_trial.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+
+#include "tracking/tracker.hpp"
+
+namespace fabrik {
+
+namespace {
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1,
+                    static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
+}
+
+bool ends_with_ci(const std::string& s, const std::string& suffix) {
+  if (s.size() < suffix.size()) return false;
+  return std::equal(suffix.rbegin(), suffix.rend(), s.rbegin(),
+                    [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+}
+
+}  // namespace
+
+TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
+                          const std::function<void(std::size_t, std::size_t)>& progress) {
+  Tracker tracker(config.tracker);
+  const Model& model = tracker.model();
+  const int n = tracker.marker_count();
+  TrialSolution s;
+  std::vector<int> column(n, -1);  // trial column of each tracked marker
+  for (int i = 0; i < n; ++i) {
+    column[i] = trial.find(config.tracker.markers[i].marker);
+    if (column[i] < 0) s.missing_in_trial.push_back(config.tracker.markers[i].marker);
+  }
+  for (const std::string& label : trial.labels) {
+    const bool tracked = std::any_of(config.tracker.markers.begin(), config.tracker.markers.end(),
+                                     [&](const MarkerTarget& m) { return m.marker == label; });
+    if (!tracked) s.ignored_in_trial.push_back(label);
+  }
+  const std::size_t frames = trial.frames();
+  for (auto* out : {&s.joints, &s.markers}) {
+    out->rate_hz = trial.rate_hz;
+    out->first_frame = trial.first_frame;
+  }
+  for (const Joint& j : model.joints) s.joints.labels.push_back(j.name);
+  for (const MarkerTarget& m : config.tracker.markers) s.markers.labels.push_back(m.marker);
+  s.joints.positions_m.reserve(frames * s.joints.labels.size());
+  s.markers.positions_m.reserve(frames * n);
+
+  std::vector<Eigen::Vector3d> measured(n);
+  std::vector<std::uint8_t> visible(n);
+  for (std::size_t f = 0; f < frames; ++f) {
+    for (int i = 0; i < n; ++i) {
+      measured[i] = column[i] >= 0 ? trial.at(f, column[i]) : Eigen::Vector3d::Constant(NAN);
+      visible[i] = measured[i].allFinite() ? 1 : 0;
+    }
+    const TrackResult& r = tracker.track(trial.time_s(f), measured, visible);
+    s.joints.positions_m.insert(s.joints.positions_m.end(), r.joints_world_m.begin(),
+                                r.joints_world_m.end());
+    s.markers.positions_m.insert(s.markers.positions_m.end(), r.markers_world_m.begin(),
+                                 r.markers_world_m.end());
+    s.rms_m.push_back(r.residual_rms_m);
+    s.max_m.push_back(r.residual_max_m);
+    s.worst.push_back(r.worst_marker);
+    s.solve_us.push_back(r.solve_us);
+    s.iterations.push_back(r.solve.iterations);
+    s.status.emplace_back(to_string(r.solve.status));
+    if (progress && (f % 64 == 0 || f + 1 == frames)) progress(f + 1, frames);
+  }
+  return s;
+}
+
+nlohmann::json solution_summary(const TrialSolution& s) {
+  const std::size_t frames = s.rms_m.size();
+  double rms_sum = 0.0, max_m = 0.0;
+  std::size_t max_frame = 0;
+  std::map<std::string, int> worst_count, status_count;
+  for (std::size_t f = 0; f < frames; ++f) {
+    rms_sum += s.rms_m[f];
+    if (s.max_m[f] > max_m) max_m = s.max_m[f], max_frame = f;
+    if (s.worst[f] >= 0) ++worst_count[s.markers.labels[s.worst[f]]];
+    ++status_count[s.status[f]];
+  }
+  std::string worst_name;
+  if (frames > 0 && s.worst[max_frame] >= 0) worst_name = s.markers.labels[s.worst[max_frame]];
+  std::string most_often;
+  int most = 0;
+  for (const auto& [name, count] : worst_count)
+    if (count > most) most = count, most_often = name;
+  std::vector<double> iterations(s.iterations.begin(), s.iterations.end());
+  double it_sum = 0;
+  for (double i : iterations) it_sum += i;
+  return {{"frames", frames},
+          {"residual_mm",
+           {{"rms_mean", frames ? rms_sum / static_cast<double>(frames) * 1e3 : 0.0},
+            {"rms_max", frames ? *std::max_element(s.rms_m.begin(), s.rms_m.end()) * 1e3 : 0.0},
+            {"max", max_m * 1e3},
+            {"max_frame", max_frame},
+            {"max_marker", worst_name},
+            {"worst_marker_most_often", most_often}}},
+          {"solve_us",
+           {{"p50", quantile(s.solve_us, 0.5)},
+            {"p99", quantile(s.solve_us, 0.99)},
+            {"max", quantile(s.solve_us, 1.0)}}},
+          {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
+          {"status", status_count},
+          {"markers_missing_in_trial", s.missing_in_trial},
+          {"trial_labels_not_tracked", s.ignored_in_trial}};
+}
+
+void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
+  if (ends_with_ci(path, ".trc")) return io::write_trc(path, trial, "mm");
+  if (!ends_with_ci(path, ".csv"))
+    throw io::FormatError(path, "unknown output format: use .trc or .csv");
+  std::ofstream out(path);
+  if (!out) throw io::FormatError(path, "cannot write the file");
+  out << "frame,time_s";
+  for (const std::string& l : trial.labels)
+    out << ',' << l << "_x_mm," << l << "_y_mm," << l << "_z_mm";
+  out << '\n';
+  char buf[64];
+  for (std::size_t f = 0; f < trial.frames(); ++f) {
+    out << trial.first_frame + static_cast<int>(f) << ',' << trial.time_s(f);
+    for (std::size_t m = 0; m < trial.markers(); ++m)
+      for (int k = 0; k < 3; ++k) {
+        const double v = trial.at(f, m)[k];
+        if (std::isfinite(v)) {
+          std::snprintf(buf, sizeof buf, ",%.4f", v * 1e3);
+          out << buf;
+        } else {
+          out << ',';
+        }
+      }
+    out << '\n';
+  }
+}
+
+}  // namespace fabrik

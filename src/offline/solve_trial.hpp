@@ -1,0 +1,38 @@
+// Offline tracking of a recorded trial through the same Tracker (and so the
+// same targets, priorities, occlusion policy and solver settings) as fabrikd.
+#pragma once
+
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "config/daemon_config.hpp"
+#include "io/marker_trial.hpp"
+
+namespace fabrik {
+
+struct TrialSolution {
+  io::MarkerTrial joints;                     // joint centres per frame (metres)
+  io::MarkerTrial markers;                    // the model's markers per frame: gap-filled (metres)
+  std::vector<double> rms_m;                  // per frame, over measured markers
+  std::vector<double> max_m;                  // per frame
+  std::vector<int> worst;                     // per frame: index into markers.labels, -1 if none
+  std::vector<double> solve_us;               // per frame
+  std::vector<int> iterations;                // per frame
+  std::vector<std::string> status;            // per frame, the solver's stop reason
+  std::vector<std::string> missing_in_trial;  // tracked markers the trial lacks entirely
+  std::vector<std::string> ignored_in_trial;  // trial labels that are not tracked
+};
+
+// `progress(frame, frames)` is called now and then (may be empty).
+TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
+                          const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+// Frames, residual RMS mean and max, worst marker, solve time quantiles.
+nlohmann::json solution_summary(const TrialSolution& s);
+
+// Writes a trial as .trc (mm) or .csv (header time + name_x/_y/_z in mm).
+void write_trial_file(const std::string& path, const io::MarkerTrial& trial);
+
+}  // namespace fabrik
