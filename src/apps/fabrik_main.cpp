@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "calibrate_command.hpp"
 #include "version.hpp"
 
 int main(int argc, char** argv) {
@@ -38,6 +39,8 @@ int main(int argc, char** argv) {
   b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
+
+  fabrik::add_calibrate_command(app);
 
   try {
     app.parse(argc, argv);
