@@ -240,12 +240,14 @@ struct Loader {
   }
 
   void check_tree(const JsonReader& segs) {
-    int roots = 0;
+    for (std::size_t i = 1; i < t.segments.size(); ++i)
+      if (t.segments[i].parent < 0)
+        segs.at(i).fail("segment '" + t.segments[i].name + "' is a second root (it has no parent)",
+                        "exactly one segment, the first, has no \"parent\": give it one");
     std::map<std::string, int> based;  // point -> the segment based on it
     for (std::size_t i = 0; i < t.segments.size(); ++i) {
       const SegmentDef& s = t.segments[i];
       const JsonReader base = segs.at(i).at("base");
-      roots += s.parent < 0;
       const int owner = s.parent < 0 ? static_cast<int>(i) : s.parent;
       const int p = t.find_point(s.base);
       if (p < 0 || t.points[p].segment != owner)
@@ -258,9 +260,6 @@ struct Loader {
                       t.segments[it->second].name + "'",
                   "a joint links exactly two segments: define a separate point");
     }
-    if (roots != 1)
-      segs.fail("the template has " + std::to_string(roots) + " root segments",
-                "exactly one segment has no \"parent\"");
   }
 
   void check_refs() {
