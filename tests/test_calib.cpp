@@ -13,6 +13,7 @@
 #include "calib/calib_template.hpp"
 #include "calib/calibrate.hpp"
 #include "config/config_error.hpp"
+#include "config/daemon_config.hpp"
 #include "config/model_loader.hpp"
 #include "io/marker_trial.hpp"
 #include "solver/posture.hpp"
@@ -174,6 +175,8 @@ TEST_CASE("Calibration recovers joint centres from a synthetic static trial", "[
   CHECK(c["solver"]["root"] == "free");
   CHECK(c["solver"]["tolerance_mm"] == 0.1);
   CHECK(c["solver"]["max_iterations"] == 50);
+  const DaemonConfig d = load_daemon_config(c.dump(), "calibrated.json");
+  CHECK(d.tracker.markers.size() == 7);
 }
 
 TEST_CASE("A window of the trial is averaged; frame numbers are the file's", "[calib]") {
@@ -272,7 +275,7 @@ TEST_CASE("Each kind of bad template has its own clear message", "[calib]") {
 TEST_CASE("Shipped templates load", "[calib]") {
   const std::string dir = std::string(FABRIK_SOURCE_DIR) + "/config/templates/";
   const CalibTemplate g = load_template_file(dir + "gait2354.json");
-  CHECK(g.segments.size() == 15);
+  CHECK(g.segments.size() == 18);
   int tracked = 0, static_only = 0;
   for (const MarkerDef& m : g.markers) (m.static_only ? static_only : tracked)++;
   CHECK(tracked == 41);  // exactly the markers of subject01_walk1.trc

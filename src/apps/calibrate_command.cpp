@@ -7,7 +7,7 @@
 #include <memory>
 
 #include "calib/calibrate.hpp"
-#include "config/model_loader.hpp"
+#include "config/daemon_config.hpp"
 
 namespace fabrik {
 
@@ -21,11 +21,12 @@ void run_calibrate(const CalibrateArgs& a) {
   const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
   const io::MarkerTrial trial = io::read_trial(a.static_path);
   const calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, a.options);
-  // The inline model must load as the daemon will load it.
-  load_model(nlohmann::json::parse(r.model.dump()), a.output_path + " (model)");
+  // The config must load as the daemon will load it, before it is written.
+  const std::string text = r.config.dump(2) + "\n";
+  load_daemon_config(text, a.output_path);
   std::ofstream out(a.output_path, std::ios::binary);
   if (!out) throw std::runtime_error(a.output_path + ": cannot write the config");
-  out << r.config.dump(2) << "\n";
+  out << text;
   out.close();
   if (!out) throw std::runtime_error(a.output_path + ": writing the config failed");
   std::cout << calib::calibration_report(r) << "Wrote " << a.output_path << " (model '" << tmpl.name
