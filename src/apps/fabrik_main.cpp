@@ -7,6 +7,7 @@
 #include "bench/bench.hpp"
 #include "bench/latency_bench.hpp"
 #include "solve_command.hpp"
+#include "calibrate_command.hpp"
 #include "version.hpp"
 
 int main(int argc, char** argv) {
@@ -56,6 +57,7 @@ int main(int argc, char** argv) {
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
   fabrik::apps::add_solve_command(app);
+  fabrik::add_calibrate_command(app);
 
   try {
     app.parse(argc, argv);  // subcommands with callbacks run here
@@ -69,7 +71,7 @@ int main(int argc, char** argv) {
       const auto r = fabrik::bench::run_fullbody(body);
       std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));
     }
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::Error& e) {  // parse errors, and RuntimeError(code) from commands
     return app.exit(e);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fabrik: %s\n", e.what());

@@ -1,0 +1,439 @@
+#include "calibrate.hpp"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "config/model_loader.hpp"
+#include "solver/fabrik_solver.hpp"
+
+namespace fabrik::calib {
+
+const Eigen::Vector3d& CalibrationResult::point_world_m(const std::string& name) const {
+  for (const auto& [n, p] : points_world_m)
+    if (n == name) return p;
+  throw std::out_of_range("no calibrated point '" + name + "'");
+}
+
+namespace {
+
+// Model files are written in millimetres with 1 um resolution: far below
+// marker noise, and it keeps the file readable.
+double mm(double metres) {
+  return std::round(metres * 1e6) / 1e3;
+}
+nlohmann::ordered_json mm3(const Eigen::Vector3d& v) {
+  return {mm(v.x()), mm(v.y()), mm(v.z())};
+}
+
+std::string fmt(const char* format, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
+class Calibrator {
+ public:
+  Calibrator(const CalibTemplate& t, const io::MarkerTrial& trial, std::string trial_name)
+      : t_(t), trial_(trial), trial_name_(std::move(trial_name)) {}
+
+  CalibrationResult run(const CalibrateOptions& o) {
+    choose_window(o);
+    match_labels();
+    average();
+    resolved_.assign(t_.points.size(), std::nullopt);
+    for (std::size_t i = 0; i < t_.points.size(); ++i)
+      r_.points_world_m.emplace_back(t_.points[i].name, point(static_cast<int>(i)));
+    build_model();
+    fit();
+    return std::move(r_);
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& problem, const std::string& fix) const {
+    throw CalibrationError(trial_name_ + ": " + problem + (fix.empty() ? "" : ". Fix: " + fix));
+  }
+
+  void choose_window(const CalibrateOptions& o) {
+    const long long n = static_cast<long long>(trial_.frames());
+    if (n == 0) fail("the trial has no frames", "record a static trial");
+    const long long first_no = trial_.first_frame;
+    const long long last_no = first_no + n - 1;
+    const long long start = o.first_frame < 0 ? first_no : o.first_frame;
+    if (start < first_no || start > last_no)
+      fail("--first-frame " + std::to_string(start) + " is outside the trial (frames " +
+               std::to_string(first_no) + " to " + std::to_string(last_no) + ")",
+           "choose a frame number in that range");
+    const long long count = o.frames < 0 ? last_no - start + 1 : o.frames;
+    if (count < 1 || start + count - 1 > last_no)
+      fail("--frames " + std::to_string(count) + " from frame " + std::to_string(start) +
+               " runs past the last frame " + std::to_string(last_no),
+           "use at most " + std::to_string(last_no - start + 1) + " frames");
+    first_ = static_cast<std::size_t>(start - first_no);
+    count_ = static_cast<std::size_t>(count);
+    r_.first_frame = start;
+    r_.frames = count;
+  }
+
+  // A template name matches a label exactly, or a "Subject:name" label as
+  // Vicon writes them.
+  void match_labels() {
+    column_.assign(t_.markers.size(), -1);
+    std::set<int> used;
+    for (std::size_t m = 0; m < t_.markers.size(); ++m) {
+      const std::string& name = t_.markers[m].name;
+      int col = trial_.find(name);
+      if (col < 0) {
+        for (std::size_t l = 0; l < trial_.labels.size(); ++l) {
+          const std::string& lab = trial_.labels[l];
+          if (lab.size() > name.size() &&
+              lab.compare(lab.size() - name.size(), name.size(), name) == 0 &&
+              lab[lab.size() - name.size() - 1] == ':') {
+            if (col >= 0)
+              fail("template marker '" + name + "' matches both '" + trial_.labels[col] +
+                       "' and '" + lab + "'",
+                   "rename the markers so each label matches one template marker");
+            col = static_cast<int>(l);
+          }
+        }
+        if (col >= 0) ++prefixed_;
+      }
+      column_[m] = col;
+      if (col >= 0) used.insert(col);
+    }
+    if (prefixed_ > 0)
+      r_.notes.push_back(std::to_string(prefixed_) +
+                         " template markers matched trial labels with a subject prefix "
+                         "('Subject:NAME'); the model uses the template names");
+    std::string ignored;
+    int n_ignored = 0;
+    for (std::size_t l = 0; l < trial_.labels.size(); ++l)
+      if (!used.count(static_cast<int>(l))) {
+        ignored += (n_ignored++ ? ", " : "") + trial_.labels[l];
+      }
+    if (n_ignored)
+      r_.notes.push_back(std::to_string(n_ignored) +
+                         " trial markers are not in the template and were ignored: " + ignored);
+  }
+
+  // The markers the model needs: every tracked marker, and every marker a
+  // point or frame is defined from.
+  std::set<std::string> needed_markers() const {
+    std::set<std::string> names;
+    for (const MarkerDef& m : t_.markers)
+      if (!m.static_only) names.insert(m.name);
+    auto add = [&](const PointRef& r) {
+      for (const std::string& n : r.names)
+        if (t_.find_marker(n) >= 0) names.insert(n);
+    };
+    for (const PointDef& p : t_.points) {
+      for (const PointRef& r : p.refs) add(r);
+      if (p.rule == PointRule::regression) {
+        add(p.r_asis);
+        add(p.l_asis);
+        add(p.posterior);
+      }
+      if (p.frame >= 0) {
+        const FrameSpec& f = t_.frames[p.frame];
+        for (const PointRef* r :
+             {&f.primary.from, &f.primary.to, &f.secondary.from, &f.secondary.to})
+          add(*r);
+      }
+    }
+    return names;
+  }
+
+  // Mean of each marker's valid samples in the window; missing samples are skipped.
+  void average() {
+    mean_.assign(t_.markers.size(), Eigen::Vector3d::Constant(NAN));
+    const std::set<std::string> needed = needed_markers();
+    std::string absent;
+    int n_absent = 0;
+    for (std::size_t m = 0; m < t_.markers.size(); ++m) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      std::size_t n = 0;
+      if (column_[m] >= 0)
+        for (std::size_t f = first_; f < first_ + count_; ++f) {
+          const Eigen::Vector3d& p = trial_.at(f, static_cast<std::size_t>(column_[m]));
+          if (p.allFinite()) {
+            sum += p;
+            ++n;
+          }
+        }
+      if (n > 0) mean_[m] = sum / static_cast<double>(n);
+      const std::string& name = t_.markers[m].name;
+      if (!needed.count(name)) continue;
+      if (n == 0) {
+        absent += std::string(n_absent++ ? ", " : "") + "'" + name + "'" +
+                  (column_[m] < 0 ? " (not in the trial)" : " (no sample in the window)");
+      } else if (n < count_) {
+        r_.notes.push_back("marker '" + name + "' is missing in " + std::to_string(count_ - n) +
+                           " of the " + std::to_string(count_) +
+                           " frames; it is averaged over the others");
+      }
+    }
+    if (n_absent)
+      fail(std::to_string(n_absent) + " marker(s) the template needs have no position in frames " +
+               std::to_string(r_.first_frame) + " to " +
+               std::to_string(r_.first_frame + r_.frames - 1) + ": " + absent,
+           "use a static trial that has these markers (or choose a window with --first-frame "
+           "and --frames where they are visible), or change the template " +
+               t_.file);
+  }
+
+  Eigen::Vector3d name_position(const std::string& name) {
+    if (const int p = t_.find_point(name); p >= 0) return point(p);
+    const int m = t_.find_marker(name);  // the loader checked every name exists
+    return mean_[m];
+  }
+
+  Eigen::Vector3d ref_position(const PointRef& ref) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const std::string& n : ref.names) sum += name_position(n);
+    return sum / static_cast<double>(ref.names.size());
+  }
+
+  Eigen::Vector3d unit(const Eigen::Vector3d& v, const std::string& what,
+                       const std::string& pointer) const {
+    if (v.norm() < 1e-4)
+      fail(what + " (" + t_.file + " at " + pointer + ") has no direction: its markers coincide",
+           "define it from markers at least a few centimetres apart");
+    return v.normalized();
+  }
+
+  // Columns: the frame's x, y and z axes in the world.
+  Eigen::Matrix3d frame(const FrameSpec& f) {
+    const Eigen::Vector3d a =
+        unit(ref_position(f.primary.to) - ref_position(f.primary.from), "a frame axis", f.pointer);
+    Eigen::Vector3d b = ref_position(f.secondary.to) - ref_position(f.secondary.from);
+    b -= a * a.dot(b);
+    b = unit(b, "the frame's second axis, made orthogonal to the first,", f.pointer);
+    Eigen::Matrix3d r;
+    r.col(f.primary.axis) = a;
+    r.col(f.secondary.axis) = b;
+    const int i = f.primary.axis, j = f.secondary.axis, k = 3 - i - j;
+    // Right-handed: z = x cross y and its cyclic permutations.
+    r.col(k) = ((j - i + 3) % 3 == 1) ? a.cross(b) : b.cross(a);
+    return r;
+  }
+
+  Eigen::Vector3d regression(const PointDef& d) {
+    const Eigen::Vector3d ra = ref_position(d.r_asis), la = ref_position(d.l_asis);
+    const Eigen::Vector3d post = ref_position(d.posterior);
+    const Eigen::Vector3d origin = 0.5 * (ra + la);
+    // Pelvis frame: z to the right through the ASIS, x anterior in the plane
+    // of the ASIS and the posterior reference, y superior.
+    const Eigen::Vector3d z = unit(ra - la, "the pelvis left-right axis", d.pointer);
+    Eigen::Vector3d x = origin - post;
+    x = unit(x - z * z.dot(x), "the pelvis anterior axis", d.pointer);
+    Eigen::Matrix3d r;
+    r << x, z.cross(x), z;
+    const double pw = (ra - la).norm(), pd = (origin - post).norm();
+    return origin + r * hip_centre_in_pelvis_m(d.regression, d.right, pw, pd);
+  }
+
+  Eigen::Vector3d point(int i) {
+    if (resolved_[i]) return *resolved_[i];
+    const PointDef& d = t_.points[i];
+    Eigen::Vector3d p;
+    switch (d.rule) {
+      case PointRule::at:
+        p = ref_position(d.refs[0]);
+        break;
+      case PointRule::midpoint:
+        p.setZero();
+        for (const PointRef& r : d.refs) p += ref_position(r);
+        p /= static_cast<double>(d.refs.size());
+        break;
+      case PointRule::offset:
+        p = ref_position(d.refs[0]) + frame(t_.frames[d.frame]) * d.offset_m;
+        break;
+      case PointRule::regression:
+        p = regression(d);
+        break;
+    }
+    resolved_[i] = p;
+    return p;
+  }
+
+  void build_model() {
+    nlohmann::ordered_json segs = nlohmann::ordered_json::array();
+    for (std::size_t s = 0; s < t_.segments.size(); ++s) {
+      const SegmentDef& sd = t_.segments[s];
+      const Eigen::Vector3d base = point(t_.find_point(sd.base));
+      nlohmann::ordered_json seg;
+      seg["name"] = sd.name;
+      if (sd.parent >= 0) seg["parent"] = t_.segments[sd.parent].name;
+      seg["base"] = sd.base;
+      nlohmann::ordered_json pts = nlohmann::ordered_json::object();
+      for (std::size_t p = 0; p < t_.points.size(); ++p) {
+        const PointDef& pd = t_.points[p];
+        if (pd.segment != static_cast<int>(s) || pd.name == sd.base) continue;
+        const Eigen::Vector3d w = point(static_cast<int>(p));
+        pts[pd.name] = mm3(w - base);
+        r_.lengths.push_back({sd.name, sd.base, pd.name, (w - base).norm()});
+      }
+      nlohmann::ordered_json mks = nlohmann::ordered_json::object();
+      for (std::size_t m = 0; m < t_.markers.size(); ++m) {
+        const MarkerDef& md = t_.markers[m];
+        if (md.segment != static_cast<int>(s) || md.static_only) continue;
+        mks[md.name] = mm3(mean_[m] - base);
+      }
+      if (!pts.empty()) seg["points"] = pts;
+      if (!mks.empty()) seg["markers"] = mks;
+      segs.push_back(seg);
+    }
+    const SegmentDef& root = t_.segments[0];
+    r_.model["format"] = "fabrikd-model/1";
+    r_.model["name"] = t_.name;
+    r_.model["description"] = "Calibrated by fabrik calibrate from template " + t_.file +
+                              " and static trial " + trial_name_ + " (frames " +
+                              std::to_string(r_.first_frame) + " to " +
+                              std::to_string(r_.first_frame + r_.frames - 1) +
+                              "): the rest posture is the averaged static posture.";
+    r_.model["units"] = "mm";
+    r_.model["root_position"] = mm3(point(t_.find_point(root.base)));
+    r_.model["segments"] = segs;
+
+    // The targets: the template's default level and weight, and every marker that differs.
+    nlohmann::ordered_json markers = nlohmann::ordered_json::object();
+    for (const MarkerDef& m : t_.markers) {
+      if (m.static_only) continue;
+      nlohmann::ordered_json e = nlohmann::ordered_json::object();
+      if (m.level != t_.default_level) e["level"] = m.level;
+      if (m.weight != t_.default_weight) e["weight"] = m.weight;
+      if (!e.empty()) markers[m.name] = e;
+    }
+    // The rest mirrors config/default.json, so a calibrated config behaves like the default.
+    auto& c = r_.config;
+    c["format"] = "fabrikd-config/1";
+    c["description"] = "Subject model '" + t_.name + "' calibrated from " + trial_name_ +
+                       " with template " + t_.file + ".";
+    c["model"] = r_.model;
+    c["targets"] = {{"default", {{"level", t_.default_level}, {"weight", t_.default_weight}}},
+                    {"markers", markers}};
+    c["solver"] = {{"tolerance_mm", 0.1},  {"stall_tolerance_mm", 0.1},
+                   {"max_iterations", 50}, {"segment_fit", "rigid"},
+                   {"root", "free"},       {"priorities", true}};
+    c["input"] = {{"endpoint", "tcp://127.0.0.1:5555"},
+                  {"mode", "bind"},
+                  {"units", "mm"},
+                  {"max_payload_bytes", 1048576}};
+    c["output"] = {{"endpoint", "tcp://127.0.0.1:5556"},
+                   {"mode", "bind"},
+                   {"encoding", "json"},
+                   {"units", "mm"}};
+    c["occlusion"] = {{"hold_s", 0.0}};
+    c["stats_interval_s"] = 1.0;
+    c["log_level"] = "info";
+  }
+
+  // Fits the calibrated model to every frame of the window as the tracker
+  // would, and measures each marker's residual.
+  void fit() {
+    const Model model = load_model(nlohmann::json::parse(r_.model.dump()), "<calibrated model>");
+    std::vector<Target> targets;
+    std::vector<int> tmarker;  // template marker of each target
+    for (std::size_t m = 0; m < t_.markers.size(); ++m) {
+      const MarkerDef& md = t_.markers[m];
+      if (md.static_only) continue;
+      targets.push_back({model.find_point(md.name), md.level, md.weight});
+      tmarker.push_back(static_cast<int>(m));
+    }
+    const Posture rest = Posture::rest(model);
+    for (std::size_t i = 0; i < targets.size(); ++i)
+      r_.rest_max_m = std::max(
+          r_.rest_max_m, (rest.point_world_m(model, targets[i].point) - mean_[tmarker[i]]).norm());
+
+    SolverOptions opt;
+    opt.tolerance_m = 1e-4;
+    opt.stall_tolerance_m = 1e-4;
+    opt.max_iterations = 50;
+    opt.segment_fit = SegmentFit::rigid;
+    opt.root = RootMode::free;
+    FabrikSolver solver(model, targets, opt);
+    Posture posture = rest;
+    const std::size_t n = targets.size();
+    std::vector<Eigen::Vector3d> pos(n);
+    std::vector<std::uint8_t> vis(n);
+    std::vector<double> sum2(n, 0.0), worst(n, 0.0);
+    std::vector<int> count(n, 0);
+    double all2 = 0.0;
+    int all_n = 0;
+    for (std::size_t f = first_; f < first_ + count_; ++f) {
+      for (std::size_t i = 0; i < n; ++i) {
+        pos[i] = trial_.at(f, static_cast<std::size_t>(column_[tmarker[i]]));
+        vis[i] = pos[i].allFinite();
+        if (!vis[i]) pos[i].setZero();
+      }
+      solver.solve(pos, vis, posture);
+      const auto d = solver.target_distances_m();
+      for (std::size_t i = 0; i < n; ++i) {
+        if (!vis[i]) continue;
+        sum2[i] += d[i] * d[i];
+        worst[i] = std::max(worst[i], d[i]);
+        ++count[i];
+        all2 += d[i] * d[i];
+        ++all_n;
+        r_.fit_max_m = std::max(r_.fit_max_m, d[i]);
+      }
+    }
+    r_.fit_rms_m = all_n ? std::sqrt(all2 / all_n) : 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const MarkerDef& md = t_.markers[tmarker[i]];
+      r_.fits.push_back({md.name, t_.segments[md.segment].name,
+                         count[i] ? std::sqrt(sum2[i] / count[i]) : 0.0, worst[i], count[i]});
+    }
+  }
+
+  const CalibTemplate& t_;
+  const io::MarkerTrial& trial_;
+  std::string trial_name_;
+  std::size_t first_ = 0, count_ = 0;
+  int prefixed_ = 0;
+  std::vector<int> column_;            // per template marker: trial column, -1 if absent
+  std::vector<Eigen::Vector3d> mean_;  // per template marker: static mean (NaN if none)
+  std::vector<std::optional<Eigen::Vector3d>> resolved_;  // per template point
+  CalibrationResult r_;
+};
+
+}  // namespace
+
+CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& trial,
+                            const std::string& trial_name, const CalibrateOptions& options) {
+  return Calibrator(tmpl, trial, trial_name).run(options);
+}
+
+std::string calibration_report(const CalibrationResult& r) {
+  std::ostringstream out;
+  out << "Static window: frames " << r.first_frame << " to " << r.first_frame + r.frames - 1 << " ("
+      << r.frames << " frames)\n";
+  for (const std::string& n : r.notes) out << "note: " << n << "\n";
+  out << "\nSegment lengths (base -> joint or end site):\n";
+  for (const SegmentLength& l : r.lengths) {
+    char line[200];
+    std::snprintf(line, sizeof line, "  %-14s %-16s -> %-16s %7.1f mm\n", l.segment.c_str(),
+                  l.from.c_str(), l.to.c_str(), l.length_m * 1e3);
+    out << line;
+  }
+  out << "\nMarker fit: the rigid model fitted to each frame of the window (rigid fit, free "
+         "root)\n";
+  out << "  marker               segment          RMS mm   max mm\n";
+  for (const MarkerFit& f : r.fits) {
+    char line[200];
+    std::snprintf(line, sizeof line, "  %-20s %-14s %8.2f %8.2f\n", f.marker.c_str(),
+                  f.segment.c_str(), f.rms_m * 1e3, f.max_m * 1e3);
+    out << line;
+  }
+  out << "  all markers: RMS " << fmt("%.2f", r.fit_rms_m * 1e3) << " mm, max "
+      << fmt("%.2f", r.fit_max_m * 1e3) << " mm\n";
+  out << "Rest posture vs static means: worst marker " << fmt("%.4f", r.rest_max_m * 1e3)
+      << " mm\n";
+  return out.str();
+}
+
+}  // namespace fabrik::calib

@@ -1,0 +1,69 @@
+// Calibration: a template plus a static trial -> a subject's fabrikd-model/1
+// model and a complete fabrikd-config/1 daemon config.
+//
+// The rest posture of the model IS the averaged static posture: every
+// segment frame is parallel to the world at rest (see solver/model.hpp), so
+// each point's local coordinate is its static world position minus the world
+// position of its segment's base joint. Markers reproduce their static means
+// exactly at rest; joint centres come from the template's rules.
+#pragma once
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "calib_template.hpp"
+#include "io/marker_trial.hpp"
+
+namespace fabrik::calib {
+
+// Something the calibration needs is missing or degenerate (a marker absent
+// from the window, collinear frame markers, a window outside the trial).
+class CalibrationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct CalibrateOptions {
+  long long first_frame = -1;  // the file's frame number (as in TRC Frame#); -1: the first
+  long long frames = -1;       // frames to average; -1: to the end of the trial
+};
+
+struct SegmentLength {
+  std::string segment, from, to;  // base -> a joint or end site of the segment
+  double length_m = 0.0;
+};
+
+// How well the rigid calibrated model reproduces a marker over the window
+// (the model fitted to every frame with the tracking solver, warm-started).
+struct MarkerFit {
+  std::string marker, segment;
+  double rms_m = 0.0, max_m = 0.0;
+  int samples = 0;
+};
+
+struct CalibrationResult {
+  nlohmann::ordered_json model;   // fabrikd-model/1, millimetres
+  nlohmann::ordered_json config;  // fabrikd-config/1 with the model inline
+  long long first_frame = 0;      // the window, as file frame numbers
+  long long frames = 0;
+  std::vector<std::pair<std::string, Eigen::Vector3d>> points_world_m;  // every template point
+  std::vector<SegmentLength> lengths;
+  std::vector<MarkerFit> fits;
+  double rest_max_m = 0.0;  // worst distance of a rest model marker to its static mean
+  double fit_rms_m = 0.0, fit_max_m = 0.0;
+  std::vector<std::string> notes;  // things the user should know (ignored labels, gaps)
+
+  const Eigen::Vector3d& point_world_m(const std::string& name) const;
+};
+
+// `trial_name` is used in messages. Throws CalibrationError.
+CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& trial,
+                            const std::string& trial_name, const CalibrateOptions& options = {});
+
+// The human-readable summary `fabrik calibrate` prints.
+std::string calibration_report(const CalibrationResult& result);
+
+}  // namespace fabrik::calib
