@@ -1,10 +1,11 @@
-// `fabrik`: the command-line tool (benchmarks now; file tools later).
+// `fabrik`: the command-line tool (benchmarks, replay/watch/synth).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "tools/tools.hpp"
 #include "version.hpp"
 
 int main(int argc, char** argv) {
@@ -38,6 +39,8 @@ int main(int argc, char** argv) {
   b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
+
+  fabrik::tools::add_tool_commands(app);  // run from their own callbacks
 
   try {
     app.parse(argc, argv);
