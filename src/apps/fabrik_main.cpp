@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "bench/latency_bench.hpp"
 #include "tools/tools.hpp"
 #include "version.hpp"
 
@@ -40,6 +41,20 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
 
+  fabrik::bench::LatencyOptions latency;
+  bool latency_json = false;
+  CLI::App* b_latency = bench->add_subcommand(
+      "latency", "End-to-end latency of the daemon pipeline over loopback tcp and ipc");
+  b_latency->add_option("--rate", latency.rate_hz, "Marker frames per second")
+      ->check(CLI::Range(1.0, 100000.0));
+  b_latency->add_option("--seconds", latency.seconds, "Duration per transport")
+      ->check(CLI::Range(0.1, 3600.0));
+  b_latency->add_option("--transport", latency.transports, "tcp and/or ipc")
+      ->check(CLI::IsMember({"tcp", "ipc"}));
+  b_latency->add_option("--encoding", latency.encoding, "json or msgpack")
+      ->check(CLI::IsMember({"json", "msgpack"}));
+  b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
+
   fabrik::tools::add_tool_commands(app);  // run from their own callbacks
 
   try {
@@ -51,6 +66,9 @@ int main(int argc, char** argv) {
     if (b_paper->parsed()) {
       const auto r = fabrik::bench::run_paper(paper);
       std::cout << (paper_json ? r.dump(2) + "\n" : fabrik::bench::paper_table(r));
+    } else if (b_latency->parsed()) {
+      const auto r = fabrik::bench::run_latency(latency);
+      std::cout << (latency_json ? r.dump(2) + "\n" : fabrik::bench::latency_table(r));
     } else if (b_body->parsed()) {
       const auto r = fabrik::bench::run_fullbody(body);
       std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));

@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include "config_error.hpp"
 
@@ -55,6 +56,19 @@ class JsonReader {
   std::string file_;
   std::string pointer_;
 };
+
+// One of a few named values; the error lists them.
+template <class T>
+T read_choice(const JsonReader& value, const std::string& what,
+              std::initializer_list<std::pair<const char*, T>> choices) {
+  const std::string v = value.as_string();
+  std::string names;
+  for (const auto& [name, choice] : choices) {
+    if (v == name) return choice;
+    names += (names.empty() ? "\"" : " or \"") + std::string(name) + "\"";
+  }
+  value.fail("unknown " + what + " '" + v + "'", "use " + names);
+}
 
 // "pointer/escaped~1key": RFC 6901 escaping of one reference token.
 std::string json_pointer_token(const std::string& key);

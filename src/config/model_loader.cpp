@@ -23,7 +23,10 @@ void read_points(const JsonReader& obj, double scale, bool marker, std::vector<P
 }  // namespace
 
 Model load_model(const nlohmann::json& doc, const std::string& file) {
-  const JsonReader root(doc, file);
+  return load_model(JsonReader(doc, file));
+}
+
+Model load_model(const JsonReader& root) {
   root.only_keys({"format", "name", "units", "root_position", "segments", "description"});
   if (root.has("format") && root.at("format").as_string() != "fabrikd-model/1")
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
@@ -52,7 +55,7 @@ Model load_model(const nlohmann::json& doc, const std::string& file) {
     return build_model(name, specs, root_m);
   } catch (const ModelError& e) {
     // Point the message at the field the builder complained about.
-    std::string pointer = "/segments";
+    std::string pointer = root.pointer() + "/segments";
     if (e.segment() >= 0) {
       pointer += "/" + std::to_string(e.segment());
       const SegmentSpec& spec = specs[e.segment()];
@@ -63,9 +66,9 @@ Model load_model(const nlohmann::json& doc, const std::string& file) {
         pointer += "/" + e.field();
       }
     } else if (e.field() != "segments") {
-      pointer = "/" + e.field();
+      pointer = root.pointer() + "/" + e.field();
     }
-    throw ConfigError(file, pointer, e.what(), "see the model format in README.md");
+    throw ConfigError(root.file(), pointer, e.what(), "see the model format in README.md");
   }
 }
 

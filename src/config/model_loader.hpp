@@ -11,6 +11,9 @@ namespace fabrik {
 
 // `file` is only used in messages. Throws ConfigError.
 Model load_model(const nlohmann::json& doc, const std::string& file);
+// A model object anywhere in a JSON document (e.g. inline in a daemon config).
+class JsonReader;
+Model load_model(const JsonReader& model);
 Model load_model_file(const std::string& path);
 
 // Metres per unit for "m" and "mm"; throws ConfigError via `reader` otherwise.

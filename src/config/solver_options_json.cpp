@@ -1,24 +1,6 @@
 #include "solver_options_json.hpp"
 
-#include <initializer_list>
-#include <utility>
-
 namespace fabrik {
-
-namespace {
-// One of a few named values; the error lists them.
-template <class T>
-T read_choice(const JsonReader& value, const std::string& what,
-              std::initializer_list<std::pair<const char*, T>> choices) {
-  const std::string v = value.as_string();
-  std::string names;
-  for (const auto& [name, choice] : choices) {
-    if (v == name) return choice;
-    names += (names.empty() ? "\"" : " or \"") + std::string(name) + "\"";
-  }
-  value.fail("unknown " + what + " '" + v + "'", "use " + names);
-}
-}  // namespace
 
 SolverOptions read_solver_options(const JsonReader& solver, SolverOptions o) {
   solver.only_keys({"tolerance_mm", "stall_tolerance_mm", "max_iterations", "level_passes",

@@ -44,11 +44,11 @@ struct TrackerSetup {
 // The outcome of one frame. Spans stay valid until the next track() call.
 struct TrackResult {
   SolveResult solve;
-  double solve_us = 0.0;                               // wall time of the solve itself
-  std::span<const Eigen::Vector3d> joints_world_m;     // per Model::joints
-  std::span<const Eigen::Vector3d> markers_world_m;    // per marker of the setup: model position
-  std::span<const std::uint8_t> occluded;              // per marker: no valid measurement
-  std::span<const std::uint8_t> held;                  // per marker: occluded but held
+  double solve_us = 0.0;                             // wall time of the solve itself
+  std::span<const Eigen::Vector3d> joints_world_m;   // per Model::joints
+  std::span<const Eigen::Vector3d> markers_world_m;  // per marker of the setup: model position
+  std::span<const std::uint8_t> occluded;            // per marker: no valid measurement
+  std::span<const std::uint8_t> held;                // per marker: occluded but held
   int occluded_count = 0;
   // Residual between measured and model positions over the markers measured
   // in this frame (held ones excluded), metres.

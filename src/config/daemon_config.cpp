@@ -1,0 +1,192 @@
+#include "daemon_config.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+
+#include "json_reader.hpp"
+#include "model_loader.hpp"
+#include "resources.hpp"
+#include "solver_options_json.hpp"
+
+namespace fabrik {
+
+namespace {
+
+constexpr const char* kFormat = "fabrikd-config/1";
+constexpr const char* kEmbeddedDefault = "<embedded>/default.json";
+
+// A model path is relative to the config file's folder; the embedded
+// models/*.json resolve when no such file exists (and always for the
+// embedded default, so it never depends on the working directory).
+Model read_model(const JsonReader& model, const std::string& config_file) {
+  if (model.value().is_object()) return load_model(model);
+  const std::string name = model.as_string();
+  std::filesystem::path path(name);
+  if (config_file != kEmbeddedDefault && path.is_relative())
+    path = std::filesystem::path(config_file).parent_path() / path;
+  if (config_file != kEmbeddedDefault && std::filesystem::exists(path))
+    return load_model_file(path.string());
+  if (auto text = embedded_config(name)) return load_model(JsonReader::parse(*text, name), name);
+  model.fail("model file '" + path.string() + "' not found",
+             "give a path relative to the config file, an embedded model (models/fullbody.json, "
+             "models/paper_upper_body.json) or the model object itself");
+}
+
+Endpoint read_endpoint(const JsonReader& r, Endpoint e) {
+  if (r.has("endpoint")) {
+    e.address = r.at("endpoint").as_string();
+    const auto scheme = e.address.find("://");
+    if (scheme == std::string::npos || scheme == 0)
+      r.at("endpoint")
+          .fail("'" + e.address + "' is not a ZeroMQ endpoint",
+                "write transport://address, e.g. \"tcp://127.0.0.1:5555\", "
+                "\"ipc:///tmp/fabrikd.sock\" or \"inproc://markers\"");
+  }
+  if (r.has("mode"))
+    e.mode =
+        read_choice<SocketMode>(r.at("mode"), "socket mode",
+                                {{"bind", SocketMode::bind}, {"connect", SocketMode::connect}});
+  return e;
+}
+
+void read_targets(const JsonReader& targets, const Model& model, std::vector<MarkerTarget>& out) {
+  targets.only_keys({"default", "markers"});
+  MarkerTarget base;
+  if (targets.has("default")) {
+    const JsonReader d = targets.at("default");
+    d.only_keys({"level", "weight"});
+    base.level = static_cast<int>(d.get("level", 0LL, -1000LL, 1000LL));
+    base.weight = d.get("weight", 1.0, 1e-9, 1e9);
+  }
+  // Every model marker under its own name, unless an entry says otherwise.
+  std::map<std::string, MarkerTarget> by_name;
+  std::vector<std::string> order;
+  for (int p : model.marker_points()) {
+    MarkerTarget t = base;
+    t.marker = model.points[p].name;
+    t.point = p;
+    by_name[t.marker] = t;
+    order.push_back(t.marker);
+  }
+  if (targets.has("markers")) {
+    const JsonReader markers = targets.at("markers");
+    markers.expect_object();
+    std::vector<std::string> dropped;
+    for (auto it = markers.value().begin(); it != markers.value().end(); ++it) {
+      const JsonReader e = markers.at(it.key());
+      e.only_keys({"point", "level", "weight", "track"});
+      MarkerTarget t = by_name.count(it.key()) ? by_name[it.key()] : base;
+      t.marker = it.key();
+      if (e.has("point")) {
+        const std::string point = e.at("point").as_string();
+        t.point = model.find_point(point);
+        if (t.point < 0)
+          e.at("point").fail("the model has no point '" + point + "'",
+                             "name one of the model's markers or joint points");
+        // The stream name takes the place of the point's own name.
+        if (point != it.key() && by_name.count(point)) dropped.push_back(point);
+      } else if (t.point < 0) {
+        e.fail("'" + it.key() + "' is not a marker of the model",
+               "add \"point\": the model point this marker pulls, or fix the name");
+      }
+      t.level = static_cast<int>(e.get("level", static_cast<long long>(t.level), -1000LL, 1000LL));
+      t.weight = e.get("weight", t.weight, 1e-9, 1e9);
+      if (!by_name.count(t.marker)) order.push_back(t.marker);
+      by_name[t.marker] = t;
+      if (!e.get("track", true)) dropped.push_back(t.marker);
+    }
+    for (const std::string& name : dropped) {
+      by_name.erase(name);
+      order.erase(std::remove(order.begin(), order.end(), name), order.end());
+    }
+  }
+  for (const std::string& name : order) out.push_back(by_name[name]);
+  if (out.empty())
+    targets.fail("no marker is tracked", "keep at least one model marker with \"track\": true");
+}
+
+}  // namespace
+
+DaemonConfig load_daemon_config(const std::string& text, const std::string& file) {
+  const nlohmann::json doc = JsonReader::parse(text, file);
+  const JsonReader root(doc, file);
+  root.expect_object();
+  root.only_keys({"format", "description", "model", "targets", "solver", "input", "output",
+                  "occlusion", "stats_interval_s", "log_level"});
+  if (root.at("format").as_string() != kFormat)
+    root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
+                           std::string("use \"") + kFormat + "\"");
+  DaemonConfig c;
+  c.file = file;
+  c.description = root.get("description", std::string());
+  auto model = std::make_shared<const Model>(read_model(root.at("model"), file));
+  read_targets(root.has("targets") ? root.at("targets")
+                                   : JsonReader(nlohmann::json::object(), file, "/targets"),
+               *model, c.tracker.markers);
+  c.tracker.model = model;
+
+  SolverOptions solver;  // tracking defaults: a moving pelvis and rigid multi-marker segments
+  solver.root = RootMode::free;
+  solver.segment_fit = SegmentFit::rigid;
+  solver.tolerance_m = 0.1e-3;
+  solver.stall_tolerance_m = 0.1e-3;
+  solver.max_iterations = 50;
+  c.tracker.solver = root.has("solver") ? read_solver_options(root.at("solver"), solver) : solver;
+
+  if (root.has("input")) {
+    const JsonReader in = root.at("input");
+    in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames"});
+    c.input = read_endpoint(in, c.input);
+    if (in.has("units")) c.input_m_per_unit = metres_per_unit(in.at("units"));
+    c.max_payload_bytes = static_cast<std::size_t>(
+        in.get("max_payload_bytes", static_cast<long long>(c.max_payload_bytes), 64LL, 1LL << 30));
+    c.max_backlog_frames = static_cast<int>(
+        in.get("max_backlog_frames", static_cast<long long>(c.max_backlog_frames), 1LL, 10000LL));
+  }
+  if (root.has("output")) {
+    const JsonReader out = root.at("output");
+    out.only_keys({"endpoint", "mode", "encoding", "units"});
+    c.output = read_endpoint(out, c.output);
+    if (out.has("units")) {
+      c.output_m_per_unit = metres_per_unit(out.at("units"));
+      c.output_units = out.at("units").as_string();
+    }
+    if (out.has("encoding"))
+      c.output_encoding =
+          read_choice<Encoding>(out.at("encoding"), "encoding",
+                                {{"json", Encoding::json}, {"msgpack", Encoding::msgpack}});
+  }
+  if (c.input.address == c.output.address)
+    root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
+                           "give the pose output its own endpoint");
+
+  int weakest = c.tracker.markers.front().level;
+  for (const MarkerTarget& t : c.tracker.markers) weakest = std::min(weakest, t.level);
+  c.tracker.occlusion.hold_level = weakest - 1;
+  if (root.has("occlusion")) {
+    const JsonReader o = root.at("occlusion");
+    o.only_keys({"hold_s", "hold_level"});
+    c.tracker.occlusion.hold_s = o.get("hold_s", 0.0, 0.0, 3600.0);
+    c.tracker.occlusion.hold_level = static_cast<int>(o.get(
+        "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
+  }
+  c.stats_interval_s = root.get("stats_interval_s", 1.0, 0.01, 1.0);
+  if (root.has("log_level")) {
+    c.log_level = root.at("log_level").as_string();
+    read_choice<int>(
+        root.at("log_level"), "log level",
+        {{"trace", 0}, {"debug", 1}, {"info", 2}, {"warn", 3}, {"error", 4}, {"off", 6}});
+  }
+  return c;
+}
+
+DaemonConfig load_daemon_config_file(const std::string& path) {
+  return load_daemon_config(read_config_text(path), path);
+}
+
+DaemonConfig default_daemon_config() {
+  return load_daemon_config(std::string(*embedded_config("default.json")), kEmbeddedDefault);
+}
+
+}  // namespace fabrik

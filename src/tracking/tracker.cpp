@@ -1,0 +1,116 @@
+#include "tracker.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace fabrik {
+
+namespace {
+
+bool hold_enabled(const TrackerSetup& s) {
+  return s.occlusion.hold_s > 0.0;
+}
+
+// The solver's targets: one per marker, then (if holding is on) one more per
+// marker at the hold level, which pulls towards the last measured position.
+std::vector<Target> solver_targets(const TrackerSetup& s) {
+  if (!s.model) throw std::invalid_argument("tracker: no model");
+  std::vector<Target> targets;
+  for (const MarkerTarget& m : s.markers) {
+    if (m.point < 0 || m.point >= static_cast<int>(s.model->points.size()))
+      throw std::invalid_argument("tracker: marker '" + m.marker + "' has no model point");
+    targets.push_back({m.point, m.level, m.weight});
+  }
+  if (hold_enabled(s))
+    for (const MarkerTarget& m : s.markers)
+      targets.push_back({m.point, s.occlusion.hold_level, m.weight});
+  return targets;
+}
+
+bool finite(const Eigen::Vector3d& p) {
+  return p.allFinite();
+}
+
+}  // namespace
+
+Tracker::Tracker(TrackerSetup setup)
+    : setup_(std::move(setup)),
+      solver_(*setup_.model, solver_targets(setup_), setup_.solver),
+      posture_(Posture::rest(*setup_.model)),
+      n_(static_cast<int>(setup_.markers.size())) {
+  const int n_targets = static_cast<int>(solver_.targets().size());
+  target_world_m_.assign(n_targets, Eigen::Vector3d::Zero());
+  target_visible_.assign(n_targets, 0);
+  last_seen_m_.assign(n_, Eigen::Vector3d::Zero());
+  last_seen_s_.assign(n_, -INFINITY);
+  joints_m_.assign(model().joints.size(), Eigen::Vector3d::Zero());
+  markers_m_.assign(n_, Eigen::Vector3d::Zero());
+  occluded_.assign(n_, 1);
+  held_.assign(n_, 0);
+  result_.joints_world_m = joints_m_;
+  result_.markers_world_m = markers_m_;
+  result_.occluded = occluded_;
+  result_.held = held_;
+}
+
+void Tracker::reset() {
+  posture_ = Posture::rest(model());
+  warm_ = false;
+  std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
+}
+
+const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                                  std::span<const std::uint8_t> visible) {
+  if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_)
+    throw std::invalid_argument("tracker: one measurement per marker expected");
+  const bool hold = hold_enabled(setup_);
+  int occluded_count = 0;
+  for (int i = 0; i < n_; ++i) {
+    const bool seen = visible[i] != 0 && finite(measured_world_m[i]);
+    occluded_[i] = seen ? 0 : 1;
+    target_visible_[i] = seen ? 1 : 0;
+    if (seen) {
+      target_world_m_[i] = measured_world_m[i];
+      last_seen_m_[i] = measured_world_m[i];
+      last_seen_s_[i] = time_s;
+    } else {
+      ++occluded_count;
+    }
+    held_[i] = 0;
+    if (hold) {
+      // Time may restart with the source: a clock that went backwards ends holding.
+      const double age_s = time_s - last_seen_s_[i];
+      held_[i] = !seen && age_s >= 0.0 && age_s <= setup_.occlusion.hold_s ? 1 : 0;
+      target_visible_[n_ + i] = held_[i];
+      target_world_m_[n_ + i] = last_seen_m_[i];
+    }
+  }
+  if (!warm_) posture_ = Posture::rest(model());
+  const auto t0 = std::chrono::steady_clock::now();
+  result_.solve = solver_.solve(target_world_m_, target_visible_, posture_);
+  const auto t1 = std::chrono::steady_clock::now();
+  result_.solve_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
+  warm_ = warm_ || result_.solve.status != SolveStatus::no_targets;
+
+  for (std::size_t j = 0; j < joints_m_.size(); ++j)
+    joints_m_[j] = posture_.point_world_m(model(), model().joints[j].point);
+  double sq_m2 = 0.0, max_m = 0.0;
+  int count = 0, worst = -1;
+  for (int i = 0; i < n_; ++i) {
+    markers_m_[i] = posture_.point_world_m(model(), setup_.markers[i].point);
+    if (occluded_[i]) continue;
+    const double d_m = (markers_m_[i] - measured_world_m[i]).norm();
+    sq_m2 += d_m * d_m;
+    ++count;
+    if (worst < 0 || d_m > max_m) max_m = d_m, worst = i;
+  }
+  result_.occluded_count = occluded_count;
+  result_.residual_count = count;
+  result_.residual_rms_m = count > 0 ? std::sqrt(sq_m2 / count) : 0.0;
+  result_.residual_max_m = max_m;
+  result_.worst_marker = worst;
+  return result_;
+}
+
+}  // namespace fabrik

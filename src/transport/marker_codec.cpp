@@ -1,0 +1,366 @@
+#include "marker_codec.hpp"
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "wire_writer.hpp"
+
+namespace fabrik::wire {
+
+namespace {
+
+using nlohmann::json;
+
+// Deepest nesting a valid frame needs is 3 (frame > markers > [x, y, z]);
+// extra top-level fields may nest a little, anything deeper is refused.
+constexpr int kMaxDepth = 8;
+constexpr std::size_t kMaxUnknownNames = 8;
+
+// SAX handler: a small state machine over the token stream.
+class FrameSax : public nlohmann::json_sax<json> {
+ public:
+  FrameSax(const std::unordered_map<std::string, int>& index, MarkerFrame& out, std::string& error)
+      : index_(index), out_(out), error_(error) {}
+
+  bool has_frame = false;
+  double m_per_unit = 0.0;  // 0: not given
+
+  bool null() override {
+    if (state_ == State::marker_value) return end_marker_value();
+    return scalar("null");
+  }
+  bool boolean(bool) override { return scalar("a boolean"); }
+  bool number_integer(number_integer_t v) override {
+    if (state_ == State::frame)
+      return fail("\"frame\" must be an unsigned integer, got " + std::to_string(v));
+    return number(static_cast<double>(v));
+  }
+  bool number_unsigned(number_unsigned_t v) override {
+    if (state_ == State::frame) {
+      out_.frame = v;
+      has_frame = true;
+      return top_value_done();
+    }
+    return number(static_cast<double>(v));
+  }
+  bool number_float(number_float_t v, const string_t&) override {
+    if (state_ == State::frame) return fail("\"frame\" must be an unsigned integer, got a float");
+    return number(v);
+  }
+  bool string(string_t& s) override {
+    if (state_ == State::units) {
+      if (s == "mm")
+        m_per_unit = 1e-3;
+      else if (s == "m")
+        m_per_unit = 1.0;
+      else
+        return fail("\"units\" must be \"mm\" or \"m\", got \"" + s + "\"");
+      return top_value_done();
+    }
+    return scalar("a string");
+  }
+  bool binary(binary_t&) override { return scalar("binary data"); }
+
+  bool start_object(std::size_t) override {
+    if (++depth_ > kMaxDepth) return fail("nesting deeper than " + std::to_string(kMaxDepth));
+    switch (state_) {
+      case State::start:
+        state_ = State::top_key;
+        return true;
+      case State::markers:
+        state_ = State::marker_key;
+        return true;
+      case State::skip:
+        return true;
+      case State::top_skip_value:
+        state_ = State::skip;
+        skip_depth_ = depth_;
+        return true;
+      default:
+        return scalar("an object");
+    }
+  }
+  bool end_object() override {
+    --depth_;
+    if (state_ == State::skip) return end_skip();
+    if (state_ == State::marker_key) {
+      state_ = State::top_key;
+      return true;
+    }
+    if (state_ == State::top_key) {
+      state_ = State::done;
+      return true;
+    }
+    return true;
+  }
+  bool start_array(std::size_t) override {
+    if (++depth_ > kMaxDepth) return fail("nesting deeper than " + std::to_string(kMaxDepth));
+    switch (state_) {
+      case State::marker_value:
+        state_ = State::coords;
+        coord_ = 0;
+        return true;
+      case State::skip:
+        return true;
+      case State::top_skip_value:
+        state_ = State::skip;
+        skip_depth_ = depth_;
+        return true;
+      default:
+        return scalar("an array");
+    }
+  }
+  bool end_array() override {
+    --depth_;
+    if (state_ == State::skip) return end_skip();
+    if (state_ == State::coords) {
+      if (coord_ != 3)
+        return fail("marker \"" + marker_name_ + "\": expected [x, y, z], got " +
+                    std::to_string(coord_) + " numbers");
+      if (marker_ >= 0) {
+        out_.visible[marker_] = p_.allFinite() ? 1 : 0;
+        out_.p_world_m[marker_] = p_;
+      }
+      state_ = State::marker_key;
+    }
+    return true;
+  }
+  bool key(string_t& k) override {
+    if (state_ == State::top_key) {
+      if (k == "frame")
+        state_ = State::frame;
+      else if (k == "time")
+        state_ = State::time;
+      else if (k == "units")
+        state_ = State::units;
+      else if (k == "markers")
+        state_ = State::markers;
+      else
+        state_ = State::top_skip_value;  // additions to the contract are allowed
+      return true;
+    }
+    if (state_ == State::marker_key) {
+      const auto it = index_.find(k);
+      marker_ = it == index_.end() ? -1 : it->second;
+      if (marker_ < 0) {
+        ++out_.unknown_count;
+        if (out_.unknown_names.size() < kMaxUnknownNames) out_.unknown_names.push_back(k);
+      }
+      marker_name_ = k;
+      state_ = State::marker_value;
+      return true;
+    }
+    return true;  // keys inside skipped values
+  }
+  bool parse_error(std::size_t position, const std::string&,
+                   const nlohmann::detail::exception& e) override {
+    if (error_.empty())
+      error_ = "not valid " + std::string(format_) + " at byte " + std::to_string(position) + ": " +
+               e.what();
+    return false;
+  }
+  const char* format_ = "JSON";
+
+ private:
+  enum class State {
+    start,
+    top_key,
+    frame,
+    time,
+    units,
+    markers,
+    marker_key,
+    marker_value,
+    coords,
+    top_skip_value,
+    skip,
+    done
+  };
+
+  bool number(double v) {
+    switch (state_) {
+      case State::time:
+        if (!std::isfinite(v)) return fail("\"time\" must be a finite number");
+        out_.time_s = v;
+        out_.has_time = true;
+        return top_value_done();
+      case State::coords:
+        if (coord_ >= 3) return fail("marker \"" + marker_name_ + "\": more than 3 coordinates");
+        p_[coord_++] = v;
+        return true;
+      case State::skip:
+        return true;
+      case State::top_skip_value:
+        return top_value_done();
+      default:
+        return scalar("a number");
+    }
+  }
+  bool end_marker_value() {  // null: occluded
+    if (marker_ >= 0) out_.visible[marker_] = 0;
+    state_ = State::marker_key;
+    return true;
+  }
+  bool top_value_done() {
+    state_ = State::top_key;
+    return true;
+  }
+  bool end_skip() {
+    if (depth_ < skip_depth_) state_ = State::top_key;
+    return true;
+  }
+  // A scalar where it does not belong, or an allowed one in skipped content.
+  bool scalar(const char* what) {
+    if (state_ == State::skip) return true;
+    if (state_ == State::top_skip_value) return top_value_done();
+    switch (state_) {
+      case State::start:
+        return fail(std::string("a marker frame must be an object, got ") + what);
+      case State::frame:
+        return fail(std::string("\"frame\" must be an unsigned integer, got ") + what);
+      case State::time:
+        return fail(std::string("\"time\" must be a number, got ") + what);
+      case State::units:
+        return fail(std::string("\"units\" must be \"mm\" or \"m\", got ") + what);
+      case State::markers:
+        return fail(std::string("\"markers\" must be an object, got ") + what);
+      case State::marker_value:
+        return fail("marker \"" + marker_name_ + "\" must be [x, y, z] or null, got " + what);
+      case State::coords:
+        return fail("marker \"" + marker_name_ + "\": coordinates must be numbers, got " + what);
+      default:
+        return fail(std::string("unexpected ") + what);
+    }
+  }
+  bool fail(std::string message) {
+    if (error_.empty()) error_ = std::move(message);
+    return false;
+  }
+
+  const std::unordered_map<std::string, int>& index_;
+  MarkerFrame& out_;
+  std::string& error_;
+  State state_ = State::start;
+  int depth_ = 0, skip_depth_ = 0;
+  int marker_ = -1;
+  std::string marker_name_;
+  int coord_ = 0;
+  Eigen::Vector3d p_{0, 0, 0};
+};
+
+}  // namespace
+
+PayloadEncoding detect_encoding(std::span<const std::uint8_t> payload) {
+  if (payload.empty()) return PayloadEncoding::json;
+  const std::uint8_t b = payload[0];
+  return (b >= 0x80 && b <= 0x8f) || b == 0xde || b == 0xdf ? PayloadEncoding::msgpack
+                                                            : PayloadEncoding::json;
+}
+
+MarkerDecoder::MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
+                             std::size_t max_payload_bytes)
+    : count_(static_cast<int>(names.size())),
+      default_m_per_unit_(default_m_per_unit),
+      max_payload_bytes_(max_payload_bytes) {
+  for (int i = 0; i < count_; ++i) index_.emplace(names[i], i);
+}
+
+MarkerFrame MarkerDecoder::make_frame() const {
+  MarkerFrame f;
+  f.p_world_m.assign(count_, Eigen::Vector3d::Zero());
+  f.visible.assign(count_, 0);
+  f.unknown_names.reserve(kMaxUnknownNames);
+  return f;
+}
+
+int MarkerDecoder::index_of(const std::string& name) const {
+  const auto it = index_.find(name);
+  return it == index_.end() ? -1 : it->second;
+}
+
+bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& out,
+                           std::string& error) const {
+  error.clear();
+  if (payload.empty()) {
+    error = "empty payload";
+    return false;
+  }
+  if (payload.size() > max_payload_bytes_) {
+    error = "payload of " + std::to_string(payload.size()) + " bytes is over the limit of " +
+            std::to_string(max_payload_bytes_);
+    return false;
+  }
+  out.frame = 0;
+  out.has_time = false;
+  out.time_s = 0.0;
+  out.unknown_count = 0;
+  out.unknown_names.clear();
+  std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
+  FrameSax sax(index_, out, error);
+  const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
+  sax.format_ = msgpack ? "MessagePack" : "JSON";
+  const bool ok =
+      json::sax_parse(payload.begin(), payload.end(), &sax,
+                      msgpack ? json::input_format_t::msgpack : json::input_format_t::json);
+  if (!ok) {
+    if (error.empty()) error = std::string("not a valid ") + sax.format_ + " marker frame";
+    return false;
+  }
+  if (!sax.has_frame) {
+    error = "\"frame\" is missing";
+    return false;
+  }
+  const double scale = sax.m_per_unit > 0.0 ? sax.m_per_unit : default_m_per_unit_;
+  for (int i = 0; i < count_; ++i)
+    if (out.visible[i]) out.p_world_m[i] *= scale;  // units converted once, here
+  return true;
+}
+
+namespace {
+template <class Writer>
+void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
+                        std::span<const std::string> names,
+                        std::span<const Eigen::Vector3d> p_world_m,
+                        std::span<const std::uint8_t> visible, std::string_view units) {
+  const double scale = units == "mm" ? 1e3 : 1.0;
+  w.begin_map(time_s ? 4 : 3);
+  w.key("frame");
+  w.uint(frame);
+  if (time_s) {
+    w.key("time");
+    w.number(*time_s, 6);
+  }
+  w.key("units");
+  w.string(units);
+  w.key("markers");
+  w.begin_map(names.size());
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    w.key(names[i]);
+    if (!visible[i] || !p_world_m[i].allFinite()) {
+      w.null();
+      continue;
+    }
+    w.begin_array(3);
+    for (int k = 0; k < 3; ++k) w.number(p_world_m[i][k] * scale);
+    w.end_array();
+  }
+  w.end_map();
+  w.end_map();
+}
+}  // namespace
+
+void encode_marker_frame(std::uint64_t frame, const double* time_s,
+                         std::span<const std::string> names,
+                         std::span<const Eigen::Vector3d> p_world_m,
+                         std::span<const std::uint8_t> visible, std::string_view units,
+                         PayloadEncoding encoding, std::string& out) {
+  if (encoding == PayloadEncoding::json) {
+    JsonWriter w(out, units == "mm" ? 4 : 7);
+    write_marker_frame(w, frame, time_s, names, p_world_m, visible, units);
+  } else {
+    MsgpackWriter w(out);
+    write_marker_frame(w, frame, time_s, names, p_world_m, visible, units);
+  }
+}
+
+}  // namespace fabrik::wire

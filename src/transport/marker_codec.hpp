@@ -1,0 +1,62 @@
+// The `markers` payload of the wire contract (proto/markers.schema.json):
+// decoding into the tracker's marker order, and encoding (for replay tools,
+// benchmarks and tests). Decoding is a SAX pass over JSON or MessagePack
+// (told apart by the first byte) straight into preallocated arrays, so a bad
+// payload is rejected at the first wrong token and nesting is bounded.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <string_view>
+#include <unordered_map>
+#include <vector>
+
+namespace fabrik::wire {
+
+enum class PayloadEncoding { json, msgpack };
+
+// MessagePack when the first byte starts a MessagePack map, else JSON.
+PayloadEncoding detect_encoding(std::span<const std::uint8_t> payload);
+
+struct MarkerFrame {
+  std::uint64_t frame = 0;
+  bool has_time = false;
+  double time_s = 0.0;
+  std::vector<Eigen::Vector3d> p_world_m;  // per known marker, metres
+  std::vector<std::uint8_t> visible;       // per known marker
+  int unknown_count = 0;                   // marker names not in the model
+  std::vector<std::string> unknown_names;  // the first few of them, for the log
+};
+
+class MarkerDecoder {
+ public:
+  // `names`: the marker names in tracker order. Frames without "units" are in
+  // `default_m_per_unit`. Larger payloads than `max_payload_bytes` are errors.
+  MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
+                std::size_t max_payload_bytes);
+
+  // A frame sized for this decoder's markers.
+  MarkerFrame make_frame() const;
+  // Fills `out` and returns true, or returns false with `error` saying why.
+  bool decode(std::span<const std::uint8_t> payload, MarkerFrame& out, std::string& error) const;
+  int index_of(const std::string& name) const;
+
+ private:
+  std::unordered_map<std::string, int> index_;
+  int count_;
+  double default_m_per_unit_;
+  std::size_t max_payload_bytes_;
+};
+
+// A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are
+// given in metres and converted here), null where visible[i] is 0 or the
+// position is not finite.
+void encode_marker_frame(std::uint64_t frame, const double* time_s,
+                         std::span<const std::string> names,
+                         std::span<const Eigen::Vector3d> p_world_m,
+                         std::span<const std::uint8_t> visible, std::string_view units,
+                         PayloadEncoding encoding, std::string& out);
+
+}  // namespace fabrik::wire

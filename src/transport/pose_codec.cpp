@@ -1,0 +1,103 @@
+#include "pose_codec.hpp"
+
+#include "wire_writer.hpp"
+
+namespace fabrik::wire {
+
+std::string_view wire_status(SolveStatus status) {
+  return status == SolveStatus::stalled ? "converged" : to_string(status);
+}
+
+PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding)
+    : units_(std::move(units)),
+      scale_(units_ == "m" ? 1.0 : 1e3),
+      decimals_(units_ == "m" ? 7 : 4),  // 0.1 micrometre either way
+      encoding_(encoding) {
+  for (const Joint& j : tracker.model().joints)
+    joints_.push_back({j.name, JsonWriter::json_key(j.name)});
+  for (const MarkerTarget& m : tracker.setup().markers)
+    markers_.push_back({m.marker, JsonWriter::json_key(m.marker)});
+}
+
+template <class Writer>
+void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& r) const {
+  auto vec = [&](const Eigen::Vector3d& p_m) {
+    w.begin_array(3);
+    for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
+    w.end_array();
+  };
+  w.begin_map(header.has_time ? 9 : 8);
+  w.key("frame");
+  w.uint(header.frame);
+  if (header.has_time) {
+    w.key("time");
+    w.number(header.time_s, 6);
+  }
+  w.key("units");
+  w.string(units_);
+  w.key("joints");
+  w.begin_map(joints_.size());
+  for (std::size_t j = 0; j < joints_.size(); ++j) {
+    w.named_key(joints_[j].plain, joints_[j].json_key);
+    vec(r.joints_world_m[j]);
+  }
+  w.end_map();
+  w.key("markers");
+  w.begin_map(markers_.size());
+  for (std::size_t i = 0; i < markers_.size(); ++i) {
+    w.named_key(markers_[i].plain, markers_[i].json_key);
+    vec(r.markers_world_m[i]);
+  }
+  w.end_map();
+  std::size_t held = 0;
+  for (std::uint8_t h : r.held) held += h;
+  w.key("occluded");
+  w.begin_array(static_cast<std::size_t>(r.occluded_count));
+  for (std::size_t i = 0; i < markers_.size(); ++i)
+    if (r.occluded[i]) w.string(markers_[i].plain);
+  w.end_array();
+  w.key("held");  // addition: occluded markers still pulled by their last position
+  w.begin_array(held);
+  for (std::size_t i = 0; i < markers_.size(); ++i)
+    if (r.held[i]) w.string(markers_[i].plain);
+  w.end_array();
+  w.key("residual");
+  w.begin_map(4);
+  w.key("rms");
+  w.number(r.residual_rms_m * scale_);
+  w.key("max");
+  w.number(r.residual_max_m * scale_);
+  w.key("worst");
+  if (r.worst_marker >= 0)
+    w.string(markers_[r.worst_marker].plain);
+  else
+    w.null();
+  w.key("count");
+  w.uint(static_cast<std::uint64_t>(r.residual_count));
+  w.end_map();
+  w.key("solver");
+  w.begin_map(4);
+  w.key("status");
+  w.string(wire_status(r.solve.status));
+  w.key("stop");  // addition: the solver's own stopping reason
+  w.string(to_string(r.solve.status));
+  w.key("iterations");
+  w.uint(static_cast<std::uint64_t>(r.solve.iterations));
+  w.key("solve_us");
+  w.number(r.solve_us, 2);
+  w.end_map();
+  w.end_map();
+}
+
+void PoseEncoder::encode(const PoseHeader& header, const TrackResult& result,
+                         std::string& out) const {
+  if (encoding_ == PayloadEncoding::json) {
+    JsonWriter w(out, decimals_);
+    write(w, header, result);
+  } else {
+    MsgpackWriter w(out);
+    write(w, header, result);
+  }
+}
+
+}  // namespace fabrik::wire

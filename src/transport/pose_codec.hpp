@@ -1,0 +1,48 @@
+// The `pose` payload of the wire contract (proto/pose.schema.json), written
+// straight from a TrackResult into a reused buffer, in JSON or MessagePack.
+// Names are escaped once, at construction.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "marker_codec.hpp"
+#include "tracking/tracker.hpp"
+
+namespace fabrik::wire {
+
+// The wire status: the contract knows converged, max_iterations and
+// no_targets. A solve that stopped because nothing would change any more
+// ("stalled": the least-squares optimum of noisy or unreachable targets) is
+// reported as converged; `solver.stop` carries the internal reason.
+std::string_view wire_status(SolveStatus status);
+
+struct PoseHeader {
+  std::uint64_t frame = 0;
+  bool has_time = false;
+  double time_s = 0.0;
+};
+
+class PoseEncoder {
+ public:
+  // Positions are written in `units` ("mm" or "m").
+  PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding);
+  void encode(const PoseHeader& header, const TrackResult& result, std::string& out) const;
+  PayloadEncoding encoding() const { return encoding_; }
+
+ private:
+  template <class Writer>
+  void write(Writer& w, const PoseHeader& header, const TrackResult& result) const;
+
+  struct Name {
+    std::string plain, json_key;
+  };
+  std::vector<Name> joints_, markers_;
+  std::string units_;
+  double scale_;  // output units per metre
+  int decimals_;
+  PayloadEncoding encoding_;
+};
+
+}  // namespace fabrik::wire

@@ -1,0 +1,184 @@
+// Two writers with the same calls, one for JSON text and one for
+// MessagePack, so a payload is described once (a template over the writer)
+// and comes out in either encoding. They append to a caller-owned buffer that
+// keeps its capacity between frames: after the first few frames, encoding
+// does not allocate.
+#pragma once
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <string_view>
+
+namespace fabrik::wire {
+
+// JSON: maps and arrays need separators, so it tracks nesting; sizes given
+// to begin_map/begin_array are ignored.
+class JsonWriter {
+ public:
+  explicit JsonWriter(std::string& out, int decimals) : out_(out), decimals_(decimals) {
+    out_.clear();
+  }
+  void begin_map(std::size_t) { open('{'); }
+  void end_map() { close('}'); }
+  void begin_array(std::size_t) { open('['); }
+  void end_array() { close(']'); }
+  // A key whose JSON form ("name":) was made once, at setup, by json_key().
+  void named_key(std::string_view, std::string_view quoted_key_colon) {
+    separate();
+    out_ += quoted_key_colon;
+    after_key_ = true;
+  }
+  void key(std::string_view k) {
+    separate();
+    quoted(k);
+    out_ += ':';
+    after_key_ = true;
+  }
+  void string(std::string_view s) {
+    separate();
+    quoted(s);
+  }
+  void null() {
+    separate();
+    out_ += "null";
+  }
+  void boolean(bool b) {
+    separate();
+    out_ += b ? "true" : "false";
+  }
+  void uint(std::uint64_t v) {
+    separate();
+    char buf[24];
+    out_.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+  }
+  // Fixed decimals; JSON has no NaN or infinity, so those become null.
+  void number(double v) { number(v, decimals_); }
+  void number(double v, int decimals) {
+    separate();
+    if (!std::isfinite(v)) {
+      out_ += "null";
+      return;
+    }
+    char buf[64];
+    auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
+    if (r.ec != std::errc()) r = std::to_chars(buf, buf + sizeof buf, v);
+    out_.append(buf, r.ptr);
+  }
+  // The JSON form of a key, for named_key(): "name": with JSON escaping.
+  static std::string json_key(std::string_view k) {
+    std::string s;
+    JsonWriter w(s, 0);
+    w.key(k);
+    return s;
+  }
+
+ private:
+  void open(char c) {
+    separate();
+    out_ += c;
+    first_ = true;
+  }
+  void close(char c) {
+    out_ += c;
+    first_ = false;
+  }
+  void separate() {
+    if (after_key_) {
+      after_key_ = false;
+      return;
+    }
+    if (!first_) out_ += ',';
+    first_ = false;
+  }
+  void quoted(std::string_view s) {
+    out_ += '"';
+    for (char ch : s) {
+      const auto c = static_cast<unsigned char>(ch);
+      if (c == '"' || c == '\\') {
+        out_ += '\\';
+        out_ += ch;
+      } else if (c < 0x20) {
+        static constexpr char hex[] = "0123456789abcdef";
+        out_ += "\\u00";
+        out_ += hex[c >> 4];
+        out_ += hex[c & 15];
+      } else {
+        out_ += ch;
+      }
+    }
+    out_ += '"';
+  }
+
+  std::string& out_;
+  int decimals_;
+  bool first_ = true;
+  bool after_key_ = false;
+};
+
+// MessagePack: sizes are part of the header, so begin_map/begin_array must
+// be given the exact element count.
+class MsgpackWriter {
+ public:
+  explicit MsgpackWriter(std::string& out, int = 0) : out_(out) { out_.clear(); }
+  void begin_map(std::size_t n) {
+    if (n < 16)
+      byte(static_cast<std::uint8_t>(0x80 | n));
+    else if (n < 65536)
+      byte(0xde), be16(n);
+    else
+      byte(0xdf), be32(n);
+  }
+  void end_map() {}
+  void begin_array(std::size_t n) {
+    if (n < 16)
+      byte(static_cast<std::uint8_t>(0x90 | n));
+    else if (n < 65536)
+      byte(0xdc), be16(n);
+    else
+      byte(0xdd), be32(n);
+  }
+  void end_array() {}
+  void named_key(std::string_view k, std::string_view) { string(k); }
+  void key(std::string_view k) { string(k); }
+  void string(std::string_view s) {
+    const std::size_t n = s.size();
+    if (n < 32)
+      byte(static_cast<std::uint8_t>(0xa0 | n));
+    else if (n < 256)
+      byte(0xd9), byte(static_cast<std::uint8_t>(n));
+    else if (n < 65536)
+      byte(0xda), be16(n);
+    else
+      byte(0xdb), be32(n);
+    out_.append(s);
+  }
+  void null() { byte(0xc0); }
+  void boolean(bool b) { byte(b ? 0xc3 : 0xc2); }
+  void uint(std::uint64_t v) {
+    if (v < 128) return byte(static_cast<std::uint8_t>(v));
+    byte(0xcf);
+    for (int i = 7; i >= 0; --i) byte(static_cast<std::uint8_t>(v >> (8 * i)));
+  }
+  void number(double v) { number(v, 0); }
+  void number(double v, int) {
+    std::uint64_t bits;
+    std::memcpy(&bits, &v, sizeof bits);
+    byte(0xcb);
+    for (int i = 7; i >= 0; --i) byte(static_cast<std::uint8_t>(bits >> (8 * i)));
+  }
+
+ private:
+  void byte(std::uint8_t b) { out_ += static_cast<char>(b); }
+  void be16(std::size_t n) {
+    byte(static_cast<std::uint8_t>(n >> 8)), byte(static_cast<std::uint8_t>(n));
+  }
+  void be32(std::size_t n) {
+    for (int i = 3; i >= 0; --i) byte(static_cast<std::uint8_t>(n >> (8 * i)));
+  }
+  std::string& out_;
+};
+
+}  // namespace fabrik::wire

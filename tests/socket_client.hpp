@@ -1,0 +1,83 @@
+// A marker source and pose subscriber for tests over real ZeroMQ sockets.
+// ZeroMQ's PUB/SUB drops messages until a subscription has propagated, so
+// handshake() sends probe frames until the first pose comes back: the test
+// then knows both directions are connected (no sleeping).
+#pragma once
+
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <zmq.hpp>
+
+namespace fabrik::test {
+
+class SocketClient {
+ public:
+  // Connects a PUB to the daemon's input and a SUB (pose and stats) to its output.
+  SocketClient(zmq::context_t& context, const std::string& input, const std::string& output)
+      : pub_(context, zmq::socket_type::pub), sub_(context, zmq::socket_type::sub) {
+    pub_.set(zmq::sockopt::linger, 0);
+    sub_.set(zmq::sockopt::linger, 0);
+    sub_.set(zmq::sockopt::subscribe, "");
+    pub_.connect(input);
+    sub_.connect(output);
+  }
+
+  void send(const std::string& payload, const std::string& topic = "markers") {
+    pub_.send(zmq::buffer(topic), zmq::send_flags::sndmore);
+    pub_.send(zmq::buffer(payload));
+  }
+  void send_parts(std::initializer_list<std::string> parts) {
+    std::size_t i = 0;
+    for (const std::string& p : parts)
+      pub_.send(zmq::buffer(p),
+                ++i < parts.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+  }
+  void send_frame(std::uint64_t frame, const nlohmann::json& markers = nlohmann::json::object()) {
+    send(nlohmann::json{{"frame", frame}, {"units", "mm"}, {"markers", markers}}.dump());
+  }
+
+  // The next message of `topic`, decoded (JSON or MessagePack), or nothing on timeout.
+  std::optional<nlohmann::json> receive(
+      const std::string& topic,
+      std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      zmq::pollitem_t items[] = {{sub_.handle(), 0, ZMQ_POLLIN, 0}};
+      zmq::poll(items, 1, left);
+      if (!(items[0].revents & ZMQ_POLLIN)) continue;
+      zmq::message_t t, p;
+      (void)sub_.recv(t);
+      if (!t.more()) continue;
+      (void)sub_.recv(p);
+      if (t.to_string_view() != topic) continue;
+      const auto* b = static_cast<const std::uint8_t*>(p.data());
+      if (p.size() > 0 && ((b[0] >= 0x80 && b[0] <= 0x8f) || b[0] == 0xde || b[0] == 0xdf))
+        return nlohmann::json::from_msgpack(b, b + p.size());
+      return nlohmann::json::parse(p.to_string_view());
+    }
+  }
+
+  // Probes until a pose answers; returns the frame number after the probes.
+  std::uint64_t handshake(std::uint64_t probe_frame = 1000000) {
+    for (int i = 0; i < 200; ++i) {
+      send_frame(probe_frame + static_cast<std::uint64_t>(i));
+      if (auto pose = receive("pose", std::chrono::milliseconds(50))) {
+        // Collect the answers to probes still in flight.
+        while (receive("pose", std::chrono::milliseconds(100))) {
+        }
+        return probe_frame + 1000;
+      }
+    }
+    throw std::runtime_error("no pose came back from the daemon");
+  }
+
+ private:
+  zmq::socket_t pub_, sub_;
+};
+
+}  // namespace fabrik::test

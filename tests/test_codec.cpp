@@ -1,0 +1,167 @@
+// The wire codecs without sockets: marker frames in (JSON and MessagePack),
+// poses out, and every kind of bad payload refused with its own message.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "config/daemon_config.hpp"
+#include "transport/marker_codec.hpp"
+#include "transport/pose_codec.hpp"
+
+using namespace fabrik;
+using namespace fabrik::wire;
+using nlohmann::json;
+
+namespace {
+
+std::span<const std::uint8_t> bytes(const std::string& s) {
+  return {reinterpret_cast<const std::uint8_t*>(s.data()), s.size()};
+}
+std::string msgpack(const json& j) {
+  const auto v = json::to_msgpack(j);
+  return {v.begin(), v.end()};
+}
+
+const std::vector<std::string> kNames = {"A", "B", "C"};
+
+}  // namespace
+
+TEST_CASE("A JSON marker frame decodes into metres, in tracker order", "[codec]") {
+  MarkerDecoder d(kNames, 1e-3, 1 << 20);
+  MarkerFrame f = d.make_frame();
+  std::string err;
+  const std::string p =
+      R"({"frame": 1042, "time": 17.366, "units": "mm", "extra": {"a": [1, {"b": null}]},
+          "markers": {"C": [1000, 2000, 3000], "A": null, "X": [1, 2, 3]}})";
+  REQUIRE(d.decode(bytes(p), f, err));
+  CHECK(err.empty());
+  CHECK(f.frame == 1042);
+  CHECK(f.has_time);
+  CHECK(f.time_s == Approx(17.366));
+  CHECK(f.visible == std::vector<std::uint8_t>{0, 0, 1});  // A null, B absent, C given
+  CHECK(f.p_world_m[2].isApprox(Eigen::Vector3d(1, 2, 3)));
+  CHECK(f.unknown_count == 1);
+  REQUIRE(f.unknown_names.size() == 1);
+  CHECK(f.unknown_names[0] == "X");
+
+  // Units default from the config when the frame has none; "m" is taken as is.
+  REQUIRE(d.decode(bytes(R"({"frame": 1, "markers": {"A": [1, 2, 3]}})"), f, err));
+  CHECK(f.p_world_m[0].isApprox(Eigen::Vector3d(1e-3, 2e-3, 3e-3)));
+  CHECK_FALSE(f.has_time);
+  REQUIRE(d.decode(bytes(R"({"markers": {"A": [1, 2, 3]}, "units": "m", "frame": 2})"), f, err));
+  CHECK(f.p_world_m[0].isApprox(Eigen::Vector3d(1, 2, 3)));
+}
+
+TEST_CASE("MessagePack frames decode the same, NaN coordinates are occlusions", "[codec]") {
+  MarkerDecoder d(kNames, 1e-3, 1 << 20);
+  MarkerFrame f = d.make_frame();
+  std::string err;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const json j = {{"frame", 7},
+                  {"time", 0.5},
+                  {"markers", {{"A", {1.5, 2.5, 3.5}}, {"B", {1.0, nan, 2.0}}, {"C", nullptr}}}};
+  const std::string p = msgpack(j);
+  CHECK(detect_encoding(bytes(p)) == PayloadEncoding::msgpack);
+  REQUIRE(d.decode(bytes(p), f, err));
+  CHECK(f.frame == 7);
+  CHECK(f.visible == std::vector<std::uint8_t>{1, 0, 0});
+  CHECK(f.p_world_m[0].isApprox(Eigen::Vector3d(1.5e-3, 2.5e-3, 3.5e-3)));
+}
+
+TEST_CASE("encode_marker_frame round-trips through the decoder in both encodings", "[codec]") {
+  MarkerDecoder d(kNames, 1.0, 1 << 20);
+  const std::vector<Eigen::Vector3d> p = {{0.1, 0.2, 0.3}, {1.0, 2.0, 3.0}, {-0.5, 0.25, 9.0}};
+  const std::vector<std::uint8_t> vis = {1, 0, 1};
+  for (auto enc : {PayloadEncoding::json, PayloadEncoding::msgpack}) {
+    for (std::string units : {"mm", "m"}) {
+      std::string out;
+      const double t = 1.25;
+      encode_marker_frame(99, &t, kNames, p, vis, units, enc, out);
+      MarkerFrame f = d.make_frame();
+      std::string err;
+      REQUIRE(d.decode(bytes(out), f, err));
+      CHECK(f.frame == 99);
+      CHECK(f.time_s == Approx(1.25));
+      CHECK(f.visible == vis);
+      CHECK((f.p_world_m[0] - p[0]).norm() < 1e-7);
+      CHECK((f.p_world_m[2] - p[2]).norm() < 1e-7);
+    }
+  }
+}
+
+TEST_CASE("Every kind of bad marker payload is refused with its own message", "[codec]") {
+  MarkerDecoder d(kNames, 1e-3, 4096);
+  MarkerFrame f = d.make_frame();
+  std::string nested = R"({"frame": 1, "x": )";
+  for (int i = 0; i < 100; ++i) nested += "[";
+  std::string random_bytes;
+  std::mt19937 rng(5);
+  for (int i = 0; i < 300; ++i) random_bytes += static_cast<char>(rng() & 0xff);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"", "empty payload"},
+      {"{bad", "not valid JSON"},
+      {"[1, 2, 3]", "must be an object"},
+      {R"({"markers": {}})", "\"frame\" is missing"},
+      {R"({"frame": -3, "markers": {}})", "unsigned integer"},
+      {R"({"frame": 1.5, "markers": {}})", "unsigned integer"},
+      {R"({"frame": "12", "markers": {}})", "unsigned integer"},
+      {R"({"frame": 1, "time": "now"})", "\"time\" must be a number"},
+      {R"({"frame": 1, "units": "cm"})", "\"units\" must be \"mm\" or \"m\""},
+      {R"({"frame": 1, "markers": [1, 2]})", "\"markers\" must be an object"},
+      {R"({"frame": 1, "markers": {"A": [1, 2]}})", "expected [x, y, z], got 2"},
+      {R"({"frame": 1, "markers": {"A": [1, 2, 3, 4]}})", "more than 3"},
+      {R"({"frame": 1, "markers": {"A": "here"}})", "must be [x, y, z] or null"},
+      {R"({"frame": 1, "markers": {"A": [1, "2", 3]}})", "coordinates must be numbers"},
+      {R"({"frame": 1, "markers": {"A": [1, NaN, 3]}})", "not valid JSON"},
+      {R"({"frame": 1} trailing)", "not valid JSON"},
+      {nested, "nesting deeper"},
+      {std::string(5000, ' '), "over the limit of 4096"},
+      {std::string("\x83\xa5"
+                   "frame\x01",
+                   8),
+       "not valid MessagePack"},
+      {random_bytes, "not valid"},
+  };
+  for (const auto& [payload, expected] : cases) {
+    std::string err;
+    CAPTURE(payload.substr(0, 60));
+    CHECK_FALSE(d.decode(bytes(payload), f, err));
+    CHECK_THAT(err, Catch::Contains(expected));
+  }
+}
+
+TEST_CASE("A pose payload carries the contract's fields, equal in JSON and MessagePack",
+          "[codec]") {
+  DaemonConfig c = default_daemon_config();
+  Tracker tracker(c.tracker);
+  const Posture rest = Posture::rest(tracker.model());
+  std::vector<Eigen::Vector3d> measured;
+  std::vector<std::uint8_t> visible;
+  for (const MarkerTarget& m : c.tracker.markers) {
+    measured.push_back(rest.point_world_m(tracker.model(), m.point) + Eigen::Vector3d(0.001, 0, 0));
+    visible.push_back(m.marker == "RKNE" ? 0 : 1);
+  }
+  const TrackResult& r = tracker.track(0.0, measured, visible);
+  PoseEncoder je(tracker, "mm", PayloadEncoding::json), me(tracker, "mm", PayloadEncoding::msgpack);
+  std::string jp, mp;
+  je.encode({12, true, 0.5}, r, jp);
+  me.encode({12, true, 0.5}, r, mp);
+  const json a = json::parse(jp);
+  const json b = json::from_msgpack(mp);
+  CHECK(a["frame"] == 12);
+  CHECK(a["time"].get<double>() == Approx(0.5));
+  CHECK(a["units"] == "mm");
+  CHECK(a["joints"].size() == tracker.model().joints.size());
+  CHECK(a["markers"].size() == c.tracker.markers.size());
+  CHECK(a["occluded"] == json::array({"RKNE"}));
+  CHECK(a["residual"]["count"] == c.tracker.markers.size() - 1);
+  CHECK(a["residual"]["rms"].get<double>() == Approx(r.residual_rms_m * 1e3).margin(1e-3));
+  CHECK(a["solver"]["status"].is_string());
+  for (const char* key : {"frame", "time", "units", "occluded", "held"}) CHECK(a[key] == b[key]);
+  for (const auto& [name, p] : a["markers"].items())
+    for (int k = 0; k < 3; ++k)
+      CHECK(p[k].get<double>() == Approx(b["markers"][name][k].get<double>()).margin(1e-4));
+  CHECK(wire_status(SolveStatus::stalled) == "converged");
+  CHECK(wire_status(SolveStatus::max_iterations) == "max_iterations");
+}
