@@ -1,77 +1,22 @@
 #include "synth.hpp"
 
 #include <cmath>
-#include <filesystem>
-#include <map>
 #include <random>
 #include <stdexcept>
 
-#include "config/json_reader.hpp"
-#include "config/model_loader.hpp"
-#include "config/resources.hpp"
+#include "config/daemon_config.hpp"
 #include "solver/posture.hpp"
 #include "synth/synthetic_motion.hpp"
 
 namespace fabrik::tools {
 
-// Stopgap until load_daemon_config_file() lands in main: reads only `model` and
-// `targets.markers` (the rules of docs/daemon-config.md); the daemon's loader validates the rest.
 SynthSetup load_synth_setup(const std::string& config_path) {
-  const nlohmann::json doc = JsonReader::parse(read_config_text(config_path), config_path);
-  const JsonReader root(doc, config_path);
-  root.expect_object();
+  const DaemonConfig config = load_daemon_config_file(config_path);
   SynthSetup setup;
-  const JsonReader model = root.at("model");
-  if (model.value().is_object()) {
-    setup.model = std::make_shared<Model>(load_model(model.value(), config_path + "#/model"));
-  } else {
-    const std::string name = model.as_string();
-    const std::filesystem::path beside = std::filesystem::path(config_path).parent_path() / name;
-    const std::string path = std::filesystem::exists(beside) ? beside.string() : name;
-    setup.model =
-        std::make_shared<Model>(load_model(JsonReader::parse(read_config_text(path), path), path));
-  }
-  const Model& m = *setup.model;
-
-  struct Entry {
-    std::string point;
-    bool track = true;
-  };
-  std::map<std::string, Entry> entries;
-  if (root.has("targets") && root.at("targets").has("markers")) {
-    const JsonReader markers = root.at("targets").at("markers").expect_object();
-    for (const auto& [name, value] : markers.value().items()) {
-      const JsonReader e = markers.at(name).expect_object();
-      entries[name] = {e.get("point", name), e.get("track", true)};
-    }
-  }
-  const auto marker_point = [&](const std::string& name, const std::string& stream) {
-    const int p = m.find_point(name);
-    if (p < 0 || m.points[p].kind != PointKind::marker)
-      throw std::runtime_error(config_path + ": targets.markers." + stream + ": '" + name +
-                               "' is not a marker of the model");
-    return p;
-  };
-  std::map<std::string, bool> remapped;  // model markers another stream name maps onto
-  for (const auto& [name, e] : entries)
-    if (e.track && e.point != name) remapped[e.point] = true;
-  for (int p : m.marker_points()) {
-    const std::string& name = m.points[p].name;
-    const auto it = entries.find(name);
-    if (it != entries.end()) {
-      if (!it->second.track) continue;
-      setup.marker_names.push_back(name);
-      setup.marker_points.push_back(marker_point(it->second.point, name));
-    } else if (!remapped.count(name)) {
-      setup.marker_names.push_back(name);
-      setup.marker_points.push_back(p);
-    }
-  }
-  for (const auto& [name, e] : entries) {
-    const int own = m.find_point(name);
-    if (!e.track || (own >= 0 && m.points[own].kind == PointKind::marker)) continue;
-    setup.marker_names.push_back(name);
-    setup.marker_points.push_back(marker_point(e.point, name));
+  setup.model = config.tracker.model;
+  for (const MarkerTarget& t : config.tracker.markers) {
+    setup.marker_names.push_back(t.marker);
+    setup.marker_points.push_back(t.point);
   }
   return setup;
 }

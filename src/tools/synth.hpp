@@ -18,7 +18,8 @@ struct SynthSetup {
   std::vector<std::string> marker_names;  // stream names
   std::vector<int> marker_points;         // per stream name: index into Model::points
 };
-// Throws ConfigError (or std::runtime_error) naming the problem.
+// Through the daemon's own loader, so the names are exactly what fabrikd tracks. Throws
+// ConfigError naming the file, the JSON pointer and the fix.
 SynthSetup load_synth_setup(const std::string& config_path);
 
 struct SynthOptions {

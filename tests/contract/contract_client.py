@@ -129,7 +129,9 @@ class Daemon:
             "solver": {"tolerance_mm": 0.1, "stall_tolerance_mm": 0.1, "max_iterations": 50,
                        "segment_fit": "rigid", "root": "free", "priorities": True},
             "input": {"endpoint": self.in_ep, "mode": "bind", "units": "mm",
-                      "max_payload_bytes": MAX_PAYLOAD},
+                      "max_payload_bytes": MAX_PAYLOAD,
+                      # every frame of a burst must be answered, none dropped as stale
+                      "max_backlog_frames": 10000},
             "output": {"endpoint": self.out_ep, "mode": "bind", "encoding": output_encoding,
                        "units": output_units},
             "stats_interval_s": STATS_INTERVAL_S,
@@ -525,6 +527,7 @@ def main():
     ap.add_argument("--fabrikd", required=True, help="path of the fabrikd executable")
     ap.add_argument("--frames", type=int, default=300, help="frames in the streaming check")
     args = ap.parse_args()
+    args.fabrikd = os.path.abspath(args.fabrikd)  # the daemon runs in a temporary directory
     check(os.access(args.fabrikd, os.X_OK), f"{args.fabrikd} is not an executable")
     markers, joints, root = rest_positions(ROOT / "config/models/fullbody.json")
     with tempfile.TemporaryDirectory(prefix="fabrikd-contract-") as workdir:

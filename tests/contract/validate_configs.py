@@ -43,6 +43,7 @@ def bad_configs(good):
         ("max_iterations 0", edit(put(["solver", "max_iterations"], 0))),
         ("bad input mode", edit(put(["input", "mode"], "listen"))),
         ("bad input units", edit(put(["input", "units"], "cm"))),
+        ("max_backlog_frames 0", edit(put(["input", "max_backlog_frames"], 0))),
         ("max_payload_bytes not an integer", edit(put(["input", "max_payload_bytes"], "1M"))),
         ("bad output encoding", edit(put(["output", "encoding"], "cbor"))),
         ("endpoint without transport", edit(put(["output", "endpoint"], "127.0.0.1:5556"))),
