@@ -1,4 +1,4 @@
-// `fabrik`: the command-line tool (benchmarks now; file tools later).
+// `fabrik`: the command-line tool (benchmarks, replay/watch/synth).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
@@ -8,6 +8,7 @@
 #include "bench/latency_bench.hpp"
 #include "solve_command.hpp"
 #include "calibrate_command.hpp"
+#include "tools/tools.hpp"
 #include "version.hpp"
 
 int main(int argc, char** argv) {
@@ -58,6 +59,7 @@ int main(int argc, char** argv) {
 
   fabrik::apps::add_solve_command(app);
   fabrik::add_calibrate_command(app);
+  fabrik::tools::add_tool_commands(app);  // run from their own callbacks
 
   try {
     app.parse(argc, argv);  // subcommands with callbacks run here

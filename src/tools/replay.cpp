@@ -1,0 +1,152 @@
+#include "replay.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <thread>
+
+namespace fabrik::tools {
+
+namespace {
+
+double parse_seconds(const std::string& text, const std::string& spec, const char* which) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || !std::isfinite(v) || v < 0.0)
+    throw std::invalid_argument("--drop '" + spec + "': " + which + " '" + text +
+                                "' is not a time in seconds >= 0 (expected NAME:T0:T1)");
+  return v;
+}
+
+}  // namespace
+
+DropSpec parse_drop_spec(const std::string& spec) {
+  const std::size_t c2 = spec.rfind(':');
+  const std::size_t c1 =
+      c2 == std::string::npos || c2 == 0 ? std::string::npos : spec.rfind(':', c2 - 1);
+  if (c1 == std::string::npos)
+    throw std::invalid_argument("--drop '" + spec +
+                                "': expected NAME:T0:T1 (marker name, start and end in seconds)");
+  DropSpec d;
+  d.marker = spec.substr(0, c1);
+  if (d.marker.empty())
+    throw std::invalid_argument("--drop '" + spec + "': the marker name is empty");
+  d.t0_s = parse_seconds(spec.substr(c1 + 1, c2 - c1 - 1), spec, "T0");
+  d.t1_s = parse_seconds(spec.substr(c2 + 1), spec, "T1");
+  if (!(d.t1_s > d.t0_s))
+    throw std::invalid_argument("--drop '" + spec + "': T1 must be greater than T0");
+  return d;
+}
+
+ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial,
+                           const ReplayOptions& options) {
+  using Clock = std::chrono::steady_clock;
+  if (trial.frames() == 0) throw std::invalid_argument("the recording has no frames");
+  if (!(trial.rate_hz > 0.0)) throw std::invalid_argument("the recording has no frame rate");
+  if (!(options.speed >= 0.0) || !std::isfinite(options.speed))
+    throw std::invalid_argument("--speed must be >= 0 (0: as fast as possible)");
+  struct Drop {
+    int marker;
+    double t0_s, t1_s;
+  };
+  std::vector<Drop> drops;
+  for (const DropSpec& d : options.drops) {
+    const int m = trial.find(d.marker);
+    if (m < 0)
+      throw std::invalid_argument("--drop: marker '" + d.marker + "' is not in the recording");
+    drops.push_back({m, d.t0_s, d.t1_s});
+  }
+
+  // XPUB rather than PUB: it behaves the same but tells us when a subscriber arrives.
+  zmq::socket_t pub(context, zmq::socket_type::xpub);
+  pub.set(zmq::sockopt::linger, 5000);  // let queued frames out when we close
+  pub.set(zmq::sockopt::sndhwm, 100000);
+  if (options.bind)
+    pub.bind(options.endpoint);
+  else
+    pub.connect(options.endpoint);
+
+  if (options.wait_subscriber_s >= 0.0) {
+    const auto deadline =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                           std::chrono::duration<double>(options.wait_subscriber_s));
+    for (bool subscribed = false; !subscribed;) {
+      if (options.stop_requested && options.stop_requested()) return {.stopped = true};
+      const auto left =
+          std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+      if (left.count() <= 0)
+        throw std::runtime_error("no subscriber to 'markers' on " + options.endpoint +
+                                 " within the wait");
+      zmq::pollitem_t item{pub.handle(), 0, ZMQ_POLLIN, 0};
+      zmq::poll(&item, 1, std::min(left, std::chrono::milliseconds(100)));
+      zmq::message_t msg;
+      while (pub.recv(msg, zmq::recv_flags::dontwait)) {
+        // Subscription messages are 0x01 + prefix; "markers" matches prefixes of it.
+        const std::string_view s(msg.data<char>(), msg.size());
+        if (!s.empty() && s[0] == 1 && std::string_view("markers").starts_with(s.substr(1)))
+          subscribed = true;
+      }
+    }
+  }
+
+  const std::size_t n = trial.frames();
+  const double duration_s = static_cast<double>(n) / trial.rate_hz;
+  const std::uint64_t total = options.max_frames ? options.max_frames : options.loop ? 0 : n;
+  std::vector<std::uint8_t> hidden(trial.markers(), 0);
+  ReplaySummary summary;
+  const Clock::time_point start = Clock::now();
+  Clock::time_point last_progress = start;
+  zmq::message_t discard;
+  for (std::uint64_t k = 0; total == 0 || k < total; ++k) {
+    if (options.stop_requested && options.stop_requested()) {
+      summary.stopped = true;
+      break;
+    }
+    const std::size_t index = k % n;
+    const std::uint64_t pass = k / n;
+    if (pass > 0 && index == 0 && !options.loop) break;
+    const double t_trial_s = trial.time_s(index);
+    const double t_stream_s = static_cast<double>(pass) * duration_s + t_trial_s;
+    std::fill(hidden.begin(), hidden.end(), 0);
+    for (const Drop& d : drops)
+      if (t_trial_s >= d.t0_s && t_trial_s < d.t1_s) hidden[d.marker] = 1;
+
+    // Every deadline comes from `start`: a late frame does not delay the ones after it.
+    Clock::time_point deadline = start;
+    if (options.speed > 0.0) {
+      deadline += std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(static_cast<double>(k) / trial.rate_hz / options.speed));
+      std::this_thread::sleep_until(deadline);
+    }
+    const nlohmann::json doc = marker_frame(
+        trial, index, static_cast<std::uint64_t>(trial.first_frame) + k, t_stream_s, hidden);
+    for (const auto& v : doc["markers"]) summary.markers_nulled += v.is_null() ? 1 : 0;
+    const std::string payload = encode_payload(doc, options.encoding);
+    pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
+    pub.send(zmq::buffer(payload), zmq::send_flags::none);
+    while (pub.recv(discard, zmq::recv_flags::dontwait)) {
+    }  // subscription notices: keep XPUB's inbound queue empty
+
+    const Clock::time_point now = Clock::now();
+    const double behind_ms = options.speed > 0.0
+                                 ? std::chrono::duration<double, std::milli>(now - deadline).count()
+                                 : 0.0;
+    if (behind_ms > 1.0) ++summary.late_frames;
+    summary.max_behind_ms = std::max(summary.max_behind_ms, behind_ms);
+    summary.frames_sent = k + 1;
+    summary.loops = (k + 1) / n;
+    if (options.progress && now - last_progress >= options.progress_interval) {
+      last_progress = now;
+      options.progress({summary.frames_sent, total,
+                        std::chrono::duration<double>(now - start).count(), behind_ms});
+    }
+  }
+  summary.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+  return summary;
+}
+
+}  // namespace fabrik::tools

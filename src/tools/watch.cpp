@@ -1,0 +1,226 @@
+#include "watch.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "wire.hpp"
+
+namespace fabrik::tools {
+
+using nlohmann::json;
+
+namespace {
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto lo = static_cast<std::size_t>(std::floor(pos));
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+double number_at(const json& doc, const json::json_pointer& p, double fallback = NAN) {
+  if (!doc.contains(p)) return fallback;
+  const json& v = doc.at(p);
+  return v.is_number() ? v.get<double>() : fallback;
+}
+
+std::string status_text(const std::map<std::string, std::uint64_t>& status) {
+  std::string s;
+  for (const auto& [name, n] : status) s += " " + name + " " + std::to_string(n);
+  return s;
+}
+
+}  // namespace
+
+void WatchTally::add_pose(const json& pose, double t_s) {
+  if (!pose.is_object() || !pose.contains("frame") || !pose["frame"].is_number_unsigned()) {
+    ++malformed_;
+    return;
+  }
+  const auto frame = pose["frame"].get<std::uint64_t>();
+  if (last_frame_) {
+    if (frame > *last_frame_ + 1) {
+      missing_frames_ += frame - *last_frame_ - 1;
+      ++gap_events_;
+    } else if (frame == *last_frame_) {
+      ++repeats_;
+    } else if (frame < *last_frame_) {
+      ++restarts_;  // the contract allows a source to restart its numbering
+    }
+  } else {
+    first_frame_ = frame;
+    first_t_s_ = t_s;
+  }
+  last_frame_ = frame;
+  last_t_s_ = t_s;
+  ++poses_;
+  if (pose.contains("units") && pose["units"].is_string()) units_ = pose["units"];
+  const double rms = number_at(pose, "/residual/rms"_json_pointer, 0.0);
+  const double max = number_at(pose, "/residual/max"_json_pointer, 0.0);
+  const double occluded = pose.contains("occluded") && pose["occluded"].is_array()
+                              ? static_cast<double>(pose["occluded"].size())
+                              : 0.0;
+  std::string status = "unknown";
+  if (pose.contains("/solver/status"_json_pointer) && pose["solver"]["status"].is_string())
+    status = pose["solver"]["status"];
+  const double solve_us = number_at(pose, "/solver/solve_us"_json_pointer);
+  if (std::isfinite(solve_us)) solve_us_.push_back(solve_us);
+  const double latency_us = number_at(pose, "/latency_us"_json_pointer);  // if a daemon adds it
+  if (std::isfinite(latency_us)) latency_us_.push_back(latency_us);
+
+  rms_sum_ += rms;
+  residual_max_ = std::max(residual_max_, max);
+  occluded_sum_ += occluded;
+  ++status_[status];
+  if (interval_.start_s < 0.0) interval_.start_s = t_s;
+  ++interval_.poses;
+  interval_.rms_sum += rms;
+  interval_.max = std::max(interval_.max, max);
+  interval_.occluded_sum += occluded;
+  ++interval_.status[status];
+}
+
+void WatchTally::add_stats(const json& stats, double) {
+  ++stats_count_;
+  last_stats_ = stats;
+}
+
+std::string WatchTally::live_line(double t_s) {
+  const Interval& in = interval_;
+  const double span_s = in.start_s >= 0.0 ? t_s - in.start_s : 0.0;
+  const double n = static_cast<double>(std::max<std::uint64_t>(in.poses, 1));
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "%6.1f Hz  frame %-8llu rms %.3f max %.3f %s  occluded %.1f  |",
+                span_s > 0.0 ? static_cast<double>(in.poses) / span_s : 0.0,
+                static_cast<unsigned long long>(last_frame_.value_or(0)), in.rms_sum / n, in.max,
+                units_.empty() ? "" : units_.c_str(), in.occluded_sum / n);
+  std::string line = buf;
+  line += status_text(in.status);
+  if (last_stats_) {
+    std::snprintf(buf, sizeof buf,
+                  "  | solve p50 %.1f p99 %.1f us  queue p50 %.0f p99 %.0f us  decode_errors %.0f",
+                  number_at(*last_stats_, "/solve_us/p50"_json_pointer),
+                  number_at(*last_stats_, "/solve_us/p99"_json_pointer),
+                  number_at(*last_stats_, "/queue_latency_us/p50"_json_pointer),
+                  number_at(*last_stats_, "/queue_latency_us/p99"_json_pointer),
+                  number_at(*last_stats_, "/decode_errors"_json_pointer));
+    line += buf;
+  }
+  if (missing_frames_) line += "  | lost " + std::to_string(missing_frames_);
+  interval_ = Interval{};
+  interval_.start_s = t_s;
+  return line;
+}
+
+json WatchTally::summary() const {
+  const double n = static_cast<double>(std::max<std::uint64_t>(poses_, 1));
+  const double span_s = last_t_s_ - first_t_s_;
+  const double expected = last_frame_ ? static_cast<double>(poses_ + missing_frames_) : 0.0;
+  json s;
+  s["poses"] = poses_;
+  s["stats_messages"] = stats_count_;
+  s["undecodable"] = undecodable_;
+  s["malformed"] = malformed_;
+  s["first_frame"] = first_frame_ ? json(*first_frame_) : json(nullptr);
+  s["last_frame"] = last_frame_ ? json(*last_frame_) : json(nullptr);
+  s["missing_frames"] = missing_frames_;
+  s["gap_events"] = gap_events_;
+  s["restarts"] = restarts_;
+  s["repeats"] = repeats_;
+  s["loss_ratio"] = expected > 0.0 ? static_cast<double>(missing_frames_) / expected : 0.0;
+  s["pose_rate_hz"] = poses_ > 1 && span_s > 0.0 ? static_cast<double>(poses_ - 1) / span_s : 0.0;
+  s["units"] = units_.empty() ? json(nullptr) : json(units_);
+  s["residual"] = {{"rms_mean", rms_sum_ / n}, {"max", residual_max_}};
+  s["occluded_mean"] = occluded_sum_ / n;
+  s["status"] = status_;
+  s["solve_us"] = {{"p50", quantile(solve_us_, 0.5)},
+                   {"p99", quantile(solve_us_, 0.99)},
+                   {"max", quantile(solve_us_, 1.0)}};
+  if (!latency_us_.empty())
+    s["latency_us"] = {{"p50", quantile(latency_us_, 0.5)}, {"p99", quantile(latency_us_, 0.99)}};
+  s["last_stats"] = last_stats_ ? *last_stats_ : json(nullptr);
+  return s;
+}
+
+std::string WatchTally::summary_text() const {
+  const json s = summary();
+  char buf[1024];
+  std::snprintf(
+      buf, sizeof buf,
+      "poses %llu (frames %s..%s), %llu missing in %llu gaps (%.3f%% loss), %llu restarts\n"
+      "residual rms mean %.3f, max %.3f %s; occluded %.2f markers per frame\n"
+      "solve_us p50 %.2f p99 %.2f max %.2f; stats messages %llu, undecodable %llu\nstatus:%s\n",
+      static_cast<unsigned long long>(poses_), s["first_frame"].dump().c_str(),
+      s["last_frame"].dump().c_str(), static_cast<unsigned long long>(missing_frames_),
+      static_cast<unsigned long long>(gap_events_), 100.0 * s["loss_ratio"].get<double>(),
+      static_cast<unsigned long long>(restarts_), s["residual"]["rms_mean"].get<double>(),
+      residual_max_, units_.c_str(), s["occluded_mean"].get<double>(),
+      s["solve_us"]["p50"].get<double>(), s["solve_us"]["p99"].get<double>(),
+      s["solve_us"]["max"].get<double>(), static_cast<unsigned long long>(stats_count_),
+      static_cast<unsigned long long>(undecodable_), status_text(status_).c_str());
+  return buf;
+}
+
+json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tally) {
+  using Clock = std::chrono::steady_clock;
+  zmq::socket_t sub(context, zmq::socket_type::sub);
+  sub.set(zmq::sockopt::linger, 0);
+  sub.set(zmq::sockopt::rcvhwm, 100000);
+  sub.set(zmq::sockopt::subscribe, "pose");
+  sub.set(zmq::sockopt::subscribe, "stats");
+  if (options.bind)
+    sub.bind(options.endpoint);
+  else
+    sub.connect(options.endpoint);
+
+  const Clock::time_point start = Clock::now();
+  const auto secs = [&](Clock::time_point t) {
+    return std::chrono::duration<double>(t - start).count();
+  };
+  Clock::time_point last_line = start;
+  std::vector<zmq::message_t> parts;
+  for (;;) {
+    const Clock::time_point now = Clock::now();
+    if (options.stop_requested && options.stop_requested()) break;
+    if (options.seconds > 0.0 && secs(now) >= options.seconds) break;
+    // Without stats (an old or stalled daemon) still print a line per second.
+    if (options.live && now - last_line > std::chrono::milliseconds(1500)) {
+      options.live(tally.live_line(secs(now)) + "  (no stats)");
+      last_line = now;
+    }
+    zmq::pollitem_t item{sub.handle(), 0, ZMQ_POLLIN, 0};
+    zmq::poll(&item, 1, std::chrono::milliseconds(100));
+    if (!(item.revents & ZMQ_POLLIN)) continue;
+    parts.clear();
+    if (!zmq::recv_multipart(sub, std::back_inserter(parts), zmq::recv_flags::dontwait)) continue;
+    const double t_s = secs(Clock::now());
+    if (parts.size() != 2) {
+      tally.add_undecodable();
+      continue;
+    }
+    json doc;
+    try {
+      doc = decode_payload(parts[1].to_string_view());
+    } catch (const std::exception&) {
+      tally.add_undecodable();
+      continue;
+    }
+    const std::string_view topic = parts[0].to_string_view();
+    if (topic == "pose") {
+      tally.add_pose(doc, t_s);
+    } else if (topic == "stats") {
+      tally.add_stats(doc, t_s);
+      if (options.live) options.live(tally.live_line(t_s));
+      last_line = Clock::now();
+    }
+  }
+  json s = tally.summary();
+  s["endpoint"] = options.endpoint;
+  s["seconds"] = secs(Clock::now());
+  return s;
+}
+
+}  // namespace fabrik::tools

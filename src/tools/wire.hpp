@@ -1,0 +1,37 @@
+// Payloads of the wire contract (../shared/wire-contract.md, proto/) as the tools see them:
+// marker frames built from a recording, and any payload decoded by its first byte.
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "io/marker_trial.hpp"
+
+namespace fabrik::tools {
+
+enum class WireEncoding { json, msgpack };
+
+WireEncoding parse_wire_encoding(
+    const std::string& name);  // "json"/"msgpack", else invalid_argument
+const char* wire_encoding_name(WireEncoding encoding);
+
+// The encoding of a payload from its first byte: '{' or JSON whitespace is JSON, a MessagePack
+// map header (fixmap 0x80-0x8f, map16 0xde, map32 0xdf) is MessagePack. Throws
+// std::runtime_error for anything else (including an empty payload).
+WireEncoding detect_encoding(std::string_view payload);
+// Decodes a JSON or MessagePack payload (detected as above). Throws std::runtime_error with the
+// reason when it is neither.
+nlohmann::json decode_payload(std::string_view payload);
+std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding);
+
+// One `markers` frame from frame `index` of `trial`, positions in millimetres (the trial is in
+// metres: converted here, at the edge), null for a missing marker or where `hidden[marker]` is
+// set. Coordinates are rounded to 1 nm, which keeps JSON short and loses nothing a TRC holds.
+nlohmann::json marker_frame(const io::MarkerTrial& trial, std::size_t index,
+                            std::uint64_t frame_number, double time_s,
+                            const std::vector<std::uint8_t>& hidden);
+
+}  // namespace fabrik::tools

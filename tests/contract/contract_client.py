@@ -1,0 +1,544 @@
+#!/usr/bin/python3
+"""Black-box check of a fabrikd binary against the wire contract (v1).
+
+Written from ../shared/wire-contract.md and proto/ only: it starts the daemon
+with a temporary config on free loopback ports, talks to it through pyzmq, and
+validates every pose and stats payload against proto/*.schema.json.
+
+    /usr/bin/python3 tests/contract/contract_client.py --fabrikd build/src/apps/fabrikd
+
+Exit code 0 when every check passes, 1 with a message naming the first failed
+check otherwise (and the tail of the daemon's log).
+"""
+import argparse
+import json
+import math
+import os
+import pathlib
+import random
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+
+import jsonschema
+import msgpack
+import zmq
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+MAX_PAYLOAD = 64 * 1024  # input.max_payload_bytes of the test config
+STATS_INTERVAL_S = 0.2
+ANSWER_TIMEOUT_S = 3.0  # a frame that is not answered by then is lost
+PROBE_BASE = 9_000_000  # frame numbers of slow-joiner probes
+BAD_BASE = 8_000_000  # frame numbers inside bad payloads: must never be answered
+
+
+class CheckFailed(Exception):
+    pass
+
+
+def check(condition, message):
+    if not condition:
+        raise CheckFailed(message)
+
+
+# ---------------------------------------------------------------- the model
+
+
+def rest_positions(model_path):
+    """Rest world positions (mm) of the model's markers and joints.
+
+    A segment's base sits at root_position (root) or at the parent's point of
+    that name; every frame is parallel to the world frame at rest."""
+    model = json.loads(model_path.read_text())
+    scale = {"mm": 1.0, "m": 1000.0}[model["units"]]
+    base_world = {}
+    points_world = {}
+    markers, joints = {}, {}
+    for seg in model["segments"]:  # parents precede children in the file
+        if "parent" not in seg:
+            base = [c * scale for c in model.get("root_position", [0, 0, 0])]
+        else:
+            base = points_world[seg["base"]]
+        base_world[seg["name"]] = base
+        joints[seg["base"]] = base
+        for name, p in seg.get("points", {}).items():
+            points_world[name] = [b + c * scale for b, c in zip(base, p)]
+        for name, p in seg.get("markers", {}).items():
+            markers[name] = [b + c * scale for b, c in zip(base, p)]
+    root = [c * scale for c in model.get("root_position", [0, 0, 0])]
+    return markers, joints, root
+
+
+def moved(points, root, t):
+    """`points` turned about the vertical through `root` and walked along X:
+    an exact rigid motion the model can follow."""
+    theta = 0.4 * math.sin(2 * math.pi * 0.5 * t)
+    c, s = math.cos(theta), math.sin(theta)
+    dx = 300.0 * math.sin(2 * math.pi * 0.25 * t)
+    out = {}
+    for name, (x, y, z) in points.items():
+        rx, rz = x - root[0], z - root[2]
+        out[name] = [root[0] + c * rx + s * rz + dx, y, root[2] - s * rx + c * rz]
+    return out
+
+
+# ---------------------------------------------------------------- plumbing
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def decode(payload):
+    """JSON or MessagePack, told apart by the first byte (as the contract says)."""
+    check(len(payload) > 0, "empty payload from the daemon")
+    first = payload[0]
+    if first in b"{ \t\r\n":
+        return json.loads(payload.decode("utf-8")), "json"
+    check(0x80 <= first <= 0x8F or first in (0xDE, 0xDF),
+          f"output payload starts with byte 0x{first:02x}: neither JSON nor a MessagePack map")
+    return msgpack.unpackb(payload, raw=False, strict_map_key=False), "msgpack"
+
+
+def load_schema(name):
+    schema = json.loads((ROOT / "proto" / name).read_text())
+    cls = jsonschema.validators.validator_for(schema)
+    cls.check_schema(schema)
+    return cls(schema)
+
+
+class Daemon:
+    """One fabrikd process with its config, log and sockets."""
+
+    def __init__(self, fabrikd, workdir, output_encoding="json", output_units="mm"):
+        self.in_ep = f"tcp://127.0.0.1:{free_port()}"
+        self.out_ep = f"tcp://127.0.0.1:{free_port()}"
+        self.output_units = output_units
+        self.output_encoding = output_encoding
+        config = {
+            "format": "fabrikd-config/1",
+            "description": "contract_client.py: config/default.json on free ports",
+            "model": "models/fullbody.json",  # not on disk next to this file: the embedded one
+            "targets": {"default": {"level": 0, "weight": 1.0},
+                        "markers": {m: {"level": 1} for m in ("RASI", "LASI", "RPSI", "LPSI")}},
+            "solver": {"tolerance_mm": 0.1, "stall_tolerance_mm": 0.1, "max_iterations": 50,
+                       "segment_fit": "rigid", "root": "free", "priorities": True},
+            "input": {"endpoint": self.in_ep, "mode": "bind", "units": "mm",
+                      "max_payload_bytes": MAX_PAYLOAD,
+                      # every frame of a burst must be answered, none dropped as stale
+                      "max_backlog_frames": 10000},
+            "output": {"endpoint": self.out_ep, "mode": "bind", "encoding": output_encoding,
+                       "units": output_units},
+            "stats_interval_s": STATS_INTERVAL_S,
+            "log_level": "info",
+        }
+        load_schema("daemon-config.schema.json").validate(config)
+        tag = f"{output_encoding}-{output_units}"
+        self.config_path = pathlib.Path(workdir) / f"fabrikd-{tag}.json"
+        self.config_path.write_text(json.dumps(config, indent=2))
+        self.log_path = pathlib.Path(workdir) / f"fabrikd-{tag}.log"
+        self.log = open(self.log_path, "wb")
+        self.proc = subprocess.Popen([fabrikd, "--config", str(self.config_path)],
+                                     stdout=self.log, stderr=subprocess.STDOUT, cwd=workdir)
+        self.ctx = zmq.Context()
+        self.pub = self.ctx.socket(zmq.PUB)
+        self.pub.setsockopt(zmq.LINGER, 0)
+        self.pub.setsockopt(zmq.SNDHWM, 100000)
+        self.pub.connect(self.in_ep)
+        self.sub = self.ctx.socket(zmq.SUB)
+        self.sub.setsockopt(zmq.LINGER, 0)
+        self.sub.setsockopt(zmq.RCVHWM, 100000)
+        self.sub.setsockopt(zmq.SUBSCRIBE, b"pose")
+        self.sub.setsockopt(zmq.SUBSCRIBE, b"stats")
+        self.sub.connect(self.out_ep)
+        self.pose_schema = load_schema("pose.schema.json")
+        self.stats_schema = load_schema("stats.schema.json")
+        self.poses = {}  # frame -> list of poses
+        self.stats = []  # (arrival time, stats)
+        self.encodings = set()
+
+    def send(self, payload, topic=b"markers"):
+        self.pub.send_multipart([topic, payload])
+
+    def check_running(self):
+        rc = self.proc.poll()
+        check(rc is None, f"fabrikd exited on its own with code {rc}")
+
+    def pump(self, timeout_s):
+        """Receives for up to timeout_s (returns early on the first message);
+        validates and records every pose and stats."""
+        if not self.sub.poll(int(timeout_s * 1000)):
+            self.check_running()
+            return False
+        while True:
+            parts = self.sub.recv_multipart()
+            check(len(parts) == 2, f"output message with {len(parts)} frames, expected 2")
+            topic, payload = parts
+            doc, enc = decode(payload)
+            self.encodings.add(enc)
+            check(enc == self.output_encoding,
+                  f"output encoding {enc}, config says {self.output_encoding}")
+            if topic == b"pose":
+                errors = list(self.pose_schema.iter_errors(doc))
+                check(not errors, f"pose violates proto/pose.schema.json: {errors[:1]}")
+                self.poses.setdefault(doc["frame"], []).append(doc)
+            elif topic == b"stats":
+                errors = list(self.stats_schema.iter_errors(doc))
+                check(not errors, f"stats violates proto/stats.schema.json: {errors[:1]}")
+                self.stats.append((time.monotonic(), doc))
+            else:
+                raise CheckFailed(f"unexpected output topic {topic!r}")
+            if not self.sub.poll(0):
+                return True
+
+    def wait_for(self, predicate, timeout_s, what):
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            left = deadline - time.monotonic()
+            check(left > 0, f"timed out after {timeout_s:.1f} s waiting for {what}")
+            self.pump(left)
+
+    def wait_pose(self, frame, what=None):
+        self.wait_for(lambda: frame in self.poses, ANSWER_TIMEOUT_S,
+                      what or f"the pose of frame {frame}")
+        return self.poses[frame][-1]
+
+    def stats_after(self, t):
+        """The first stats message that arrived after monotonic time t."""
+        self.wait_for(lambda: any(a > t for a, _ in self.stats), 3 * max(STATS_INTERVAL_S, 1.0),
+                      "a stats message")
+        return next(s for a, s in self.stats if a > t)
+
+    def join(self):
+        """Slow joiner: publish probe frames until the first pose comes back,
+        so that both subscriptions are known to have propagated."""
+        deadline = time.monotonic() + 15.0
+        frame = PROBE_BASE
+        while not self.poses:
+            self.check_running()
+            check(time.monotonic() < deadline,
+                  "no pose within 15 s of starting fabrikd (probe frames unanswered)")
+            self.send(json.dumps({"frame": frame, "markers": {}}).encode())
+            frame += 1
+            self.pump(0.05)
+
+    def stop(self):
+        """SIGTERM; the daemon must exit with code 0 within 1 s."""
+        self.check_running()
+        self.proc.send_signal(signal.SIGTERM)
+        try:
+            rc = self.proc.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+            raise CheckFailed("fabrikd did not exit within 1 s of SIGTERM")
+        check(rc == 0, f"fabrikd exited with code {rc} after SIGTERM, expected 0")
+
+    def close(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        self.sub.close()
+        self.pub.close()
+        self.ctx.term()
+        self.log.close()
+
+    def log_tail(self, lines=30):
+        try:
+            return "\n".join(self.log_path.read_text(errors="replace").splitlines()[-lines:])
+        except OSError:
+            return "(no log)"
+
+
+# ---------------------------------------------------------------- checks
+
+
+def dist(a, b):
+    return math.sqrt(sum((x - y) ** 2 for x, y in zip(a, b)))
+
+
+def check_pose(pose, sent, frame, time_s, rest_joints_moved, model_markers, joint_names,
+               units="mm", expect_occluded=()):
+    """A pose answers one marker frame: same frame and time, every joint and
+    model marker, occluded markers listed with finite positions, residual
+    consistent with the positions it reports."""
+    scale = {"mm": 1.0, "m": 1e-3}[units]
+    where = f"pose of frame {frame}"
+    check(pose["frame"] == frame, f"{where}: frame {pose['frame']}")
+    if time_s is not None:
+        got = pose.get("time")
+        check(isinstance(got, (int, float)) and abs(got - time_s) <= 1e-9 * max(1.0, abs(time_s)),
+              f"{where}: time {got}, sent {time_s}")
+    check(pose["units"] == units, f"{where}: units {pose['units']}, expected {units}")
+    check(set(pose["joints"]) == joint_names,
+          f"{where}: joints {sorted(pose['joints'])}, model has {sorted(joint_names)}")
+    check(set(pose["markers"]) == model_markers,
+          f"{where}: markers differ from the model's: "
+          f"missing {sorted(model_markers - set(pose['markers']))}, "
+          f"extra {sorted(set(pose['markers']) - model_markers)}")
+    for group in ("joints", "markers"):
+        for name, p in pose[group].items():
+            check(all(math.isfinite(c) for c in p), f"{where}: {group}.{name} = {p} not finite")
+    occluded = set(pose["occluded"])
+    check(occluded == set(expect_occluded),
+          f"{where}: occluded {sorted(occluded)}, expected {sorted(expect_occluded)}")
+    visible = [m for m in model_markers if m not in occluded]
+    res = pose["residual"]
+    check(res["count"] == len(visible),
+          f"{where}: residual.count {res['count']}, {len(visible)} markers visible")
+    if visible:
+        d = {m: dist(pose["markers"][m], [c * scale for c in sent[m]]) for m in visible}
+        rms = math.sqrt(sum(v * v for v in d.values()) / len(d))
+        worst = max(d, key=d.get)
+        tol = 1e-3 * max(1.0, rms)
+        check(abs(res["rms"] - rms) <= tol + 1e-4 * scale,
+              f"{where}: residual.rms {res['rms']} but the reported markers give {rms}")
+        check(abs(res["max"] - d[worst]) <= tol + 1e-4 * scale,
+              f"{where}: residual.max {res['max']} but the reported markers give {d[worst]}")
+        check(res["worst"] == worst or abs(d.get(res["worst"], -1) - d[worst]) <= tol,
+              f"{where}: residual.worst {res['worst']} but the largest residual is {worst}")
+        # The input is an exact rigid motion of the rest posture: the fit must be close.
+        check(rms <= 2.0 * scale, f"{where}: residual rms {rms / scale:.3f} mm on exact data")
+        for j, p in rest_joints_moved.items():
+            e = dist(pose["joints"][j], [c * scale for c in p]) / scale
+            check(e <= 10.0, f"{where}: joint {j} is {e:.1f} mm from the truth")
+    else:
+        check(res["worst"] is None, f"{where}: residual.worst {res['worst']} with count 0")
+
+
+def stats_values(d):
+    return {k: d[k] for k in ("frames_in", "frames_out", "decode_errors", "unknown_markers")}
+
+
+def marker_frame(frame, markers, t=None, units=None):
+    doc = {"frame": frame}
+    if t is not None:
+        doc["time"] = t
+    if units is not None:
+        doc["units"] = units
+    doc["markers"] = markers
+    return doc
+
+
+def bad_payloads(valid_markers):
+    """(name, list of frames of one ZeroMQ message) the daemon must drop and
+    count in decode_errors. Frame numbers in them are BAD_BASE + i, so an
+    answer to any of them is detected."""
+    rng = random.Random(7)
+    f = BAD_BASE
+    mk = {"RASI": valid_markers["RASI"]}
+    nested = b'{"frame": %d, "markers": {"RASI": ' % (f + 10) + b"[" * 20000 + b"]" * 20000 + b"}}"
+    huge = json.dumps({"frame": f + 11, "markers": mk, "pad": "x" * (MAX_PAYLOAD + 1)}).encode()
+    random_bytes = bytes([0xC1]) + bytes(rng.randrange(256) for _ in range(200))
+    return [
+        ("invalid JSON", [b"markers", b'{"frame": %d, "markers": {' % f]),
+        ("frame is a string", [b"markers", json.dumps({"frame": str(f + 1), "markers": mk}).encode()]),
+        ("frame is negative", [b"markers", json.dumps({"frame": -5, "markers": mk}).encode()]),
+        ("frame is a fraction", [b"markers", json.dumps({"frame": f + 2.5, "markers": mk}).encode()]),
+        ("markers is an array", [b"markers", json.dumps({"frame": f + 3, "markers": [1, 2]}).encode()]),
+        ("a marker is a string",
+         [b"markers", json.dumps({"frame": f + 4, "markers": {"RASI": "here"}}).encode()]),
+        ("a marker has two coordinates",
+         [b"markers", json.dumps({"frame": f + 5, "markers": {"RASI": [1.0, 2.0]}}).encode()]),
+        ("top level is an array", [b"markers", json.dumps([f + 6, mk]).encode()]),
+        ("missing frame", [b"markers", json.dumps({"markers": mk}).encode()]),
+        ("NaN literal (not JSON)",
+         [b"markers", b'{"frame": %d, "markers": {"RASI": [NaN, 1, 2]}}' % (f + 7)]),
+        ("huge payload", [b"markers", huge]),
+        ("deeply nested", [b"markers", nested]),
+        ("random bytes", [b"markers", random_bytes]),
+        ("empty payload", [b"markers", b""]),
+        ("truncated MessagePack", [b"markers", msgpack.packb({"frame": f + 12, "markers": mk})[:-5]]),
+        ("MessagePack frame is a string",
+         [b"markers", msgpack.packb({"frame": str(f + 13), "markers": mk})]),
+        ("MessagePack frame is NaN", [b"markers", msgpack.packb({"frame": float("nan"), "markers": mk})]),
+        ("MessagePack without frame", [b"markers", msgpack.packb({"markers": mk})]),
+        ("one-frame message", [b"markers"]),
+        ("three-frame message",
+         [b"markers", json.dumps({"frame": f + 14, "markers": mk}).encode(), b"extra"]),
+    ]
+
+
+def run_main(args, workdir, model_markers_rest, rest_joints, root):
+    model_markers = set(model_markers_rest)
+    joint_names = set(rest_joints)
+    d = Daemon(args.fabrikd, workdir)
+    try:
+        d.join()
+        print(f"contract: joined after {min(d.poses) - PROBE_BASE + 1} probe frame(s)")
+
+        # 1. N frames, alternating JSON and MessagePack, some in metres, some without units.
+        frames = {}
+        n = args.frames
+        for i in range(n):
+            frame = 1 + i
+            t = round(i / 100.0, 6)
+            markers = moved(model_markers_rest, root, t)
+            units = [None, "mm", "m"][i % 3]
+            scale = 1e-3 if units == "m" else 1.0
+            payload_markers = {k: [c * scale for c in v] for k, v in markers.items()}
+            doc = marker_frame(frame, payload_markers, t, units)
+            d.send(msgpack.packb(doc) if i % 2 else json.dumps(doc).encode())
+            frames[frame] = (t, markers)
+            d.pump(0)
+        d.wait_for(lambda: all(f in d.poses for f in frames), ANSWER_TIMEOUT_S,
+                   f"poses of all {n} frames "
+                   f"(missing: {sorted(set(frames) - set(d.poses))[:10]}...)")
+        for frame, (t, markers) in frames.items():
+            check(len(d.poses[frame]) == 1, f"frame {frame} answered {len(d.poses[frame])} times")
+            check_pose(d.poses[frame][0], markers, frame, t, moved(rest_joints, root, t),
+                       model_markers, joint_names)
+        print(f"contract: {n} frames (JSON, MessagePack; units mm, m, default) answered exactly "
+              f"once, every pose valid")
+
+        # 2. Occlusion: null, absent, NaN (MessagePack), and everything occluded.
+        names = sorted(model_markers)
+        cases = [
+            ("null", names[0:3], lambda m, o: m.update({k: None for k in o}), "json"),
+            ("absent", names[3:6], lambda m, o: [m.pop(k) for k in o], "json"),
+            ("NaN in MessagePack", names[6:9],
+             lambda m, o: m.update({k: [float("nan"), 1.0, 2.0] for k in o}), "msgpack"),
+            ("infinity in MessagePack", names[9:10],
+             lambda m, o: m.update({k: [1.0, float("inf"), 2.0] for k in o}), "msgpack"),
+            ("mixed", names[0:1] + names[10:12],
+             lambda m, o: (m.update({o[0]: None}), m.pop(o[1]),
+                           m.update({o[2]: [0.0, 0.0, float("nan")]})), "msgpack"),
+        ]
+        frame = 1000
+        for what, occ, apply, enc in cases:
+            frame += 1
+            t = 0.5
+            markers = moved(model_markers_rest, root, t)
+            sent = dict(markers)
+            apply(sent, occ)
+            doc = marker_frame(frame, sent, t)
+            d.send(msgpack.packb(doc) if enc == "msgpack" else json.dumps(doc).encode())
+            pose = d.wait_pose(frame)
+            check_pose(pose, markers, frame, t, moved(rest_joints, root, t), model_markers,
+                       joint_names, expect_occluded=occ)
+        frame += 1
+        d.send(json.dumps(marker_frame(frame, {k: None for k in names})).encode())
+        pose = d.wait_pose(frame)
+        check(pose["occluded"] and set(pose["occluded"]) == model_markers,
+              "all-occluded frame: not every marker listed in occluded")
+        check(pose["residual"]["count"] == 0 and pose["residual"]["worst"] is None,
+              f"all-occluded frame: residual {pose['residual']}")
+        check(pose["solver"]["status"] == "no_targets",
+              f"all-occluded frame: solver.status {pose['solver']['status']}, expected no_targets")
+        for name, p in pose["markers"].items():
+            check(all(math.isfinite(c) for c in p), f"all-occluded frame: {name} = {p}")
+        print("contract: occluded markers (null, absent, NaN, inf, all) listed, gap-filled, "
+              "finite")
+
+        # 3. Unknown markers are ignored and counted; a frame number going back is accepted.
+        before = d.stats[-1][1] if d.stats else None
+        frame += 1
+        markers = moved(model_markers_rest, root, 0.25)
+        d.send(json.dumps(marker_frame(frame, {**markers, "NOT_A_MARKER": [1, 2, 3]}, 0.25)).encode())
+        check_pose(d.wait_pose(frame), markers, frame, 0.25, moved(rest_joints, root, 0.25),
+                   model_markers, joint_names)
+        d.send(json.dumps(marker_frame(7, markers, 0.25)).encode())
+        d.wait_for(lambda: len(d.poses.get(7, [])) == 2, ANSWER_TIMEOUT_S,
+                   "the answer to frame 7 sent again (frame numbers going back are accepted)")
+        t_sent = time.monotonic()
+        after = d.stats_after(t_sent)
+        if before is not None:
+            check(after["unknown_markers"] > before["unknown_markers"],
+                  f"unknown_markers did not grow: {before['unknown_markers']} -> "
+                  f"{after['unknown_markers']}")
+        else:
+            check(after["unknown_markers"] >= 1, "unknown_markers not counted")
+        print("contract: unknown marker ignored and counted; backwards frame number accepted")
+
+        # 4. Bad payloads, each followed by a valid frame that must be answered.
+        base = d.stats_after(time.monotonic())
+        battery = bad_payloads(markers)
+        for what, parts in battery:
+            d.pub.send_multipart(parts)
+            frame += 1
+            d.send(json.dumps(marker_frame(frame, markers, 0.25)).encode())
+            d.wait_pose(frame, f"the valid frame after the bad payload '{what}' to be answered")
+        answered_bad = [f for f in d.poses if BAD_BASE <= f < PROBE_BASE]
+        check(not answered_bad, f"bad payloads were answered with poses: frames {answered_bad}")
+        final = d.stats_after(time.monotonic())
+        grew = final["decode_errors"] - base["decode_errors"]
+        check(grew == len(battery),
+              f"decode_errors grew by {grew} over {len(battery)} bad payloads "
+              f"({base['decode_errors']} -> {final['decode_errors']})")
+        print(f"contract: {len(battery)} bad payloads dropped and counted in decode_errors, "
+              "daemon still answering")
+
+        # 5. Stats: at least once per second, counters never go back.
+        arrivals = [a for a, _ in d.stats]
+        gaps = [b - a for a, b in zip(arrivals, arrivals[1:])]
+        check(gaps and max(gaps) <= 1.0 + 0.25,
+              f"stats gap of {max(gaps):.2f} s (contract: at least once per second)")
+        for (_, a), (_, b) in zip(d.stats, d.stats[1:]):
+            for k, v in stats_values(a).items():
+                check(b[k] >= v, f"stats counter {k} went back: {v} -> {b[k]}")
+            check(b["uptime_s"] >= a["uptime_s"], "stats uptime_s went back")
+        last = d.stats[-1][1]
+        check(last["frames_out"] >= sum(len(v) for k, v in d.poses.items()) - 0,
+              f"frames_out {last['frames_out']} below the poses received")
+        print(f"contract: {len(d.stats)} stats messages valid, max gap {max(gaps):.2f} s; "
+              f"last: {json.dumps(last, sort_keys=True)}")
+
+        # 6. SIGTERM: exit code 0 within 1 s.
+        d.stop()
+        print("contract: SIGTERM -> exit code 0 within 1 s")
+    except BaseException:
+        print(f"--- tail of {d.log_path} ---\n{d.log_tail()}", file=sys.stderr)
+        raise
+    finally:
+        d.close()
+
+
+def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):
+    """Output encoding msgpack and units m: poses come as MessagePack in metres."""
+    d = Daemon(args.fabrikd, workdir, output_encoding="msgpack", output_units="m")
+    try:
+        d.join()
+        for i in range(20):
+            frame = 100 + i
+            t = i / 100.0
+            markers = moved(model_markers_rest, root, t)
+            d.send(json.dumps(marker_frame(frame, markers, t, "mm")).encode())
+            check_pose(d.wait_pose(frame), markers, frame, t, moved(rest_joints, root, t),
+                       set(model_markers_rest), set(rest_joints), units="m")
+        d.stats_after(time.monotonic())
+        check(d.encodings == {"msgpack"}, f"output encodings seen: {d.encodings}")
+        d.stop()
+        print("contract: output encoding msgpack, units m: poses and stats valid")
+    except BaseException:
+        print(f"--- tail of {d.log_path} ---\n{d.log_tail()}", file=sys.stderr)
+        raise
+    finally:
+        d.close()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--fabrikd", required=True, help="path of the fabrikd executable")
+    ap.add_argument("--frames", type=int, default=300, help="frames in the streaming check")
+    args = ap.parse_args()
+    args.fabrikd = os.path.abspath(args.fabrikd)  # the daemon runs in a temporary directory
+    check(os.access(args.fabrikd, os.X_OK), f"{args.fabrikd} is not an executable")
+    markers, joints, root = rest_positions(ROOT / "config/models/fullbody.json")
+    with tempfile.TemporaryDirectory(prefix="fabrikd-contract-") as workdir:
+        run_main(args, workdir, markers, joints, root)
+        run_msgpack_metres(args, workdir, markers, joints, root)
+    print("contract: all checks passed")
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except CheckFailed as e:
+        print(f"contract: FAILED: {e}", file=sys.stderr)
+        sys.exit(1)

@@ -1,0 +1,121 @@
+#!/usr/bin/python3
+"""Checks proto/ against the contract's examples, validates config/default.json and every config/**/*.json whose "format" is
+fabrikd-config/1 against proto/daemon-config.schema.json, and checks that a
+few hand-made bad configs are rejected. Exit code 1 on any failure."""
+import argparse
+import copy
+import json
+import pathlib
+import sys
+
+import jsonschema
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
+def bad_configs(good):
+    """(name, config) pairs the schema must reject, each one mistake away from `good`."""
+    def edit(fn):
+        c = copy.deepcopy(good)
+        fn(c)
+        return c
+
+    def drop(key):
+        return lambda c: c.pop(key)
+
+    def put(path, value):
+        def fn(c):
+            node = c
+            for k in path[:-1]:
+                node = node.setdefault(k, {})
+            node[path[-1]] = value
+        return fn
+
+    return [
+        ("missing format", edit(drop("format"))),
+        ("missing model", edit(drop("model"))),
+        ("wrong format", edit(put(["format"], "fabrikd-config/2"))),
+        ("unknown top-level key", edit(put(["modle"], "x.json"))),
+        ("model is a number", edit(put(["model"], 3))),
+        ("inline model of another format", edit(put(["model"], {"format": "other"}))),
+        ("unknown solver key", edit(put(["solver", "tolerance_m"], 0.1))),
+        ("bad segment_fit", edit(put(["solver", "segment_fit"], "loose"))),
+        ("max_iterations 0", edit(put(["solver", "max_iterations"], 0))),
+        ("bad input mode", edit(put(["input", "mode"], "listen"))),
+        ("bad input units", edit(put(["input", "units"], "cm"))),
+        ("max_backlog_frames 0", edit(put(["input", "max_backlog_frames"], 0))),
+        ("max_payload_bytes not an integer", edit(put(["input", "max_payload_bytes"], "1M"))),
+        ("bad output encoding", edit(put(["output", "encoding"], "cbor"))),
+        ("endpoint without transport", edit(put(["output", "endpoint"], "127.0.0.1:5556"))),
+        ("weight 0", edit(put(["targets", "default", "weight"], 0))),
+        ("unknown marker entry key", edit(put(["targets", "markers", "RASI"], {"lvl": 1}))),
+        ("track not a bool", edit(put(["targets", "markers", "RASI"], {"track": "no"}))),
+        ("negative hold_s", edit(put(["occlusion", "hold_s"], -1))),
+        ("stats interval 0", edit(put(["stats_interval_s"], 0))),
+        ("stats interval 2 s", edit(put(["stats_interval_s"], 2))),
+        ("bad log level", edit(put(["log_level"], "verbose"))),
+    ]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--root", type=pathlib.Path, default=ROOT, help="repository root")
+    args = ap.parse_args()
+    schema = json.loads((args.root / "proto/daemon-config.schema.json").read_text())
+    cls = jsonschema.validators.validator_for(schema)
+    cls.check_schema(schema)
+    validator = cls(schema)
+    failures = []
+
+    configs = sorted((args.root / "config").rglob("*.json"))
+    checked = 0
+    for path in configs:
+        doc = json.loads(path.read_text())
+        if path.name != "default.json" and not (
+                isinstance(doc, dict) and doc.get("format") == "fabrikd-config/1"):
+            continue  # models and experiment files have their own formats
+        checked += 1
+        errors = sorted(validator.iter_errors(doc), key=lambda e: list(e.absolute_path))
+        for e in errors:
+            failures.append(f"{path}: at /{'/'.join(map(str, e.absolute_path))}: {e.message}")
+    if not any(p.name == "default.json" for p in configs):
+        failures.append("config/default.json is missing")
+
+    # The message schemas must be valid schemas and accept the contract's own examples.
+    examples = {
+        "markers": {"frame": 1042, "time": 17.366, "units": "mm",
+                    "markers": {"R.ASIS": [617.2, 1055.3, 170.8], "L.ASIS": None}},
+        "pose": {"frame": 1042, "time": 17.366, "units": "mm",
+                 "joints": {"r_hip": [1, 2, 3]}, "markers": {"R.ASIS": [1, 2, 3]},
+                 "occluded": ["L.ASIS"],
+                 "residual": {"rms": 4.1, "max": 9.7, "worst": "R.Heel", "count": 40},
+                 "solver": {"status": "converged", "iterations": 6, "solve_us": 8.3}},
+        "stats": {"uptime_s": 1.0, "frames_in": 0, "frames_out": 0, "frames_dropped": 0,
+                  "decode_errors": 0, "unknown_markers": 0,
+                  "solve_us": {"p50": 0, "p99": 0, "max": 0},
+                  "queue_latency_us": {"p50": 0, "p99": 0}},
+    }
+    for topic, example in examples.items():
+        s = json.loads((args.root / f"proto/{topic}.schema.json").read_text())
+        c = jsonschema.validators.validator_for(s)
+        c.check_schema(s)
+        for e in c(s).iter_errors(example):
+            failures.append(f"proto/{topic}.schema.json rejects the contract example: {e.message}")
+
+    default = json.loads((args.root / "config/default.json").read_text())
+    for name, doc in bad_configs(default):
+        if validator.is_valid(doc):
+            failures.append(f"bad config accepted by the schema: {name}")
+
+    if failures:
+        print("validate_configs: FAILED", file=sys.stderr)
+        for f in failures:
+            print("  " + f, file=sys.stderr)
+        return 1
+    print(f"validate_configs: {checked} config(s) valid, "
+          f"{len(bad_configs(default))} bad configs rejected")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
