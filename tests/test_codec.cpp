@@ -32,13 +32,15 @@ TEST_CASE("A JSON marker frame decodes into metres, in tracker order", "[codec]"
   MarkerFrame f = d.make_frame();
   std::string err;
   const std::string p =
-      R"({"frame": 1042, "time": 17.366, "units": "mm", "extra": {"a": [1, {"b": null}]},
+      R"({"frame": 1042, "time": 17.366, "stamp_us": 1790000000123456, "units": "mm", "extra": {"a": [1, {"b": null}]},
           "markers": {"C": [1000, 2000, 3000], "A": null, "X": [1, 2, 3]}})";
   REQUIRE(d.decode(bytes(p), f, err));
   CHECK(err.empty());
   CHECK(f.frame == 1042);
   CHECK(f.has_time);
   CHECK(f.time_s == Approx(17.366));
+  CHECK(f.has_stamp);
+  CHECK(f.stamp_us == 1790000000123456.0);
   CHECK(f.visible == std::vector<std::uint8_t>{0, 0, 1});  // A null, B absent, C given
   CHECK(f.p_world_m[2].isApprox(Eigen::Vector3d(1, 2, 3)));
   CHECK(f.unknown_count == 1);
@@ -107,6 +109,7 @@ TEST_CASE("Every kind of bad marker payload is refused with its own message", "[
       {R"({"frame": 1.5, "markers": {}})", "unsigned integer"},
       {R"({"frame": "12", "markers": {}})", "unsigned integer"},
       {R"({"frame": 1, "time": "now"})", "\"time\" must be a number"},
+      {R"({"frame": 1, "stamp_us": [1]})", "\"stamp_us\" must be a number"},
       {R"({"frame": 1, "units": "cm"})", "\"units\" must be \"mm\" or \"m\""},
       {R"({"frame": 1, "markers": [1, 2]})", "\"markers\" must be an object"},
       {R"({"frame": 1, "markers": {"A": [1, 2]}})", "expected [x, y, z], got 2"},
@@ -145,13 +148,14 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
   const TrackResult& r = tracker.track(0.0, measured, visible);
   PoseEncoder je(tracker, "mm", PayloadEncoding::json), me(tracker, "mm", PayloadEncoding::msgpack);
   std::string jp, mp;
-  je.encode({12, true, 0.5}, r, jp);
-  me.encode({12, true, 0.5}, r, mp);
+  je.encode({12, true, 0.5, true, 1790000000123456.0}, r, jp);
+  me.encode({12, true, 0.5, true, 1790000000123456.0}, r, mp);
   const json a = json::parse(jp);
   const json b = json::from_msgpack(mp);
   CHECK(a["frame"] == 12);
   CHECK(a["time"].get<double>() == Approx(0.5));
   CHECK(a["units"] == "mm");
+  CHECK(a["stamp_us"].get<double>() == 1790000000123456.0);
   CHECK(a["joints"].size() == tracker.model().joints.size());
   CHECK(a["markers"].size() == c.tracker.markers.size());
   CHECK(a["occluded"] == json::array({"RKNE"}));
@@ -159,6 +163,7 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
   CHECK(a["residual"]["rms"].get<double>() == Approx(r.residual_rms_m * 1e3).margin(1e-3));
   CHECK(a["solver"]["status"].is_string());
   for (const char* key : {"frame", "time", "units", "occluded", "held"}) CHECK(a[key] == b[key]);
+  CHECK(b["stamp_us"].get<double>() == 1790000000123456.0);
   for (const auto& [name, p] : a["markers"].items())
     for (int k = 0; k < 3; ++k)
       CHECK(p[k].get<double>() == Approx(b["markers"][name][k].get<double>()).margin(1e-4));

@@ -122,8 +122,13 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
           std::chrono::duration<double>(static_cast<double>(k) / trial.rate_hz / options.speed));
       std::this_thread::sleep_until(deadline);
     }
-    const nlohmann::json doc = marker_frame(
+    nlohmann::json doc = marker_frame(
         trial, index, static_cast<std::uint64_t>(trial.first_frame) + k, t_stream_s, hidden);
+    // Wall clock at sending, echoed by fabrikd in the pose: watchers on this
+    // machine measure end-to-end latency from it.
+    doc["stamp_us"] = std::chrono::duration_cast<std::chrono::microseconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();
     for (const auto& v : doc["markers"]) summary.markers_nulled += v.is_null() ? 1 : 0;
     const std::string payload = encode_payload(doc, options.encoding);
     pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);

@@ -1,5 +1,7 @@
 #include "watch.hpp"
 
+#include <chrono>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -68,8 +70,16 @@ void WatchTally::add_pose(const json& pose, double t_s) {
     status = pose["solver"]["status"];
   const double solve_us = number_at(pose, "/solver/solve_us"_json_pointer);
   if (std::isfinite(solve_us)) solve_us_.push_back(solve_us);
-  const double latency_us = number_at(pose, "/latency_us"_json_pointer);  // if a daemon adds it
-  if (std::isfinite(latency_us)) latency_us_.push_back(latency_us);
+  // End to end, from the source's send to now: the pose echoes the frame's
+  // stamp_us (a wall clock, so only meaningful with source and watcher on one machine).
+  const double stamp_us = number_at(pose, "/stamp_us"_json_pointer);
+  if (std::isfinite(stamp_us)) {
+    const double now_us =
+        static_cast<double>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                std::chrono::system_clock::now().time_since_epoch())
+                                .count());
+    latency_us_.push_back(now_us - stamp_us);
+  }
 
   rms_sum_ += rms;
   residual_max_ = std::max(residual_max_, max);

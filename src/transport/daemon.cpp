@@ -179,7 +179,7 @@ void Daemon::drain_and_solve() {
         f.has_time ? f.time_s
                    : std::chrono::duration<double>(s.received_at[slot] - started_).count();
     const TrackResult& r = s.tracker->track(time_s, f.p_world_m, f.visible);
-    s.encoder->encode({f.frame, f.has_time, f.time_s}, r, out_);
+    s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, r, out_);
     ++counters_.frames_out;
     ++interval_frames_out_;
     {

@@ -133,6 +133,8 @@ class FrameSax : public nlohmann::json_sax<json> {
         state_ = State::time;
       else if (k == "units")
         state_ = State::units;
+      else if (k == "stamp_us")
+        state_ = State::stamp;
       else if (k == "markers")
         state_ = State::markers;
       else
@@ -166,6 +168,7 @@ class FrameSax : public nlohmann::json_sax<json> {
     start,
     top_key,
     frame,
+    stamp,
     time,
     units,
     markers,
@@ -183,6 +186,11 @@ class FrameSax : public nlohmann::json_sax<json> {
         if (!std::isfinite(v)) return fail("\"time\" must be a finite number");
         out_.time_s = v;
         out_.has_time = true;
+        return top_value_done();
+      case State::stamp:
+        if (!std::isfinite(v)) return fail("\"stamp_us\" must be a finite number");
+        out_.stamp_us = v;
+        out_.has_stamp = true;
         return top_value_done();
       case State::coords:
         if (coord_ >= 3) return fail("marker \"" + marker_name_ + "\": more than 3 coordinates");
@@ -220,6 +228,8 @@ class FrameSax : public nlohmann::json_sax<json> {
         return fail(std::string("\"frame\" must be an unsigned integer, got ") + what);
       case State::time:
         return fail(std::string("\"time\" must be a number, got ") + what);
+      case State::stamp:
+        return fail(std::string("\"stamp_us\" must be a number, got ") + what);
       case State::units:
         return fail(std::string("\"units\" must be \"mm\" or \"m\", got ") + what);
       case State::markers:
@@ -293,6 +303,7 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   out.frame = 0;
   out.has_time = false;
   out.time_s = 0.0;
+  out.has_stamp = false;
   out.unknown_count = 0;
   out.unknown_names.clear();
   std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded

@@ -24,6 +24,10 @@ struct MarkerFrame {
   std::uint64_t frame = 0;
   bool has_time = false;
   double time_s = 0.0;
+  // Addition to the contract: the source's wall clock at sending (Unix
+  // microseconds), echoed in the pose so a client can measure end-to-end latency.
+  bool has_stamp = false;
+  double stamp_us = 0.0;
   std::vector<Eigen::Vector3d> p_world_m;  // per known marker, metres
   std::vector<std::uint8_t> visible;       // per known marker
   int unknown_count = 0;                   // marker names not in the model

@@ -26,12 +26,16 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
     w.end_array();
   };
-  w.begin_map(header.has_time ? 9 : 8);
+  w.begin_map(8 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
   if (header.has_time) {
     w.key("time");
     w.number(header.time_s, 6);
+  }
+  if (header.has_stamp) {
+    w.key("stamp_us");  // addition: echoed from the marker frame
+    w.number(header.stamp_us, 0);
   }
   w.key("units");
   w.string(units_);

@@ -22,6 +22,8 @@ struct PoseHeader {
   std::uint64_t frame = 0;
   bool has_time = false;
   double time_s = 0.0;
+  bool has_stamp = false;  // echo of the frame's stamp_us
+  double stamp_us = 0.0;
 };
 
 class PoseEncoder {
