@@ -108,7 +108,8 @@ class Calibrator {
     if (prefixed_ > 0)
       r_.notes.push_back(std::to_string(prefixed_) +
                          " template markers matched trial labels with a subject prefix "
-                         "('Subject:NAME'); the model uses the template names");
+                         "('Subject:NAME'); the model uses the template names, the config maps the "
+                         "labels onto them");
     std::string ignored;
     int n_ignored = 0;
     for (std::size_t l = 0; l < trial_.labels.size(); ++l)
@@ -306,7 +307,12 @@ class Calibrator {
       nlohmann::ordered_json e = nlohmann::ordered_json::object();
       if (m.level != t_.default_level) e["level"] = m.level;
       if (m.weight != t_.default_weight) e["weight"] = m.weight;
-      if (!e.empty()) markers[m.name] = e;
+      // A "Subject:NAME" label streams under that name: map it onto the point.
+      const std::size_t mi = static_cast<std::size_t>(&m - t_.markers.data());
+      const std::string stream =
+          column_[mi] >= 0 ? trial_.labels[static_cast<std::size_t>(column_[mi])] : m.name;
+      if (stream != m.name) e["point"] = m.name;
+      if (!e.empty()) markers[stream] = e;
     }
     // The rest mirrors config/default.json, so a calibrated config behaves like the default.
     auto& c = r_.config;

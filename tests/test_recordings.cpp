@@ -1,0 +1,111 @@
+// Real recordings through the daemon: Vicon.c3d (43 upper-body markers with
+// real occlusions, 580 frames) streamed frame by frame over real sockets.
+// Skips with a message when ../shared/data is absent.
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <thread>
+
+#include "calib/calibrate.hpp"
+#include "config/daemon_config.hpp"
+#include "io/marker_trial.hpp"
+#include "socket_client.hpp"
+#include "transport/daemon.hpp"
+#include "transport/marker_codec.hpp"
+
+using namespace fabrik;
+using nlohmann::json;
+
+TEST_CASE("Vicon.c3d with its real gaps streams through fabrikd without losing a frame",
+          "[daemon][data]") {
+  const std::string path = FABRIK_SHARED_DATA_DIR "/Vicon.c3d";
+  if (!std::filesystem::exists(path)) {
+    WARN("skipped: " << path << " is absent (the shared real-data folder is not beside the repo)");
+    return;
+  }
+  const io::MarkerTrial trial = io::read_c3d(path);
+  const calib::CalibTemplate tmpl =
+      calib::load_template_file(FABRIK_SOURCE_DIR "/config/templates/vicon_upper_body.json");
+  calib::CalibrateOptions window;
+  window.first_frame = trial.first_frame;
+  window.frames = 20;  // the subject stands still at the start, every marker visible
+  const calib::CalibrationResult cal = calib::calibrate(tmpl, trial, path, window);
+  DaemonConfig config = load_daemon_config(cal.config.dump(), "<calibrated from Vicon.c3d>");
+  config.input = {"inproc://vicon-in", SocketMode::bind};
+  config.output = {"inproc://vicon-out", SocketMode::bind};
+  spdlog::set_level(spdlog::level::err);
+
+  zmq::context_t context;
+  wire::Daemon daemon(context, config);
+  wire::DaemonControl control;
+  std::thread thread([&] { daemon.run(control); });
+  struct Join {
+    wire::DaemonControl& c;
+    std::thread& t;
+    ~Join() {
+      c.stop = true;
+      t.join();
+    }
+  } join{control, thread};
+
+  test::SocketClient client(context, daemon.input_endpoint(), daemon.output_endpoint());
+  client.handshake();
+  const auto errors_before = daemon.counters();
+
+  // Every label of the file goes out as recorded (the 8 box markers are unknown to the model).
+  std::vector<std::string> labels = trial.labels;
+  std::vector<std::uint8_t> visible(labels.size());
+  std::vector<Eigen::Vector3d> p(labels.size());
+  std::string payload;
+  std::size_t occluded_samples = 0, max_occluded = 0;
+  double max_jump_mm = 0.0;
+  json previous;
+  for (std::size_t f = 0; f < trial.frames(); ++f) {
+    for (std::size_t m = 0; m < labels.size(); ++m) {
+      p[m] = trial.at(f, m);
+      visible[m] = p[m].allFinite() ? 1 : 0;
+    }
+    const double t = trial.time_s(f);
+    wire::encode_marker_frame(f, &t, labels, p, visible, "mm", wire::PayloadEncoding::msgpack,
+                              payload);
+    client.send(payload);
+    const auto pose = client.receive("pose");
+    REQUIRE(pose);
+    REQUIRE((*pose)["frame"] == f);
+    // The occluded list is exactly the model's markers missing in this frame.
+    std::size_t missing = 0;
+    for (const MarkerTarget& mt : config.tracker.markers) {
+      const int col = trial.find(mt.marker);
+      REQUIRE(col >= 0);
+      const bool gone = !trial.at(f, col).allFinite();
+      missing += gone ? 1 : 0;
+      const auto& occ = (*pose)["occluded"];
+      CHECK((std::find(occ.begin(), occ.end(), mt.marker) != occ.end()) == gone);
+      // Predicted (or fitted) positions are always there, and move smoothly:
+      // a gap-filled marker does not jump at 100 Hz.
+      const json& q = (*pose)["markers"][mt.marker];
+      REQUIRE(q.is_array());
+      if (!previous.is_null()) {
+        double d2 = 0;
+        for (int k = 0; k < 3; ++k)
+          d2 += std::pow(q[k].get<double>() - previous["markers"][mt.marker][k].get<double>(), 2);
+        if (gone) max_jump_mm = std::max(max_jump_mm, std::sqrt(d2));
+      }
+    }
+    occluded_samples += missing;
+    max_occluded = std::max(max_occluded, missing);
+    CHECK((*pose)["residual"]["count"] == config.tracker.markers.size() - missing);
+    previous = *pose;
+  }
+  const wire::DaemonCounters c = daemon.counters();
+  CHECK(c.frames_out - errors_before.frames_out == trial.frames());
+  CHECK(c.frames_dropped == errors_before.frames_dropped);
+  CHECK(c.decode_errors == errors_before.decode_errors);
+  CHECK(c.unknown_markers - errors_before.unknown_markers == 8 * trial.frames());
+  CHECK(occluded_samples > 200);  // the file's real gaps on the subject's markers
+  CHECK(max_jump_mm < 40.0);      // mm per frame for a gap-filled marker
+  WARN("Vicon.c3d: "
+       << trial.frames() << " frames, " << occluded_samples << " occluded samples predicted, up to "
+       << max_occluded
+       << " markers missing in a frame; largest frame-to-frame step of a predicted marker "
+       << max_jump_mm << " mm");
+}
