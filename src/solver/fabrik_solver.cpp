@@ -19,6 +19,23 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
     max_drivers = std::max(max_drivers, static_cast<int>(targets_.on_segment(s).size()) +
                                             model.segments[s].child_count);
   drivers_.resize(static_cast<std::size_t>(max_drivers));
+  slot_first_.assign(static_cast<std::size_t>(n_seg_ + 1), 0);
+  for (int s = 0; s < n_seg_; ++s) {
+    slot_first_[s] = static_cast<int>(slots_.size());
+    for (int t : targets_.on_segment(s)) {
+      const Eigen::Vector3d& a = model.points[targets_.targets()[t].point].p_local_m;
+      slots_.push_back({a, a.norm(), t});
+    }
+    const Segment& seg = model.segments[s];
+    for (int k = 0; k < seg.child_count; ++k) {
+      const int c = model.child_ids[seg.first_child + k];
+      const Eigen::Vector3d& a = model.points[model.segments[c].parent_point].p_local_m;
+      slots_.push_back({a, a.norm(), ~c});
+    }
+  }
+  slot_first_[n_seg_] = static_cast<int>(slots_.size());
+  slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
+  pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
   start_.resize(model.segments.size());
   distances_m_.assign(targets_.targets().size(), 0.0);
   previous_m_.assign(targets_.targets().size(), 0.0);
@@ -41,6 +58,22 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
       }
     }
   }
+  const int n_slots = static_cast<int>(slots_.size());
+  for (int pass = 0; pass < n_pass_; ++pass) {
+    double* weight = slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * n_slots;
+    for (int k = 0; k < n_slots; ++k) {
+      const int source = slots_[k].source;
+      if (source >= 0) {
+        weight[k] = visible[source] ? pass_weight(pass, source) : 0.0;
+      } else {
+        const std::uint8_t act = activity(pass, ~source);
+        weight[k] = !act ? 0.0 : act & kAnchor ? options_.anchor_weight : 1.0;
+      }
+    }
+    std::uint8_t riders = 0;
+    for (int s = 1; s < n_seg_; ++s) riders |= !active(pass, s);
+    pass_has_riders_[pass] = riders;
+  }
 }
 
 double FabrikSolver::pass_weight(int pass, int t) const {
@@ -54,22 +87,19 @@ double FabrikSolver::pass_weight(int pass, int t) const {
 // Collects the points of segment s that this pass pulls on: its own visible
 // targets, and the joint of every active child, pulled to that child's base.
 int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
-                         std::span<const std::uint8_t> visible, const Posture& posture) {
+                         std::span<const std::uint8_t> /*visible*/, const Posture& posture) {
   int n = 0;
-  for (int t : targets_.on_segment(s)) {
-    const double weight = visible[t] ? pass_weight(pass, t) : 0.0;
-    if (weight <= 0.0) continue;
-    drivers_[n++] = {model_.points[targets_.targets()[t].point].p_local_m, target_world_m[t],
-                     weight};
-  }
-  const Segment& seg = model_.segments[s];
-  for (int k = 0; k < seg.child_count; ++k) {
-    const int c = model_.child_ids[seg.first_child + k];
-    const std::uint8_t act = activity(pass, c);
-    if (!act) continue;
-    drivers_[n++] = {model_.points[model_.segments[c].parent_point].p_local_m,
-                     posture.segments[c].base_world_m,
-                     act & kAnchor ? options_.anchor_weight : 1.0};
+  const double* weight =
+      slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * static_cast<int>(slots_.size());
+  for (int k = slot_first_[s], end = slot_first_[s + 1]; k < end; ++k) {
+    if (weight[k] <= 0.0) continue;
+    const Slot& slot = slots_[k];
+    Driver& d = drivers_[n++];
+    d.a_local = slot.a_local;
+    d.d_world = slot.source >= 0 ? target_world_m[slot.source]
+                                 : posture.segments[~slot.source].base_world_m;
+    d.weight = weight[k];
+    d.a_norm_m = slot.a_norm_m;
   }
   return n;
 }
@@ -85,7 +115,7 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
     const Eigen::Vector3d to_base = pose.base_world_m - d.d_world;
     const double dist = to_base.norm();
     const Eigen::Vector3d candidate =
-        dist > 1e-12 ? Eigen::Vector3d(d.d_world + to_base * (d.a_local.norm() / dist))
+        dist > 1e-12 ? Eigen::Vector3d(d.d_world + to_base * (d.a_norm_m / dist))
                      : Eigen::Vector3d(d.d_world - pose.r_world * d.a_local);
     sum += d.weight * candidate;
     weight_sum += d.weight;
@@ -109,12 +139,12 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
     }
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
     const Eigen::Vector3d b = mean_desired / weight_sum - base_m;        // P_i(f) -> M(f)
-    pose.set_rotation(rotate_minimal(pose.q_world, a, b));
+    pose.set_unit_rotation(rotate_minimal(pose.q_world, a, b));
   } else if (n == 1) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
-    pose.set_rotation(rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local,
-                                     drivers_[0].d_world - base_m));
+    pose.set_unit_rotation(rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local,
+                                          drivers_[0].d_world - base_m));
   } else {
     Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
     for (int k = 0; k < n; ++k)
@@ -122,7 +152,7 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
           drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
     // One Newton step per visit: the convergence loop revisits the segment, so
     // an exact inner fit buys nothing (same iterations, same residuals).
-    pose.set_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
+    pose.set_unit_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
   }
   pose.base_world_m = base_m;
 }
@@ -145,7 +175,7 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
                        (drivers_[k].a_local - mean_local).transpose();
   // One Newton step per visit: the convergence loop revisits the segment, so
   // an exact inner fit buys nothing (same iterations, same residuals).
-  pose.set_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
+  pose.set_unit_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
   pose.base_world_m = mean_desired - pose.r_world * mean_local;
 }
 
@@ -231,7 +261,8 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       // convergence loop itself repeats the pass.
       const int level_passes = active_levels > 1 && pass == strongest ? options_.level_passes : 1;
       for (int k = 0; k < level_passes; ++k) {
-        std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
+        if (pass_has_riders_[pass])
+          std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
         forward(pass, target_world_m, visible, posture);
         backward(pass, target_world_m, visible, posture, root_pin_m);
         ++total_passes;

@@ -40,8 +40,17 @@ class FabrikSolver {
     Eigen::Vector3d a_local;  // the point, relative to the segment base
     Eigen::Vector3d d_world;  // where it should go
     double weight;
+    double a_norm_m;  // |a_local|
+  };
+  // A point of a segment that may drive it: one of its targets or the joint
+  // of one of its children. Grouped by segment, fixed at construction.
+  struct Slot {
+    Eigen::Vector3d a_local;
+    double a_norm_m;
+    int source;  // target index if >= 0, else child segment ~source
   };
 
+  // Marks the active segments and sets every slot's weight in every pass.
   void mark_active(std::span<const std::uint8_t> visible);
   // Per pass and segment: kOwn if the subtree has a visible target of the
   // pass's level, kAnchor if it has one of a stronger level.
@@ -70,7 +79,11 @@ class FabrikSolver {
   int n_pass_ = 0;                    // priority levels, or 1 without priorities
   std::vector<std::uint8_t> active_;  // [pass][segment]: a visible target in the subtree
   std::vector<Driver> drivers_;       // scratch for one segment
-  std::vector<SegmentPose> start_;    // posture at the start of a pass
+  std::vector<Slot> slots_;           // by segment: slots_[slot_first_[s], slot_first_[s + 1])
+  std::vector<int> slot_first_;
+  std::vector<double> slot_weight_;  // [pass][slot], per solve: 0 when it does not take part
+  std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
+  std::vector<SegmentPose> start_;             // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
 };

@@ -40,7 +40,7 @@ inline Eigen::Quaterniond rotate_minimal(const Eigen::Quaterniond& q, const Eige
 inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterniond q,
                                        Eigen::Matrix3d r, int max_steps = 12) {
   constexpr double kAngleTolRad = 1e-12;
-  constexpr double kMaxStepRad = 1.0;
+  constexpr double kMaxStepRad = 1.0;  // the exponential below relies on it being <= 1
   for (int step = 0; step < max_steps; ++step) {
     if (step > 0) r = q.toRotationMatrix();
     const Eigen::Matrix3d m = a * r.transpose();
@@ -69,12 +69,18 @@ inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterni
     const double angle_rad = omega.norm();
     if (!(angle_rad > kAngleTolRad)) break;  // also stops on NaN
     if (angle_rad > kMaxStepRad) omega *= kMaxStepRad / angle_rad;
-    // Exact exponential of the step, without trigonometric calls for small angles.
-    const double half = 0.5 * omega.norm();
-    const double sinc = half < 1e-4 ? 1.0 - half * half / 6.0 : std::sin(half) / half;
-    const Eigen::Quaterniond turn(half < 1e-4 ? 1.0 - 0.5 * half * half : std::cos(half),
-                                  0.5 * sinc * omega.x(), 0.5 * sinc * omega.y(),
-                                  0.5 * sinc * omega.z());
+    // Exact exponential of the step, without trigonometric calls: the half
+    // angle is at most kMaxStepRad / 2 = 0.5, where these Taylor series of
+    // cos(h) and sin(h)/h are exact to 1e-12 (and the result is normalised).
+    const double h2 = 0.25 * omega.squaredNorm();
+    const double cos_half =
+        1.0 +
+        h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * (1.0 / 40320 - h2 / 3628800.0))));
+    const double sinc_half =
+        1.0 + h2 * (-1.0 / 6 +
+                    h2 * (1.0 / 120 + h2 * (-1.0 / 5040 + h2 * (1.0 / 362880 - h2 / 39916800.0))));
+    const Eigen::Quaterniond turn(cos_half, 0.5 * sinc_half * omega.x(),
+                                  0.5 * sinc_half * omega.y(), 0.5 * sinc_half * omega.z());
     q = (turn * q).normalized();
     if (angle_rad < 1e-8) break;  // quadratic convergence: the next step would be negligible
   }
