@@ -107,20 +107,42 @@ int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> targe
 // Forward reaching for one segment: each driver proposes a base position (the
 // classic FABRIK step along the line from its desired position to the current
 // base); the base moves to their weighted mean, then the segment turns about it.
-void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  double weight_sum = 0.0;
+// With `turn` false only the base moves: for a non-root segment that only one
+// point can ever drive (one target or one child, no other), the turn is
+// deferred to the backward pass, which turns it about its final base anyway.
+// Joint positions are exactly those of turning twice (the parent's forward
+// step reads only this segment's base; the backward turn aims the driver at
+// the same place); only the twist about the driver's axis, which no target
+// constrains, differs: it is then one minimal turn from the start. A segment
+// with several possible drivers (a subbase) always turns, since in a pass
+// where only one of them pulls, its twist still carries the others' joints.
+void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) const {
+  const double bx = pose.base_world_m.x(), by = pose.base_world_m.y(), bz = pose.base_world_m.z();
+  double sx = 0.0, sy = 0.0, sz = 0.0, weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
-    const Eigen::Vector3d to_base = pose.base_world_m - d.d_world;
-    const double dist = to_base.norm();
-    const Eigen::Vector3d candidate =
-        dist > 1e-12 ? Eigen::Vector3d(d.d_world + to_base * (d.a_norm_m / dist))
-                     : Eigen::Vector3d(d.d_world - pose.r_world * d.a_local);
-    sum += d.weight * candidate;
+    const double dx = d.d_world.x(), dy = d.d_world.y(), dz = d.d_world.z();
+    const double ux = bx - dx, uy = by - dy, uz = bz - dz;
+    const double dist = std::sqrt(ux * ux + uy * uy + uz * uz);
+    if (dist > 1e-12) {
+      const double f = d.weight * d.a_norm_m / dist;
+      sx += d.weight * dx + f * ux;
+      sy += d.weight * dy + f * uy;
+      sz += d.weight * dz + f * uz;
+    } else {
+      const Eigen::Vector3d candidate = d.d_world - pose.r_world * d.a_local;
+      sx += d.weight * candidate.x();
+      sy += d.weight * candidate.y();
+      sz += d.weight * candidate.z();
+    }
     weight_sum += d.weight;
   }
-  rotate_about_base(n, sum / weight_sum, pose);
+  const double inv = 1.0 / weight_sum;
+  const Eigen::Vector3d base_m(sx * inv, sy * inv, sz * inv);
+  if (turn)
+    rotate_about_base(n, base_m, pose);
+  else
+    pose.base_world_m = base_m;
 }
 
 // Turns the segment about its (new) base so its drivers point at their desired
@@ -129,7 +151,7 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
 // rule: least-squares rotation of all driver directions.
 void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
                                      SegmentPose& pose) const {
-  if (options_.segment_fit == SegmentFit::paper) {
+  if (options_.segment_fit == SegmentFit::paper && n > 1) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
     double weight_sum = 0.0;
     for (int k = 0; k < n; ++k) {
@@ -139,12 +161,11 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
     }
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
     const Eigen::Vector3d b = mean_desired / weight_sum - base_m;        // P_i(f) -> M(f)
-    pose.set_unit_rotation(rotate_minimal(pose.q_world, a, b));
+    turn_minimal(a, b, pose);
   } else if (n == 1) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
-    pose.set_unit_rotation(rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local,
-                                          drivers_[0].d_world - base_m));
+    turn_minimal(pose.r_world * drivers_[0].a_local, drivers_[0].d_world - base_m, pose);
   } else {
     Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
     for (int k = 0; k < n; ++k)
@@ -152,7 +173,7 @@ void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
           drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
     // One Newton step per visit: the convergence loop revisits the segment, so
     // an exact inner fit buys nothing (same iterations, same residuals).
-    pose.set_unit_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
+    fit_rotation_step(cross.data(), pose);
   }
   pose.base_world_m = base_m;
 }
@@ -175,7 +196,7 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
                        (drivers_[k].a_local - mean_local).transpose();
   // One Newton step per visit: the convergence loop revisits the segment, so
   // an exact inner fit buys nothing (same iterations, same residuals).
-  pose.set_unit_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
+  fit_rotation_step(cross.data(), pose);
   pose.base_world_m = mean_desired - pose.r_world * mean_local;
 }
 
@@ -188,8 +209,9 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
     const int n = gather(pass, s, target_world_m, visible, posture);
     if (root && options_.segment_fit == SegmentFit::rigid)
       free_root_fit(n, posture.segments[s]);
-    else
-      place_with_candidates(n, posture.segments[s]);
+    else  // see place_with_candidates for why one driver does not turn here
+      place_with_candidates(n, posture.segments[s],
+                            root || slot_first_[s + 1] - slot_first_[s] > 1);
   }
 }
 

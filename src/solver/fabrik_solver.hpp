@@ -68,7 +68,7 @@ class FabrikSolver {
                 const Eigen::Vector3d& root_pin_m);
   bool level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
                      std::span<const std::uint8_t> visible, const Posture& posture);
-  void place_with_candidates(int n, SegmentPose& pose) const;
+  void place_with_candidates(int n, SegmentPose& pose, bool turn) const;
   void free_root_fit(int n, SegmentPose& pose) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
