@@ -86,7 +86,7 @@ double FabrikSolver::pass_weight(int pass, int t) const {
 
 // Collects the points of segment s that this pass pulls on: its own visible
 // targets, and the joint of every active child, pulled to that child's base.
-int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
+[[gnu::always_inline]] inline int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
                          std::span<const std::uint8_t> /*visible*/, const Posture& posture) {
   int n = 0;
   const double* weight =
@@ -149,7 +149,7 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
 // positions, then puts the base there. Paper rule: the direction to the mean
 // driver is aligned with the direction to the mean desired position. Rigid
 // rule: least-squares rotation of all driver directions.
-void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
+[[gnu::always_inline]] inline void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
                                      SegmentPose& pose) const {
   if (options_.segment_fit == SegmentFit::paper && n > 1) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
