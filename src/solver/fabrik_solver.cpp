@@ -86,20 +86,19 @@ double FabrikSolver::pass_weight(int pass, int t) const {
 
 // Collects the points of segment s that this pass pulls on: its own visible
 // targets, and the joint of every active child, pulled to that child's base.
-[[gnu::always_inline]] inline int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
-                         std::span<const std::uint8_t> /*visible*/, const Posture& posture) {
+[[gnu::always_inline]] inline int FabrikSolver::gather(
+    int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
+    std::span<const std::uint8_t> /*visible*/, const Posture& posture) {
   int n = 0;
   const double* weight =
       slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * static_cast<int>(slots_.size());
   for (int k = slot_first_[s], end = slot_first_[s + 1]; k < end; ++k) {
     if (weight[k] <= 0.0) continue;
     const Slot& slot = slots_[k];
-    Driver& d = drivers_[n++];
-    d.a_local = slot.a_local;
-    d.d_world = slot.source >= 0 ? target_world_m[slot.source]
-                                 : posture.segments[~slot.source].base_world_m;
-    d.weight = weight[k];
-    d.a_norm_m = slot.a_norm_m;
+    drivers_[n++] = {&slot,
+                     slot.source >= 0 ? &target_world_m[slot.source]
+                                      : &posture.segments[~slot.source].base_world_m,
+                     weight[k]};
   }
   return n;
 }
@@ -121,16 +120,16 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
   double sx = 0.0, sy = 0.0, sz = 0.0, weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
-    const double dx = d.d_world.x(), dy = d.d_world.y(), dz = d.d_world.z();
+    const double dx = d.d_world().x(), dy = d.d_world().y(), dz = d.d_world().z();
     const double ux = bx - dx, uy = by - dy, uz = bz - dz;
     const double dist = std::sqrt(ux * ux + uy * uy + uz * uz);
     if (dist > 1e-12) {
-      const double f = d.weight * d.a_norm_m / dist;
+      const double f = d.weight * d.a_norm_m() / dist;
       sx += d.weight * dx + f * ux;
       sy += d.weight * dy + f * uy;
       sz += d.weight * dz + f * uz;
     } else {
-      const Eigen::Vector3d candidate = d.d_world - pose.r_world * d.a_local;
+      const Eigen::Vector3d candidate = d.d_world() - pose.r_world * d.a_local();
       sx += d.weight * candidate.x();
       sy += d.weight * candidate.y();
       sz += d.weight * candidate.z();
@@ -149,14 +148,15 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
 // positions, then puts the base there. Paper rule: the direction to the mean
 // driver is aligned with the direction to the mean desired position. Rigid
 // rule: least-squares rotation of all driver directions.
-[[gnu::always_inline]] inline void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
-                                     SegmentPose& pose) const {
+[[gnu::always_inline]] inline void FabrikSolver::rotate_about_base(int n,
+                                                                   const Eigen::Vector3d& base_m,
+                                                                   SegmentPose& pose) const {
   if (options_.segment_fit == SegmentFit::paper && n > 1) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
     double weight_sum = 0.0;
     for (int k = 0; k < n; ++k) {
-      mean_local += drivers_[k].weight * drivers_[k].a_local;
-      mean_desired += drivers_[k].weight * drivers_[k].d_world;
+      mean_local += drivers_[k].weight * drivers_[k].a_local();
+      mean_desired += drivers_[k].weight * drivers_[k].d_world();
       weight_sum += drivers_[k].weight;
     }
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
@@ -165,12 +165,12 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
   } else if (n == 1) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
-    turn_minimal(pose.r_world * drivers_[0].a_local, drivers_[0].d_world - base_m, pose);
+    turn_minimal(pose.r_world * drivers_[0].a_local(), drivers_[0].d_world() - base_m, pose);
   } else {
     Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
     for (int k = 0; k < n; ++k)
       cross.noalias() +=
-          drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
+          drivers_[k].weight * (drivers_[k].d_world() - base_m) * drivers_[k].a_local().transpose();
     // One Newton step per visit: the convergence loop revisits the segment, so
     // an exact inner fit buys nothing (same iterations, same residuals).
     fit_rotation_step(cross.data(), pose);
@@ -184,16 +184,16 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
   Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
   double weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
-    mean_local += drivers_[k].weight * drivers_[k].a_local;
-    mean_desired += drivers_[k].weight * drivers_[k].d_world;
+    mean_local += drivers_[k].weight * drivers_[k].a_local();
+    mean_desired += drivers_[k].weight * drivers_[k].d_world();
     weight_sum += drivers_[k].weight;
   }
   mean_local /= weight_sum;
   mean_desired /= weight_sum;
   Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
   for (int k = 0; k < n; ++k)
-    cross.noalias() += drivers_[k].weight * (drivers_[k].d_world - mean_desired) *
-                       (drivers_[k].a_local - mean_local).transpose();
+    cross.noalias() += drivers_[k].weight * (drivers_[k].d_world() - mean_desired) *
+                       (drivers_[k].a_local() - mean_local).transpose();
   // One Newton step per visit: the convergence loop revisits the segment, so
   // an exact inner fit buys nothing (same iterations, same residuals).
   fit_rotation_step(cross.data(), pose);

@@ -36,18 +36,20 @@ class FabrikSolver {
   std::span<const double> target_distances_m() const { return distances_m_; }
 
  private:
-  struct Driver {             // one point of a segment pulled towards a position
-    Eigen::Vector3d a_local;  // the point, relative to the segment base
-    Eigen::Vector3d d_world;  // where it should go
-    double weight;
-    double a_norm_m;  // |a_local|
-  };
   // A point of a segment that may drive it: one of its targets or the joint
   // of one of its children. Grouped by segment, fixed at construction.
   struct Slot {
     Eigen::Vector3d a_local;
     double a_norm_m;
     int source;  // target index if >= 0, else child segment ~source
+  };
+  struct Driver {  // one point of a segment pulled towards a position
+    const Slot* slot;
+    const Eigen::Vector3d* desired;
+    double weight;
+    const Eigen::Vector3d& a_local() const { return slot->a_local; }  // relative to the base
+    const Eigen::Vector3d& d_world() const { return *desired; }       // where it should go
+    double a_norm_m() const { return slot->a_norm_m; }
   };
 
   // Marks the active segments and sets every slot's weight in every pass.
