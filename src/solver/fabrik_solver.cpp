@@ -36,6 +36,7 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
   slot_first_[n_seg_] = static_cast<int>(slots_.size());
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
+  marked_visible_.assign(targets_.targets().size(), 0);
   start_.resize(model.segments.size());
   distances_m_.assign(targets_.targets().size(), 0.0);
   previous_m_.assign(targets_.targets().size(), 0.0);
@@ -43,6 +44,14 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
 }
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
+  if (marked_ && marked_priorities_ == options_.use_priorities &&
+      marked_anchor_weight_ == options_.anchor_weight &&
+      std::equal(visible.begin(), visible.end(), marked_visible_.begin()))
+    return;
+  std::copy(visible.begin(), visible.end(), marked_visible_.begin());
+  marked_ = true;
+  marked_priorities_ = options_.use_priorities;
+  marked_anchor_weight_ = options_.anchor_weight;
   std::fill(active_.begin(), active_.end(), std::uint8_t{0});
   const bool anchors = options_.use_priorities && options_.anchor_weight > 0.0;
   for (int i = 0; i < targets_.size(); ++i) {

@@ -85,7 +85,12 @@ class FabrikSolver {
   std::vector<int> slot_first_;
   std::vector<double> slot_weight_;  // [pass][slot], per solve: 0 when it does not take part
   std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
-  std::vector<SegmentPose> start_;             // posture at the start of a pass
+  // What the marks above were computed for: skipped when a frame has the same
+  // visibility and options as the previous one (the usual case in a stream).
+  std::vector<std::uint8_t> marked_visible_;
+  bool marked_ = false, marked_priorities_ = false;
+  double marked_anchor_weight_ = 0.0;
+  std::vector<SegmentPose> start_;  // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
 };
