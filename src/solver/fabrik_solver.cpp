@@ -19,6 +19,24 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
     max_drivers = std::max(max_drivers, static_cast<int>(targets_.on_segment(s).size()) +
                                             model.segments[s].child_count);
   drivers_.resize(static_cast<std::size_t>(max_drivers));
+  slot_first_.assign(static_cast<std::size_t>(n_seg_ + 1), 0);
+  for (int s = 0; s < n_seg_; ++s) {
+    slot_first_[s] = static_cast<int>(slots_.size());
+    for (int t : targets_.on_segment(s)) {
+      const Eigen::Vector3d& a = model.points[targets_.targets()[t].point].p_local_m;
+      slots_.push_back({a, a.norm(), t});
+    }
+    const Segment& seg = model.segments[s];
+    for (int k = 0; k < seg.child_count; ++k) {
+      const int c = model.child_ids[seg.first_child + k];
+      const Eigen::Vector3d& a = model.points[model.segments[c].parent_point].p_local_m;
+      slots_.push_back({a, a.norm(), ~c});
+    }
+  }
+  slot_first_[n_seg_] = static_cast<int>(slots_.size());
+  slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
+  pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
+  marked_visible_.assign(targets_.targets().size(), 0);
   start_.resize(model.segments.size());
   distances_m_.assign(targets_.targets().size(), 0.0);
   previous_m_.assign(targets_.targets().size(), 0.0);
@@ -26,6 +44,14 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
 }
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
+  if (marked_ && marked_priorities_ == options_.use_priorities &&
+      marked_anchor_weight_ == options_.anchor_weight &&
+      std::equal(visible.begin(), visible.end(), marked_visible_.begin()))
+    return;
+  std::copy(visible.begin(), visible.end(), marked_visible_.begin());
+  marked_ = true;
+  marked_priorities_ = options_.use_priorities;
+  marked_anchor_weight_ = options_.anchor_weight;
   std::fill(active_.begin(), active_.end(), std::uint8_t{0});
   const bool anchors = options_.use_priorities && options_.anchor_weight > 0.0;
   for (int i = 0; i < targets_.size(); ++i) {
@@ -41,6 +67,22 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
       }
     }
   }
+  const int n_slots = static_cast<int>(slots_.size());
+  for (int pass = 0; pass < n_pass_; ++pass) {
+    double* weight = slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * n_slots;
+    for (int k = 0; k < n_slots; ++k) {
+      const int source = slots_[k].source;
+      if (source >= 0) {
+        weight[k] = visible[source] ? pass_weight(pass, source) : 0.0;
+      } else {
+        const std::uint8_t act = activity(pass, ~source);
+        weight[k] = !act ? 0.0 : act & kAnchor ? options_.anchor_weight : 1.0;
+      }
+    }
+    std::uint8_t riders = 0;
+    for (int s = 1; s < n_seg_; ++s) riders |= !active(pass, s);
+    pass_has_riders_[pass] = riders;
+  }
 }
 
 double FabrikSolver::pass_weight(int pass, int t) const {
@@ -53,23 +95,19 @@ double FabrikSolver::pass_weight(int pass, int t) const {
 
 // Collects the points of segment s that this pass pulls on: its own visible
 // targets, and the joint of every active child, pulled to that child's base.
-int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
-                         std::span<const std::uint8_t> visible, const Posture& posture) {
+[[gnu::always_inline]] inline int FabrikSolver::gather(
+    int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
+    std::span<const std::uint8_t> /*visible*/, const Posture& posture) {
   int n = 0;
-  for (int t : targets_.on_segment(s)) {
-    const double weight = visible[t] ? pass_weight(pass, t) : 0.0;
-    if (weight <= 0.0) continue;
-    drivers_[n++] = {model_.points[targets_.targets()[t].point].p_local_m, target_world_m[t],
-                     weight};
-  }
-  const Segment& seg = model_.segments[s];
-  for (int k = 0; k < seg.child_count; ++k) {
-    const int c = model_.child_ids[seg.first_child + k];
-    const std::uint8_t act = activity(pass, c);
-    if (!act) continue;
-    drivers_[n++] = {model_.points[model_.segments[c].parent_point].p_local_m,
-                     posture.segments[c].base_world_m,
-                     act & kAnchor ? options_.anchor_weight : 1.0};
+  const double* weight =
+      slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * static_cast<int>(slots_.size());
+  for (int k = slot_first_[s], end = slot_first_[s + 1]; k < end; ++k) {
+    if (weight[k] <= 0.0) continue;
+    const Slot& slot = slots_[k];
+    drivers_[n++] = {&slot,
+                     slot.source >= 0 ? &target_world_m[slot.source]
+                                      : &posture.segments[~slot.source].base_world_m,
+                     weight[k]};
   }
   return n;
 }
@@ -77,52 +115,74 @@ int FabrikSolver::gather(int pass, int s, std::span<const Eigen::Vector3d> targe
 // Forward reaching for one segment: each driver proposes a base position (the
 // classic FABRIK step along the line from its desired position to the current
 // base); the base moves to their weighted mean, then the segment turns about it.
-void FabrikSolver::place_with_candidates(int n, SegmentPose& pose) const {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  double weight_sum = 0.0;
+// With `turn` false only the base moves: for a non-root segment that only one
+// point can ever drive (one target or one child, no other), the turn is
+// deferred to the backward pass, which turns it about its final base anyway.
+// Joint positions are exactly those of turning twice (the parent's forward
+// step reads only this segment's base; the backward turn aims the driver at
+// the same place); only the twist about the driver's axis, which no target
+// constrains, differs: it is then one minimal turn from the start. A segment
+// with several possible drivers (a subbase) always turns, since in a pass
+// where only one of them pulls, its twist still carries the others' joints.
+void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) const {
+  const double bx = pose.base_world_m.x(), by = pose.base_world_m.y(), bz = pose.base_world_m.z();
+  double sx = 0.0, sy = 0.0, sz = 0.0, weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
-    const Eigen::Vector3d to_base = pose.base_world_m - d.d_world;
-    const double dist = to_base.norm();
-    const Eigen::Vector3d candidate =
-        dist > 1e-12 ? Eigen::Vector3d(d.d_world + to_base * (d.a_local.norm() / dist))
-                     : Eigen::Vector3d(d.d_world - pose.r_world * d.a_local);
-    sum += d.weight * candidate;
+    const double dx = d.d_world().x(), dy = d.d_world().y(), dz = d.d_world().z();
+    const double ux = bx - dx, uy = by - dy, uz = bz - dz;
+    const double dist = std::sqrt(ux * ux + uy * uy + uz * uz);
+    if (dist > 1e-12) {
+      const double f = d.weight * d.a_norm_m() / dist;
+      sx += d.weight * dx + f * ux;
+      sy += d.weight * dy + f * uy;
+      sz += d.weight * dz + f * uz;
+    } else {
+      const Eigen::Vector3d candidate = d.d_world() - pose.r_world * d.a_local();
+      sx += d.weight * candidate.x();
+      sy += d.weight * candidate.y();
+      sz += d.weight * candidate.z();
+    }
     weight_sum += d.weight;
   }
-  rotate_about_base(n, sum / weight_sum, pose);
+  const double inv = 1.0 / weight_sum;
+  const Eigen::Vector3d base_m(sx * inv, sy * inv, sz * inv);
+  if (turn)
+    rotate_about_base(n, base_m, pose);
+  else
+    pose.base_world_m = base_m;
 }
 
 // Turns the segment about its (new) base so its drivers point at their desired
 // positions, then puts the base there. Paper rule: the direction to the mean
 // driver is aligned with the direction to the mean desired position. Rigid
 // rule: least-squares rotation of all driver directions.
-void FabrikSolver::rotate_about_base(int n, const Eigen::Vector3d& base_m,
-                                     SegmentPose& pose) const {
-  if (options_.segment_fit == SegmentFit::paper) {
+[[gnu::always_inline]] inline void FabrikSolver::rotate_about_base(int n,
+                                                                   const Eigen::Vector3d& base_m,
+                                                                   SegmentPose& pose) const {
+  if (options_.segment_fit == SegmentFit::paper && n > 1) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
     double weight_sum = 0.0;
     for (int k = 0; k < n; ++k) {
-      mean_local += drivers_[k].weight * drivers_[k].a_local;
-      mean_desired += drivers_[k].weight * drivers_[k].d_world;
+      mean_local += drivers_[k].weight * drivers_[k].a_local();
+      mean_desired += drivers_[k].weight * drivers_[k].d_world();
       weight_sum += drivers_[k].weight;
     }
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
     const Eigen::Vector3d b = mean_desired / weight_sum - base_m;        // P_i(f) -> M(f)
-    pose.set_rotation(rotate_minimal(pose.q_world, a, b));
+    turn_minimal(a, b, pose);
   } else if (n == 1) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
-    pose.set_rotation(rotate_minimal(pose.q_world, pose.r_world * drivers_[0].a_local,
-                                     drivers_[0].d_world - base_m));
+    turn_minimal(pose.r_world * drivers_[0].a_local(), drivers_[0].d_world() - base_m, pose);
   } else {
     Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
     for (int k = 0; k < n; ++k)
       cross.noalias() +=
-          drivers_[k].weight * (drivers_[k].d_world - base_m) * drivers_[k].a_local.transpose();
+          drivers_[k].weight * (drivers_[k].d_world() - base_m) * drivers_[k].a_local().transpose();
     // One Newton step per visit: the convergence loop revisits the segment, so
     // an exact inner fit buys nothing (same iterations, same residuals).
-    pose.set_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
+    fit_rotation_step(cross.data(), pose);
   }
   pose.base_world_m = base_m;
 }
@@ -133,19 +193,19 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
   Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
   double weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
-    mean_local += drivers_[k].weight * drivers_[k].a_local;
-    mean_desired += drivers_[k].weight * drivers_[k].d_world;
+    mean_local += drivers_[k].weight * drivers_[k].a_local();
+    mean_desired += drivers_[k].weight * drivers_[k].d_world();
     weight_sum += drivers_[k].weight;
   }
   mean_local /= weight_sum;
   mean_desired /= weight_sum;
   Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
   for (int k = 0; k < n; ++k)
-    cross.noalias() += drivers_[k].weight * (drivers_[k].d_world - mean_desired) *
-                       (drivers_[k].a_local - mean_local).transpose();
+    cross.noalias() += drivers_[k].weight * (drivers_[k].d_world() - mean_desired) *
+                       (drivers_[k].a_local() - mean_local).transpose();
   // One Newton step per visit: the convergence loop revisits the segment, so
   // an exact inner fit buys nothing (same iterations, same residuals).
-  pose.set_rotation(fit_rotation(cross, pose.q_world, pose.r_world, 1));
+  fit_rotation_step(cross.data(), pose);
   pose.base_world_m = mean_desired - pose.r_world * mean_local;
 }
 
@@ -158,8 +218,9 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
     const int n = gather(pass, s, target_world_m, visible, posture);
     if (root && options_.segment_fit == SegmentFit::rigid)
       free_root_fit(n, posture.segments[s]);
-    else
-      place_with_candidates(n, posture.segments[s]);
+    else  // see place_with_candidates for why one driver does not turn here
+      place_with_candidates(n, posture.segments[s],
+                            root || slot_first_[s + 1] - slot_first_[s] > 1);
   }
 }
 
@@ -231,7 +292,8 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       // convergence loop itself repeats the pass.
       const int level_passes = active_levels > 1 && pass == strongest ? options_.level_passes : 1;
       for (int k = 0; k < level_passes; ++k) {
-        std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
+        if (pass_has_riders_[pass])
+          std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
         forward(pass, target_world_m, visible, posture);
         backward(pass, target_world_m, visible, posture, root_pin_m);
         ++total_passes;

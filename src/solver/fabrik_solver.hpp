@@ -36,12 +36,23 @@ class FabrikSolver {
   std::span<const double> target_distances_m() const { return distances_m_; }
 
  private:
-  struct Driver {             // one point of a segment pulled towards a position
-    Eigen::Vector3d a_local;  // the point, relative to the segment base
-    Eigen::Vector3d d_world;  // where it should go
+  // A point of a segment that may drive it: one of its targets or the joint
+  // of one of its children. Grouped by segment, fixed at construction.
+  struct Slot {
+    Eigen::Vector3d a_local;
+    double a_norm_m;
+    int source;  // target index if >= 0, else child segment ~source
+  };
+  struct Driver {  // one point of a segment pulled towards a position
+    const Slot* slot;
+    const Eigen::Vector3d* desired;
     double weight;
+    const Eigen::Vector3d& a_local() const { return slot->a_local; }  // relative to the base
+    const Eigen::Vector3d& d_world() const { return *desired; }       // where it should go
+    double a_norm_m() const { return slot->a_norm_m; }
   };
 
+  // Marks the active segments and sets every slot's weight in every pass.
   void mark_active(std::span<const std::uint8_t> visible);
   // Per pass and segment: kOwn if the subtree has a visible target of the
   // pass's level, kAnchor if it has one of a stronger level.
@@ -59,7 +70,7 @@ class FabrikSolver {
                 const Eigen::Vector3d& root_pin_m);
   bool level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
                      std::span<const std::uint8_t> visible, const Posture& posture);
-  void place_with_candidates(int n, SegmentPose& pose) const;
+  void place_with_candidates(int n, SegmentPose& pose, bool turn) const;
   void free_root_fit(int n, SegmentPose& pose) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
@@ -70,7 +81,16 @@ class FabrikSolver {
   int n_pass_ = 0;                    // priority levels, or 1 without priorities
   std::vector<std::uint8_t> active_;  // [pass][segment]: a visible target in the subtree
   std::vector<Driver> drivers_;       // scratch for one segment
-  std::vector<SegmentPose> start_;    // posture at the start of a pass
+  std::vector<Slot> slots_;           // by segment: slots_[slot_first_[s], slot_first_[s + 1])
+  std::vector<int> slot_first_;
+  std::vector<double> slot_weight_;  // [pass][slot], per solve: 0 when it does not take part
+  std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
+  // What the marks above were computed for: skipped when a frame has the same
+  // visibility and options as the previous one (the usual case in a stream).
+  std::vector<std::uint8_t> marked_visible_;
+  bool marked_ = false, marked_priorities_ = false;
+  double marked_anchor_weight_ = 0.0;
+  std::vector<SegmentPose> start_;  // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
 };

@@ -21,6 +21,11 @@ struct SegmentPose {
     q_world = q.normalized();
     r_world = q_world.toRotationMatrix();
   }
+  // For a quaternion already normalised by the caller (skips a second normalisation).
+  void set_unit_rotation(const Eigen::Quaterniond& q) {
+    q_world = q;
+    r_world = q_world.toRotationMatrix();
+  }
   Eigen::Vector3d to_world(const Eigen::Vector3d& p_local_m) const {
     return r_world * p_local_m + base_world_m;
   }

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "posture.hpp"
+
 namespace fabrik {
 
 // The minimal rotation taking direction `from` onto direction `to`, applied
@@ -40,7 +42,7 @@ inline Eigen::Quaterniond rotate_minimal(const Eigen::Quaterniond& q, const Eige
 inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterniond q,
                                        Eigen::Matrix3d r, int max_steps = 12) {
   constexpr double kAngleTolRad = 1e-12;
-  constexpr double kMaxStepRad = 1.0;
+  constexpr double kMaxStepRad = 1.0;  // the exponential below relies on it being <= 1
   for (int step = 0; step < max_steps; ++step) {
     if (step > 0) r = q.toRotationMatrix();
     const Eigen::Matrix3d m = a * r.transpose();
@@ -69,16 +71,122 @@ inline Eigen::Quaterniond fit_rotation(const Eigen::Matrix3d& a, Eigen::Quaterni
     const double angle_rad = omega.norm();
     if (!(angle_rad > kAngleTolRad)) break;  // also stops on NaN
     if (angle_rad > kMaxStepRad) omega *= kMaxStepRad / angle_rad;
-    // Exact exponential of the step, without trigonometric calls for small angles.
-    const double half = 0.5 * omega.norm();
-    const double sinc = half < 1e-4 ? 1.0 - half * half / 6.0 : std::sin(half) / half;
-    const Eigen::Quaterniond turn(half < 1e-4 ? 1.0 - 0.5 * half * half : std::cos(half),
-                                  0.5 * sinc * omega.x(), 0.5 * sinc * omega.y(),
-                                  0.5 * sinc * omega.z());
+    // Exact exponential of the step, without trigonometric calls: the half
+    // angle is at most kMaxStepRad / 2 = 0.5, where these Taylor series of
+    // cos(h) and sin(h)/h are exact to 1e-12 (and the result is normalised).
+    const double h2 = 0.25 * omega.squaredNorm();
+    const double cos_half =
+        1.0 +
+        h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * (1.0 / 40320 - h2 / 3628800.0))));
+    const double sinc_half =
+        1.0 + h2 * (-1.0 / 6 +
+                    h2 * (1.0 / 120 + h2 * (-1.0 / 5040 + h2 * (1.0 / 362880 - h2 / 39916800.0))));
+    const Eigen::Quaterniond turn(cos_half, 0.5 * sinc_half * omega.x(),
+                                  0.5 * sinc_half * omega.y(), 0.5 * sinc_half * omega.z());
     q = (turn * q).normalized();
     if (angle_rad < 1e-8) break;  // quadratic convergence: the next step would be negligible
   }
   return q;
+}
+
+// In-place, scalar forms of the two rules above for the solver's inner loop
+// (each segment visit): same mathematics, no temporaries, one square root
+// per normalisation, and the cached matrix rebuilt once.
+
+// pose.q <- normalise(p * pose.q) for an unnormalised p = (pw, px, py, pz),
+// and pose.r <- its matrix.
+inline void premultiply_rotation(double pw, double px, double py, double pz, SegmentPose& pose) {
+  const double qw = pose.q_world.w(), qx = pose.q_world.x(), qy = pose.q_world.y(),
+               qz = pose.q_world.z();
+  double w = pw * qw - px * qx - py * qy - pz * qz;
+  double x = pw * qx + px * qw + py * qz - pz * qy;
+  double y = pw * qy - px * qz + py * qw + pz * qx;
+  double z = pw * qz + px * qy - py * qx + pz * qw;
+  const double inv = 1.0 / std::sqrt(w * w + x * x + y * y + z * z);
+  w *= inv;
+  x *= inv;
+  y *= inv;
+  z *= inv;
+  pose.q_world = Eigen::Quaterniond(w, x, y, z);
+  const double tx = 2 * x, ty = 2 * y, tz = 2 * z;
+  const double twx = tx * w, twy = ty * w, twz = tz * w;
+  const double txx = tx * x, txy = ty * x, txz = tz * x;
+  const double tyy = ty * y, tyz = tz * y, tzz = tz * z;
+  Eigen::Matrix3d& r = pose.r_world;
+  r(0, 0) = 1 - (tyy + tzz);
+  r(0, 1) = txy - twz;
+  r(0, 2) = txz + twy;
+  r(1, 0) = txy + twz;
+  r(1, 1) = 1 - (txx + tzz);
+  r(1, 2) = tyz - twx;
+  r(2, 0) = txz - twy;
+  r(2, 1) = tyz + twx;
+  r(2, 2) = 1 - (txx + tyy);
+}
+
+// rotate_minimal, in place: turns the pose so that world direction `from`
+// points along `to`.
+inline void turn_minimal(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                         SegmentPose& pose) {
+  const double fx = from.x(), fy = from.y(), fz = from.z(), tx = to.x(), ty = to.y(), tz = to.z();
+  const double norms = std::sqrt((fx * fx + fy * fy + fz * fz) * (tx * tx + ty * ty + tz * tz));
+  if (norms < 1e-24) return;
+  const double w = norms + fx * tx + fy * ty + fz * tz;
+  if (w < 1e-12 * norms) {  // opposite directions: any half turn; rare, take Eigen's
+    pose.set_unit_rotation(rotate_minimal(pose.q_world, from, to));
+    return;
+  }
+  premultiply_rotation(w, fy * tz - fz * ty, fz * tx - fx * tz, fx * ty - fy * tx, pose);
+}
+
+// One Newton step of fit_rotation, in place. `a` is column-major 3x3
+// (a[i + 3 * j] = A(i, j)).
+inline void fit_rotation_step(const double* a, SegmentPose& pose) {
+  const Eigen::Matrix3d m = Eigen::Map<const Eigen::Matrix3d>(a) * pose.r_world.transpose();
+  const double t0 = m(2, 1) - m(1, 2), t1 = m(0, 2) - m(2, 0), t2 = m(1, 0) - m(0, 1);
+  const double trace = m(0, 0) + m(1, 1) + m(2, 2);
+  const double h00 = trace - m(0, 0), h11 = trace - m(1, 1), h22 = trace - m(2, 2);
+  const double h01 = -0.5 * (m(0, 1) + m(1, 0)), h02 = -0.5 * (m(0, 2) + m(2, 0));
+  const double h12 = -0.5 * (m(1, 2) + m(2, 1));
+  const double c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22,
+               c02 = h01 * h12 - h02 * h11;
+  const double det = h00 * c00 + h01 * c01 + h02 * c02;
+  double ox, oy, oz;
+  if (trace > 0.0 && h00 > 0.0 && h00 * h11 - h01 * h01 > 0.0 &&
+      det > 1e-18 * trace * trace * trace) {
+    const double c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12,
+                 c22 = h00 * h11 - h01 * h01;
+    const double inv = 1.0 / det;  // Newton step
+    ox = (c00 * t0 + c01 * t1 + c02 * t2) * inv;
+    oy = (c01 * t0 + c11 * t1 + c12 * t2) * inv;
+    oz = (c02 * t0 + c12 * t1 + c22 * t2) * inv;
+  } else {  // far or singular: gradient step
+    double a_sq = 0.0;
+    for (int k = 0; k < 9; ++k) a_sq += a[k] * a[k];
+    const double inv = 1.0 / (std::abs(trace) + 1e-9 * std::sqrt(a_sq) + 1e-300);
+    ox = t0 * inv;
+    oy = t1 * inv;
+    oz = t2 * inv;
+  }
+  double angle_sq = ox * ox + oy * oy + oz * oz;
+  if (!(angle_sq > 1e-24)) return;  // negligible (or NaN): keep the rotation
+  if (angle_sq > 1.0) {             // at most 1 rad per step
+    const double scale = 1.0 / std::sqrt(angle_sq);
+    ox *= scale;
+    oy *= scale;
+    oz *= scale;
+    angle_sq = 1.0;
+  }
+  // exp of the step: Taylor series of cos(h) and sin(h)/h, exact to 1e-12 for h <= 0.5.
+  const double h2 = 0.25 * angle_sq;
+  const double cos_half =
+      1.0 +
+      h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * (1.0 / 40320 - h2 / 3628800.0))));
+  const double half_sinc =
+      0.5 *
+      (1.0 + h2 * (-1.0 / 6 +
+                   h2 * (1.0 / 120 + h2 * (-1.0 / 5040 + h2 * (1.0 / 362880 - h2 / 39916800.0)))));
+  premultiply_rotation(cos_half, half_sinc * ox, half_sinc * oy, half_sinc * oz, pose);
 }
 
 }  // namespace fabrik
