@@ -37,7 +37,8 @@ bool finite(const Eigen::Vector3d& p) {
 Tracker::Tracker(TrackerSetup setup)
     : setup_(std::move(setup)),
       solver_(*setup_.model, solver_targets(setup_), setup_.solver),
-      posture_(Posture::rest(*setup_.model)),
+      rest_(Posture::rest(*setup_.model)),
+      posture_(rest_),
       n_(static_cast<int>(setup_.markers.size())) {
   const int n_targets = static_cast<int>(solver_.targets().size());
   target_world_m_.assign(n_targets, Eigen::Vector3d::Zero());
@@ -55,7 +56,7 @@ Tracker::Tracker(TrackerSetup setup)
 }
 
 void Tracker::reset() {
-  posture_ = Posture::rest(model());
+  posture_ = rest_;
   warm_ = false;
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
 }
@@ -86,7 +87,7 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
       target_world_m_[n_ + i] = last_seen_m_[i];
     }
   }
-  if (!warm_) posture_ = Posture::rest(model());
+  if (!warm_) posture_ = rest_;  // same size: copies without allocating
   const auto t0 = std::chrono::steady_clock::now();
   result_.solve = solver_.solve(target_world_m_, target_visible_, posture_);
   const auto t1 = std::chrono::steady_clock::now();

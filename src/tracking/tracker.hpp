@@ -79,6 +79,7 @@ class Tracker {
  private:
   TrackerSetup setup_;
   FabrikSolver solver_;
+  Posture rest_;  // the cold start
   Posture posture_;
   bool warm_ = false;
   int n_ = 0;                                    // markers
