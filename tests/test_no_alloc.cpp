@@ -179,5 +179,5 @@ TEST_CASE("The daemon's per-frame path allocates nothing in tracking and pose en
   CHECK(encode_allocations == 0);
   // Decoding goes through nlohmann's SAX parser, whose lexer keeps a string
   // per call: measured and reported, not required to be zero.
-  WARN("decode: " << decode_allocations / 60.0 << " allocations per frame (nlohmann SAX lexer)");
+  WARN("decode: " << static_cast<double>(decode_allocations) / 60.0 << " allocations per frame (nlohmann SAX lexer)");
 }
