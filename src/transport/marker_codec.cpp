@@ -62,23 +62,10 @@ class FrameSax : public nlohmann::json_sax<json> {
   bool binary(binary_t&) override { return scalar("binary data"); }
 
   bool start_object(std::size_t) override {
-    if (++depth_ > kMaxDepth) return fail("nesting deeper than " + std::to_string(kMaxDepth));
-    switch (state_) {
-      case State::start:
-        state_ = State::top_key;
-        return true;
-      case State::markers:
-        state_ = State::marker_key;
-        return true;
-      case State::skip:
-        return true;
-      case State::top_skip_value:
-        state_ = State::skip;
-        skip_depth_ = depth_;
-        return true;
-      default:
-        return scalar("an object");
-    }
+    if (!enter()) return false;
+    if (state_ == State::start) return to(State::top_key);
+    if (state_ == State::markers) return to(State::marker_key);
+    return skipping() || scalar("an object");
   }
   bool end_object() override {
     --depth_;
@@ -94,21 +81,12 @@ class FrameSax : public nlohmann::json_sax<json> {
     return true;
   }
   bool start_array(std::size_t) override {
-    if (++depth_ > kMaxDepth) return fail("nesting deeper than " + std::to_string(kMaxDepth));
-    switch (state_) {
-      case State::marker_value:
-        state_ = State::coords;
-        coord_ = 0;
-        return true;
-      case State::skip:
-        return true;
-      case State::top_skip_value:
-        state_ = State::skip;
-        skip_depth_ = depth_;
-        return true;
-      default:
-        return scalar("an array");
+    if (!enter()) return false;
+    if (state_ == State::marker_value) {
+      coord_ = 0;
+      return to(State::coords);
     }
+    return skipping() || scalar("an array");
   }
   bool end_array() override {
     --depth_;
@@ -180,6 +158,21 @@ class FrameSax : public nlohmann::json_sax<json> {
     done
   };
 
+  bool to(State next) {
+    state_ = next;
+    return true;
+  }
+  bool enter() {  // an object or array begins
+    if (++depth_ > kMaxDepth) return fail("nesting deeper than " + std::to_string(kMaxDepth));
+    return true;
+  }
+  // Inside an unknown top-level value (additions to the contract): skipped whole.
+  bool skipping() {
+    if (state_ == State::skip) return true;
+    if (state_ != State::top_skip_value) return false;
+    skip_depth_ = depth_;
+    return to(State::skip);
+  }
   bool number(double v) {
     switch (state_) {
       case State::time:
