@@ -232,3 +232,28 @@ TEST_CASE("MessagePack output carries the same pose", "[daemon]") {
   CHECK((*pose)["frame"] == frame);
   CHECK((*pose)["residual"]["worst"] == "RASI");
 }
+
+TEST_CASE("A subscriber that never reads does not block the daemon", "[daemon]") {
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
+  // The stalled subscriber: tiny buffers, never reads.
+  zmq::socket_t stalled(context, zmq::socket_type::sub);
+  stalled.set(zmq::sockopt::rcvhwm, 1);
+  stalled.set(zmq::sockopt::rcvbuf, 4096);
+  stalled.set(zmq::sockopt::linger, 0);
+  stalled.set(zmq::sockopt::subscribe, "");
+  stalled.connect(d.daemon.output_endpoint());
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  MotionSettings ms;
+  SyntheticMotion motion(*d.daemon.config().tracker.model, ms);
+  const std::string markers = markers_at(d.daemon.config(), motion, 0.2).dump();
+  // Far more pose bytes than the stalled subscriber's buffers hold (about 5 kB a pose).
+  for (int i = 0; i < 3000; ++i) {
+    client.send(R"({"frame": )" + std::to_string(++frame) + R"(, "markers": )" + markers + "}");
+    const auto pose = client.receive("pose");
+    REQUIRE(pose);
+    REQUIRE((*pose)["frame"] == frame);
+  }
+  CHECK(d.daemon.counters().frames_dropped == 0);
+}
