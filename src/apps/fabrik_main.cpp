@@ -8,6 +8,7 @@
 #include "bench/latency_bench.hpp"
 #include "solve_command.hpp"
 #include "calibrate_command.hpp"
+#include "eval_command.hpp"
 #include "tools/tools.hpp"
 #include "version.hpp"
 
@@ -59,6 +60,7 @@ int main(int argc, char** argv) {
 
   fabrik::apps::add_solve_command(app);
   fabrik::add_calibrate_command(app);
+  fabrik::apps::add_eval_command(app);
   fabrik::tools::add_tool_commands(app);  // run from their own callbacks
 
   try {

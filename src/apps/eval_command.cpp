@@ -1,0 +1,140 @@
+#include "eval_command.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "eval/eval.hpp"
+
+namespace fabrik::apps {
+
+namespace {
+
+struct EvalArgs {
+  // The recorded subject (walk, gaps, reduction).
+  std::string template_path = "config/templates/gait2354.json";
+  std::string static_path = "../shared/data/subject01_static.trc";
+  std::string walk_path = "../shared/data/subject01_walk1.trc";
+  std::string config_path;  // instead of calibrating (also: synthetic's model)
+  std::string json_path;
+  std::string csv_path;
+  eval::GapOptions gaps;
+  eval::SyntheticOptions synthetic;
+};
+
+void require_file(const std::string& path, const char* option) {
+  if (std::filesystem::is_regular_file(path)) return;
+  throw std::runtime_error(path + " not found (relative to " +
+                           std::filesystem::current_path().string() + "). Fix: run from the " +
+                           "project root with ../shared/data present, or pass " + option);
+}
+
+// The subject's config (calibrated from the static trial unless --config) and its trial.
+std::pair<DaemonConfig, io::MarkerTrial> subject(const EvalArgs& a) {
+  require_file(a.walk_path, "--walk");
+  if (!a.config_path.empty()) {
+    require_file(a.config_path, "--config");
+    return {load_daemon_config_file(a.config_path), io::read_trial(a.walk_path)};
+  }
+  require_file(a.template_path, "--template");
+  require_file(a.static_path, "--static");
+  std::fprintf(stderr, "calibrating %s with %s; tracking %s\n", a.static_path.c_str(),
+               a.template_path.c_str(), a.walk_path.c_str());
+  return {eval::calibrate_config(a.template_path, a.static_path), io::read_trial(a.walk_path)};
+}
+
+void write_json(const std::string& path, const nlohmann::json& j) {
+  if (path.empty()) return;
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << j.dump(2) << '\n';
+}
+
+void run(const std::string& which, const EvalArgs& a) {
+  if (which == "synthetic") {
+    const DaemonConfig config =
+        a.config_path.empty() ? default_daemon_config() : load_daemon_config_file(a.config_path);
+    const auto rows = eval::eval_synthetic(config, a.synthetic);
+    std::cout << "model: " << config.tracker.model->name << " (" << config.file << ")\n"
+              << eval::synthetic_table(rows);
+    write_json(a.json_path, eval::synthetic_json(rows));
+    return;
+  }
+  const auto [config, trial] = subject(a);
+  if (which == "walk") {
+    const eval::WalkReport r = eval::eval_walk(config, trial);
+    std::cout << eval::walk_table(r);
+    write_json(a.json_path, eval::walk_json(r));
+    eval::write_walk_csv(a.csv_path, r);
+    std::cout << "per-frame residuals: " << a.csv_path << "\n";
+  } else if (which == "gaps") {
+    const eval::GapReport r = eval::eval_gaps(config, trial, a.gaps);
+    std::cout << eval::gaps_table(r);
+    write_json(a.json_path, eval::gaps_json(r));
+    eval::write_gaps_csv(a.csv_path, r);
+    std::cout << "withheld vs predicted traces: " << a.csv_path << "\n";
+  } else if (which == "reduction") {
+    const auto rows = eval::eval_reduction(config, trial, eval::gait2354_drop_sets());
+    std::cout << eval::reduction_table(rows);
+    write_json(a.json_path, eval::reduction_json(rows));
+  }
+}
+
+}  // namespace
+
+void add_eval_command(CLI::App& app) {
+  CLI::App* eval = app.add_subcommand("eval", "Accuracy evaluations on real and synthetic data");
+  eval->require_subcommand(1);
+  const auto add = [&](const std::string& name, const std::string& help, bool recorded,
+                       const std::string& csv_default) {
+    auto a = std::make_shared<EvalArgs>();
+    CLI::App* c = eval->add_subcommand(name, help);
+    if (recorded) {
+      c->add_option("--template", a->template_path, "Model template")->capture_default_str();
+      c->add_option("--static", a->static_path, "Static trial to calibrate from")
+          ->capture_default_str();
+      c->add_option("--walk", a->walk_path, "Trial to track")->capture_default_str();
+      c->add_option("--config", a->config_path,
+                    "Daemon config to use instead of calibrating --template on --static");
+    } else {
+      c->add_option("--config", a->config_path, "Daemon config (default: the embedded default)");
+    }
+    if (!csv_default.empty()) {
+      a->csv_path = csv_default;
+      c->add_option("--csv", a->csv_path, "CSV for scripts/plot_eval.py")->capture_default_str();
+    }
+    c->add_option("--json", a->json_path, "Also write the results as JSON");
+    c->callback([name, a] {
+      try {
+        run(name, *a);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "fabrik eval %s: %s\n", name.c_str(), e.what());
+        throw CLI::RuntimeError(2);
+      }
+    });
+    return std::make_pair(c, a);
+  };
+  add("walk", "Marker residuals of a calibrated subject on a recorded trial", true,
+      "eval_walk.csv");
+  auto [gaps, ga] =
+      add("gaps", "Withhold each marker for 0.5 s and 1 s windows; compare the gap-filled position",
+          true, "eval_gaps.csv");
+  gaps->add_option("--windows", ga->gaps.windows_s, "Gap lengths (s)")->capture_default_str();
+  gaps->add_option("--stride", ga->gaps.stride_s, "Between window starts (s)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  gaps->add_option("--markers", ga->gaps.markers, "Markers to withhold (default: all tracked)");
+  add("reduction", "Joint centres with marker subsets left out, vs the full set", true, "");
+  auto [synth, sa] = add(
+      "synthetic", "Joint centres vs the truth on synthetic motion with marker noise", false, "");
+  synth->add_option("--noise-mm", sa->synthetic.noise_mm, "Noise levels, per axis (mm)")
+      ->capture_default_str();
+  synth->add_option("--seconds", sa->synthetic.seconds, "Duration per noise level")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  synth->add_option("--seed", sa->synthetic.seed, "Motion and noise seed")->capture_default_str();
+}
+
+}  // namespace fabrik::apps

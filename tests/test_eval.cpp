@@ -1,0 +1,109 @@
+// fabrik eval: the evaluations on synthetic data with known answers, and the
+// must-show accuracy on the real subject01 recordings when ../shared/data is there.
+#include <catch2/catch.hpp>
+#include <filesystem>
+#include <string>
+
+#include "eval/eval.hpp"
+#include "synth/synthetic_motion.hpp"
+
+namespace {
+
+using namespace fabrik;
+
+// A noise-free recording of the default config's model, every marker visible.
+io::MarkerTrial synthetic_trial(const DaemonConfig& config, double seconds, double rate_hz) {
+  const Model& model = *config.tracker.model;
+  std::vector<int> points;
+  io::MarkerTrial trial;
+  trial.rate_hz = rate_hz;
+  for (const MarkerTarget& m : config.tracker.markers) {
+    points.push_back(m.point);
+    trial.labels.push_back(m.marker);
+  }
+  SyntheticMotion motion(model, MotionSettings{});
+  Posture posture = Posture::rest(model);
+  std::vector<Eigen::Vector3d> frame(points.size());
+  for (int f = 0; f < static_cast<int>(seconds * rate_hz); ++f) {
+    motion.posture_at(f / rate_hz, posture);
+    motion.sample(posture, points, 0.0, frame);
+    trial.positions_m.insert(trial.positions_m.end(), frame.begin(), frame.end());
+  }
+  return trial;
+}
+
+}  // namespace
+
+TEST_CASE("gap evaluation: a marker of a rigid cluster is predicted from its neighbours") {
+  const DaemonConfig config = default_daemon_config();
+  const io::MarkerTrial trial = synthetic_trial(config, 2.0, 100.0);
+  eval::GapOptions options;
+  options.windows_s = {0.5, 1.0};
+  options.markers = {"RTHF", "LTIB", "STRN"};  // thigh, shank and torso: three markers or more
+  const eval::GapReport r = eval::eval_gaps(config, trial, options);
+  REQUIRE(r.rows.size() == 6);
+  for (const eval::GapStats& g : r.rows) {
+    INFO(g.marker << " " << g.window_s << " s: RMS " << g.rms_m * 1e3 << " mm");
+    CHECK(g.windows >= 2);
+    CHECK(g.samples > 0);
+    CHECK(g.rms_m < 1e-3);
+    CHECK(g.joint_rms_m < 1e-3);
+  }
+  REQUIRE(r.summary.size() == 2);
+  CHECK(r.summary[1].median_rms_m < 1e-3);
+  CHECK_FALSE(r.traces.empty());
+}
+
+TEST_CASE("reduction evaluation: an empty drop set deviates by nothing, a drop by something") {
+  const DaemonConfig config = default_daemon_config();
+  const io::MarkerTrial trial = synthetic_trial(config, 1.0, 100.0);
+  const auto rows = eval::eval_reduction(
+      config, trial, {{"none", {}}, {"no right thigh front", {"RTHF", "RTHI"}}});
+  REQUIRE(rows.size() == 2);
+  CHECK(rows[0].kept == static_cast<int>(config.tracker.markers.size()));
+  CHECK(rows[0].rms_m == 0.0);
+  CHECK(rows[0].max_m == 0.0);
+  for (const auto& g : rows[0].groups) CHECK(g.max_m == 0.0);
+  CHECK(rows[1].kept == rows[0].kept - 2);
+  CHECK(rows[1].max_m > 0.0);
+  CHECK_THROWS_AS(eval::eval_reduction(config, trial, {{"typo", {"RTHX"}}}), std::invalid_argument);
+}
+
+TEST_CASE("synthetic evaluation: joint centres within 2 mm RMS of the truth at 1 mm noise") {
+  eval::SyntheticOptions options;
+  options.noise_mm = {0.0, 1.0};
+  options.seconds = 3.0;
+  const auto rows = eval::eval_synthetic(default_daemon_config(), options);
+  REQUIRE(rows.size() == 2);
+  CHECK(rows[0].joint_rms_m < rows[1].joint_rms_m);
+  CHECK(rows[1].joint_rms_m < 2e-3);
+  CHECK(rows[1].joint_p99_m >= rows[1].joint_rms_m);
+}
+
+TEST_CASE("real data: subject01 walk1 residuals and 1 s gaps (skipped without ../shared/data)") {
+  const std::string dir = FABRIK_SHARED_DATA_DIR;
+  const std::string stat = dir + "/subject01_static.trc", walk = dir + "/subject01_walk1.trc";
+  if (!std::filesystem::exists(stat) || !std::filesystem::exists(walk)) {
+    WARN("SKIPPED: " << stat << " or " << walk << " is absent (real data lives in ../shared/data)");
+    return;
+  }
+  const DaemonConfig config = eval::calibrate_config(
+      std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json", stat);
+  const io::MarkerTrial trial = io::read_trial(walk);
+
+  const eval::WalkReport w = eval::eval_walk(config, trial);
+  INFO("walk: mean RMS " << w.rms_mean_m * 1e3 << " mm, max " << w.max_m_over_frames * 1e3
+                         << " mm (" << w.max_marker << ")");
+  CHECK(w.rms_m.size() == trial.frames());
+  CHECK(w.rms_mean_m <= 10e-3);
+  // No rigid model can fit a marker better than its own segment's markers alone allow.
+  CHECK(w.max_m_over_frames >= w.cluster_max_over_frames_m - 1e-9);
+
+  eval::GapOptions options;
+  options.windows_s = {1.0};
+  const eval::GapReport g = eval::eval_gaps(config, trial, options);
+  REQUIRE(g.summary.size() == 1);
+  INFO("1 s gaps: median RMS " << g.summary[0].median_rms_m * 1e3 << " mm");
+  CHECK(g.summary[0].markers == static_cast<int>(config.tracker.markers.size()));
+  CHECK(g.summary[0].median_rms_m <= 15e-3);
+}
