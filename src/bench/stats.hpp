@@ -1,24 +1,9 @@
-// Order statistics of timing samples.
+// Order statistics of timing samples (shared with the tools and evaluations).
 #pragma once
 
-#include <algorithm>
-#include <cmath>
-#include <vector>
+#include "common/quantile.hpp"
 
 namespace fabrik::bench {
-
-// The q-quantile (0..1) by nearest rank; sorts a copy.
-inline double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
-  return v[std::min(v.size() - 1, rank == 0 ? 0 : rank - 1)];
-}
-
-inline double mean(const std::vector<double>& v) {
-  double s = 0.0;
-  for (double x : v) s += x;
-  return v.empty() ? 0.0 : s / static_cast<double>(v.size());
-}
-
+using fabrik::mean;
+using fabrik::quantile;
 }  // namespace fabrik::bench

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "calib/calibrate.hpp"
+#include "common/quantile.hpp"
 #include "offline/solve_trial.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "tracking/tracker.hpp"
@@ -37,13 +38,6 @@ double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const std::size_t n = v.size();
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1,
-                    static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
 }
 
 // Running RMS and max of distances.

@@ -5,18 +5,12 @@
 #include <fstream>
 #include <map>
 
+#include "common/quantile.hpp"
 #include "tracking/tracker.hpp"
 
 namespace fabrik {
 
 namespace {
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1,
-                    static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
-}
 
 bool ends_with_ci(const std::string& s, const std::string& suffix) {
   if (s.size() < suffix.size()) return false;

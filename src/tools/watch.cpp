@@ -1,11 +1,11 @@
 #include "watch.hpp"
 
-#include <chrono>
-
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 
+#include "common/quantile.hpp"
 #include "wire.hpp"
 
 namespace fabrik::tools {
@@ -13,15 +13,6 @@ namespace fabrik::tools {
 using nlohmann::json;
 
 namespace {
-
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto lo = static_cast<std::size_t>(std::floor(pos));
-  const std::size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
 
 double number_at(const json& doc, const json::json_pointer& p, double fallback = NAN) {
   if (!doc.contains(p)) return fallback;
