@@ -30,7 +30,7 @@ struct DaemonConfig {
   Encoding output_encoding = Encoding::json;
   std::size_t max_payload_bytes = 1 << 20;
   // Valid frames solved per wake-up at most; older queued ones are dropped.
-  int max_backlog_frames = 4;
+  int max_backlog_frames = 16;
   double stats_interval_s = 1.0;
   std::string log_level = "info";
 };
