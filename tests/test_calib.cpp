@@ -275,7 +275,7 @@ TEST_CASE("Each kind of bad template has its own clear message", "[calib]") {
 TEST_CASE("Shipped templates load", "[calib]") {
   const std::string dir = std::string(FABRIK_SOURCE_DIR) + "/config/templates/";
   const CalibTemplate g = load_template_file(dir + "gait2354.json");
-  CHECK(g.segments.size() == 18);
+  CHECK(g.segments.size() == 20);  // feet split into hindfoot and forefoot
   int tracked = 0, static_only = 0;
   for (const MarkerDef& m : g.markers) (m.static_only ? static_only : tracked)++;
   CHECK(tracked == 41);  // exactly the markers of subject01_walk1.trc
