@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "io/marker_trial.hpp"
+#include "temp_file.hpp"
 
 using namespace fabrik::io;
 namespace fs = std::filesystem;
@@ -22,25 +23,7 @@ namespace fs = std::filesystem;
 namespace {
 const std::string kDataDir = FABRIK_SHARED_DATA_DIR;
 
-// A unique path under the temp directory, removed when the test ends.
-class TempFile {
- public:
-  explicit TempFile(const std::string& extension) {
-    static std::mt19937_64 rng{std::random_device{}()};
-    path_ = (fs::temp_directory_path() / ("fabrik_test_io_" + std::to_string(rng()) + extension))
-                .string();
-  }
-  ~TempFile() {
-    std::error_code ec;
-    fs::remove(path_, ec);
-  }
-  TempFile(const TempFile&) = delete;
-  TempFile& operator=(const TempFile&) = delete;
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using fabrik::test::TempFile;
 
 // The path of a shared data file, or "" (with a warning) when it is not there.
 std::string data_file(const std::string& name) {

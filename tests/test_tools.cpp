@@ -9,6 +9,7 @@
 #include <zmq_addon.hpp>
 
 #include "io/marker_trial.hpp"
+#include "temp_file.hpp"
 #include "tools/replay.hpp"
 #include "tools/synth.hpp"
 #include "tools/watch.hpp"
@@ -23,25 +24,7 @@ namespace {
 
 const std::string kSourceDir = FABRIK_SOURCE_DIR;
 
-class TempFile {
- public:
-  explicit TempFile(const std::string& suffix) {
-    static std::mt19937_64 rng{std::random_device{}()};
-    path_ = (fs::temp_directory_path() / ("fabrik_test_tools_" + std::to_string(rng()) + suffix))
-                .string();
-  }
-  ~TempFile() {
-    std::error_code ec;
-    fs::remove(path_, ec);
-    fs::remove(joints_sidecar_path(path_), ec);
-  }
-  TempFile(const TempFile&) = delete;
-  TempFile& operator=(const TempFile&) = delete;
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-};
+using fabrik::test::TempFile;
 
 // 3 markers x 50 frames at 100 Hz; marker B missing in frames 10-14.
 MarkerTrial small_trial() {
@@ -118,6 +101,7 @@ TEST_CASE("synth writes a readable TRC with the requested gaps and a joints side
   REQUIRE(t.gaps.size() == 7);
 
   TempFile file(".trc");
+  file.also_remove(joints_sidecar_path(file.path()));
   fabrik::io::write_trc(file.path(), t.markers, "mm");
   fabrik::io::write_trc(joints_sidecar_path(file.path()), t.joints, "mm");
   const MarkerTrial back = fabrik::io::read_trc(file.path());
