@@ -4,8 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 
 #include "config/daemon_config.hpp"
+#include "transport/json_sax_reader.hpp"
 #include "transport/marker_codec.hpp"
 #include "transport/pose_codec.hpp"
 
@@ -169,4 +171,116 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
       CHECK(p[k].get<double>() == Approx(b["markers"][name][k].get<double>()).margin(1e-4));
   CHECK(wire_status(SolveStatus::stalled) == "converged");
   CHECK(wire_status(SolveStatus::max_iterations) == "max_iterations");
+}
+
+namespace {
+// A handler that takes everything: only the reader's own syntax checks decide.
+struct AcceptAll {
+  bool null() { return true; }
+  bool boolean(bool) { return true; }
+  bool number_integer(std::int64_t) { return true; }
+  bool number_unsigned(std::uint64_t) { return true; }
+  bool number_float(double, const std::string&) { return true; }
+  bool string(std::string&) { return true; }
+  bool start_object(std::size_t) { return true; }
+  bool key(std::string&) { return true; }
+  bool end_object() { return true; }
+  bool start_array(std::size_t) { return true; }
+  bool end_array() { return true; }
+};
+}  // namespace
+
+TEST_CASE("The JSON reader accepts exactly what nlohmann::json accepts", "[codec][json]") {
+  wire::JsonSaxReader reader;
+  AcceptAll all;
+  auto agree = [&](const std::string& text) {
+    const bool ours = reader.parse(text, all);
+    const bool theirs = json::accept(text);
+    CAPTURE(text, reader.error());
+    CHECK(ours == theirs);
+  };
+  // Corners of the grammar.
+  for (const char* t : {"{}",
+                        "[]",
+                        "0",
+                        "-0",
+                        "1.5e3",
+                        "1E+2",
+                        "-1e-2",
+                        "01",
+                        "1.",
+                        ".5",
+                        "+1",
+                        "-",
+                        "1e",
+                        "1e+",
+                        "NaN",
+                        "Infinity",
+                        "-Infinity",
+                        "1e400",
+                        "-1e400",
+                        "1e-400",
+                        "18446744073709551616",
+                        "-9223372036854775809",
+                        "true",
+                        "tru",
+                        "nul",
+                        "\"a\"",
+                        "\"\\u00e9\\ud83d\\ude00\"",
+                        "\"\\ud83d\"",
+                        "\"\\ude00\"",
+                        "\"\\ud83dx\"",
+                        "\"\\x\"",
+                        "\"\\u12\"",
+                        "\"tab\there\"",
+                        "\"\xc3\xa9\"",
+                        "\"\xc3\"",
+                        "\"\xed\xa0\x80\"",
+                        "\"\xf4\x90\x80\x80\"",
+                        "\"\xe0\x80\xaf\"",
+                        "\xef\xbb\xbf{}",
+                        "{\"a\":1,}",
+                        "[1,]",
+                        "[1 2]",
+                        "{\"a\" 1}",
+                        "{1:2}",
+                        "{\"a\":1}}",
+                        " [ ] ",
+                        "[[[[[]]]]]",
+                        "{\"a\":[1,{\"b\":null}]}",
+                        "",
+                        " ",
+                        "\"unterminated",
+                        "[\"\\/\\b\\f\\n\\r\\t\"]"})
+    agree(t);
+  // Mutations of a real marker frame: flips, insertions, deletions, truncations.
+  const std::vector<Eigen::Vector3d> p = {{0.1, -0.2, 0.3}, {1.0, 2.0, 3.0}, {-0.5, 0.25, 9.0}};
+  std::string frame;
+  const double t = 0.25;
+  encode_marker_frame(7, &t, kNames, p, std::vector<std::uint8_t>{1, 0, 1}, "mm",
+                      PayloadEncoding::json, frame);
+  std::mt19937 rng(11);
+  const std::string alphabet = "{}[]:,\" \\-+.eE0123456789tfnulx\x01\xc3\xa9\xff";
+  for (int i = 0; i < 3000; ++i) {
+    std::string m = frame;
+    const int edits = 1 + static_cast<int>(rng() % 3);
+    for (int e = 0; e < edits && !m.empty(); ++e) {
+      const std::size_t at = rng() % m.size();
+      switch (rng() % 4) {
+        case 0:
+          m[at] = alphabet[rng() % alphabet.size()];
+          break;
+        case 1:
+          m.insert(at, 1, alphabet[rng() % alphabet.size()]);
+          break;
+        case 2:
+          m.erase(at, 1);
+          break;
+        default:
+          m.resize(at);
+          break;
+      }
+    }
+    agree(m);
+  }
 }

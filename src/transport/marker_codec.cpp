@@ -3,6 +3,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "json_sax_reader.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -303,9 +304,13 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   FrameSax sax(index_, out, error);
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
   sax.format_ = msgpack ? "MessagePack" : "JSON";
-  const bool ok =
-      json::sax_parse(payload.begin(), payload.end(), &sax,
-                      msgpack ? json::input_format_t::msgpack : json::input_format_t::json);
+  bool ok;
+  if (msgpack) {
+    ok = json::sax_parse(payload.begin(), payload.end(), &sax, json::input_format_t::msgpack);
+  } else {
+    ok = json_reader_.parse({reinterpret_cast<const char*>(payload.data()), payload.size()}, sax);
+    if (!ok && error.empty()) error = json_reader_.error();
+  }
   if (!ok) {
     if (error.empty()) error = std::string("not a valid ") + sax.format_ + " marker frame";
     return false;

@@ -13,6 +13,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "json_sax_reader.hpp"
+
 namespace fabrik::wire {
 
 enum class PayloadEncoding { json, msgpack };
@@ -44,6 +46,7 @@ class MarkerDecoder {
   // A frame sized for this decoder's markers.
   MarkerFrame make_frame() const;
   // Fills `out` and returns true, or returns false with `error` saying why.
+  // Not thread-safe (the JSON reader's buffers are reused).
   bool decode(std::span<const std::uint8_t> payload, MarkerFrame& out, std::string& error) const;
   int index_of(const std::string& name) const;
 
@@ -52,6 +55,8 @@ class MarkerDecoder {
   int count_;
   double default_m_per_unit_;
   std::size_t max_payload_bytes_;
+  // Its buffers are reused from frame to frame: one decoder per thread.
+  mutable JsonSaxReader json_reader_;
 };
 
 // A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are
