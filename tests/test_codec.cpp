@@ -46,7 +46,7 @@ TEST_CASE("A JSON marker frame decodes into metres, in tracker order", "[codec]"
   CHECK(f.visible == std::vector<std::uint8_t>{0, 0, 1});  // A null, B absent, C given
   CHECK(f.p_world_m[2].isApprox(Eigen::Vector3d(1, 2, 3)));
   CHECK(f.unknown_count == 1);
-  REQUIRE(f.unknown_names.size() == 1);
+  REQUIRE(f.unknown_listed == 1);
   CHECK(f.unknown_names[0] == "X");
 
   // Units default from the config when the frame has none; "m" is taken as is.

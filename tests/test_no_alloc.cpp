@@ -150,6 +150,12 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   Posture truth = Posture::rest(tracker.model());
   std::vector<Eigen::Vector3d> measured(names.size());
   std::vector<std::uint8_t> visible(names.size(), 1);
+  // The stream also carries a marker the model does not know, with a name
+  // longer than the short-string buffer (as Vicon's "Subject:NAME" labels).
+  std::vector<std::string> sent = names;
+  sent.push_back("boite:gauche_exterieur");
+  std::vector<Eigen::Vector3d> sent_m(sent.size(), Eigen::Vector3d(0.1, 0.2, 0.3));
+  std::vector<std::uint8_t> sent_visible(sent.size(), 1);
   std::string payload, out, error;
   payload.reserve(1 << 16);
   out.reserve(1 << 16);
@@ -161,16 +167,20 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
     visible[f % names.size()] = 0;  // a moving occlusion
     visible[(f + 7) % names.size()] = 1;
     const double t = f / 100.0;
+    std::copy(measured.begin(), measured.end(), sent_m.begin());
+    std::copy(visible.begin(), visible.end(), sent_visible.begin());
     bool ok = true;
     for (auto enc : {wire::PayloadEncoding::json, wire::PayloadEncoding::msgpack}) {
-      wire::encode_marker_frame(static_cast<std::uint64_t>(f), &t, names, measured, visible, "mm",
+      wire::encode_marker_frame(static_cast<std::uint64_t>(f), &t, sent, sent_m, sent_visible, "mm",
                                 enc, payload);
       const long before = g_allocations.load();
       ok = ok &&
            decoder.decode({reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()},
                           frame, error);
-      (enc == wire::PayloadEncoding::json ? json_decode_allocations : msgpack_decode_allocations) +=
-          g_allocations.load() - before;
+      if (f >= 2)  // after the buffers have grown
+        (enc == wire::PayloadEncoding::json ? json_decode_allocations
+                                            : msgpack_decode_allocations) +=
+            g_allocations.load() - before;
     }
     long before = g_allocations.load();
     const TrackResult& r = tracker.track(t, frame.p_world_m, frame.visible);
@@ -183,8 +193,12 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   }
   CHECK(track_allocations == 0);
   CHECK(encode_allocations == 0);
-  // Marker names within the short-string buffer; the JSON reader's buffers
-  // are reused from frame to frame.
+  // The JSON reader's and the frame's buffers are reused from frame to frame.
+  CHECK(frame.unknown_count == 1);
   CHECK(json_decode_allocations == 0);
-  CHECK(msgpack_decode_allocations == 0);
+  // nlohmann's MessagePack reader makes a std::string per key: free for the
+  // model's names (short-string buffer), one allocation for the long one.
+  CHECK(msgpack_decode_allocations <= 58);
+  WARN("MessagePack decode: " << static_cast<double>(msgpack_decode_allocations) / 58.0
+                              << " allocations per frame, for one marker name of 22 bytes");
 }

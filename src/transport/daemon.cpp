@@ -160,9 +160,11 @@ void Daemon::drain_and_solve() {
     }
     if (f.unknown_count > 0) {
       counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
-      for (const std::string& name : f.unknown_names)
+      for (int k = 0; k < f.unknown_listed; ++k) {
+        const std::string& name = f.unknown_names[k];
         if (unknown_seen_.size() < kMaxUnknownLogged && unknown_seen_.insert(name).second)
           spdlog::warn("marker '{}' is not in the model: ignored (reported once)", name);
+      }
     }
     s.received_at[slot] = received;
     if (count == backlog_limit) {

@@ -20,8 +20,9 @@ constexpr std::size_t kMaxUnknownNames = 8;
 // SAX handler: a small state machine over the token stream.
 class FrameSax : public nlohmann::json_sax<json> {
  public:
-  FrameSax(const std::unordered_map<std::string, int>& index, MarkerFrame& out, std::string& error)
-      : index_(index), out_(out), error_(error) {}
+  FrameSax(const std::unordered_map<std::string, int>& index, MarkerFrame& out, std::string& error,
+           std::string& name_scratch)
+      : index_(index), out_(out), error_(error), marker_name_(name_scratch) {}
 
   bool has_frame = false;
   double m_per_unit = 0.0;  // 0: not given
@@ -125,9 +126,10 @@ class FrameSax : public nlohmann::json_sax<json> {
       marker_ = it == index_.end() ? -1 : it->second;
       if (marker_ < 0) {
         ++out_.unknown_count;
-        if (out_.unknown_names.size() < kMaxUnknownNames) out_.unknown_names.push_back(k);
+        if (out_.unknown_listed < static_cast<int>(out_.unknown_names.size()))
+          out_.unknown_names[out_.unknown_listed++].assign(k);  // reuses the string's buffer
       }
-      marker_name_ = k;
+      marker_name_.assign(k);
       state_ = State::marker_value;
       return true;
     }
@@ -247,7 +249,7 @@ class FrameSax : public nlohmann::json_sax<json> {
   State state_ = State::start;
   int depth_ = 0, skip_depth_ = 0;
   int marker_ = -1;
-  std::string marker_name_;
+  std::string& marker_name_;  // the decoder's, so its buffer is reused
   int coord_ = 0;
   Eigen::Vector3d p_{0, 0, 0};
 };
@@ -273,7 +275,7 @@ MarkerFrame MarkerDecoder::make_frame() const {
   MarkerFrame f;
   f.p_world_m.assign(count_, Eigen::Vector3d::Zero());
   f.visible.assign(count_, 0);
-  f.unknown_names.reserve(kMaxUnknownNames);
+  f.unknown_names.resize(kMaxUnknownNames);
   return f;
 }
 
@@ -299,9 +301,9 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   out.time_s = 0.0;
   out.has_stamp = false;
   out.unknown_count = 0;
-  out.unknown_names.clear();
+  out.unknown_listed = 0;
   std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
-  FrameSax sax(index_, out, error);
+  FrameSax sax(index_, out, error, marker_name_);
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
   sax.format_ = msgpack ? "MessagePack" : "JSON";
   bool ok;

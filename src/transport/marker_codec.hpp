@@ -33,7 +33,8 @@ struct MarkerFrame {
   std::vector<Eigen::Vector3d> p_world_m;  // per known marker, metres
   std::vector<std::uint8_t> visible;       // per known marker
   int unknown_count = 0;                   // marker names not in the model
-  std::vector<std::string> unknown_names;  // the first few of them, for the log
+  std::vector<std::string> unknown_names;  // the first unknown_listed of them, for the log
+  int unknown_listed = 0;
 };
 
 class MarkerDecoder {
@@ -57,6 +58,7 @@ class MarkerDecoder {
   std::size_t max_payload_bytes_;
   // Its buffers are reused from frame to frame: one decoder per thread.
   mutable JsonSaxReader json_reader_;
+  mutable std::string marker_name_;  // the marker being read, for messages
 };
 
 // A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are
