@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <thread>
 
+#include "transport/marker_codec.hpp"
+
 namespace fabrik::tools {
 
 namespace {
@@ -96,7 +98,9 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
   const std::size_t n = trial.frames();
   const double duration_s = static_cast<double>(n) / trial.rate_hz;
   const std::uint64_t total = options.max_frames ? options.max_frames : options.loop ? 0 : n;
-  std::vector<std::uint8_t> hidden(trial.markers(), 0);
+  std::vector<std::uint8_t> hidden(trial.markers(), 0), visible(trial.markers(), 0);
+  std::vector<Eigen::Vector3d> p_m(trial.markers());
+  std::string payload;
   ReplaySummary summary;
   const Clock::time_point start = Clock::now();
   Clock::time_point last_progress = start;
@@ -122,15 +126,23 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
           std::chrono::duration<double>(static_cast<double>(k) / trial.rate_hz / options.speed));
       std::this_thread::sleep_until(deadline);
     }
-    nlohmann::json doc = marker_frame(
-        trial, index, static_cast<std::uint64_t>(trial.first_frame) + k, t_stream_s, hidden);
+    for (std::size_t m = 0; m < trial.markers(); ++m) {
+      p_m[m] = trial.at(index, m);
+      visible[m] = !hidden[m] && p_m[m].allFinite() ? 1 : 0;
+      summary.markers_nulled += visible[m] ? 0 : 1;
+    }
     // Wall clock at sending, echoed by fabrikd in the pose: watchers on this
     // machine measure end-to-end latency from it.
-    doc["stamp_us"] = std::chrono::duration_cast<std::chrono::microseconds>(
-                          std::chrono::system_clock::now().time_since_epoch())
-                          .count();
-    for (const auto& v : doc["markers"]) summary.markers_nulled += v.is_null() ? 1 : 0;
-    const std::string payload = encode_payload(doc, options.encoding);
+    const double stamp_us =
+        static_cast<double>(std::chrono::duration_cast<std::chrono::microseconds>(
+                                std::chrono::system_clock::now().time_since_epoch())
+                                .count());
+    wire::encode_marker_frame(static_cast<std::uint64_t>(trial.first_frame) + k, &t_stream_s,
+                              trial.labels, p_m, visible, "mm",
+                              options.encoding == WireEncoding::msgpack
+                                  ? wire::PayloadEncoding::msgpack
+                                  : wire::PayloadEncoding::json,
+                              payload, &stamp_us);
     pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
     pub.send(zmq::buffer(payload), zmq::send_flags::none);
     while (pub.recv(discard, zmq::recv_flags::dontwait)) {

@@ -44,20 +44,4 @@ std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding) {
   return out;
 }
 
-nlohmann::json marker_frame(const io::MarkerTrial& trial, std::size_t index,
-                            std::uint64_t frame_number, double time_s,
-                            const std::vector<std::uint8_t>& hidden) {
-  nlohmann::json markers = nlohmann::json::object();
-  for (std::size_t m = 0; m < trial.markers(); ++m) {
-    const Eigen::Vector3d& p = trial.at(index, m);
-    if ((m < hidden.size() && hidden[m]) || !p.allFinite()) {
-      markers[trial.labels[m]] = nullptr;
-    } else {
-      const auto mm = [](double v_m) { return std::round(v_m * 1e9) / 1e6; };
-      markers[trial.labels[m]] = {mm(p.x()), mm(p.y()), mm(p.z())};
-    }
-  }
-  return {{"frame", frame_number}, {"time", time_s}, {"units", "mm"}, {"markers", markers}};
-}
-
 }  // namespace fabrik::tools

@@ -1,5 +1,6 @@
 // Payloads of the wire contract (../shared/wire-contract.md, proto/) as the tools see them:
-// marker frames built from a recording, and any payload decoded by its first byte.
+// any payload decoded by its first byte into a JSON document (watch shows every field). Marker
+// frames are written with transport's encode_marker_frame, as the daemon's own tests do.
 #pragma once
 
 #include <cstdint>
@@ -26,12 +27,5 @@ WireEncoding detect_encoding(std::string_view payload);
 // reason when it is neither.
 nlohmann::json decode_payload(std::string_view payload);
 std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding);
-
-// One `markers` frame from frame `index` of `trial`, positions in millimetres (the trial is in
-// metres: converted here, at the edge), null for a missing marker or where `hidden[marker]` is
-// set. Coordinates are rounded to 1 nm, which keeps JSON short and loses nothing a TRC holds.
-nlohmann::json marker_frame(const io::MarkerTrial& trial, std::size_t index,
-                            std::uint64_t frame_number, double time_s,
-                            const std::vector<std::uint8_t>& hidden);
 
 }  // namespace fabrik::tools

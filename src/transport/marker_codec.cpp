@@ -330,16 +330,20 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
 namespace {
 template <class Writer>
 void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
-                        std::span<const std::string> names,
+                        const double* stamp_us, std::span<const std::string> names,
                         std::span<const Eigen::Vector3d> p_world_m,
                         std::span<const std::uint8_t> visible, std::string_view units) {
   const double scale = units == "mm" ? 1e3 : 1.0;
-  w.begin_map(time_s ? 4 : 3);
+  w.begin_map(3 + (time_s ? 1 : 0) + (stamp_us ? 1 : 0));
   w.key("frame");
   w.uint(frame);
   if (time_s) {
     w.key("time");
     w.number(*time_s, 6);
+  }
+  if (stamp_us) {
+    w.key("stamp_us");
+    w.number(*stamp_us, 0);
   }
   w.key("units");
   w.string(units);
@@ -364,13 +368,13 @@ void encode_marker_frame(std::uint64_t frame, const double* time_s,
                          std::span<const std::string> names,
                          std::span<const Eigen::Vector3d> p_world_m,
                          std::span<const std::uint8_t> visible, std::string_view units,
-                         PayloadEncoding encoding, std::string& out) {
+                         PayloadEncoding encoding, std::string& out, const double* stamp_us) {
   if (encoding == PayloadEncoding::json) {
     JsonWriter w(out, units == "mm" ? 4 : 7);
-    write_marker_frame(w, frame, time_s, names, p_world_m, visible, units);
+    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units);
   } else {
     MsgpackWriter w(out);
-    write_marker_frame(w, frame, time_s, names, p_world_m, visible, units);
+    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units);
   }
 }
 

@@ -64,10 +64,12 @@ class MarkerDecoder {
 // A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are
 // given in metres and converted here), null where visible[i] is 0 or the
 // position is not finite.
+// `stamp_us`, if given, is written as the frame's stamp_us.
 void encode_marker_frame(std::uint64_t frame, const double* time_s,
                          std::span<const std::string> names,
                          std::span<const Eigen::Vector3d> p_world_m,
                          std::span<const std::uint8_t> visible, std::string_view units,
-                         PayloadEncoding encoding, std::string& out);
+                         PayloadEncoding encoding, std::string& out,
+                         const double* stamp_us = nullptr);
 
 }  // namespace fabrik::wire
