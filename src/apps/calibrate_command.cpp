@@ -8,6 +8,7 @@
 
 #include "calib/calibrate.hpp"
 #include "config/daemon_config.hpp"
+#include "tools/run_command.hpp"
 
 namespace fabrik {
 
@@ -50,14 +51,7 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--frames", args->options.frames,
                   "Frames to average (default: to the end of the trial)")
       ->check(CLI::PositiveNumber);
-  cmd->callback([args] {
-    try {
-      run_calibrate(*args);
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "fabrik calibrate: %s\n", e.what());
-      throw CLI::RuntimeError(2);
-    }
-  });
+  cmd->callback([args] { tools::run_command("calibrate", [&] { run_calibrate(*args); }); });
 }
 
 }  // namespace fabrik

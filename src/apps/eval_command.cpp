@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "eval/eval.hpp"
+#include "tools/run_command.hpp"
 
 namespace fabrik::apps {
 
@@ -106,14 +107,7 @@ void add_eval_command(CLI::App& app) {
       c->add_option("--csv", a->csv_path, "CSV for scripts/plot_eval.py")->capture_default_str();
     }
     c->add_option("--json", a->json_path, "Also write the results as JSON");
-    c->callback([name, a] {
-      try {
-        run(name, *a);
-      } catch (const std::exception& e) {
-        std::fprintf(stderr, "fabrik eval %s: %s\n", name.c_str(), e.what());
-        throw CLI::RuntimeError(2);
-      }
-    });
+    c->callback([name, a] { tools::run_command("eval " + name, [&] { run(name, *a); }); });
     return std::make_pair(c, a);
   };
   add("walk", "Marker residuals of a calibrated subject on a recorded trial", true,

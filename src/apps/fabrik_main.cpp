@@ -6,9 +6,9 @@
 
 #include "bench/bench.hpp"
 #include "bench/latency_bench.hpp"
-#include "solve_command.hpp"
 #include "calibrate_command.hpp"
 #include "eval_command.hpp"
+#include "solve_command.hpp"
 #include "tools/tools.hpp"
 #include "version.hpp"
 

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "offline/solve_trial.hpp"
+#include "tools/run_command.hpp"
 
 namespace fabrik::apps {
 
@@ -74,7 +75,7 @@ void add_solve_command(CLI::App& app) {
                 "Also write the model's (gap-filled) markers, .trc or .csv");
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_flag("--quiet", o->quiet, "No progress bar");
-  c->callback([o] { run(*o); });
+  c->callback([o] { tools::run_command("solve", [&] { run(*o); }); });
 }
 
 }  // namespace fabrik::apps

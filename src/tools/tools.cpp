@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "replay.hpp"
+#include "run_command.hpp"
 #include "synth.hpp"
 #include "watch.hpp"
 
@@ -23,17 +24,6 @@ extern "C" void on_signal(int) {
 void catch_stop_signals() {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-}
-
-// Runs a command body; any error becomes one line on stderr and exit code 2.
-template <class F>
-void run_command(const char* name, F&& body) {
-  try {
-    body();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "fabrik %s: %s\n", name, e.what());
-    throw CLI::RuntimeError(2);
-  }
 }
 
 }  // namespace

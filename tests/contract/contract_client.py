@@ -239,6 +239,16 @@ class Daemon:
             raise CheckFailed("fabrikd did not exit within 1 s of SIGTERM")
         check(rc == 0, f"fabrikd exited with code {rc} after SIGTERM, expected 0")
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        # On any failure, show what the daemon logged before it is torn down.
+        if exc_type is not None:
+            print(f"--- tail of {self.log_path} ---\n{self.log_tail()}", file=sys.stderr)
+        self.close()
+        return False
+
     def close(self):
         if self.proc.poll() is None:
             self.proc.kill()
@@ -367,8 +377,7 @@ def bad_payloads(valid_markers):
 def run_main(args, workdir, model_markers_rest, rest_joints, root):
     model_markers = set(model_markers_rest)
     joint_names = set(rest_joints)
-    d = Daemon(args.fabrikd, workdir)
-    try:
+    with Daemon(args.fabrikd, workdir) as d:
         d.join()
         print(f"contract: joined after {min(d.poses) - PROBE_BASE + 1} probe frame(s)")
 
@@ -491,17 +500,11 @@ def run_main(args, workdir, model_markers_rest, rest_joints, root):
         # 6. SIGTERM: exit code 0 within 1 s.
         d.stop()
         print("contract: SIGTERM -> exit code 0 within 1 s")
-    except BaseException:
-        print(f"--- tail of {d.log_path} ---\n{d.log_tail()}", file=sys.stderr)
-        raise
-    finally:
-        d.close()
 
 
 def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):
     """Output encoding msgpack and units m: poses come as MessagePack in metres."""
-    d = Daemon(args.fabrikd, workdir, output_encoding="msgpack", output_units="m")
-    try:
+    with Daemon(args.fabrikd, workdir, output_encoding="msgpack", output_units="m") as d:
         d.join()
         for i in range(20):
             frame = 100 + i
@@ -514,11 +517,6 @@ def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):
         check(d.encodings == {"msgpack"}, f"output encodings seen: {d.encodings}")
         d.stop()
         print("contract: output encoding msgpack, units m: poses and stats valid")
-    except BaseException:
-        print(f"--- tail of {d.log_path} ---\n{d.log_tail()}", file=sys.stderr)
-        raise
-    finally:
-        d.close()
 
 
 def main():
