@@ -162,8 +162,11 @@ void Daemon::drain_and_solve() {
       counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
       for (int k = 0; k < f.unknown_listed; ++k) {
         const std::string& name = f.unknown_names[k];
-        if (unknown_seen_.size() < kMaxUnknownLogged && unknown_seen_.insert(name).second)
+        // Look up first: only a name not seen before costs an allocation.
+        if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(name)) {
+          unknown_seen_.insert(name);
           spdlog::warn("marker '{}' is not in the model: ignored (reported once)", name);
+        }
       }
     }
     s.received_at[slot] = received;
