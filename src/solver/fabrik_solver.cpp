@@ -37,6 +37,8 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
   marked_visible_.assign(targets_.targets().size(), 0);
+  link_.assign(static_cast<std::size_t>(n_seg_), 0);
+  link_tip_m_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::Zero());
   start_.resize(model.segments.size());
   distances_m_.assign(targets_.targets().size(), 0.0);
   previous_m_.assign(targets_.targets().size(), 0.0);
@@ -44,14 +46,9 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
 }
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
-  if (marked_ && marked_priorities_ == options_.use_priorities &&
-      marked_anchor_weight_ == options_.anchor_weight &&
-      std::equal(visible.begin(), visible.end(), marked_visible_.begin()))
-    return;
+  if (marked_ && std::equal(visible.begin(), visible.end(), marked_visible_.begin())) return;
   std::copy(visible.begin(), visible.end(), marked_visible_.begin());
   marked_ = true;
-  marked_priorities_ = options_.use_priorities;
-  marked_anchor_weight_ = options_.anchor_weight;
   std::fill(active_.begin(), active_.end(), std::uint8_t{0});
   const bool anchors = options_.use_priorities && options_.anchor_weight > 0.0;
   for (int i = 0; i < targets_.size(); ++i) {
@@ -82,6 +79,25 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
     std::uint8_t riders = 0;
     for (int s = 1; s < n_seg_; ++s) riders |= !active(pass, s);
     pass_has_riders_[pass] = riders;
+  }
+  // A segment with a single slot that is active in every pass that runs is a
+  // link: nothing but that slot's point ever pulls on it and nothing reads
+  // its other points during the solve (no rider hangs off it, its only
+  // target is that point), so the passes move that point alone, the classic
+  // FABRIK way, and its rotation follows once at the end: the minimal turn
+  // from the start, the same joint positions for a fraction of the work.
+  // A free root is placed by its own fit, so it is never a link.
+  const int passes = options_.use_priorities ? n_pass_ : 1;
+  bool runs = false;
+  for (int pass = 0; pass < passes; ++pass) runs = runs || (activity(pass, 0) & kOwn);
+  any_link_ = false;
+  for (int s = 0; s < n_seg_; ++s) {
+    bool link = runs && slot_first_[s + 1] - slot_first_[s] == 1 &&
+                (s != 0 || options_.root == RootMode::fixed);
+    for (int pass = 0; pass < passes && link; ++pass)
+      if ((activity(pass, 0) & kOwn) && !active(pass, s)) link = false;
+    link_[s] = link;
+    any_link_ = any_link_ || link;
   }
 }
 
@@ -176,13 +192,14 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
     // minimal rotation (the rule above), which is exact and much cheaper.
     turn_minimal(pose.r_world * drivers_[0].a_local(), drivers_[0].d_world() - base_m, pose);
   } else {
-    Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
-    for (int k = 0; k < n; ++k)
-      cross.noalias() +=
-          drivers_[k].weight * (drivers_[k].d_world() - base_m) * drivers_[k].a_local().transpose();
+    Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+    for (int k = 0; k < n; ++k) {
+      const Eigen::Vector3d a_world = pose.r_world * drivers_[k].a_local();
+      m.noalias() += (drivers_[k].weight * (drivers_[k].d_world() - base_m)) * a_world.transpose();
+    }
     // One Newton step per visit: the convergence loop revisits the segment, so
     // an exact inner fit buys nothing (same iterations, same residuals).
-    fit_rotation_step(cross.data(), pose);
+    fit_rotation_step(m, pose);
   }
   pose.base_world_m = base_m;
 }
@@ -199,13 +216,15 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
   }
   mean_local /= weight_sum;
   mean_desired /= weight_sum;
-  Eigen::Matrix3d cross = Eigen::Matrix3d::Zero();
-  for (int k = 0; k < n; ++k)
-    cross.noalias() += drivers_[k].weight * (drivers_[k].d_world() - mean_desired) *
-                       (drivers_[k].a_local() - mean_local).transpose();
+  Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Vector3d a_world = pose.r_world * (drivers_[k].a_local() - mean_local);
+    m.noalias() +=
+        (drivers_[k].weight * (drivers_[k].d_world() - mean_desired)) * a_world.transpose();
+  }
   // One Newton step per visit: the convergence loop revisits the segment, so
   // an exact inner fit buys nothing (same iterations, same residuals).
-  fit_rotation_step(cross.data(), pose);
+  fit_rotation_step(m, pose);
   pose.base_world_m = mean_desired - pose.r_world * mean_local;
 }
 
@@ -215,12 +234,59 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
     if (!active(pass, s)) continue;
     const bool root = s == 0;
     if (root && options_.root == RootMode::fixed) continue;  // the backward pass pins it
+    if (link_[s]) {
+      forward_link(s, target_world_m, posture);
+      continue;
+    }
     const int n = gather(pass, s, target_world_m, visible, posture);
     if (root && options_.segment_fit == SegmentFit::rigid)
       free_root_fit(n, posture.segments[s]);
     else  // see place_with_candidates for why one driver does not turn here
       place_with_candidates(n, posture.segments[s],
                             root || slot_first_[s + 1] - slot_first_[s] > 1);
+  }
+}
+
+// A link's forward step: its base moves onto the line from its one desired
+// position to the base, at the link's length from it.
+void FabrikSolver::forward_link(int s, std::span<const Eigen::Vector3d> target_world_m,
+                                Posture& posture) const {
+  const Slot& slot = slots_[slot_first_[s]];
+  const Eigen::Vector3d& d_m = desired_m(slot, target_world_m, posture);
+  Eigen::Vector3d& base_m = posture.segments[s].base_world_m;
+  const Eigen::Vector3d u = base_m - d_m;
+  const double dist = u.norm();
+  if (dist > 1e-12)
+    base_m = d_m + (slot.a_norm_m / dist) * u;
+  else  // on the desired position: keep the link's direction
+    base_m = d_m - (link_tip_m_[s] - base_m);
+}
+
+// A link's backward step: from its new base, its point goes towards its
+// desired position, at the link's length.
+void FabrikSolver::backward_link(int s, const Eigen::Vector3d& base_m,
+                                 std::span<const Eigen::Vector3d> target_world_m,
+                                 Posture& posture) {
+  const Slot& slot = slots_[slot_first_[s]];
+  const Eigen::Vector3d v = desired_m(slot, target_world_m, posture) - base_m;
+  const double dist = v.norm();
+  Eigen::Vector3d& tip_m = link_tip_m_[s];
+  SegmentPose& pose = posture.segments[s];
+  if (dist > 1e-12)
+    tip_m = base_m + (slot.a_norm_m / dist) * v;
+  else  // on the desired position: keep the link's direction
+    tip_m = base_m + (tip_m - pose.base_world_m);
+  pose.base_world_m = base_m;
+}
+
+// Ends a solve: every link turns once, minimally, from its start rotation to
+// point at its tip.
+void FabrikSolver::turn_links(Posture& posture) const {
+  for (int s = 0; s < n_seg_; ++s) {
+    if (!link_[s]) continue;
+    SegmentPose& pose = posture.segments[s];
+    turn_minimal(pose.r_world * slots_[slot_first_[s]].a_local, link_tip_m_[s] - pose.base_world_m,
+                 pose);
   }
 }
 
@@ -232,11 +298,22 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
     const Segment& seg = model_.segments[s];
     if (s == 0) {
       if (options_.root == RootMode::free) continue;  // placed by the forward pass
+      if (link_[s]) {
+        backward_link(s, root_pin_m, target_world_m, posture);
+        continue;
+      }
       const int n = gather(pass, s, target_world_m, visible, posture);
       rotate_about_base(n, root_pin_m, pose);
       continue;
     }
-    const Eigen::Vector3d base_m = posture.point_world_m(model_, seg.parent_point);
+    // A link parent's one slot is this segment's joint.
+    const Eigen::Vector3d base_m = link_[seg.parent]
+                                       ? link_tip_m_[seg.parent]
+                                       : posture.point_world_m(model_, seg.parent_point);
+    if (link_[s]) {
+      backward_link(s, base_m, target_world_m, posture);
+      continue;
+    }
     if (!active(pass, s)) {
       // Nothing below pulls on this segment: it rides rigidly on its parent.
       const SegmentPose& parent_now = posture.segments[seg.parent];
@@ -257,8 +334,7 @@ bool FabrikSolver::level_settled(int pass, std::span<const Eigen::Vector3d> targ
   double max_m = 0.0, change_m = 0.0;
   for (int i = 0; i < targets_.size(); ++i) {
     if (!visible[i] || (options_.use_priorities && targets_.level_index(i) != pass)) continue;
-    const double d =
-        (posture.point_world_m(model_, targets_.targets()[i].point) - target_world_m[i]).norm();
+    const double d = (target_point_m(i, posture) - target_world_m[i]).norm();
     max_m = std::max(max_m, d);
     change_m = std::max(change_m, std::abs(d - level_previous_m_[i]));
     level_previous_m_[i] = d;
@@ -273,11 +349,18 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
   assert(static_cast<int>(posture.segments.size()) == n_seg_);
   mark_active(visible);
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
-  SolveResult result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);
+  if (any_link_)
+    for (int s = 0; s < n_seg_; ++s)
+      if (link_[s]) link_tip_m_[s] = posture.segments[s].to_world(slots_[slot_first_[s]].a_local);
+  const auto point_of = [&](int i) { return target_point_m(i, posture); };
+  SolveResult result = targets_.measure_with(point_of, target_world_m, visible, distances_m_);
   int total_passes = 0;
   StopRule stop(options_);
   for (int iteration = 0;; ++iteration) {
-    if (stop.should_stop(iteration, distances_m_, previous_m_, result)) return result;
+    if (stop.should_stop(iteration, distances_m_, previous_m_, result)) {
+      if (any_link_) turn_links(posture);
+      return result;
+    }
     const int passes = options_.use_priorities ? n_pass_ : 1;
     int active_levels = 0, strongest = -1;
     for (int pass = 0; pass < passes; ++pass)
@@ -302,7 +385,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       }
     }
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
-    result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);
+    result = targets_.measure_with(point_of, target_world_m, visible, distances_m_);
     result.iterations = iteration + 1;
     result.passes = total_passes;
   }

@@ -31,7 +31,10 @@ class FabrikSolver {
 
   const std::vector<Target>& targets() const { return targets_.targets(); }
   const SolverOptions& options() const { return options_; }
-  void set_options(const SolverOptions& options) { options_ = options; }
+  void set_options(const SolverOptions& options) {
+    options_ = options;
+    marked_ = false;  // the marks depend on the options
+  }
   // Distance of each target to its point after the last solve (NaN if not visible).
   std::span<const double> target_distances_m() const { return distances_m_; }
 
@@ -71,6 +74,23 @@ class FabrikSolver {
   bool level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
                      std::span<const std::uint8_t> visible, const Posture& posture);
   void place_with_candidates(int n, SegmentPose& pose, bool turn) const;
+  // Links: see mark_active.
+  const Eigen::Vector3d& desired_m(const Slot& slot,
+                                   std::span<const Eigen::Vector3d> target_world_m,
+                                   const Posture& posture) const {
+    return slot.source >= 0 ? target_world_m[slot.source]
+                            : posture.segments[~slot.source].base_world_m;
+  }
+  void forward_link(int s, std::span<const Eigen::Vector3d> target_world_m, Posture& posture) const;
+  void backward_link(int s, const Eigen::Vector3d& base_m,
+                     std::span<const Eigen::Vector3d> target_world_m, Posture& posture);
+  void turn_links(Posture& posture) const;
+  // World position of target i's point during a solve.
+  Eigen::Vector3d target_point_m(int i, const Posture& posture) const {
+    const int point = targets_.targets()[i].point;
+    const int s = model_.points[point].segment;
+    return link_[s] ? link_tip_m_[s] : posture.point_world_m(model_, point);
+  }
   void free_root_fit(int n, SegmentPose& pose) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
@@ -88,8 +108,13 @@ class FabrikSolver {
   // What the marks above were computed for: skipped when a frame has the same
   // visibility and options as the previous one (the usual case in a stream).
   std::vector<std::uint8_t> marked_visible_;
-  bool marked_ = false, marked_priorities_ = false;
-  double marked_anchor_weight_ = 0.0;
+  bool marked_ = false;
+  // Links, per marking: segments that one point alone drives in every pass
+  // (classic FABRIK links). During a solve only that point's world position
+  // (link_tip_m_) moves; the rotation is set once, when the solve ends.
+  std::vector<std::uint8_t> link_;
+  bool any_link_ = false;
+  std::vector<Eigen::Vector3d> link_tip_m_;
   std::vector<SegmentPose> start_;  // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level

@@ -17,21 +17,23 @@ namespace fabrik {
 // rebuilt once.
 
 // pose.q <- normalise(p * pose.q) for an unnormalised p = (pw, px, py, pz),
-// and pose.r <- its matrix.
+// and pose.r <- its matrix. The matrix is built from u = p * q itself,
+// scaled by 2 / |u|^2 (exact for any non-zero u), and |u|^2 = |p|^2 |q|^2
+// needs no wait for the product: the next segment reads only the matrix, so
+// its chain of dependent operations holds one division instead of the
+// product's norm, a square root and a division. |q|^2 is kept (not assumed
+// 1) so rounding cannot build up over a long stream.
 inline void premultiply_rotation(double pw, double px, double py, double pz, SegmentPose& pose) {
   const double qw = pose.q_world.w(), qx = pose.q_world.x(), qy = pose.q_world.y(),
                qz = pose.q_world.z();
-  double w = pw * qw - px * qx - py * qy - pz * qz;
-  double x = pw * qx + px * qw + py * qz - pz * qy;
-  double y = pw * qy - px * qz + py * qw + pz * qx;
-  double z = pw * qz + px * qy - py * qx + pz * qw;
-  const double inv = 1.0 / std::sqrt(w * w + x * x + y * y + z * z);
-  w *= inv;
-  x *= inv;
-  y *= inv;
-  z *= inv;
-  pose.q_world = Eigen::Quaterniond(w, x, y, z);
-  const double tx = 2 * x, ty = 2 * y, tz = 2 * z;
+  const double w = pw * qw - px * qx - py * qy - pz * qz;
+  const double x = pw * qx + px * qw + py * qz - pz * qy;
+  const double y = pw * qy - px * qz + py * qw + pz * qx;
+  const double z = pw * qz + px * qy - py * qx + pz * qw;
+  const double u_sq =
+      (pw * pw + px * px + py * py + pz * pz) * (qw * qw + qx * qx + qy * qy + qz * qz);
+  const double s = 2.0 / u_sq;
+  const double tx = s * x, ty = s * y, tz = s * z;
   const double twx = tx * w, twy = ty * w, twz = tz * w;
   const double txx = tx * x, txy = ty * x, txz = tz * x;
   const double tyy = ty * y, tyz = tz * y, tzz = tz * z;
@@ -45,6 +47,8 @@ inline void premultiply_rotation(double pw, double px, double py, double pz, Seg
   r(2, 0) = txz - twy;
   r(2, 1) = tyz + twx;
   r(2, 2) = 1 - (txx + tyy);
+  const double inv = 1.0 / std::sqrt(u_sq);
+  pose.q_world = Eigen::Quaterniond(w * inv, x * inv, y * inv, z * inv);
 }
 
 // The paper's rule, in place: the minimal rotation (in the plane of the two
@@ -75,9 +79,11 @@ inline void turn_minimal(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
 // about the undetermined axis, where the torque is zero too: the result is
 // the rotation nearest the start, with no spurious twist.
 //
-// One Newton step, in place. `a` is column-major 3x3 (a[i + 3 * j] = A(i, j)).
-inline void fit_rotation_step(const double* a, SegmentPose& pose) {
-  const Eigen::Matrix3d m = Eigen::Map<const Eigen::Matrix3d>(a) * pose.r_world.transpose();
+// One Newton step, in place, from m = A R^T = sum_k w_k b_k (R a_k)^T, the
+// desired world vectors against where the current rotation puts the local
+// ones (built by the caller from world vectors: fewer dependent operations
+// than forming A and then the product).
+inline void fit_rotation_step(const Eigen::Matrix3d& m, SegmentPose& pose) {
   const double t0 = m(2, 1) - m(1, 2), t1 = m(0, 2) - m(2, 0), t2 = m(1, 0) - m(0, 1);
   const double trace = m(0, 0) + m(1, 1) + m(2, 2);
   const double h00 = trace - m(0, 0), h11 = trace - m(1, 1), h22 = trace - m(2, 2);
@@ -86,42 +92,38 @@ inline void fit_rotation_step(const double* a, SegmentPose& pose) {
   const double c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22,
                c02 = h01 * h12 - h02 * h11;
   const double det = h00 * c00 + h01 * c01 + h02 * c02;
-  double ox, oy, oz;
+  double ox, oy, oz, scale;  // the step is (ox, oy, oz) / scale
   if (trace > 0.0 && h00 > 0.0 && h00 * h11 - h01 * h01 > 0.0 &&
       det > 1e-18 * trace * trace * trace) {
     const double c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12,
                  c22 = h00 * h11 - h01 * h01;
-    const double inv = 1.0 / det;  // Newton step
-    ox = (c00 * t0 + c01 * t1 + c02 * t2) * inv;
-    oy = (c01 * t0 + c11 * t1 + c12 * t2) * inv;
-    oz = (c02 * t0 + c12 * t1 + c22 * t2) * inv;
+    // The Newton step is (adj(H) t) / det; it is kept times det so that
+    // no division waits on det: the Cayley quaternion below is normalised
+    // anyway, so (det, adj(H) t / 2) turns as (1, step / 2) does.
+    ox = c00 * t0 + c01 * t1 + c02 * t2;
+    oy = c01 * t0 + c11 * t1 + c12 * t2;
+    oz = c02 * t0 + c12 * t1 + c22 * t2;
+    scale = det;
   } else {  // far or singular: gradient step
-    double a_sq = 0.0;
-    for (int k = 0; k < 9; ++k) a_sq += a[k] * a[k];
-    const double inv = 1.0 / (std::abs(trace) + 1e-9 * std::sqrt(a_sq) + 1e-300);
+    const double inv = 1.0 / (std::abs(trace) + 1e-9 * m.norm() + 1e-300);
     ox = t0 * inv;
     oy = t1 * inv;
     oz = t2 * inv;
+    scale = 1.0;
   }
-  double angle_sq = ox * ox + oy * oy + oz * oz;
-  if (!(angle_sq > 1e-24)) return;  // negligible (or NaN): keep the rotation
-  if (angle_sq > 1.0) {             // at most 1 rad per step
-    const double scale = 1.0 / std::sqrt(angle_sq);
-    ox *= scale;
-    oy *= scale;
-    oz *= scale;
-    angle_sq = 1.0;
-  }
-  // exp of the step: Taylor series of cos(h) and sin(h)/h, exact to 1e-12 for h <= 0.5.
-  const double h2 = 0.25 * angle_sq;
-  const double cos_half =
-      1.0 +
-      h2 * (-1.0 / 2 + h2 * (1.0 / 24 + h2 * (-1.0 / 720 + h2 * (1.0 / 40320 - h2 / 3628800.0))));
-  const double half_sinc =
-      0.5 *
-      (1.0 + h2 * (-1.0 / 6 +
-                   h2 * (1.0 / 120 + h2 * (-1.0 / 5040 + h2 * (1.0 / 362880 - h2 / 39916800.0)))));
-  premultiply_rotation(cos_half, half_sinc * ox, half_sinc * oy, half_sinc * oz, pose);
+  const double o_sq = ox * ox + oy * oy + oz * oz, scale_sq = scale * scale;
+  // negligible (or NaN): keep the rotation
+  if (!(o_sq > 1e-24 * scale_sq)) return;
+  // The step as a rotation through the Cayley map, quaternion (1, o / 2)
+  // normalised: the same axis, angle 2 atan(|o| / 2), which agrees with
+  // exp(o) to third order, so Newton's convergence is kept; it needs no
+  // trigonometry (a Taylor series of cos and sin lengthened the dependency
+  // chain of every subbase visit by about 40 cycles). Steps beyond 1 rad are
+  // shortened to it, as far from the fit the quadratic model is poor.
+  if (o_sq > scale_sq)  // beyond 1 rad: the unit step, (1, step / |step| / 2) times |o|
+    premultiply_rotation(std::sqrt(o_sq), 0.5 * ox, 0.5 * oy, 0.5 * oz, pose);
+  else
+    premultiply_rotation(scale, 0.5 * ox, 0.5 * oy, 0.5 * oz, pose);
 }
 
 }  // namespace fabrik

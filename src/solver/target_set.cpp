@@ -39,24 +39,8 @@ SolveResult TargetSet::measure(const Model& model, const Posture& posture,
                                std::span<const Eigen::Vector3d> target_world_m,
                                std::span<const std::uint8_t> visible,
                                std::span<double> distances_m) const {
-  SolveResult r;
-  double sum_sq = 0.0;
-  for (int i = 0; i < size(); ++i) {
-    if (!visible[i]) {
-      distances_m[i] = std::numeric_limits<double>::quiet_NaN();
-      continue;
-    }
-    const double d = (posture.point_world_m(model, targets_[i].point) - target_world_m[i]).norm();
-    distances_m[i] = d;
-    sum_sq += d * d;
-    ++r.visible_targets;
-    if (d > r.max_m || r.worst_target < 0) {
-      r.max_m = d;
-      r.worst_target = i;
-    }
-  }
-  if (r.visible_targets > 0) r.rms_m = std::sqrt(sum_sq / r.visible_targets);
-  return r;
+  return measure_with([&](int i) { return posture.point_world_m(model, targets_[i].point); },
+                      target_world_m, visible, distances_m);
 }
 
 bool StopRule::should_stop(int iteration, std::span<const double> distances_m,

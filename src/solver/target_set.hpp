@@ -4,7 +4,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -33,6 +35,12 @@ class TargetSet {
   SolveResult measure(const Model& model, const Posture& posture,
                       std::span<const Eigen::Vector3d> target_world_m,
                       std::span<const std::uint8_t> visible, std::span<double> distances_m) const;
+  // The same, with the world position of target i's point given by point_of(i)
+  // (a solver that keeps some points outside the posture during a solve).
+  template <class PointOf>
+  SolveResult measure_with(PointOf point_of, std::span<const Eigen::Vector3d> target_world_m,
+                           std::span<const std::uint8_t> visible,
+                           std::span<double> distances_m) const;
 
  private:
   std::vector<Target> targets_;
@@ -41,6 +49,31 @@ class TargetSet {
   std::vector<int> by_segment_;
   std::vector<int> seg_first_, seg_count_;
 };
+
+template <class PointOf>
+SolveResult TargetSet::measure_with(PointOf point_of,
+                                    std::span<const Eigen::Vector3d> target_world_m,
+                                    std::span<const std::uint8_t> visible,
+                                    std::span<double> distances_m) const {
+  SolveResult r;
+  double sum_sq = 0.0;
+  for (int i = 0; i < size(); ++i) {
+    if (!visible[i]) {
+      distances_m[i] = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    const double d = (point_of(i) - target_world_m[i]).norm();
+    distances_m[i] = d;
+    sum_sq += d * d;
+    ++r.visible_targets;
+    if (d > r.max_m || r.worst_target < 0) {
+      r.max_m = d;
+      r.worst_target = i;
+    }
+  }
+  if (r.visible_targets > 0) r.rms_m = std::sqrt(sum_sq / r.visible_targets);
+  return r;
+}
 
 // The per-iteration stopping rules shared by all iterative solvers: within
 // tolerance; stalled; out of iterations. A solve is stalled when the target
