@@ -7,6 +7,15 @@
 
 namespace fabrik {
 
+namespace {
+// len / sqrt(dist_sq), as len * sqrt(dist_sq) * (1 / dist_sq): the square
+// root and the division do not wait for each other, which shortens every
+// FABRIK step's chain of dependent operations (within 2 ulp of the quotient).
+inline double length_over(double len, double dist_sq) {
+  return len * std::sqrt(dist_sq) * (1.0 / dist_sq);
+}
+}  // namespace
+
 FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options)
     : model_(model),
       targets_(model, std::move(targets)),
@@ -38,6 +47,8 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
   marked_visible_.assign(targets_.targets().size(), 0);
   link_.assign(static_cast<std::size_t>(n_seg_), 0);
+  for (const Target& t : targets_.targets())
+    target_segment_.push_back(model.points[t.point].segment);
   link_tip_m_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::Zero());
   start_.resize(model.segments.size());
   distances_m_.assign(targets_.targets().size(), 0.0);
@@ -147,9 +158,9 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
     const Driver& d = drivers_[k];
     const double dx = d.d_world().x(), dy = d.d_world().y(), dz = d.d_world().z();
     const double ux = bx - dx, uy = by - dy, uz = bz - dz;
-    const double dist = std::sqrt(ux * ux + uy * uy + uz * uz);
-    if (dist > 1e-12) {
-      const double f = d.weight * d.a_norm_m() / dist;
+    const double dist_sq = ux * ux + uy * uy + uz * uz;
+    if (dist_sq > 1e-24) {
+      const double f = length_over(d.weight * d.a_norm_m(), dist_sq);
       sx += d.weight * dx + f * ux;
       sy += d.weight * dy + f * uy;
       sz += d.weight * dz + f * uz;
@@ -255,9 +266,9 @@ void FabrikSolver::forward_link(int s, std::span<const Eigen::Vector3d> target_w
   const Eigen::Vector3d& d_m = desired_m(slot, target_world_m, posture);
   Eigen::Vector3d& base_m = posture.segments[s].base_world_m;
   const Eigen::Vector3d u = base_m - d_m;
-  const double dist = u.norm();
-  if (dist > 1e-12)
-    base_m = d_m + (slot.a_norm_m / dist) * u;
+  const double dist_sq = u.squaredNorm();
+  if (dist_sq > 1e-24)
+    base_m = d_m + length_over(slot.a_norm_m, dist_sq) * u;
   else  // on the desired position: keep the link's direction
     base_m = d_m - (link_tip_m_[s] - base_m);
 }
@@ -269,11 +280,11 @@ void FabrikSolver::backward_link(int s, const Eigen::Vector3d& base_m,
                                  Posture& posture) {
   const Slot& slot = slots_[slot_first_[s]];
   const Eigen::Vector3d v = desired_m(slot, target_world_m, posture) - base_m;
-  const double dist = v.norm();
+  const double dist_sq = v.squaredNorm();
   Eigen::Vector3d& tip_m = link_tip_m_[s];
   SegmentPose& pose = posture.segments[s];
-  if (dist > 1e-12)
-    tip_m = base_m + (slot.a_norm_m / dist) * v;
+  if (dist_sq > 1e-24)
+    tip_m = base_m + length_over(slot.a_norm_m, dist_sq) * v;
   else  // on the desired position: keep the link's direction
     tip_m = base_m + (tip_m - pose.base_world_m);
   pose.base_world_m = base_m;

@@ -87,9 +87,8 @@ class FabrikSolver {
   void turn_links(Posture& posture) const;
   // World position of target i's point during a solve.
   Eigen::Vector3d target_point_m(int i, const Posture& posture) const {
-    const int point = targets_.targets()[i].point;
-    const int s = model_.points[point].segment;
-    return link_[s] ? link_tip_m_[s] : posture.point_world_m(model_, point);
+    const int s = target_segment_[i];
+    return link_[s] ? link_tip_m_[s] : posture.point_world_m(model_, targets_.targets()[i].point);
   }
   void free_root_fit(int n, SegmentPose& pose) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
@@ -115,7 +114,8 @@ class FabrikSolver {
   std::vector<std::uint8_t> link_;
   bool any_link_ = false;
   std::vector<Eigen::Vector3d> link_tip_m_;
-  std::vector<SegmentPose> start_;  // posture at the start of a pass
+  std::vector<int> target_segment_;  // the segment of each target's point
+  std::vector<SegmentPose> start_;   // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
 };
