@@ -303,6 +303,11 @@ TEST_CASE("Property: random trees keep geometry and the rigid fit never ends wor
           REQUIRE(max_rigidity_error(m, posture) < kRigidRel);
           REQUIRE(max_joint_gap_m(m, posture) < 1e-9);
           REQUIRE(std::isfinite(r.rms_m));
+          // The distances reported are those of the posture returned (links
+          // are measured at their tips, before their one turn at the end).
+          for (std::size_t i = 0; i < targets.size(); ++i)
+            REQUIRE(std::abs(solver.target_distances_m()[i] -
+                             (posture.point_world_m(m, targets[i].point) - pos[i]).norm()) < 1e-9);
           // The paper's rule aligns only the mean direction of a segment's
           // drivers, so with several targets on one segment it can end worse
           // than it started; the rigid fit never does (README: segment fit).
