@@ -98,15 +98,15 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
   // FABRIK way, and its rotation follows once at the end: the minimal turn
   // from the start, the same joint positions for a fraction of the work.
   // A free root is placed by its own fit, so it is never a link.
-  const int passes = options_.use_priorities ? n_pass_ : 1;
+  const int passes = pass_count();
   bool runs = false;
-  for (int pass = 0; pass < passes; ++pass) runs = runs || (activity(pass, 0) & kOwn);
+  for (int pass = 0; pass < passes; ++pass) runs = runs || pass_runs(pass);
   any_link_ = false;
   for (int s = 0; s < n_seg_; ++s) {
     bool link = runs && slot_first_[s + 1] - slot_first_[s] == 1 &&
                 (s != 0 || options_.root == RootMode::fixed);
     for (int pass = 0; pass < passes && link; ++pass)
-      if ((activity(pass, 0) & kOwn) && !active(pass, s)) link = false;
+      if (pass_runs(pass) && !active(pass, s)) link = false;
     link_[s] = link;
     any_link_ = any_link_ || link;
   }
@@ -131,10 +131,7 @@ double FabrikSolver::pass_weight(int pass, int t) const {
   for (int k = slot_first_[s], end = slot_first_[s + 1]; k < end; ++k) {
     if (weight[k] <= 0.0) continue;
     const Slot& slot = slots_[k];
-    drivers_[n++] = {&slot,
-                     slot.source >= 0 ? &target_world_m[slot.source]
-                                      : &posture.segments[~slot.source].base_world_m,
-                     weight[k]};
+    drivers_[n++] = {&slot, &desired_m(slot, target_world_m, posture), weight[k]};
   }
   return n;
 }
@@ -372,15 +369,15 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       if (any_link_) turn_links(posture);
       return result;
     }
-    const int passes = options_.use_priorities ? n_pass_ : 1;
+    const int passes = pass_count();
     int active_levels = 0, strongest = -1;
     for (int pass = 0; pass < passes; ++pass)
-      if (activity(pass, 0) & kOwn) {
+      if (pass_runs(pass)) {
         ++active_levels;
         strongest = pass;
       }
     for (int pass = 0; pass < passes; ++pass) {  // weakest level first
-      if (!(activity(pass, 0) & kOwn)) continue;
+      if (!pass_runs(pass)) continue;
       // The strongest level is revisited until it settles, so that it ends
       // each iteration as well met as it can be; with a single level the
       // convergence loop itself repeats the pass.

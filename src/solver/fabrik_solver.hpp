@@ -62,6 +62,9 @@ class FabrikSolver {
   static constexpr std::uint8_t kOwn = 1, kAnchor = 2;
   bool active(int pass, int s) const { return active_[pass * n_seg_ + s] != 0; }
   std::uint8_t activity(int pass, int s) const { return active_[pass * n_seg_ + s]; }
+  // Passes of the priority loop, and whether one runs: its level has a visible target.
+  int pass_count() const { return options_.use_priorities ? n_pass_ : 1; }
+  bool pass_runs(int pass) const { return (activity(pass, 0) & kOwn) != 0; }
   // The weight a target has in a pass: 0 if it does not take part.
   double pass_weight(int pass, int target) const;
   int gather(int pass, int s, std::span<const Eigen::Vector3d> target_world_m,
@@ -74,13 +77,14 @@ class FabrikSolver {
   bool level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
                      std::span<const std::uint8_t> visible, const Posture& posture);
   void place_with_candidates(int n, SegmentPose& pose, bool turn) const;
-  // Links: see mark_active.
+  // Where a slot's point is pulled: its target, or its child segment's base.
   const Eigen::Vector3d& desired_m(const Slot& slot,
                                    std::span<const Eigen::Vector3d> target_world_m,
                                    const Posture& posture) const {
     return slot.source >= 0 ? target_world_m[slot.source]
                             : posture.segments[~slot.source].base_world_m;
   }
+  // Links: see mark_active.
   void forward_link(int s, std::span<const Eigen::Vector3d> target_world_m, Posture& posture) const;
   void backward_link(int s, const Eigen::Vector3d& base_m,
                      std::span<const Eigen::Vector3d> target_world_m, Posture& posture);
