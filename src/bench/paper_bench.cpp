@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <memory>
 
 #include "bench.hpp"
 #include "config/json_reader.hpp"
@@ -22,7 +23,7 @@ using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
 struct Experiment {
-  Model model;
+  std::shared_ptr<const Model> model;
   std::vector<Target> targets;
   std::vector<std::string> target_names;
   std::vector<Eigen::Vector3d> positions_m;
@@ -40,7 +41,8 @@ Experiment load_experiment(const std::string& path) {
   const std::filesystem::path dir = std::filesystem::path(path).parent_path();
   const std::string model_path =
       std::filesystem::exists(path) ? (dir / model_rel).string() : model_rel;
-  e.model = load_model(JsonReader::parse(read_config_text(model_path), model_path), model_path);
+  e.model = std::make_shared<const Model>(
+      load_model(JsonReader::parse(read_config_text(model_path), model_path), model_path));
   const double scale = metres_per_unit(root.at("units"));
   const JsonReader targets = root.at("targets");
   targets.expect_array();
@@ -48,7 +50,7 @@ Experiment load_experiment(const std::string& path) {
     const JsonReader t = targets.at(i);
     t.only_keys({"point", "position", "level", "weight"});
     const std::string name = t.at("point").as_string();
-    const int point = e.model.find_point(name);
+    const int point = e.model->find_point(name);
     if (point < 0) t.at("point").fail("no point '" + name + "' in the model", "name a model point");
     e.targets.push_back({point, static_cast<int>(t.get("level", 0LL, -1000LL, 1000LL)),
                          t.get("weight", 1.0, 1e-6, 1e6)});
@@ -73,7 +75,7 @@ template <class Solver>
 Run time_solver(Solver& solver, const Experiment& e, int repeats) {
   Run run;
   const std::vector<std::uint8_t> visible(e.targets.size(), 1);
-  const Posture start = Posture::rest(e.model);
+  const Posture start = Posture::rest(*e.model);
   run.posture = start;
   run.times_us.reserve(static_cast<std::size_t>(repeats));
   for (int i = 0; i < repeats; ++i) {
@@ -120,7 +122,7 @@ json run_json(const Experiment& e, const Run& run) {
           {"iterations", run.result.iterations},
           {"passes", run.result.passes},
           {"error_mm", errors},
-          {"posture", posture_json(e.model, run.posture)}};
+          {"posture", posture_json(*e.model, run.posture)}};
 }
 
 json check(bool pass, double value, double limit, const char* unit, const char* what) {
@@ -141,28 +143,28 @@ json run_paper(const PaperOptions& options) {
     throw ConfigError(options.experiment, "/targets",
                       "the paper experiment needs two targets, the first stronger",
                       "list the high-priority wrist first with the higher level");
-  const Model& m = e.model;
+  const Model& m = *e.model;
 
   SolverOptions flat = e.solver;
   flat.use_priorities = false;
-  FabrikSolver fabrik(m, e.targets, flat);
+  FabrikSolver fabrik(e.model, e.targets, flat);
   const Run r_flat = time_solver(fabrik, e, repeats);
 
   SolverOptions prio = e.solver;
   prio.use_priorities = true;
-  FabrikSolver prioritized(m, e.targets, prio);
+  FabrikSolver prioritized(e.model, e.targets, prio);
   const Run r_prio = time_solver(prioritized, e, repeats);
 
   // The same two runs with the paper's literal subbase rule, for comparison.
   SolverOptions flat_paper = flat, prio_paper = prio;
   flat_paper.segment_fit = prio_paper.segment_fit = SegmentFit::paper;
-  FabrikSolver fabrik_paper(m, e.targets, flat_paper);
+  FabrikSolver fabrik_paper(e.model, e.targets, flat_paper);
   const Run r_flat_paper = time_solver(fabrik_paper, e, repeats);
-  FabrikSolver prioritized_paper(m, e.targets, prio_paper);
+  FabrikSolver prioritized_paper(e.model, e.targets, prio_paper);
   const Run r_prio_paper = time_solver(prioritized_paper, e, repeats);
 
   // JT is slow: fewer repetitions give the same median for this deterministic problem.
-  JacobianSolver jt(m, e.targets, flat, {JacobianMethod::transpose, 0.0, 0.2});
+  JacobianSolver jt(e.model, e.targets, flat, {JacobianMethod::transpose, 0.0, 0.2});
   const Run r_jt = time_solver(jt, e, std::max(5, repeats / 10));
 
   // The same JT, timed to the accuracy FABRIK ends with: it stops when both
@@ -173,7 +175,7 @@ json run_paper(const PaperOptions& options) {
   SolverOptions equal = flat;
   equal.tolerance_m = std::max(r_flat.distances_m[0], r_flat.distances_m[1]);
   equal.stall_tolerance_m = 0.0;
-  JacobianSolver jt_equal(m, e.targets, equal, {JacobianMethod::transpose, 0.0, 0.2});
+  JacobianSolver jt_equal(e.model, e.targets, equal, {JacobianMethod::transpose, 0.0, 0.2});
   const Run r_jt_equal = time_solver(jt_equal, e, std::max(5, repeats / 10));
 
   // Geometry of the ideal prioritized posture: the chain from the root to

@@ -91,14 +91,22 @@ struct Loader {
   const JsonReader root;
   CalibTemplate t;
   double scale = 1e-3;
-  // Offset points whose frame names a segment, resolved once all segments are read.
+  // Offset points (and segments) whose frame names a segment, resolved once
+  // all segments are read.
   std::vector<std::pair<int, JsonReader>> named_frames;
+  std::vector<std::pair<int, JsonReader>> named_segment_frames;
   // Every reference, checked once all names are known.
   std::vector<std::pair<std::string, std::string>> refs;  // name, pointer
 
   void note_ref(const PointRef& ref, const JsonReader& where) { note_ref(ref, where.pointer()); }
   void note_ref(const PointRef& ref, const std::string& pointer) {
     for (const std::string& n : ref.names) refs.emplace_back(n, pointer);
+  }
+
+  const JsonReader* pending_segment_frame(int seg) const {
+    for (const auto& [s, f] : named_segment_frames)
+      if (s == seg) return &f;
+    return nullptr;
   }
 
   void check_unique(const std::string& name, const JsonReader& where) {
@@ -148,6 +156,8 @@ struct Loader {
         }
       } else if (t.segments[seg].frame >= 0) {
         d.frame = t.segments[seg].frame;
+      } else if (const JsonReader* named = pending_segment_frame(seg)) {
+        named_frames.emplace_back(static_cast<int>(t.points.size()), *named);
       } else {
         p.fail("an offset needs a frame and segment '" + t.segments[seg].name + "' has none",
                "add \"frame\" here or to the segment (an array of two axes), or name the "
@@ -188,8 +198,8 @@ struct Loader {
   }
 
   void read_segment(const JsonReader& s) {
-    s.only_keys(
-        {"name", "parent", "base", "level", "weight", "frame", "points", "markers", "description"});
+    s.only_keys({"name", "parent", "base", "level", "weight", "frame", "joint", "points", "markers",
+                 "description"});
     SegmentDef seg;
     seg.name = s.at("name").as_string();
     seg.pointer = s.pointer();
@@ -203,11 +213,22 @@ struct Loader {
                             "list every segment after its parent");
     }
     seg.base = s.at("base").as_string();
-    if (s.has("frame")) {
-      t.frames.push_back(read_frame(s.at("frame")));
-      seg.frame = static_cast<int>(t.frames.size()) - 1;
-    }
     const int idx = static_cast<int>(t.segments.size());
+    if (s.has("frame")) {
+      if (s.at("frame").value().is_string()) {
+        named_segment_frames.emplace_back(idx, s.at("frame"));
+      } else {
+        t.frames.push_back(read_frame(s.at("frame")));
+        seg.frame = static_cast<int>(t.frames.size()) - 1;
+      }
+    }
+    if (s.has("joint")) {
+      if (seg.parent < 0)
+        s.at("joint").fail("the root segment has no parent joint",
+                           "remove \"joint\" from the root segment");
+      s.at("joint").expect_object();
+      seg.joint = s.at("joint").value();
+    }
     t.segments.push_back(seg);
     const int level = static_cast<int>(s.get("level", (long long)t.default_level, -1000, 1000));
     const double weight = s.get("weight", t.default_weight, 1e-9, 1e9);
@@ -308,7 +329,12 @@ struct Loader {
     if (fmt.as_string() != "fabrikd-template/1")
       fmt.fail("unsupported format '" + fmt.as_string() + "'",
                "use \"fabrikd-template/1\" (is this a template?)");
-    root.only_keys({"format", "name", "description", "units", "defaults", "segments"});
+    root.only_keys(
+        {"format", "name", "description", "units", "defaults", "segments", "coordinates"});
+    if (root.has("coordinates")) {
+      root.at("coordinates").expect_object();
+      t.coordinates = root.at("coordinates").value();
+    }
     t.name = root.get("name", std::string("template"));
     t.description = root.get("description", std::string());
     scale = metres_per_unit(root.at("units"));
@@ -322,6 +348,15 @@ struct Loader {
     segs.expect_array();
     if (segs.value().empty()) segs.fail("no segments", "add at least one segment");
     for (std::size_t i = 0; i < segs.value().size(); ++i) read_segment(segs.at(i));
+    // A segment's frame may be another segment's (a clavicle's the torso's).
+    for (const auto& [seg, f] : named_segment_frames) {
+      const std::string other = f.as_string();
+      const int s = t.find_segment(other);
+      if (s < 0 || t.segments[s].frame < 0)
+        f.fail("'" + other + "' is not a segment with a frame of its own",
+               "name a segment that defines \"frame\" as two axes, or give the axes here");
+      t.segments[seg].frame = t.segments[s].frame;
+    }
     for (const auto& [point, f] : named_frames) {
       const std::string seg = f.as_string();
       const int s = t.find_segment(seg);
@@ -350,7 +385,7 @@ struct Loader {
 }  // namespace
 
 CalibTemplate load_template(const nlohmann::json& doc, const std::string& file) {
-  Loader l{JsonReader(doc, file), {}, 1e-3, {}, {}};
+  Loader l{JsonReader(doc, file), {}, 1e-3, {}, {}, {}};
   l.t.file = file;
   l.load();
   return std::move(l.t);

@@ -71,7 +71,12 @@ struct SegmentDef {
   std::string name;
   int parent = -1;
   std::string base;  // a point of the parent (the root: one of its own points)
-  int frame = -1;    // the segment's frame for its offset points, -1 if none
+  // The segment's frame: its anatomical frame in the model, and the frame of
+  // its offset points. -1 if none.
+  int frame = -1;
+  // The base joint's type and ranges, copied into the model as they are
+  // (fabrikd-model/1 "joint", checked when the model is built); null if none.
+  nlohmann::json joint;
   std::string pointer;
 };
 
@@ -85,6 +90,9 @@ struct CalibTemplate {
   std::vector<PointDef> points;      // grouped by segment, in file order within it
   std::vector<MarkerDef> markers;
   std::vector<FrameSpec> frames;
+  // Named coordinates, copied into the model as they are (fabrikd-model/1
+  // "coordinates"); null if none.
+  nlohmann::json coordinates;
 
   int find_point(const std::string& name) const;
   int find_marker(const std::string& name) const;

@@ -29,6 +29,11 @@ double mm(double metres) {
 nlohmann::ordered_json mm3(const Eigen::Vector3d& v) {
   return {mm(v.x()), mm(v.y()), mm(v.z())};
 }
+// A unit axis, to 1e-9 (well within the model loader's orthogonality check).
+nlohmann::ordered_json unit3(const Eigen::Vector3d& v) {
+  auto r = [](double x) { return std::round(x * 1e9) / 1e9; };
+  return {r(v.x()), r(v.y()), r(v.z())};
+}
 
 std::string fmt(const char* format, double v) {
   char buf[64];
@@ -286,6 +291,13 @@ class Calibrator {
       }
       if (!pts.empty()) seg["points"] = pts;
       if (!mks.empty()) seg["markers"] = mks;
+      if (sd.frame >= 0) {
+        // The anatomical frame at the static pose, which is the rest pose.
+        const Eigen::Matrix3d axes = frame(t_.frames[sd.frame]);
+        seg["frame"] = {{"x", unit3(axes.col(0))}, {"y", unit3(axes.col(1))},
+                        {"z", unit3(axes.col(2))}};
+      }
+      if (!sd.joint.is_null()) seg["joint"] = nlohmann::ordered_json::parse(sd.joint.dump());
       segs.push_back(seg);
     }
     const SegmentDef& root = t_.segments[0];
@@ -299,6 +311,8 @@ class Calibrator {
     r_.model["units"] = "mm";
     r_.model["root_position"] = mm3(point(t_.find_point(root.base)));
     r_.model["segments"] = segs;
+    if (!t_.coordinates.is_null())
+      r_.model["coordinates"] = nlohmann::ordered_json::parse(t_.coordinates.dump());
 
     // The targets: the template's default level and weight, and every marker that differs.
     nlohmann::ordered_json markers = nlohmann::ordered_json::object();

@@ -1,5 +1,7 @@
 #include "model_loader.hpp"
 
+#include <Eigen/SVD>
+
 #include "json_reader.hpp"
 #include "solver/model_builder.hpp"
 
@@ -13,6 +15,123 @@ double metres_per_unit(const JsonReader& units) {
 }
 
 namespace {
+
+constexpr double kRadPerDeg = 3.141592653589793 / 180.0;
+
+// {"x": [..], "y": [..], "z": [..]}: the anatomical axes in the rest frame.
+// Two axes are enough (the third completes a right-handed frame); a third,
+// if given, must agree. Columns of the result are x, y, z.
+Eigen::Matrix3d read_frame(const JsonReader& f) {
+  f.expect_object();
+  f.only_keys({"x", "y", "z", "description"});
+  const char* names[3] = {"x", "y", "z"};
+  Eigen::Vector3d axis[3];
+  bool given[3];
+  int n = 0;
+  for (int k = 0; k < 3; ++k) {
+    given[k] = f.has(names[k]);
+    if (!given[k]) continue;
+    axis[k] = f.at(names[k]).as_vec3();
+    if (axis[k].norm() < 1e-9) f.at(names[k]).fail("the axis has no direction", "give a non-zero vector");
+    axis[k].normalize();
+    ++n;
+  }
+  if (n < 2) f.fail("a frame needs at least two of its axes", "give \"x\", \"y\" and/or \"z\" as unit vectors");
+  // Complete a missing axis: x = y cross z, y = z cross x, z = x cross y.
+  for (int k = 0; k < 3; ++k)
+    if (!given[k]) axis[k] = axis[(k + 1) % 3].cross(axis[(k + 2) % 3]);
+  Eigen::Matrix3d m;
+  m << axis[0], axis[1], axis[2];
+  if ((m.transpose() * m - Eigen::Matrix3d::Identity()).norm() > 1e-3 || m.determinant() < 0)
+    f.fail("the axes are not at right angles or not right-handed (x cross y must be z)",
+           "give orthogonal unit axes");
+  // Rounding in the file: the nearest rotation (polar decomposition).
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  return svd.matrixU() * svd.matrixV().transpose();
+}
+
+// {"type": "hinge", "range_deg": {"z": [min, max]}}: see JointLimits.
+JointSpec read_joint(const JsonReader& j) {
+  j.expect_object();
+  j.only_keys({"type", "range_deg", "description"});
+  JointSpec spec;
+  spec.type = read_choice<JointType>(j.at("type"), "joint type",
+                                     {{"free", JointType::free},
+                                      {"ball", JointType::ball},
+                                      {"universal", JointType::universal},
+                                      {"hinge", JointType::hinge},
+                                      {"fixed", JointType::fixed}});
+  if (!j.has("range_deg")) return spec;
+  const JsonReader r = j.at("range_deg");
+  r.expect_object();
+  r.only_keys({"z", "x", "y"});
+  const char* names[3] = {"z", "x", "y"};
+  // Which angles the type lets move (z, x, y): a range for a held angle is a mistake.
+  const bool moves[5][3] = {{true, true, true}, {true, true, true}, {true, true, false},
+                            {true, false, false}, {false, false, false}};
+  for (int k = 0; k < 3; ++k) {
+    if (!r.has(names[k])) continue;
+    const JsonReader range = r.at(names[k]);
+    if (!moves[static_cast<int>(spec.type)][k])
+      range.fail(std::string("a ") + j.at("type").as_string() + " joint holds its " + names[k] +
+                     " angle at rest",
+                 std::string("remove this range, or choose a joint type that turns about ") + names[k]);
+    range.expect_array();
+    if (range.value().size() != 2)
+      range.fail("a range is [min, max] in degrees", "write e.g. [-10, 120]");
+    const double bound = k == 1 ? 90.0 : 180.0;
+    const double lo = range.at(std::size_t{0}).as_number(-bound, bound);
+    const double hi = range.at(std::size_t{1}).as_number(-bound, bound);
+    if (lo > hi) range.fail("min is larger than max", "write [min, max]");
+    spec.min_rad[k] = lo * kRadPerDeg;
+    spec.max_rad[k] = hi * kRadPerDeg;
+  }
+  return spec;
+}
+
+int read_axis_letter(const JsonReader& a) {
+  return read_choice<int>(a, "axis", {{"x", 0}, {"y", 1}, {"z", 2}});
+}
+
+// "coordinates": {NAME: {"segment": S, "relative_to": R|"world", "axis": "z",
+// "sign": 1, "offset_deg": 0} or {"point": P, "axis": "x", "sign": 1, "offset": 0}}.
+std::vector<CoordinateSpec> read_coordinates(const JsonReader& c,
+                                             const std::vector<SegmentSpec>& specs, double scale) {
+  c.expect_object();
+  std::vector<CoordinateSpec> out;
+  for (auto it = c.value().begin(); it != c.value().end(); ++it) {
+    const JsonReader e = c.at(it.key());
+    e.expect_object();
+    CoordinateSpec cs;
+    cs.name = it.key();
+    cs.sign = e.get("sign", 1.0, -1e6, 1e6);
+    if (cs.sign == 0.0) e.at("sign").fail("the sign is zero", "use 1 or -1");
+    cs.axis = read_axis_letter(e.at("axis"));
+    if (e.has("point")) {
+      e.only_keys({"point", "axis", "sign", "offset", "description"});
+      cs.kind = CoordinateKind::translation;
+      cs.point = e.at("point").as_string();
+      cs.offset = e.get("offset", 0.0, -1e6, 1e6) * scale;
+    } else {
+      e.only_keys({"segment", "relative_to", "axis", "sign", "offset_deg", "description"});
+      cs.kind = CoordinateKind::rotation;
+      cs.segment = e.at("segment").as_string();
+      const SegmentSpec* seg = nullptr;
+      for (const SegmentSpec& s : specs)
+        if (s.name == cs.segment) seg = &s;
+      if (!seg)
+        e.at("segment").fail("the model has no segment '" + cs.segment + "'",
+                             "name one of the model's segments");
+      // Default: relative to the parent (the joint's angles), the world for the root.
+      cs.relative_to = e.has("relative_to") ? e.at("relative_to").as_string() : seg->parent;
+      if (cs.relative_to == "world") cs.relative_to.clear();
+      cs.offset = e.get("offset_deg", 0.0, -360.0, 360.0) * kRadPerDeg;
+    }
+    out.push_back(cs);
+  }
+  return out;
+}
+
 void read_points(const JsonReader& obj, double scale, bool marker, std::vector<PointSpec>& out) {
   obj.expect_object();
   for (auto it = obj.value().begin(); it != obj.value().end(); ++it) {
@@ -27,7 +146,8 @@ Model load_model(const nlohmann::json& doc, const std::string& file) {
 }
 
 Model load_model(const JsonReader& root) {
-  root.only_keys({"format", "name", "units", "root_position", "segments", "description"});
+  root.only_keys(
+      {"format", "name", "units", "root_position", "segments", "coordinates", "description"});
   if (root.has("format") && root.at("format").as_string() != "fabrikd-model/1")
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
                            "use \"fabrikd-model/1\"");
@@ -41,7 +161,7 @@ Model load_model(const JsonReader& root) {
   std::vector<SegmentSpec> specs;
   for (std::size_t i = 0; i < segs.value().size(); ++i) {
     const JsonReader s = segs.at(i);
-    s.only_keys({"name", "parent", "base", "points", "markers", "description"});
+    s.only_keys({"name", "parent", "base", "points", "markers", "frame", "joint", "description"});
     SegmentSpec spec;
     spec.name = s.at("name").as_string();
     spec.parent =
@@ -49,10 +169,15 @@ Model load_model(const JsonReader& root) {
     spec.base = s.at("base").as_string();
     if (s.has("points")) read_points(s.at("points"), scale, false, spec.points);
     if (s.has("markers")) read_points(s.at("markers"), scale, true, spec.points);
+    if (s.has("frame")) spec.anatomical = read_frame(s.at("frame"));
+    if (s.has("joint")) spec.joint = read_joint(s.at("joint"));
     specs.push_back(std::move(spec));
   }
+  const std::vector<CoordinateSpec> coordinates =
+      root.has("coordinates") ? read_coordinates(root.at("coordinates"), specs, scale)
+                              : std::vector<CoordinateSpec>{};
   try {
-    return build_model(name, specs, root_m);
+    return build_model(name, specs, root_m, coordinates);
   } catch (const ModelError& e) {
     // Point the message at the field the builder complained about.
     std::string pointer = root.pointer() + "/segments";
@@ -65,6 +190,8 @@ Model load_model(const JsonReader& root) {
       } else {
         pointer += "/" + e.field();
       }
+    } else if (e.field().rfind("coordinates/", 0) == 0) {
+      pointer = root.pointer() + "/coordinates/" + json_pointer_token(e.field().substr(12));
     } else if (e.field() != "segments") {
       pointer = root.pointer() + "/" + e.field();
     }

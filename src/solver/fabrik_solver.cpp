@@ -1,13 +1,19 @@
 #include "fabrik_solver.hpp"
 
 #include <algorithm>
-#include <cassert>
+#include <cmath>
+#include <numbers>
 
+#include "joint_angles.hpp"
 #include "rotation_fit.hpp"
 
 namespace fabrik {
 
 namespace {
+// Coordinate-ascent sweeps of a limited segment's joint angles per visit: the
+// convergence loop revisits the segment, as with the one Newton step.
+constexpr int kJointSweeps = 1;
+
 // len / sqrt(dist_sq), as len * sqrt(dist_sq) * (1 / dist_sq): the square
 // root and the division do not wait for each other, which shortens every
 // FABRIK step's chain of dependent operations (within 2 ulp of the quotient).
@@ -17,10 +23,16 @@ inline double length_over(double len, double dist_sq) {
 }  // namespace
 
 FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options)
-    : model_(model),
-      targets_(model, std::move(targets)),
+    : FabrikSolver(std::make_shared<const Model>(model), std::move(targets), options) {}
+
+FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<Target> targets,
+                           SolverOptions options)
+    : model_holder_(std::move(model_ptr)),
+      model_(*model_holder_),
+      targets_(model_, std::move(targets)),
       options_(options),
-      n_seg_(static_cast<int>(model.segments.size())) {
+      n_seg_(static_cast<int>(model_.segments.size())) {
+  const Model& model = model_;
   n_pass_ = std::max<int>(1, static_cast<int>(targets_.levels().size()));
   active_.assign(static_cast<std::size_t>(n_pass_ * n_seg_), 0);
   int max_drivers = 0;
@@ -54,6 +66,22 @@ FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, Solv
   distances_m_.assign(targets_.targets().size(), 0.0);
   previous_m_.assign(targets_.targets().size(), 0.0);
   level_previous_m_.assign(targets_.targets().size(), 0.0);
+
+  limited_.assign(static_cast<std::size_t>(n_seg_), 0);
+  parent_of_limited_.assign(static_cast<std::size_t>(n_seg_), 0);
+  joint_parent_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
+  joint_child_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
+  joint_vector_.assign(slots_.size(), Eigen::Vector3d::Zero());
+  for (int s = 1; s < n_seg_; ++s) {
+    const Segment& seg = model.segments[s];
+    if (!seg.joint.limited()) continue;
+    limited_[s] = 1;
+    parent_of_limited_[seg.parent] = 1;
+    joint_parent_[s] = model.segments[seg.parent].q_anatomical.toRotationMatrix();
+    joint_child_[s] = seg.q_anatomical.toRotationMatrix();
+    for (int k = slot_first_[s]; k < slot_first_[s + 1]; ++k)
+      joint_vector_[k] = joint_child_[s].transpose() * slots_[k].a_local;
+  }
 }
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
@@ -104,7 +132,8 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
   any_link_ = false;
   for (int s = 0; s < n_seg_; ++s) {
     bool link = runs && slot_first_[s + 1] - slot_first_[s] == 1 &&
-                (s != 0 || options_.root == RootMode::fixed);
+                (s != 0 || options_.root == RootMode::fixed) && !limited_[s] &&
+                !parent_of_limited_[s];
     for (int pass = 0; pass < passes && link; ++pass)
       if (pass_runs(pass) && !active(pass, s)) link = false;
     link_[s] = link;
@@ -247,12 +276,33 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
       continue;
     }
     const int n = gather(pass, s, target_world_m, visible, posture);
-    if (root && options_.segment_fit == SegmentFit::rigid)
+    if (root && options_.segment_fit == SegmentFit::rigid) {
       free_root_fit(n, posture.segments[s]);
-    else  // see place_with_candidates for why one driver does not turn here
+    } else if (limited_[s]) {
+      forward_limited(n, s, posture);
+    } else {  // see place_with_candidates for why one driver does not turn here
       place_with_candidates(n, posture.segments[s],
                             root || slot_first_[s + 1] - slot_first_[s] > 1);
+    }
   }
+}
+
+// A limited segment's forward step: placed as any other, then turned within
+// its range relative to its parent as the parent stands now (the parent
+// moves later in this pass), and moved so its drivers are met as well as the
+// limited rotation allows. Its base, which the parent reaches for next, then
+// says where the segment can be, not where a free one would be.
+void FabrikSolver::forward_limited(int n, int s, Posture& posture) const {
+  SegmentPose& pose = posture.segments[s];
+  place_with_candidates(n, pose, false);
+  limited_fit(n, s, pose.base_world_m, posture);
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double weight_sum = 0.0;
+  for (int k = 0; k < n; ++k) {
+    sum += drivers_[k].weight * (drivers_[k].d_world() - pose.r_world * drivers_[k].a_local());
+    weight_sum += drivers_[k].weight;
+  }
+  if (weight_sum > 0.0) pose.base_world_m = sum / weight_sum;
 }
 
 // A link's forward step: its base moves onto the line from its one desired
@@ -326,13 +376,51 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
       // Nothing below pulls on this segment: it rides rigidly on its parent.
       const SegmentPose& parent_now = posture.segments[seg.parent];
       const SegmentPose& parent_then = start_[seg.parent];
+      const Eigen::Quaterniond previous = pose.q_world;
       pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
       pose.base_world_m = base_m;
+      if (limited_[s]) enforce_joint_limits(model_, s, previous, posture);
       continue;
     }
     const int n = gather(pass, s, target_world_m, visible, posture);
-    rotate_about_base(n, base_m, pose);
+    if (limited_[s]) {
+      limited_fit(n, s, base_m, posture);
+    } else {
+      rotate_about_base(n, base_m, pose);
+    }
   }
+}
+
+
+// A limited segment turns through its joint angles alone: its rotation is
+// R_parent J_parent E(angles) J_child^T (J: the anatomical frames, E the
+// Cardan rotation), so the weighted alignment of its drivers with their
+// desired vectors is <E, B> with B = sum_k w_k (parent-frame desired
+// vector)(segment joint-frame vector)^T, which fit_joint_angles maximises
+// within the ranges (exactly, for a hinge). The base stays where it is.
+void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m,
+                               Posture& posture) const {
+  const Segment& seg = model_.segments[s];
+  SegmentPose& pose = posture.segments[s];
+  const SegmentPose& parent = posture.segments[seg.parent];
+  pose.base_world_m = base_m;
+  if (seg.joint.type == JointType::fixed) {
+    pose.set_unit_rotation(parent.q_world);  // at rest every frame is the world's
+    return;
+  }
+  const Eigen::Matrix3d p_world = parent.r_world * joint_parent_[s];
+  Eigen::Matrix3d b = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < n; ++k) {
+    const Driver& d = drivers_[k];
+    const std::size_t slot = static_cast<std::size_t>(d.slot - slots_.data());
+    b.noalias() += (d.weight * (p_world.transpose() * (d.d_world() - base_m))) *
+                   joint_vector_[slot].transpose();
+  }
+  const Eigen::Vector3d start =
+      cardan_zxy(p_world.transpose() * pose.r_world * joint_child_[s]);
+  const Eigen::Vector3d angles = fit_joint_angles(b, seg.joint, start, kJointSweeps);
+  pose.set_rotation(parent.q_world * model_.segments[seg.parent].q_anatomical *
+                    Eigen::Quaterniond(rotation_zxy(angles)) * seg.q_anatomical.conjugate());
 }
 
 // True when this level's targets are within tolerance or stopped moving since
@@ -352,9 +440,13 @@ bool FabrikSolver::level_settled(int pass, std::span<const Eigen::Vector3d> targ
 
 SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
                                 std::span<const std::uint8_t> visible, Posture& posture) {
-  assert(static_cast<int>(target_world_m.size()) == targets_.size());
-  assert(static_cast<int>(visible.size()) == targets_.size());
-  assert(static_cast<int>(posture.segments.size()) == n_seg_);
+  if (static_cast<int>(target_world_m.size()) != targets_.size() ||
+      static_cast<int>(visible.size()) != targets_.size() ||
+      static_cast<int>(posture.segments.size()) != n_seg_) {
+    SolveResult mismatch;
+    mismatch.status = SolveStatus::size_mismatch;
+    return mismatch;
+  }
   mark_active(visible);
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
   if (any_link_)

@@ -9,6 +9,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -21,11 +22,16 @@ namespace fabrik {
 
 class FabrikSolver {
  public:
-  // The model must outlive the solver.
+  // The solver shares ownership of the (immutable) model.
+  FabrikSolver(std::shared_ptr<const Model> model, std::vector<Target> targets,
+               SolverOptions options);
+  // The same with a copy of `model`.
   FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options);
 
   // target_world_m[i] and visible[i] belong to targets()[i]. `posture` is the
   // start (warm start: the previous frame's result) and receives the result.
+  // Inputs of the wrong size give SolveStatus::size_mismatch (posture unchanged).
+  // Joints with limits (Segment::joint) end every solve within them.
   SolveResult solve(std::span<const Eigen::Vector3d> target_world_m,
                     std::span<const std::uint8_t> visible, Posture& posture);
 
@@ -95,8 +101,13 @@ class FabrikSolver {
     return link_[s] ? link_tip_m_[s] : posture.point_world_m(model_, targets_.targets()[i].point);
   }
   void free_root_fit(int n, SegmentPose& pose) const;
+  // A segment with a limited base joint: the rotation within its ranges that
+  // best aims its drivers, about a given base.
+  void limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture) const;
+  void forward_limited(int n, int s, Posture& posture) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
+  std::shared_ptr<const Model> model_holder_;
   const Model& model_;
   TargetSet targets_;
   SolverOptions options_;
@@ -119,6 +130,13 @@ class FabrikSolver {
   bool any_link_ = false;
   std::vector<Eigen::Vector3d> link_tip_m_;
   std::vector<int> target_segment_;  // the segment of each target's point
+  // Joint limits: per segment, whether its base joint is limited or it is
+  // the parent of a limited joint (then never a link: the child's limit needs
+  // its full rotation), and the anatomical frames of both sides; per slot of
+  // a limited segment, its local vector in the segment's anatomical frame.
+  std::vector<std::uint8_t> limited_, parent_of_limited_;
+  std::vector<Eigen::Matrix3d> joint_parent_, joint_child_;
+  std::vector<Eigen::Vector3d> joint_vector_;
   std::vector<SegmentPose> start_;   // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level

@@ -2,8 +2,9 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
-#include <cassert>
 #include <cmath>
+
+#include "joint_angles.hpp"
 
 namespace fabrik {
 
@@ -17,11 +18,17 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v) {
 
 JacobianSolver::JacobianSolver(const Model& model, std::vector<Target> targets,
                                SolverOptions options, JacobianOptions jacobian)
-    : model_(model),
-      targets_(model, std::move(targets)),
+    : JacobianSolver(std::make_shared<const Model>(model), std::move(targets), options, jacobian) {}
+
+JacobianSolver::JacobianSolver(std::shared_ptr<const Model> model_ptr, std::vector<Target> targets,
+                               SolverOptions options, JacobianOptions jacobian)
+    : model_holder_(std::move(model_ptr)),
+      model_(*model_holder_),
+      targets_(model_, std::move(targets)),
       options_(options),
       jacobian_(jacobian),
-      n_seg_(static_cast<int>(model.segments.size())) {
+      n_seg_(static_cast<int>(model_.segments.size())) {
+  const Model& model = model_;
   n_dof_ = 3 * n_seg_ + (options_.root == RootMode::free ? 3 : 0);
   const int n_t = targets_.size();
   joint_world_m_.resize(model.segments.size());
@@ -33,13 +40,15 @@ JacobianSolver::JacobianSolver(const Model& model, std::vector<Target> targets,
     normal_ = Eigen::MatrixXd::Zero(n_dof_, n_dof_);
   }
   old_q_.resize(model.segments.size());
+  has_limits_ = model.has_joint_limits();
   distances_m_.assign(static_cast<std::size_t>(n_t), 0.0);
   previous_m_.assign(static_cast<std::size_t>(n_t), 0.0);
 }
 
 // Jacobian transpose with the step length that minimises |e - alpha J J^T e|.
 void JacobianSolver::step_transpose(std::span<const Eigen::Vector3d> target_world_m,
-                                    std::span<const std::uint8_t> visible) {
+                                    std::span<const std::uint8_t> visible,
+                                    const Posture& posture) {
   dq_.setZero();
   for (int i = 0; i < targets_.size(); ++i) {
     if (!visible[i]) continue;
@@ -49,6 +58,7 @@ void JacobianSolver::step_transpose(std::span<const Eigen::Vector3d> target_worl
       dq_.segment<3>(3 * s) += (x_world_m_[i] - joint_world_m_[s]).cross(e);
     if (options_.root == RootMode::free) dq_.segment<3>(3 * n_seg_) += e;
   }
+  if (has_limits_) restrict_to_joints(posture);  // before the step length: it is for this step
   double num = 0.0, den = 0.0;  // alpha = <e, J J^T e> / <J J^T e, J J^T e>
   for (int i = 0; i < targets_.size(); ++i) {
     if (!visible[i]) continue;
@@ -84,6 +94,21 @@ void JacobianSolver::step_dls(std::span<const Eigen::Vector3d> target_world_m,
   llt.solveInPlace(dq_);
 }
 
+// A hinge's step keeps only its part about the hinge axis (in the world, the
+// parent's anatomical z); a fixed joint takes no step.
+void JacobianSolver::restrict_to_joints(const Posture& posture) {
+  for (int s = 1; s < n_seg_; ++s) {
+    const Segment& seg = model_.segments[s];
+    if (seg.joint.type == JointType::fixed) {
+      dq_.segment<3>(3 * s).setZero();
+    } else if (seg.joint.type == JointType::hinge) {
+      const Eigen::Vector3d u = posture.segments[seg.parent].r_world *
+                                (model_.segments[seg.parent].q_anatomical * Eigen::Vector3d::UnitZ());
+      dq_.segment<3>(3 * s) = u * u.dot(dq_.segment<3>(3 * s));
+    }
+  }
+}
+
 // Applies dq: segment s turns by omega_s about its base; children follow, so a
 // segment's world rotation composes every ancestor's turn (first order).
 void JacobianSolver::apply(Posture& posture, const Eigen::Vector3d& root_pin_m) {
@@ -99,6 +124,7 @@ void JacobianSolver::apply(Posture& posture, const Eigen::Vector3d& root_pin_m) 
     Eigen::Quaterniond q = turn * old_q_[s];
     if (p >= 0) q = posture.segments[p].q_world * old_q_[p].conjugate() * q;
     posture.segments[s].set_rotation(q);
+    enforce_joint_limits(model_, s, old_q_[s], posture);
   }
   SegmentPose& root = posture.segments[0];
   root.base_world_m = options_.root == RootMode::free
@@ -109,7 +135,13 @@ void JacobianSolver::apply(Posture& posture, const Eigen::Vector3d& root_pin_m) 
 
 SolveResult JacobianSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
                                   std::span<const std::uint8_t> visible, Posture& posture) {
-  assert(static_cast<int>(target_world_m.size()) == targets_.size());
+  if (static_cast<int>(target_world_m.size()) != targets_.size() ||
+      static_cast<int>(visible.size()) != targets_.size() ||
+      static_cast<int>(posture.segments.size()) != n_seg_) {
+    SolveResult mismatch;
+    mismatch.status = SolveStatus::size_mismatch;
+    return mismatch;
+  }
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
   SolveResult result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);
   StopRule stop(options_);
@@ -118,10 +150,12 @@ SolveResult JacobianSolver::solve(std::span<const Eigen::Vector3d> target_world_
     for (int s = 0; s < n_seg_; ++s) joint_world_m_[s] = posture.segments[s].base_world_m;
     for (int i = 0; i < targets_.size(); ++i)
       x_world_m_[i] = posture.point_world_m(model_, targets_.targets()[i].point);
-    if (jacobian_.method == JacobianMethod::transpose)
-      step_transpose(target_world_m, visible);
-    else
+    if (jacobian_.method == JacobianMethod::transpose) {
+      step_transpose(target_world_m, visible, posture);
+    } else {
       step_dls(target_world_m, visible);
+      if (has_limits_) restrict_to_joints(posture);
+    }
     apply(posture, root_pin_m);
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
     result = targets_.measure(model_, posture, target_world_m, visible, distances_m_);

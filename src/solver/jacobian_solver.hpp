@@ -3,6 +3,9 @@
 // rotational degrees of freedom (world axes, linearised at the current
 // posture) and a free root adds three translations. Priorities are ignored:
 // these are the classic unprioritized methods the paper compares against.
+// Joints with limits get the same joints as in FabrikSolver: a hinge turns
+// about its axis only, a fixed joint not at all, and after every step each
+// joint is brought back within its range (a projected gradient method).
 //
 // solve() never allocates: the Jacobian and normal matrices are sized once.
 #pragma once
@@ -10,6 +13,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -33,9 +37,13 @@ struct JacobianOptions {
 
 class JacobianSolver {
  public:
+  JacobianSolver(std::shared_ptr<const Model> model, std::vector<Target> targets,
+                 SolverOptions options, JacobianOptions jacobian = {});
+  // The same with a copy of `model`.
   JacobianSolver(const Model& model, std::vector<Target> targets, SolverOptions options,
                  JacobianOptions jacobian = {});
 
+  // Inputs of the wrong size give SolveStatus::size_mismatch (posture unchanged).
   SolveResult solve(std::span<const Eigen::Vector3d> target_world_m,
                     std::span<const std::uint8_t> visible, Posture& posture);
 
@@ -44,17 +52,20 @@ class JacobianSolver {
 
  private:
   void step_transpose(std::span<const Eigen::Vector3d> target_world_m,
-                      std::span<const std::uint8_t> visible);
+                      std::span<const std::uint8_t> visible, const Posture& posture);
   void step_dls(std::span<const Eigen::Vector3d> target_world_m,
                 std::span<const std::uint8_t> visible);
+  void restrict_to_joints(const Posture& posture);
   void apply(Posture& posture, const Eigen::Vector3d& root_pin_m);
 
+  std::shared_ptr<const Model> model_holder_;
   const Model& model_;
   TargetSet targets_;
   SolverOptions options_;
   JacobianOptions jacobian_;
   int n_seg_ = 0;
-  int n_dof_ = 0;                               // 3 per segment, +3 for a free root
+  int n_dof_ = 0;
+  bool has_limits_ = false;                               // 3 per segment, +3 for a free root
   std::vector<Eigen::Vector3d> joint_world_m_;  // base of each segment at the current posture
   std::vector<Eigen::Vector3d> x_world_m_;      // each target's point at the current posture
   Eigen::VectorXd dq_;      // the step: per segment omega, then root translation

@@ -2,9 +2,16 @@
 // metres; local coordinates are in the segment's own frame with the segment's
 // base joint at the origin. At the rest posture every segment frame is
 // parallel to the world frame, so local coordinates are also rest offsets.
+//
+// A Model is made only by build_model (validated) and never changes
+// afterwards: its members are const. Solvers and trackers share it through
+// std::shared_ptr<const Model>.
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -20,6 +27,30 @@ struct Point {
   int child_segment = -1;              // for kind == joint: the segment whose base sits here
 };
 
+// How a segment may turn relative to its parent about its base joint. Its
+// angles are the Cardan decomposition R = Rz(a_z) Rx(a_x) Ry(a_y) of the
+// segment's anatomical frame relative to its parent's: the ISB joint
+// coordinate system (Grood & Suntay 1983; Wu et al. 2002), flexion-extension
+// about the parent's z, ab-adduction about the floating x, axial rotation
+// about the segment's own y. Index 0 is a_z, 1 is a_x, 2 is a_y.
+enum class JointType : std::uint8_t {
+  free,       // no limits (the default)
+  ball,       // three rotations, each within its range
+  universal,  // a_z and a_x within their ranges, a_y held at its rest value
+  hinge,      // a_z within its range, a_x and a_y held: one rotation about the parent's z axis
+  fixed,      // no rotation relative to the parent
+};
+
+struct JointLimits {
+  JointType type = JointType::free;
+  // Allowed angles, radians; for an angle the type holds, both are the rest
+  // angle. a_x stays within [-pi/2, pi/2] (the middle Cardan angle).
+  std::array<double, 3> min_rad{-3.141592653589793, -1.5707963267948966, -3.141592653589793};
+  std::array<double, 3> max_rad{3.141592653589793, 1.5707963267948966, 3.141592653589793};
+  std::array<double, 3> rest_rad{0.0, 0.0, 0.0};  // the angles at the rest posture
+  bool limited() const { return type != JointType::free; }
+};
+
 struct Segment {
   std::string name;
   int parent = -1;        // -1 for the root
@@ -29,6 +60,11 @@ struct Segment {
   int point_count = 0;
   int first_child = 0;  // our children are child_ids[first_child, first_child + child_count)
   int child_count = 0;
+  // The anatomical frame (x anterior, y superior/proximal, z right, as ISB
+  // recommends) in the segment frame, i.e. its axes in the world at rest.
+  // Identity when the model does not define one.
+  Eigen::Quaterniond q_anatomical{Eigen::Quaterniond::Identity()};
+  JointLimits joint;  // of the base joint, relative to the parent (the root has none)
 };
 
 // Joint centres as reported downstream: the root base plus every parent/child link.
@@ -37,21 +73,49 @@ struct Joint {
   int point = -1;  // the child's base point (or the root base)
 };
 
-struct Model {
+// A named quantity computed from a posture, as OpenSim's coordinates are:
+// one Cardan angle of a segment's anatomical frame relative to another's
+// (or to the world), or one world coordinate of a point.
+enum class CoordinateKind : std::uint8_t { rotation, translation };
+
+struct Coordinate {
   std::string name;
-  std::vector<Segment> segments;  // topological order: a parent precedes its children
-  std::vector<Point> points;      // grouped by segment, base point first
-  std::vector<int> child_ids;     // children lists, see Segment::first_child
-  std::vector<Joint> joints;
-  Eigen::Vector3d root_rest_m{0, 0, 0};  // world position of the root base at rest
+  CoordinateKind kind = CoordinateKind::rotation;
+  int segment = -1;      // rotation: the moving segment
+  int relative_to = -1;  // rotation: the reference segment, -1 for the world
+  int angle = 0;         // rotation: Cardan angle index (0: a_z, 1: a_x, 2: a_y)
+  int point = -1;        // translation: the point
+  int axis = 0;          // translation: world axis (0: x, 1: y, 2: z)
+  double sign = 1.0;     // value = sign * (raw + offset)
+  double offset = 0.0;   // radians or metres
+};
+
+class Model {
+ public:
+  const std::string name;
+  const std::vector<Segment> segments;  // topological order: a parent precedes its children
+  const std::vector<Point> points;      // grouped by segment, base point first
+  const std::vector<int> child_ids;     // children lists, see Segment::first_child
+  const std::vector<Joint> joints;
+  const std::vector<Coordinate> coordinates;
+  const Eigen::Vector3d root_rest_m;  // world position of the root base at rest
 
   int find_segment(const std::string& segment_name) const;
   int find_point(const std::string& point_name) const;
+  int find_coordinate(const std::string& coordinate_name) const;
   int max_points_per_segment() const;
   // True if segment `ancestor` is `seg` or lies on the path from `seg` to the root.
   bool is_ancestor_or_self(int ancestor, int seg) const;
   // Indices of every marker point, in model order.
   std::vector<int> marker_points() const;
+  // True if any segment's joint has limits.
+  bool has_joint_limits() const;
+
+ private:
+  friend class ModelAssembly;
+  Model(std::string name, std::vector<Segment> segments, std::vector<Point> points,
+        std::vector<int> child_ids, std::vector<Joint> joints, std::vector<Coordinate> coordinates,
+        const Eigen::Vector3d& root_rest_m);
 };
 
 }  // namespace fabrik

@@ -49,6 +49,7 @@ enum class SolveStatus : std::uint8_t {
   stalled,         // a fixed point: no target moved by stall tolerance (e.g. unreachable)
   max_iterations,  // iteration budget spent while still improving
   no_targets,      // nothing visible to track: posture unchanged
+  size_mismatch,   // the inputs do not match the solver's targets or model: posture unchanged
 };
 
 inline std::string_view to_string(SolveStatus s) {
@@ -61,6 +62,8 @@ inline std::string_view to_string(SolveStatus s) {
       return "max_iterations";
     case SolveStatus::no_targets:
       return "no_targets";
+    case SolveStatus::size_mismatch:
+      return "size_mismatch";
   }
   return "unknown";
 }

@@ -1,7 +1,10 @@
 #include "synthetic_motion.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+
+#include "solver/joint_angles.hpp"
 
 namespace fabrik {
 
@@ -20,6 +23,28 @@ SyntheticMotion::SyntheticMotion(const Model& model, MotionSettings settings)
   q_local_.resize(model.segments.size());
 }
 
+// A limited joint swings each angle it lets move about a centre inside its
+// range, never beyond it: the centre is the rest angle moved inside by the
+// amplitude, the amplitude at most half the range.
+Eigen::Quaterniond SyntheticMotion::limited_rotation(const Segment& seg, const Segment& parent,
+                                                     const Eigen::Vector3d& amplitude_rad,
+                                                     const Eigen::Vector3d& phase_rad,
+                                                     double wt) const {
+  const JointLimits& j = seg.joint;
+  // Cardan order z, x, y; the amplitudes and phases are stored x, y, z.
+  const int xyz[3] = {2, 0, 1};
+  Eigen::Vector3d angles;
+  for (int k = 0; k < 3; ++k) {
+    const double lo = j.min_rad[k], hi = j.max_rad[k];
+    const double amp = std::min(amplitude_rad[xyz[k]], 0.5 * (hi - lo));
+    const double centre = std::clamp(j.rest_rad[k], lo + amp, hi - amp);
+    angles[k] = centre + amp * std::sin(wt + phase_rad[xyz[k]]);
+  }
+  // Relative local rotation: parent anatomical * joint * child anatomical^-1.
+  return parent.q_anatomical * Eigen::Quaterniond(rotation_zxy(angles)) *
+         seg.q_anatomical.conjugate();
+}
+
 void SyntheticMotion::posture_at(double t_s, Posture& posture) {
   const double w = 2.0 * std::numbers::pi * settings_.frequency_hz;
   for (std::size_t s = 0; s < model_.segments.size(); ++s) {
@@ -31,6 +56,11 @@ void SyntheticMotion::posture_at(double t_s, Posture& posture) {
       q_local_[s] =
           Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
           Eigen::AngleAxisd(0.2 * a.z() * std::sin(w * t_s + ph.z()), Eigen::Vector3d::UnitZ());
+      continue;
+    }
+    const Segment& seg = model_.segments[s];
+    if (seg.joint.limited()) {
+      q_local_[s] = limited_rotation(seg, model_.segments[seg.parent], a, ph, w * t_s);
       continue;
     }
     q_local_[s] = Eigen::AngleAxisd(a.x() * std::sin(w * t_s + ph.x()), Eigen::Vector3d::UnitX()) *

@@ -1,6 +1,7 @@
 // Smooth synthetic motion of any model, for benchmarks, tests and the demo:
 // every joint swings sinusoidally about its three axes with seeded amplitudes
-// and phases, and the root travels and turns slowly. Marker positions can be
+// and phases (a joint with limits only about the axes it lets move, within
+// its ranges), and the root travels and turns slowly. Marker positions can be
 // taken with seeded Gaussian noise. Solver types only: no I/O.
 #pragma once
 
@@ -35,6 +36,10 @@ class SyntheticMotion {
               std::span<Eigen::Vector3d> out_world_m);
 
  private:
+  Eigen::Quaterniond limited_rotation(const Segment& seg, const Segment& parent,
+                                      const Eigen::Vector3d& amplitude_rad,
+                                      const Eigen::Vector3d& phase_rad, double wt) const;
+
   const Model& model_;
   MotionSettings settings_;
   std::vector<Eigen::Vector3d> amplitude_rad_, phase_rad_;

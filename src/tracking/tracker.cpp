@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "solver/joint_angles.hpp"
+
 namespace fabrik {
 
 namespace {
@@ -36,7 +38,7 @@ bool finite(const Eigen::Vector3d& p) {
 
 Tracker::Tracker(TrackerSetup setup)
     : setup_(std::move(setup)),
-      solver_(*setup_.model, solver_targets(setup_), setup_.solver),
+      solver_(setup_.model, solver_targets(setup_), setup_.solver),
       rest_(Posture::rest(*setup_.model)),
       posture_(rest_),
       n_(static_cast<int>(setup_.markers.size())) {
@@ -53,6 +55,12 @@ Tracker::Tracker(TrackerSetup setup)
   result_.markers_world_m = markers_m_;
   result_.occluded = occluded_;
   result_.held = held_;
+  coordinates_.assign(model().coordinates.size(), 0.0);
+  segment_q_.assign(model().segments.size(), Eigen::Quaterniond::Identity());
+  segment_origin_m_.assign(model().segments.size(), Eigen::Vector3d::Zero());
+  result_.coordinates = coordinates_;
+  result_.segment_q_world = segment_q_;
+  result_.segment_origin_world_m = segment_origin_m_;
 }
 
 void Tracker::reset() {
@@ -63,8 +71,11 @@ void Tracker::reset() {
 
 const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                                   std::span<const std::uint8_t> visible) {
-  if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_)
-    throw std::invalid_argument("tracker: one measurement per marker expected");
+  if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_) {
+    result_.solve = SolveResult{};
+    result_.solve.status = SolveStatus::size_mismatch;
+    return result_;
+  }
   const bool hold = hold_enabled(setup_);
   int occluded_count = 0;
   for (int i = 0; i < n_; ++i) {
@@ -111,6 +122,12 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   result_.residual_rms_m = count > 0 ? std::sqrt(sq_m2 / count) : 0.0;
   result_.residual_max_m = max_m;
   result_.worst_marker = worst;
+  coordinate_values(model(), posture_, coordinates_);
+  for (std::size_t s = 0; s < segment_q_.size(); ++s) {
+    const SegmentPose& pose = posture_.segments[s];
+    segment_q_[s] = pose.q_world * model().segments[s].q_anatomical;
+    segment_origin_m_[s] = pose.base_world_m;
+  }
   return result_;
 }
 

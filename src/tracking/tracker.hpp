@@ -56,11 +56,19 @@ struct TrackResult {
   double residual_max_m = 0.0;
   int residual_count = 0;
   int worst_marker = -1;  // index into the setup's markers, -1 if none measured
+  // Per Model::coordinates: joint angles (radians) and translations (metres).
+  std::span<const double> coordinates;
+  // Per segment: its anatomical frame's world rotation, and its base (origin) in the world.
+  std::span<const Eigen::Quaterniond> segment_q_world;
+  std::span<const Eigen::Vector3d> segment_origin_world_m;
 };
 
 class Tracker {
  public:
   explicit Tracker(TrackerSetup setup);
+  // The result's spans point into this object: it is neither copied nor moved.
+  Tracker(const Tracker&) = delete;
+  Tracker& operator=(const Tracker&) = delete;
 
   const TrackerSetup& setup() const { return setup_; }
   const Model& model() const { return *setup_.model; }
@@ -68,7 +76,8 @@ class Tracker {
 
   // One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
   // occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
-  // frame's time (for the hold policy).
+  // frame's time (for the hold policy). Spans of the wrong size give
+  // SolveStatus::size_mismatch and leave the posture as it was.
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible);
 
@@ -88,6 +97,9 @@ class Tracker {
   std::vector<Eigen::Vector3d> last_seen_m_;
   std::vector<double> last_seen_s_;
   std::vector<Eigen::Vector3d> joints_m_, markers_m_;
+  std::vector<double> coordinates_;
+  std::vector<Eigen::Quaterniond> segment_q_;
+  std::vector<Eigen::Vector3d> segment_origin_m_;
   std::vector<std::uint8_t> occluded_, held_;
   TrackResult result_;
 };
