@@ -31,6 +31,10 @@ Model fullbody_model() {
 }
 
 Model random_tree_model(std::mt19937_64& rng, int n_segments) {
+  return build_model("random", random_tree_specs(rng, n_segments), Eigen::Vector3d::Zero());
+}
+
+std::vector<SegmentSpec> random_tree_specs(std::mt19937_64& rng, int n_segments) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   std::uniform_int_distribution<int> n_points(1, 4);
   auto random_offset = [&] {
@@ -66,7 +70,7 @@ Model random_tree_model(std::mt19937_64& rng, int n_segments) {
     }
     specs.push_back(spec);
   }
-  return build_model("random", specs, Eigen::Vector3d::Zero());
+  return specs;
 }
 
 double max_rigidity_error(const Model& model, const Posture& posture) {

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "solver/model.hpp"
+#include "solver/model_builder.hpp"
 #include "solver/posture.hpp"
 
 namespace fabrik::test {
@@ -20,6 +21,8 @@ Model fullbody_model();
 // A random tree: up to `n_segments` segments, each with 1-4 points, some of
 // them markers; all lengths in [0.05, 0.5] m.
 Model random_tree_model(std::mt19937_64& rng, int n_segments);
+// The specs behind random_tree_model (to add frames and joints to).
+std::vector<SegmentSpec> random_tree_specs(std::mt19937_64& rng, int n_segments);
 
 // Largest relative change of any point-to-point distance within a segment
 // between the rest posture and `posture`.

@@ -40,6 +40,8 @@ int main(int argc, char** argv) {
   b_body->add_option("--noise-mm", body.noise_mm, "Marker noise, standard deviation per axis (mm)")
       ->check(CLI::Range(0.0, 100.0));
   b_body->add_option("--seed", body.seed, "Motion and noise seed");
+  b_body->add_option("--model", body.model,
+                     "Model file (default: the built-in config/models/fullbody.json)");
   b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");

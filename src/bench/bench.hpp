@@ -22,8 +22,10 @@ struct FullbodyOptions {
   double noise_mm = 1.0;
   unsigned seed = 1;
   std::string segment_fit = "rigid";
+  std::string model;  // a model file; empty: the built-in config/models/fullbody.json
 };
-// Tracking of the built-in full-body model on smooth synthetic motion.
+// Tracking of the built-in full-body model on smooth synthetic motion; a
+// model with joint limits is tracked with them and, in the same run, without.
 nlohmann::json run_fullbody(const FullbodyOptions& options);
 std::string fullbody_table(const nlohmann::json& result);
 

@@ -1,13 +1,16 @@
 // `fabrik bench fullbody`: the built-in full-body model tracking smooth
 // synthetic motion with marker noise, warm-started frame to frame.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include "bench.hpp"
 #include "config/json_reader.hpp"
 #include "config/model_loader.hpp"
 #include "config/resources.hpp"
 #include "solver/fabrik_solver.hpp"
+#include "solver/model_builder.hpp"
 #include "stats.hpp"
 #include "synth/synthetic_motion.hpp"
 
@@ -15,29 +18,30 @@ namespace fabrik::bench {
 
 using nlohmann::json;
 
-json run_fullbody(const FullbodyOptions& options) {
-  const std::string path = "models/fullbody.json";
-  const Model m = load_model(JsonReader::parse(read_config_text(path), path), path);
+namespace {
+
+struct Track {
+  std::vector<double> times_us, rms_mm, iterations, passes, joint_err_mm, joint_limit_deg;
+  double max_residual_mm = 0.0;
+};
+
+// Tracks the synthetic motion of `truth_model` with a solver on `model`
+// (the same geometry, with or without joint limits), warm-started.
+Track track(const std::shared_ptr<const Model>& model, const Model& truth_model,
+            const FullbodyOptions& options, const SolverOptions& o) {
+  const Model& m = *model;
   const std::vector<int> points = m.marker_points();
   std::vector<Target> targets;
   for (int p : points) targets.push_back({p, 0, 1.0});
-  SolverOptions o;
-  o.root = RootMode::free;
-  o.segment_fit = options.segment_fit == "paper" ? SegmentFit::paper : SegmentFit::rigid;
-  o.tolerance_m = 0.1e-3;        // below the marker noise: stopping is by stall
-  o.stall_tolerance_m = 0.1e-3;  // per iteration, a tenth of the marker noise
-  o.max_iterations = 50;
-  FabrikSolver solver(m, targets, o);
-
+  FabrikSolver solver(model, targets, o);
   MotionSettings ms;
   ms.seed = options.seed;
-  SyntheticMotion motion(m, ms);
+  SyntheticMotion motion(truth_model, ms);
   Posture truth = Posture::rest(m);
   Posture posture = Posture::rest(m);
   std::vector<Eigen::Vector3d> measured(points.size());
   const std::vector<std::uint8_t> visible(points.size(), 1);
-  std::vector<double> times_us, rms_mm, iterations, passes, joint_err_mm;
-  double max_residual_mm = 0.0;
+  Track t;
   for (int f = 0; f < options.frames; ++f) {
     motion.posture_at(f / options.rate_hz, truth);
     motion.sample(truth, points, options.noise_mm * 1e-3, measured);
@@ -46,22 +50,60 @@ json run_fullbody(const FullbodyOptions& options) {
     const SolveResult r = solver.solve(measured, visible, posture);
     const auto t1 = std::chrono::steady_clock::now();
     if (f == 0) continue;  // the cold first frame is not part of the tracking figures
-    times_us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
-    rms_mm.push_back(r.rms_m * 1e3);
-    max_residual_mm = std::max(max_residual_mm, r.max_m * 1e3);
-    iterations.push_back(r.iterations);
-    passes.push_back(r.passes);
+    t.times_us.push_back(std::chrono::duration<double, std::micro>(t1 - t0).count());
+    t.rms_mm.push_back(r.rms_m * 1e3);
+    t.max_residual_mm = std::max(t.max_residual_mm, r.max_m * 1e3);
+    t.iterations.push_back(r.iterations);
+    t.passes.push_back(r.passes);
     double sq = 0.0;
     for (const Joint& j : m.joints)
       sq += (posture.point_world_m(m, j.point) - truth.point_world_m(m, j.point)).squaredNorm();
-    joint_err_mm.push_back(std::sqrt(sq / static_cast<double>(m.joints.size())) * 1e3);
+    t.joint_err_mm.push_back(std::sqrt(sq / static_cast<double>(m.joints.size())) * 1e3);
   }
-  json out;
+  return t;
+}
+
+json track_json(const Track& t) {
+  return {{"solve_us",
+           {{"median", quantile(t.times_us, 0.5)},
+            {"p99", quantile(t.times_us, 0.99)},
+            {"max", quantile(t.times_us, 1.0)}}},
+          {"iterations_mean", mean(t.iterations)},
+          {"passes_mean", mean(t.passes)},
+          {"marker_residual_mm", {{"rms_mean", mean(t.rms_mm)}, {"max", t.max_residual_mm}}},
+          {"joint_centre_error_mm",
+           {{"rms_mean", mean(t.joint_err_mm)}, {"p99", quantile(t.joint_err_mm, 0.99)}}}};
+}
+
+}  // namespace
+
+json run_fullbody(const FullbodyOptions& options) {
+  const std::string path = options.model.empty() ? "models/fullbody.json" : options.model;
+  const auto model = std::make_shared<const Model>(
+      load_model(JsonReader::parse(read_config_text(path), path), path));
+  const Model& m = *model;
+  SolverOptions o;
+  o.root = RootMode::free;
+  o.segment_fit = options.segment_fit == "paper" ? SegmentFit::paper : SegmentFit::rigid;
+  o.tolerance_m = 0.1e-3;        // below the marker noise: stopping is by stall
+  o.stall_tolerance_m = 0.1e-3;  // per iteration, a tenth of the marker noise
+  o.max_iterations = 50;
+
+  // The same motion (within the joint ranges, if the model has them) tracked
+  // with the limits on and, for comparison in the same run, off.
+  json out = track_json(track(model, m, options, o));
+  const bool limits = m.has_joint_limits();
+  if (limits) {
+    const auto free_model = std::make_shared<const Model>(without_joint_limits(m));
+    out["without_limits"] = track_json(track(free_model, m, options, o));
+  }
   out["benchmark"] = "fullbody";
   out["model"] = {{"name", m.name},
+                  {"file", path},
                   {"segments", m.segments.size()},
-                  {"markers", points.size()},
-                  {"joints", m.joints.size()}};
+                  {"markers", m.marker_points().size()},
+                  {"joints", m.joints.size()},
+                  {"joint_limits", limits}};
   out["motion"] = {{"frames", options.frames},
                    {"rate_hz", options.rate_hz},
                    {"noise_mm", options.noise_mm},
@@ -71,37 +113,43 @@ json run_fullbody(const FullbodyOptions& options) {
                    {"stall_tolerance_mm", o.stall_tolerance_m * 1e3},
                    {"max_iterations", o.max_iterations},
                    {"warm_start", true}};
-  out["solve_us"] = {{"median", quantile(times_us, 0.5)},
-                     {"p99", quantile(times_us, 0.99)},
-                     {"max", quantile(times_us, 1.0)}};
-  out["iterations_mean"] = mean(iterations);
-  out["passes_mean"] = mean(passes);
-  out["marker_residual_mm"] = {{"rms_mean", mean(rms_mm)}, {"max", max_residual_mm}};
-  out["joint_centre_error_mm"] = {{"rms_mean", mean(joint_err_mm)},
-                                  {"p99", quantile(joint_err_mm, 0.99)}};
   return out;
 }
 
 std::string fullbody_table(const json& r) {
-  char buf[1024];
-  std::snprintf(buf, sizeof buf,
+  auto figures = [](const char* title, const json& t) {
+    char buf[768];
+    std::snprintf(buf, sizeof buf,
+                  "%s\n"
+                  "  solve per frame   median %.2f us   p99 %.2f us   max %.2f us\n"
+                  "  iterations        mean %.2f (reaching passes %.2f)\n"
+                  "  marker residual   RMS %.3f mm (mean over frames), max %.3f mm\n"
+                  "  joint centres     RMS error %.3f mm against the truth (p99 %.3f mm)\n",
+                  title, t["solve_us"]["median"].get<double>(), t["solve_us"]["p99"].get<double>(),
+                  t["solve_us"]["max"].get<double>(), t["iterations_mean"].get<double>(),
+                  t["passes_mean"].get<double>(), t["marker_residual_mm"]["rms_mean"].get<double>(),
+                  t["marker_residual_mm"]["max"].get<double>(),
+                  t["joint_centre_error_mm"]["rms_mean"].get<double>(),
+                  t["joint_centre_error_mm"]["p99"].get<double>());
+    return std::string(buf);
+  };
+  char head[512];
+  std::snprintf(head, sizeof head,
                 "Full-body tracking: %d segments, %d markers, %d frames at %g Hz, noise %g mm, %s "
-                "fit, warm start\n"
-                "  solve per frame   median %.2f us   p99 %.2f us   max %.2f us\n"
-                "  iterations        mean %.2f (reaching passes %.2f)\n"
-                "  marker residual   RMS %.3f mm (mean over frames), max %.3f mm\n"
-                "  joint centres     RMS error %.3f mm against the truth (p99 %.3f mm)\n",
+                "fit, warm start\n",
                 r["model"]["segments"].get<int>(), r["model"]["markers"].get<int>(),
                 r["motion"]["frames"].get<int>(), r["motion"]["rate_hz"].get<double>(),
                 r["motion"]["noise_mm"].get<double>(),
-                r["solver"]["segment_fit"].get<std::string>().c_str(),
-                r["solve_us"]["median"].get<double>(), r["solve_us"]["p99"].get<double>(),
-                r["solve_us"]["max"].get<double>(), r["iterations_mean"].get<double>(),
-                r["passes_mean"].get<double>(), r["marker_residual_mm"]["rms_mean"].get<double>(),
-                r["marker_residual_mm"]["max"].get<double>(),
-                r["joint_centre_error_mm"]["rms_mean"].get<double>(),
-                r["joint_centre_error_mm"]["p99"].get<double>());
-  return buf;
+                r["solver"]["segment_fit"].get<std::string>().c_str());
+  std::string out = head;
+  if (!r.contains("without_limits")) return out + figures("no joint limits in the model", r);
+  out += figures("with the model's joint limits", r);
+  out += figures("the same motion, joints free", r["without_limits"]);
+  char ratio[128];
+  std::snprintf(ratio, sizeof ratio, "  median time with limits / without: %.2f\n",
+                r["solve_us"]["median"].get<double>() /
+                    r["without_limits"]["solve_us"]["median"].get<double>());
+  return out + ratio;
 }
 
 }  // namespace fabrik::bench

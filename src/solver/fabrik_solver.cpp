@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "joint_angles.hpp"
+#include "joint_fit.hpp"
 #include "rotation_fit.hpp"
 
 namespace fabrik {
@@ -72,6 +73,20 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
   joint_parent_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
   joint_child_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
   joint_vector_.assign(slots_.size(), Eigen::Vector3d::Zero());
+  for (const Segment& seg : model.segments) {
+    if (seg.joint.type != JointType::hinge) {
+      arcs_.emplace_back(seg.joint);
+      continue;
+    }
+    // A hinge's range as turns about its axis from rest (the angle it fits).
+    JointLimits from_rest = seg.joint;
+    from_rest.min_rad[0] -= seg.joint.rest_rad[0];
+    from_rest.max_rad[0] -= seg.joint.rest_rad[0];
+    from_rest.rest_rad[0] = 0.0;
+    arcs_.emplace_back(from_rest);
+  }
+  turns_.resize(static_cast<std::size_t>(n_seg_));
+  rel_q_.assign(static_cast<std::size_t>(n_seg_), Eigen::Quaterniond::Identity());
   for (int s = 1; s < n_seg_; ++s) {
     const Segment& seg = model.segments[s];
     if (!seg.joint.limited()) continue;
@@ -81,6 +96,22 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
     joint_child_[s] = seg.q_anatomical.toRotationMatrix();
     for (int k = slot_first_[s]; k < slot_first_[s + 1]; ++k)
       joint_vector_[k] = joint_child_[s].transpose() * slots_[k].a_local;
+  }
+  hinge_.assign(static_cast<std::size_t>(n_seg_), 0);
+  hinge_axis_local_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::UnitZ());
+  hinge_across_.assign(slots_.size(), Eigen::Vector3d::Zero());
+  hinge_cross_.assign(slots_.size(), Eigen::Vector3d::Zero());
+  for (int s = 1; s < n_seg_; ++s) {
+    if (model.segments[s].joint.type != JointType::hinge) continue;
+    hinge_[s] = 1;
+    // At rest the child's frame is the parent's: one local axis serves both.
+    const Eigen::Vector3d u = joint_parent_[s].col(2);
+    hinge_axis_local_[s] = u;
+    for (int k = slot_first_[s]; k < slot_first_[s + 1]; ++k) {
+      const Eigen::Vector3d& a = slots_[k].a_local;
+      hinge_across_[k] = a - u * u.dot(a);
+      hinge_cross_[k] = u.cross(a);
+    }
   }
 }
 
@@ -287,15 +318,42 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
   }
 }
 
-// A limited segment's forward step: placed as any other, then turned within
-// its range relative to its parent as the parent stands now (the parent
-// moves later in this pass), and moved so its drivers are met as well as the
-// limited rotation allows. Its base, which the parent reaches for next, then
-// says where the segment can be, not where a free one would be.
+// A hinge turns its child about the axis u (parent frame) by theta from
+// rest: a local vector a goes to R_parent (a_along + cos(theta) a_across +
+// sin(theta) u x a), so the drivers' alignment with their desired vectors is
+// C cos(theta) + S sin(theta) + const: its peak is exact in one step, and so
+// is its clamp to the range (a sinusoid falls off on both sides of its peak).
+void FabrikSolver::hinge_fit(int n, int s, Posture& posture) {
+  SegmentPose& pose = posture.segments[s];
+  const SegmentPose& parent = posture.segments[model_.segments[s].parent];
+  double c = 0.0, sn = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const Driver& d = drivers_[k];
+    const std::size_t slot = static_cast<std::size_t>(d.slot - slots_.data());
+    const Eigen::Vector3d b_local =
+        parent.r_world.transpose() * (d.weight * (d.d_world() - pose.base_world_m));
+    c += b_local.dot(hinge_across_[slot]);
+    sn += b_local.dot(hinge_cross_[slot]);
+  }
+  Turn& theta = turns_[s][0];
+  theta = arcs_[s].clamp(0, peak_turn(c, sn, theta), theta);
+  double ch, sh;
+  half_turn(theta, ch, sh);
+  const Eigen::Vector3d& u = hinge_axis_local_[s];
+  rel_q_[s] = Eigen::Quaterniond(ch, sh * u.x(), sh * u.y(), sh * u.z());
+  pose.set_rotation(parent.q_world * rel_q_[s]);
+}
+
+// A limited segment's forward step keeps its joint angles from its latest
+// fit (so its rotation follows the parent's as the parent stands now, within
+// range) and moves to meet its drivers as well as that rotation allows. Its
+// base, which the parent reaches for next, then says where the segment can
+// be, not where a free one would be; the backward pass fits the angles.
+// (Fitting the angles here as well gives the same postures on walking data
+// and synthetic motion, for half again the time.)
 void FabrikSolver::forward_limited(int n, int s, Posture& posture) const {
   SegmentPose& pose = posture.segments[s];
-  place_with_candidates(n, pose, false);
-  limited_fit(n, s, pose.base_world_m, posture);
+  pose.set_unit_rotation(posture.segments[model_.segments[s].parent].q_world * rel_q_[s]);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
@@ -398,29 +456,47 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
 // desired vectors is <E, B> with B = sum_k w_k (parent-frame desired
 // vector)(segment joint-frame vector)^T, which fit_joint_angles maximises
 // within the ranges (exactly, for a hinge). The base stays where it is.
-void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m,
-                               Posture& posture) const {
+void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture) {
   const Segment& seg = model_.segments[s];
   SegmentPose& pose = posture.segments[s];
   const SegmentPose& parent = posture.segments[seg.parent];
   pose.base_world_m = base_m;
   if (seg.joint.type == JointType::fixed) {
-    pose.set_unit_rotation(parent.q_world);  // at rest every frame is the world's
+    rel_q_[s] = Eigen::Quaterniond::Identity();  // at rest every frame is the world's
+    pose.set_unit_rotation(parent.q_world);
     return;
   }
-  const Eigen::Matrix3d p_world = parent.r_world * joint_parent_[s];
-  Eigen::Matrix3d b = Eigen::Matrix3d::Zero();
+  if (hinge_[s]) {
+    hinge_fit(n, s, posture);
+    return;
+  }
+  const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
+  if (seg.joint.type == JointType::ball) {
+    // Most of the time a ball joint's free fit lies within its ranges: then
+    // it is the constrained fit too, and cheaper to find.
+    rotate_about_base(n, base_m, pose);
+    const Eigen::Quaterniond rel = parent.q_world.conjugate() * pose.q_world;
+    const Turns free = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+    const JointArcs& arcs = arcs_[s];
+    if (arcs.inside(0, free[0]) && arcs.inside(1, free[1]) && arcs.inside(2, free[2])) {
+      turns_[s] = free;
+      rel_q_[s] = rel;
+      return;
+    }
+  }
+  // B = P^T W with P = R_parent J_parent and W = sum_k w_k (world vector)(joint-frame vector)^T.
+  Eigen::Matrix3d w = Eigen::Matrix3d::Zero();
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
     const std::size_t slot = static_cast<std::size_t>(d.slot - slots_.data());
-    b.noalias() += (d.weight * (p_world.transpose() * (d.d_world() - base_m))) *
-                   joint_vector_[slot].transpose();
+    w.noalias() += (d.weight * (d.d_world() - base_m)) * joint_vector_[slot].transpose();
   }
-  const Eigen::Vector3d start =
-      cardan_zxy(p_world.transpose() * pose.r_world * joint_child_[s]);
-  const Eigen::Vector3d angles = fit_joint_angles(b, seg.joint, start, kJointSweeps);
-  pose.set_rotation(parent.q_world * model_.segments[seg.parent].q_anatomical *
-                    Eigen::Quaterniond(rotation_zxy(angles)) * seg.q_anatomical.conjugate());
+  const Eigen::Matrix3d b = (parent.r_world * joint_parent_[s]).transpose() * w;
+  // Warm start from the joint's angles at its last fit (or at the start of the solve).
+  Turns& turns = turns_[s];
+  fit_joint_turns(b, arcs_[s], turns, kJointSweeps);
+  rel_q_[s] = (a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate()).normalized();
+  pose.set_unit_rotation(parent.q_world * rel_q_[s]);
 }
 
 // True when this level's targets are within tolerance or stopped moving since
@@ -448,6 +524,16 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     return mismatch;
   }
   mark_active(visible);
+  for (int s = 1; s < n_seg_; ++s) {
+    if (!limited_[s]) continue;
+    const Eigen::Quaterniond& q_parent = posture.segments[model_.segments[s].parent].q_world;
+    rel_q_[s] = q_parent.conjugate() * posture.segments[s].q_world;
+    if (hinge_[s])  // the turn about the axis: the twist of the relative rotation
+      turns_[s][0] = twist_turn(q_parent.conjugate() * posture.segments[s].q_world,
+                                hinge_axis_local_[s]);
+    else
+      turns_[s] = turns_zxy(relative_anatomical(model_, posture, s, model_.segments[s].parent));
+  }
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
   if (any_link_)
     for (int s = 0; s < n_seg_; ++s)

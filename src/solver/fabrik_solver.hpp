@@ -13,6 +13,7 @@
 #include <span>
 #include <vector>
 
+#include "joint_fit.hpp"
 #include "model.hpp"
 #include "posture.hpp"
 #include "solve_types.hpp"
@@ -103,7 +104,8 @@ class FabrikSolver {
   void free_root_fit(int n, SegmentPose& pose) const;
   // A segment with a limited base joint: the rotation within its ranges that
   // best aims its drivers, about a given base.
-  void limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture) const;
+  void limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture);
+  void hinge_fit(int n, int s, Posture& posture);
   void forward_limited(int n, int s, Posture& posture) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
@@ -137,6 +139,15 @@ class FabrikSolver {
   std::vector<std::uint8_t> limited_, parent_of_limited_;
   std::vector<Eigen::Matrix3d> joint_parent_, joint_child_;
   std::vector<Eigen::Vector3d> joint_vector_;
+  std::vector<JointArcs> arcs_;  // per segment
+  std::vector<Turns> turns_;     // per limited segment: its joint angles at its latest fit
+  std::vector<Eigen::Quaterniond> rel_q_;  // and its rotation relative to the parent then
+  // Hinges: the axis (parent frame), and per slot its local vector's part
+  // across the axis and the axis crossed with it; a hinge's turns_[s][0] and
+  // arcs_[s] are its angle from rest.
+  std::vector<std::uint8_t> hinge_;
+  std::vector<Eigen::Vector3d> hinge_axis_local_;
+  std::vector<Eigen::Vector3d> hinge_across_, hinge_cross_;
   std::vector<SegmentPose> start_;   // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level

@@ -288,4 +288,11 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
                              std::move(joints), std::move(coords), root_rest_m);
 }
 
+Model without_joint_limits(const Model& model) {
+  std::vector<Segment> segments = model.segments;
+  for (Segment& s : segments) s.joint = JointLimits{};
+  return ModelAssembly::make(model.name, std::move(segments), model.points, model.child_ids,
+                             model.joints, model.coordinates, model.root_rest_m);
+}
+
 }  // namespace fabrik

@@ -71,4 +71,7 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
                   const Eigen::Vector3d& root_rest_m,
                   const std::vector<CoordinateSpec>& coordinates = {});
 
+// The same model with every joint free (for comparisons: limits on and off).
+Model without_joint_limits(const Model& model);
+
 }  // namespace fabrik
