@@ -2,6 +2,7 @@
 #pragma once
 
 #include <fstream>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -22,5 +23,12 @@ double check_trial_for_writing(const MarkerTrial& trial, const std::string& unit
                                const char* writer);
 
 std::string_view trim(std::string_view s);
+
+// Metres per file unit for "mm", "cm" or "m" in any case (and their long names); none otherwise.
+std::optional<double> metres_per_unit(std::string_view units);
+
+// Adds one warning to `trial` when some of its samples were exactly (0, 0, 0)
+// (trial.source.zero_samples), saying which markers and how they were read.
+void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options);
 
 }  // namespace fabrik::io::detail
