@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "io/marker_trial.hpp"
+#include "io/recording_info.hpp"
 #include "temp_file.hpp"
 
 using namespace fabrik::io;
@@ -884,4 +885,141 @@ TEST_CASE("An empty string parameter ending exactly at the end of the parameter 
   const MarkerTrial t = read_c3d(file.path());
   CHECK(t.markers() == 0);
   CHECK(t.source.units == "mm");  // blank: the format's default
+}
+
+// ---- What a recording holds (`fabrik info`) ----
+
+TEST_CASE("inspect_recording: markers with missing samples, exact zeros and longest gaps",
+          "[io][info]") {
+  MarkerTrial trial = make_trial(3, 20, false);
+  for (std::size_t f = 5; f < 12; ++f) trial.at(f, 0).setConstant(std::nan(""));  // a 7-frame gap
+  trial.at(15, 0).setConstant(std::nan(""));
+  for (std::size_t f = 0; f < 20; f += 2) trial.at(f, 2).setZero();  // every other frame zero
+  TempFile trc(".trc");
+  write_trc(trc.path(), trial);
+  const RecordingInfo info = inspect_recording(trc.path());
+  CHECK(info.kind == "markers");
+  CHECK(info.trial.source.format == "TRC");
+  CHECK(info.trial.source.frames == 20);
+  REQUIRE(info.markers.size() == 3);
+  CHECK(info.markers[0].missing == 8);
+  CHECK(info.markers[0].longest_gap == 7);
+  CHECK(info.markers[0].zeros == 0);
+  CHECK(info.markers[1].missing == 0);
+  CHECK(info.markers[2].missing == 10);
+  CHECK(info.markers[2].zeros == 10);
+  CHECK(info.markers[2].longest_gap == 1);
+  CHECK(info.trial.warnings.size() == 1);  // the zeros
+}
+
+TEST_CASE("inspect_recording: a C3D with analog channels only, and a truncated one",
+          "[io][info][c3d]") {
+  MarkerTrial none;
+  none.rate_hz = 50.0;
+  TempFile c3d(".c3d");
+  write_c3d(c3d.path(), none,
+            C3dWriteOptions{.processor = C3dProcessor::dec, .float_data = false,
+                            .analog_channels = 4, .analog_samples_per_frame = 20,
+                            .frames_without_points = 30});
+  const RecordingInfo info = inspect_recording(c3d.path());
+  CHECK(info.trial.markers() == 0);
+  CHECK(info.trial.source.number_format == "DEC int16");
+  CHECK(info.trial.source.frames == 30);
+  CHECK(info.trial.source.analog_channels == 4);
+  CHECK(info.trial.source.analog_rate_hz == 1000.0);
+
+  // Truncated data are shown as far as they go, with a warning.
+  write_c3d(c3d.path(), make_trial(30, 20, false), C3dProcessor::intel, true);
+  std::vector<char> bytes = read_bytes(c3d.path());
+  bytes.resize(bytes.size() - 512 * 4);
+  write_bytes(c3d.path(), bytes);
+  const RecordingInfo cut = inspect_recording(c3d.path());
+  CHECK(cut.trial.frames() < 20);
+  REQUIRE(cut.trial.warnings.size() == 1);
+  CHECK_THAT(cut.trial.warnings[0], Catch::StartsWith("3D data: the file holds"));
+}
+
+TEST_CASE("OpenSim tables: header, columns, rows, time span and rate", "[io][info]") {
+  TempFile sto(".sto"), mot(".mot"), other(".txt");
+  write_text(sto.path(),
+             "DataRate=50.000000\nDataType=Quaternion\nversion=3\nOpenSimVersion=4.1\nendheader\n"
+             "time\tpelvis_imu\ttorso_imu\n"
+             "0\t1,0,0,0\t0.7,0.7,0,0\n0.02\t1,0,0,0\t0.7,0.7,0,0\n0.04\t1,0,0,0\t0.7,0.7,0,0\n");
+  const RecordingInfo s = inspect_recording(sto.path());
+  REQUIRE(s.table);
+  CHECK(s.kind == "table");
+  CHECK(s.table->columns == std::vector<std::string>{"time", "pelvis_imu", "torso_imu"});
+  CHECK(s.table->rows == 3);
+  CHECK(s.table->rate_hz == 50.0);
+  CHECK(s.table->rate_source == "from DataRate");
+  CHECK(s.table->cell_kind == "quaternions (w,x,y,z)");
+  CHECK(s.table->last_time_s == 0.04);
+  CHECK(s.table->warnings.empty());
+
+  write_text(mot.path(),
+             "Coordinates\nversion=1\nnRows=5\nnColumns=3\ninDegrees=yes\n\nUnits are S.I.\n"
+             "endheader\ntime\tknee_angle_r\tankle_angle_r\n"
+             "      0.50\t  -5.0\t 1.0\n      0.60\t  -6.0\t 2.0\n      0.70\t  -7.0\n"
+             "      0.80\t  -8.0\t 3.0\n");
+  const RecordingInfo m = inspect_recording(mot.path());
+  REQUIRE(m.table);
+  CHECK(m.table->name == "Coordinates");
+  CHECK(m.table->rows == 3);  // the short row is left out, and said
+  CHECK(m.table->rate_hz == Approx(2.0 / 0.3));
+  CHECK(m.table->rate_source == "from the time column");
+  CHECK(m.table->cell_kind == "numbers");
+  REQUIRE(m.table->warnings.size() == 2);
+  CHECK_THAT(m.table->warnings[0], Catch::StartsWith("1 rows (the first on line 12)"));
+  CHECK(m.table->warnings[1] == "nRows is 5 but the table has 3");
+
+  write_text(mot.path(), "Coordinates\nversion=1\ntime\tx\n0\t1\n");
+  CHECK_THAT(error_of([&] { inspect_recording(mot.path()); }),
+             Catch::Contains("no 'endheader' line"));
+  write_text(other.path(), "hello\n");
+  CHECK_THAT(error_of([&] { inspect_recording(other.path()); }),
+             Catch::Contains("unknown file type '.txt': fabrik info reads .trc, .c3d (markers), "
+                             ".sto, .mot (OpenSim tables)"));
+}
+
+TEST_CASE("inspect_recording on every file of the shared data folder", "[io][info][data]") {
+  if (!fs::exists(kDataDir)) {
+    WARN("skipped: " << kDataDir << " not found");
+    return;
+  }
+  std::size_t seen = 0;
+  for (const auto& entry : fs::directory_iterator(kDataDir)) {
+    const std::string ext = entry.path().extension().string();
+    if (ext == ".md") continue;
+    INFO(entry.path().string());
+    const RecordingInfo info = inspect_recording(entry.path().string());
+    ++seen;
+    const std::string name = entry.path().filename().string();
+    if (name == "Vicon.c3d") {
+      CHECK(info.markers.size() == 51);
+      CHECK(info.trial.source.frames == 580);
+      CHECK(info.trial.source.analog_channels == 38);
+      CHECK(info.trial.source.analog_rate_hz == 2000.0);
+      CHECK(info.trial.warnings.empty());
+    } else if (name == "Optotrak.c3d") {
+      CHECK(info.trial.source.frames == 29);
+      CHECK(info.trial.warnings.size() == 1);
+    } else if (name == "subject01_walk1_ik.mot") {
+      REQUIRE(info.table);
+      CHECK(info.table->rows == 73);
+      CHECK(info.table->columns.size() == 24);
+      CHECK(info.table->rate_hz == Approx(60.0).epsilon(1e-6));
+      CHECK(info.table->warnings.empty());
+    } else if (name == "opensense_walking_orientations.sto") {
+      REQUIRE(info.table);
+      CHECK(info.table->rows == 2432);
+      CHECK(info.table->columns.size() == 9);
+      CHECK(info.table->rate_hz == 100.0);
+      CHECK(info.table->cell_kind == "quaternions (w,x,y,z)");
+    } else if (ext == ".trc") {
+      CHECK(info.trial.warnings.empty());
+      CHECK(info.trial.frames() > 0);
+      for (const MarkerSamples& m : info.markers) CHECK(m.missing == 0);
+    }
+  }
+  CHECK(seen >= 8);
 }

@@ -100,6 +100,19 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
+LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes) {
+  line.clear();
+  std::streambuf* buf = in.rdbuf();
+  int c = buf->sbumpc();
+  if (c == std::char_traits<char>::eof()) return LineRead::end;
+  for (; c != std::char_traits<char>::eof() && c != '\n'; c = buf->sbumpc()) {
+    if (line.size() == max_bytes) return LineRead::too_long;
+    line.push_back(static_cast<char>(c));
+  }
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  return LineRead::line;
+}
+
 std::optional<double> metres_per_unit(std::string_view units) {
   std::string u(trim(units));
   std::transform(u.begin(), u.end(), u.begin(),

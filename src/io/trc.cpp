@@ -294,22 +294,13 @@ class TrcParser {
   // The next line without its line ending; FormatError if it is longer than `max_bytes`, before
   // it is stored whole.
   bool next_line(std::string& line, std::size_t max_bytes) {
-    line.clear();
-    std::streambuf* buf = in_.rdbuf();
-    bool any = false;
-    for (int c = buf->sbumpc(); c != std::char_traits<char>::eof(); c = buf->sbumpc()) {
-      any = true;
-      if (c == '\n') break;
-      if (line.size() == max_bytes) {
-        fail("line " + std::to_string(line_number_ + 1) + " is longer than " +
-             std::to_string(max_bytes) + " bytes, more than its columns can need: not a TRC " +
-             "row");
-      }
-      line.push_back(static_cast<char>(c));
-    }
-    if (!any) return false;
+    const detail::LineRead got = detail::read_line(in_, line, max_bytes);
+    if (got == detail::LineRead::end) return false;
     ++line_number_;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (got == detail::LineRead::too_long) {
+      fail("line " + std::to_string(line_number_) + " is longer than " +
+           std::to_string(max_bytes) + " bytes, more than its columns can need: not a TRC row");
+    }
     return true;
   }
 
