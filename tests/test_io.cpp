@@ -726,6 +726,16 @@ TEST_CASE("A TRC row may cost no more than its columns need", "[io][trc]") {
       [&] { read_text_trc(head + "4\t0.03" + std::string(std::size_t{1} << 20, '\t') + "\n"); });
   CHECK_THAT(message, Catch::Contains("line 10 is longer than " + std::to_string(limit) +
                                       " bytes, more than its columns can need"));
+  // Short rows are missing markers, but a file of 20000 names and rows holding only a frame
+  // number would cost 24 bytes a marker a row: refused once that passes 64 times its size.
+  std::string names = "Frame#\tTime";
+  for (int m = 0; m < 20000; ++m) names += "\tM" + std::to_string(m) + "\t\t";
+  std::string sparse = "PathFileType\t4\t(X/Y/Z)\tx.trc\n" + kKeys +
+                       "\n100\t100\t60\t20000\tmm\t100\t1\t60\n" + names + "\n\n\n";
+  for (int f = 1; f <= 60; ++f) sparse += std::to_string(f) + "\n";
+  CHECK_THAT(error_of([&] { read_text_trc(sparse); }),
+             Catch::Contains("rows of 20000 markers would take more than 16 MiB") &&
+                 Catch::Contains("rows this short are not a recording"));
   // Trailing tabs and spaces within the bound are still fine.
   const MarkerTrial t = read_text_trc(head + "4\t0.03\t1\t2\t3" + std::string(2000, '\t') + "\n");
   CHECK(t.frames() == 4);

@@ -83,8 +83,10 @@ using C3dReadOptions = ReadOptions;
 
 // TRC: tab-separated text as OpenSim reads it: header values separated by any run of
 // whitespace; units mm, cm or m in any case; an empty field, a short row or a "NaN" field is a
-// missing marker; the data rows are trusted over NumFrames/NumMarkers (with a warning). A row
-// may not be longer than its columns could need (kTrcBytesPerField each, plus slack).
+// missing marker; the data rows are trusted over NumFrames/NumMarkers (with a warning). What a
+// file can cost is bounded: a row may not be longer than its columns could need
+// (kTrcBytesPerField each, plus slack), and the positions may not take more than 64 times the
+// file's size (16 MiB at least; short rows are cheap to write but cost 24 bytes a marker).
 // Throws FormatError.
 MarkerTrial read_trc(const std::string& path, const ReadOptions& options = {});
 inline constexpr std::size_t kTrcBytesPerField = 256;

@@ -2,7 +2,9 @@
 // marker names; X1 Y1 Z1 ...), then one tab-separated row per frame. Read as OpenSim reads
 // them: header keys and values separated by any run of whitespace (OpenSim itself writes
 // double tabs), data fields by single tabs.
+#include <algorithm>
 #include <charconv>
+#include <cstdint>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -20,8 +22,15 @@ namespace fabrik::io {
 namespace {
 using detail::trim;
 
-// A header line may hold thousands of marker names, but not more than this.
-constexpr std::size_t kMaxHeaderLineBytes = std::size_t{16} << 20;
+// Line 4 may hold thousands of marker names (line 5 their X/Y/Z), but not more than this; the
+// other header lines hold a few words.
+constexpr std::size_t kMaxNamesLineBytes = std::size_t{16} << 20;
+constexpr std::size_t kMaxHeaderLineBytes = std::size_t{64} << 10;
+// Short rows are missing markers, so a row's text can be much smaller than what it costs in
+// memory (24 bytes a marker): the positions may take this many times the file's size, or
+// kMinPositionBudgetBytes, before the file is refused as not a recording.
+constexpr std::uint64_t kPositionBytesPerFileByte = 64;
+constexpr std::uint64_t kMinPositionBudgetBytes = std::uint64_t{16} << 20;
 // Room beyond kTrcBytesPerField per column for a row's line ending and trailing whitespace.
 constexpr std::size_t kRowSlackBytes = 4096;
 
@@ -114,8 +123,9 @@ std::string quoted(std::string_view s) {
 
 class TrcParser {
  public:
-  TrcParser(const std::string& path, std::istream& in, const ReadOptions& options)
-      : path_(path), in_(in), options_(options) {}
+  TrcParser(const std::string& path, std::istream& in, std::uint64_t file_bytes,
+            const ReadOptions& options)
+      : path_(path), in_(in), file_bytes_(file_bytes), options_(options) {}
 
   MarkerTrial parse() {
     check_magic();
@@ -135,13 +145,14 @@ class TrcParser {
     if (!to_m) fail("header: Units " + quoted(*units) + " is not supported (expected mm, cm or m)");
     trial.source.units = std::string(*units);
 
-    header_line(names_line);
-    const std::vector<std::string_view> names = split_tabs(names_line);
-    if (!equal_ci(trim(names[0]), "Frame#")) {
+    header_line(names_line, kMaxNamesLineBytes);
+    Fields names(names_line);
+    if (!equal_ci(names.next().value_or(""), "Frame#")) {
       fail("line 4: expected 'Frame#' and the marker names");
     }
-    for (std::size_t i = 2; i < names.size(); ++i) {
-      if (!trim(names[i]).empty()) trial.labels.emplace_back(trim(names[i]));
+    names.next();  // Time
+    while (const std::optional<std::string_view> name = names.next()) {
+      if (!name->empty()) trial.labels.emplace_back(*name);
     }
     const std::size_t num_markers = trial.labels.size();
     const std::optional<std::size_t> declared_markers = header.count_of("NumMarkers", trial);
@@ -150,16 +161,24 @@ class TrcParser {
                                " but line 4 names " + std::to_string(num_markers) +
                                " markers: read " + std::to_string(num_markers));
     }
-    header_line(axes_line);  // X1 Y1 Z1 ...: nothing to learn from it
+    header_line(axes_line, kMaxNamesLineBytes);  // X1 Y1 Z1 ...: nothing to learn from it
 
     const std::size_t columns = 2 + 3 * num_markers;
     const std::size_t max_row_bytes = columns * kTrcBytesPerField + kRowSlackBytes;
+    const std::uint64_t budget_bytes =
+        std::max(kMinPositionBudgetBytes, kPositionBytesPerFileByte * file_bytes_);
     trial.source.zero_samples.assign(num_markers, 0);
     const Eigen::Vector3d missing = Eigen::Vector3d::Constant(std::nan(""));
     std::size_t rows = 0;
     std::string line;
     while (next_line(line, max_row_bytes)) {
       if (trim(line).empty()) continue;  // blank separator and trailing lines
+      if ((trial.positions_m.size() + num_markers) * sizeof(Eigen::Vector3d) > budget_bytes) {
+        fail("line " + std::to_string(line_number_) + ": " + std::to_string(rows + 1) +
+             " rows of " + std::to_string(num_markers) + " markers would take more than " +
+             std::to_string(budget_bytes >> 20) + " MiB for a file of " +
+             std::to_string(file_bytes_) + " bytes: rows this short are not a recording");
+      }
       Fields fields(line);
       const std::string_view frame_field = fields.next().value_or("");
       if (rows == 0) trial.first_frame = frame_number(frame_field);
@@ -304,8 +323,8 @@ class TrcParser {
     return true;
   }
 
-  void header_line(std::string& line) {
-    if (!next_line(line, kMaxHeaderLineBytes)) {
+  void header_line(std::string& line, std::size_t max_bytes = kMaxHeaderLineBytes) {
+    if (!next_line(line, max_bytes)) {
       fail("file ends inside the header, at line " + std::to_string(line_number_ + 1) + " of 5");
     }
   }
@@ -321,6 +340,7 @@ class TrcParser {
 
   const std::string& path_;
   std::istream& in_;
+  std::uint64_t file_bytes_;
   ReadOptions options_;
   std::size_t line_number_ = 0;
 };
@@ -336,7 +356,9 @@ void append_number(std::string& out, double v, int decimals) {
 
 MarkerTrial read_trc(const std::string& path, const ReadOptions& options) {
   std::ifstream in = detail::open_input(path);
-  return TrcParser(path, in, options).parse();
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+  return TrcParser(path, in, ec ? 0 : bytes, options).parse();
 }
 
 void write_trc(const std::string& path, const MarkerTrial& trial, const std::string& units) {
