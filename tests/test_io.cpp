@@ -629,31 +629,28 @@ TEST_CASE("TRC DataRate 0 with CameraRate set reads at the CameraRate, with a wa
 
 TEST_CASE("TRC NumFrames and NumMarkers that disagree with the data: the data win, with warnings",
           "[io][trc]") {
-  SECTION("NumFrames larger than the rows") {
-    const MarkerTrial t = read_text_trc(small_trc(kKeys, "100\t100\t200\t2\tmm\t100\t1\t200"));
+  struct Case {
+    const char* values;  // line 3
+    std::size_t markers;
+    const char* warning;
+  };
+  const std::vector<Case> cases = {
+      {"100\t100\t200\t2\tmm\t100\t1\t200", 2,
+       "header: NumFrames is 200 but the file has 3 data rows: read 3"},
+      {"100\t100\t1\t2\tmm\t100\t1\t1", 2,
+       "header: NumFrames is 1 but the file has 3 data rows: read 3"},
+      {"100\t100\t3\t41\tmm\t100\t1\t3", 2,
+       "header: NumMarkers is 41 but line 4 names 2 markers: read 2"},
+      {"100\t100\t3\tmany\tmm\t100\t1\t3", 2,
+       "header: NumMarkers 'many' is not a whole number: ignored"},
+  };
+  for (const Case& c : cases) {
+    INFO(c.values);
+    const MarkerTrial t = read_text_trc(small_trc(kKeys, c.values));
+    CHECK(t.markers() == c.markers);
     CHECK(t.frames() == 3);
     CHECK(t.source.frames == 3);
-    REQUIRE(t.warnings.size() == 1);
-    CHECK(t.warnings[0] == "header: NumFrames is 200 but the file has 3 data rows: read 3");
-  }
-  SECTION("NumFrames smaller than the rows") {
-    const MarkerTrial t = read_text_trc(small_trc(kKeys, "100\t100\t1\t2\tmm\t100\t1\t1"));
-    CHECK(t.frames() == 3);
-    REQUIRE(t.warnings.size() == 1);
-    CHECK_THAT(t.warnings[0], Catch::Contains("NumFrames is 1 but the file has 3 data rows"));
-  }
-  SECTION("NumMarkers different from the names") {
-    const MarkerTrial t = read_text_trc(small_trc(kKeys, "100\t100\t3\t41\tmm\t100\t1\t3"));
-    CHECK(t.markers() == 2);
-    CHECK(t.frames() == 3);
-    REQUIRE(t.warnings.size() == 1);
-    CHECK(t.warnings[0] == "header: NumMarkers is 41 but line 4 names 2 markers: read 2");
-  }
-  SECTION("NumMarkers not a number") {
-    const MarkerTrial t = read_text_trc(small_trc(kKeys, "100\t100\t3\tmany\tmm\t100\t1\t3"));
-    CHECK(t.markers() == 2);
-    REQUIRE(t.warnings.size() == 1);
-    CHECK_THAT(t.warnings[0], Catch::Contains("NumMarkers 'many' is not a whole number"));
+    CHECK(t.warnings == std::vector<std::string>{c.warning});
   }
 }
 

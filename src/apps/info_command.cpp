@@ -5,17 +5,14 @@
 #include <iostream>
 #include <memory>
 
+#include "common/format_number.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
 
 namespace {
 
-std::string fmt(const char* format, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, format, v);
-  return buf;
-}
+const auto& fmt = format_number;
 
 std::string join(const std::vector<std::string>& names, std::size_t at_most) {
   std::string out;
