@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "io/marker_trial.hpp"
+#include "io/recording_info.hpp"
 #include "temp_file.hpp"
 
 using namespace fabrik::io;
@@ -205,17 +206,17 @@ TEST_CASE("TRC reader rejects broken files with the path and the problem", "[io]
     const char* expected;
   };
   const std::vector<Case> cases = {
-      {"unsupported units", header + "60\t60\t1\t1\tcm\n" + names + "1\t0\t1\t2\t3\n", "Units"},
+      {"unsupported units", header + "60\t60\t1\t1\tin\n" + names + "1\t0\t1\t2\t3\n",
+       "Units 'in' is not supported (expected mm, cm or m)"},
       {"a word for a number", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\tabc\t3\n",
        "line 7, column 4: 'abc' is not a number"},
-      {"fewer rows than NumFrames", header + "60\t60\t3\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
-       "file ends after 1 of the 3 frames"},
-      {"more rows than NumFrames",
-       header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n" + "2\t0\t1\t2\t3\n",
-       "more data rows than NumFrames"},
-      {"labels disagree with NumMarkers", header + "60\t60\t1\t2\tmm\n" + names,
-       "names 1 markers but NumMarkers is 2"},
-      {"zero rate", header + "0\t0\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n", "DataRate"},
+      {"zero rate", header + "0\t0\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
+       "DataRate '0' and CameraRate '0' are not positive numbers"},
+      {"no rate", "PathFileType\t4\t(X/Y/Z)\tx.trc\nNumFrames\tNumMarkers\tUnits\n1\t1\tmm\n" +
+                      names + "1\t0\t1\t2\t3\n",
+       "DataRate missing"},
+      {"no frame column", header + "60\t60\t1\t1\tmm\nTime\tA\t\t\n\tX1\tY1\tZ1\n\n",
+       "line 4: expected 'Frame#'"},
       {"values past the last marker", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\t4\n",
        "values beyond"},
       {"header cut short", header, "file ends inside the header"},
@@ -495,9 +496,15 @@ TEST_CASE("Broken C3D files throw FormatError naming the file and the problem", 
     // POINT:USED (the first USED: POINT is the first group) = 32767 points.
     CHECK_THAT(message_for(patched("USED", 4, {'\xff', '\x7f'})),
                Catch::Contains("holds 0 complete of the 20 frames"));
-    // TRIAL:ACTUAL_END_FIELD's high word: about 4 billion frames.
-    CHECK_THAT(message_for(patched("ACTUAL_END_FIELD", 7, {'\xff', '\xff'})),
-               Catch::Contains("3D data: truncated"));
+    // TRIAL:ACTUAL_END_FIELD's high word: about 4 billion frames, where POINT:FRAMES and the
+    // header say 20 and the data hold them: read 20, saying so.
+    write_bytes(bad.path(), patched("ACTUAL_END_FIELD", 7, {'\xff', '\xff'}));
+    const MarkerTrial t = read_c3d(bad.path());
+    CHECK(t.frames() == 20);
+    REQUIRE(t.warnings.size() == 1);
+    CHECK_THAT(t.warnings[0], Catch::Contains("frame counts disagree") &&
+                                  Catch::Contains("POINT:FRAMES (20): 20 frames") &&
+                                  Catch::Contains("read 20 as POINT:FRAMES (20) says"));
   }
   SECTION("parameters missing or wrong") {
     CHECK_THAT(message_for(patched("LABEL", 0, {'X'})),
@@ -540,4 +547,486 @@ TEST_CASE("Any truncation or corruption of a C3D gives a trial or a FormatError"
   CHECK(other == 0);
   CHECK(rejected > 0);
   CHECK(read > 0);
+}
+
+// ---- Files as other tools write them (issue: recordings from any lab) ----
+
+namespace {
+// A TRC file with `rate_line`'s header values, two markers A and B and three rows.
+std::string small_trc(const std::string& keys_line, const std::string& values_line,
+                      const std::string& names_line = "Frame#\tTime\tA\t\t\tB\t\t\t") {
+  return "PathFileType\t4\t(X/Y/Z)\tx.trc\n" + keys_line + "\n" + values_line + "\n" + names_line +
+         "\n\t\tX1\tY1\tZ1\tX2\tY2\tZ2\n\n"
+         "1\t0.000\t1\t2\t3\t4\t5\t6\n"
+         "2\t0.010\t1.5\t2\t3\t4\t5\t6\n"
+         "3\t0.020\t2\t2\t3\t4\t5\t6\n";
+}
+const std::string kKeys =
+    "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\t"
+    "OrigNumFrames";
+
+MarkerTrial read_text_trc(const std::string& text, const ReadOptions& options = {}) {
+  TempFile file(".trc");
+  write_text(file.path(), text);
+  return read_trc(file.path(), options);
+}
+}  // namespace
+
+TEST_CASE("TRC header values separated by runs of whitespace, as OpenSim writes them",
+          "[io][trc]") {
+  // OpenSim's own motion_capture_walk.trc: double tabs, and spaces before some values.
+  const MarkerTrial t = read_text_trc(
+      small_trc("DataRate\t\tCameraRate\t\tNumFrames\t\tNumMarkers\t\tUnits\t\tOrigDataRate\t\t"
+                "OrigDataStartFrame\t\tOrigNumFrames",
+                "100.0\t\t100.0\t\t3\t\t2\t\t mm\t 100.0\t 1\t 3"));
+  CHECK(t.rate_hz == 100.0);
+  CHECK(t.labels == std::vector<std::string>{"A", "B"});
+  REQUIRE(t.frames() == 3);
+  CHECK(t.at(1, 0).isApprox(Eigen::Vector3d(0.0015, 0.002, 0.003)));
+  CHECK(t.source.units == "mm");
+  CHECK(t.warnings.empty());
+
+  // An empty value between two tabs keeps the others in their columns.
+  const MarkerTrial e = read_text_trc(small_trc(kKeys, "100\t100\t3\t2\tmm\t\t1\t3"));
+  CHECK(e.rate_hz == 100.0);
+  CHECK(e.source.units == "mm");
+  CHECK(e.warnings.empty());
+}
+
+TEST_CASE("TRC units in any case, mm, cm or m, converted to metres", "[io][trc]") {
+  for (const auto& [units, to_m] : std::vector<std::pair<std::string, double>>{
+           {"mm", 0.001}, {"MM", 0.001}, {"Mm", 0.001}, {"cm", 0.01}, {"CM", 0.01},
+           {"m", 1.0}, {"M", 1.0}, {"meters", 1.0}}) {
+    INFO("units " << units);
+    const MarkerTrial t = read_text_trc(small_trc(kKeys, "100\t100\t3\t2\t" + units + "\t100\t1\t3"));
+    REQUIRE(t.frames() == 3);
+    CHECK(t.at(2, 1).isApprox(Eigen::Vector3d(4, 5, 6) * to_m));
+    CHECK(t.source.units == units);
+  }
+}
+
+TEST_CASE("TRC Frame# in any case", "[io][trc]") {
+  for (const std::string frame : {"Frame#", "frame#", "FRAME#"}) {
+    const MarkerTrial t = read_text_trc(
+        small_trc(kKeys, "100\t100\t3\t2\tmm\t100\t1\t3", frame + "\tTime\tA\t\t\tB\t\t\t"));
+    CHECK(t.frames() == 3);
+  }
+}
+
+TEST_CASE("TRC DataRate 0 with CameraRate set reads at the CameraRate, with a warning",
+          "[io][trc]") {
+  const MarkerTrial t = read_text_trc(small_trc(kKeys, "0\t120\t3\t2\tmm\t0\t1\t3"));
+  CHECK(t.rate_hz == 120.0);
+  REQUIRE(t.warnings.size() == 1);
+  CHECK_THAT(t.warnings[0], Catch::Contains("DataRate '0' is not a positive number: read the "
+                                            "CameraRate, 120 Hz"));
+  // No DataRate at all: the CameraRate, as before.
+  const MarkerTrial c = read_text_trc(small_trc("CameraRate\tNumFrames\tNumMarkers\tUnits",
+                                                "50\t3\t2\tmm"));
+  CHECK(c.rate_hz == 50.0);
+  CHECK(c.warnings.empty());
+}
+
+TEST_CASE("TRC NumFrames and NumMarkers that disagree with the data: the data win, with warnings",
+          "[io][trc]") {
+  struct Case {
+    const char* values;  // line 3
+    std::size_t markers;
+    const char* warning;
+  };
+  const std::vector<Case> cases = {
+      {"100\t100\t200\t2\tmm\t100\t1\t200", 2,
+       "header: NumFrames is 200 but the file has 3 data rows: read 3"},
+      {"100\t100\t1\t2\tmm\t100\t1\t1", 2,
+       "header: NumFrames is 1 but the file has 3 data rows: read 3"},
+      {"100\t100\t3\t41\tmm\t100\t1\t3", 2,
+       "header: NumMarkers is 41 but line 4 names 2 markers: read 2"},
+      {"100\t100\t3\tmany\tmm\t100\t1\t3", 2,
+       "header: NumMarkers 'many' is not a whole number: ignored"},
+  };
+  for (const Case& c : cases) {
+    INFO(c.values);
+    const MarkerTrial t = read_text_trc(small_trc(kKeys, c.values));
+    CHECK(t.markers() == c.markers);
+    CHECK(t.frames() == 3);
+    CHECK(t.source.frames == 3);
+    CHECK(t.warnings == std::vector<std::string>{c.warning});
+  }
+}
+
+TEST_CASE("subject01_walk1 with OpenSim's double-tab header reads identically to the original",
+          "[io][trc][data]") {
+  const std::string path = data_file("subject01_walk1.trc");
+  if (path.empty()) return;
+  const std::vector<char> bytes = read_bytes(path);
+  std::string text(bytes.begin(), bytes.end());
+  // Lines 2 and 3 rewritten the way OpenSim's motion_capture_walk.trc has them.
+  const std::size_t l2 = text.find('\n') + 1, l3 = text.find('\n', l2) + 1,
+                    l4 = text.find('\n', l3) + 1;
+  std::string keys = text.substr(l2, l3 - l2), values = text.substr(l3, l4 - l3);
+  for (std::string* line : {&keys, &values}) {
+    std::string doubled;
+    for (char c : *line) doubled += c == '\t' ? std::string("\t\t ") : std::string(1, c);
+    *line = doubled;
+  }
+  REQUIRE(values.find("\t\t mm") != std::string::npos);
+  TempFile copy(".trc");
+  write_text(copy.path(), text.substr(0, l2) + keys + values + text.substr(l4));
+  const MarkerTrial original = read_trc(path), opensim = read_trc(copy.path());
+  check_same(opensim, original, 0.0);
+  CHECK(opensim.warnings.empty());
+}
+
+TEST_CASE("An exact (0, 0, 0) is a missing marker by default, in TRC and C3D", "[io][trc][c3d]") {
+  MarkerTrial trial = make_trial(3, 10, false);
+  for (std::size_t f = 0; f < 10; ++f) trial.at(f, 1).setZero();  // M2 "not seen" throughout
+  trial.at(4, 2) = Eigen::Vector3d(0.0, 0.0, 0.001);                // near the origin: a position
+  trial.at(6, 0) = Eigen::Vector3d(-0.0, 0.0, 0.0);                 // -0 is zero too
+  TempFile trc(".trc"), c3d(".c3d");
+  write_trc(trc.path(), trial);
+  write_c3d(c3d.path(), trial, C3dProcessor::intel, true);
+  for (const std::string& path : {trc.path(), c3d.path()}) {
+    INFO(path);
+    const MarkerTrial t = read_trial(path);
+    CHECK(t.source.zero_samples == std::vector<std::size_t>{1, 10, 0});
+    CHECK(count_missing(t) == 11);
+    CHECK(t.at(3, 1).hasNaN());
+    CHECK(t.at(6, 0).hasNaN());
+    CHECK(t.at(4, 2).isApprox(Eigen::Vector3d(0.0, 0.0, 0.001)));
+    REQUIRE(t.warnings.size() == 1);
+    CHECK_THAT(t.warnings[0], Catch::StartsWith("11 samples of 2 markers are exactly (0, 0, 0) "
+                                                "(most: M2, 10 of 10 frames): read as missing"));
+
+    const MarkerTrial kept = read_trial(path, {.zeros_are_missing = false});
+    CHECK(kept.source.zero_samples == std::vector<std::size_t>{1, 10, 0});
+    CHECK(count_missing(kept) == 0);
+    CHECK(kept.at(3, 1) == Eigen::Vector3d::Zero());
+    REQUIRE(kept.warnings.size() == 1);
+    CHECK_THAT(kept.warnings[0], Catch::Contains("kept as positions at the origin"));
+  }
+  // A missing sample written as zeros with a negative residual is missing, not a zero.
+  MarkerTrial gaps = make_trial(2, 5, false);
+  gaps.at(2, 0).setConstant(std::nan(""));
+  write_c3d(c3d.path(), gaps, C3dProcessor::dec, false);
+  const MarkerTrial g = read_c3d(c3d.path());
+  CHECK(g.source.zero_samples == std::vector<std::size_t>{0, 0});
+  CHECK(count_missing(g) == 1);
+  CHECK(g.warnings.empty());
+}
+
+TEST_CASE("A TRC row may cost no more than its columns need", "[io][trc]") {
+  // A data row that is one run of tabs (a 20 MB one peaked at 564 MB when every empty field
+  // was materialised): refused as soon as it is longer than two markers' columns can need.
+  const std::string head = small_trc(kKeys, "100\t100\t3\t2\tmm\t100\t1\t3");
+  const std::size_t limit = (2 + 3 * 2) * kTrcBytesPerField + 4096;
+  const std::string message = error_of(
+      [&] { read_text_trc(head + "4\t0.03" + std::string(std::size_t{1} << 20, '\t') + "\n"); });
+  CHECK_THAT(message, Catch::Contains("line 10 is longer than " + std::to_string(limit) +
+                                      " bytes, more than its columns can need"));
+  // Short rows are missing markers, but a file of 20000 names and rows holding only a frame
+  // number would cost 24 bytes a marker a row: refused once that passes 64 times its size.
+  std::string names = "Frame#\tTime";
+  for (int m = 0; m < 20000; ++m) names += "\tM" + std::to_string(m) + "\t\t";
+  std::string sparse = "PathFileType\t4\t(X/Y/Z)\tx.trc\n" + kKeys +
+                       "\n100\t100\t60\t20000\tmm\t100\t1\t60\n" + names + "\n\n\n";
+  for (int f = 1; f <= 60; ++f) sparse += std::to_string(f) + "\n";
+  CHECK_THAT(error_of([&] { read_text_trc(sparse); }),
+             Catch::Contains("rows of 20000 markers would take more than 16 MiB") &&
+                 Catch::Contains("rows this short are not a recording"));
+  // Trailing tabs and spaces within the bound are still fine.
+  const MarkerTrial t = read_text_trc(head + "4\t0.03\t1\t2\t3" + std::string(2000, '\t') + "\n");
+  CHECK(t.frames() == 4);
+  CHECK(t.at(3, 1).hasNaN());
+}
+
+TEST_CASE("A DEC C3D whose POINT:DATA_START is 0 reads like the correct one, with a warning",
+          "[io][c3d]") {
+  const MarkerTrial original = make_trial(23, 67, true);  // the DEC file: 23 points, 25 Hz
+  for (const bool float_data : {false, true}) {
+    INFO((float_data ? "float" : "int16"));
+    TempFile good(".c3d"), zero(".c3d");
+    C3dWriteOptions o{.processor = C3dProcessor::dec, .float_data = float_data};
+    write_c3d(good.path(), original, o);
+    o.point_data_start_zero = true;
+    write_c3d(zero.path(), original, o);
+    const MarkerTrial expected = read_c3d(good.path()), t = read_c3d(zero.path());
+    CHECK(expected.warnings.empty());
+    check_same(t, expected, 0.0);
+    CHECK(t.source.number_format == (float_data ? "DEC float" : "DEC int16"));
+    REQUIRE(t.warnings.size() == 1);
+    CHECK_THAT(t.warnings[0],
+               Catch::StartsWith("POINT:DATA_START is block 0, not after the parameter section: "
+                                 "read the 3D data from the header's data start, block"));
+  }
+}
+
+TEST_CASE("C3D frame counts: the header's wrapped 16-bit numbers, POINT:FRAMES, and which is used",
+          "[io][c3d]") {
+  SECTION("header first 32769, last 32768: 65536 frames") {
+    const MarkerTrial original = make_trial(1, 65536, false);
+    for (const long point_frames : {0L, 65535L}) {  // 65536 in 16 bits, and ezc3d's -1
+      INFO("POINT:FRAMES " << point_frames);
+      TempFile file(".c3d");
+      write_c3d(file.path(), original,
+                C3dWriteOptions{.trial_group = false, .header_first_frame = 32769,
+                                .point_frames = point_frames});
+      const std::vector<char> bytes = read_bytes(file.path());
+      REQUIRE(static_cast<unsigned char>(bytes[6]) + 256 * static_cast<unsigned char>(bytes[7]) ==
+              32769);
+      REQUIRE(static_cast<unsigned char>(bytes[8]) + 256 * static_cast<unsigned char>(bytes[9]) ==
+              32768);
+      const MarkerTrial t = read_c3d(file.path());
+      REQUIRE(t.frames() == 65536);
+      CHECK(t.first_frame == 32769);
+      CHECK(t.at(65535, 0).isApprox(original.at(65535, 0), 1e-6));
+      REQUIRE(t.warnings.size() == 1);
+      CHECK_THAT(t.warnings[0], Catch::Contains("the header's 16-bit frame numbers wrap past "
+                                                "65535 (first 32769, last 32768): read 65536"));
+    }
+  }
+  SECTION("POINT:FRAMES smaller than the header's range: POINT:FRAMES, as ezc3d") {
+    TempFile file(".c3d");
+    write_c3d(file.path(), make_trial(2, 20, false),
+              C3dWriteOptions{.trial_group = false, .point_frames = 15});
+    const MarkerTrial t = read_c3d(file.path());
+    CHECK(t.frames() == 15);
+    REQUIRE(t.warnings.size() == 1);
+    CHECK(t.warnings[0] ==
+          "frame counts disagree (POINT:FRAMES (15): 15 frames, the header's frame range (7 to "
+          "26): 20 frames): read 15 as POINT:FRAMES (15) says");
+  }
+  SECTION("POINT:FRAMES larger than the data: the header's range, which the data hold") {
+    TempFile file(".c3d");  // 20 markers: the padding to the next block holds no whole frame
+    write_c3d(file.path(), make_trial(20, 20, false),
+              C3dWriteOptions{.trial_group = false, .point_frames = 30});
+    const MarkerTrial t = read_c3d(file.path());
+    CHECK(t.frames() == 20);
+    REQUIRE(t.warnings.size() == 1);
+    CHECK_THAT(t.warnings[0], Catch::EndsWith("read 20 as the header's frame range (7 to 26) says"));
+  }
+}
+
+TEST_CASE("C3D analog channels and rotations are counted and skipped; the points read right",
+          "[io][c3d]") {
+  const MarkerTrial original = make_trial(4, 30, true);
+  for (const bool float_data : {false, true}) {
+    INFO((float_data ? "float" : "int16"));
+    TempFile file(".c3d");
+    write_c3d(file.path(), original,
+              C3dWriteOptions{.processor = C3dProcessor::mips, .float_data = float_data,
+                              .analog_channels = 6, .analog_samples_per_frame = 10,
+                              .rotations = 2});
+    const MarkerTrial t = read_c3d(file.path());
+    check_same(t, original, float_data ? 1e-6 : 1e-4);
+    CHECK(t.warnings.empty());
+    CHECK(t.source.analog_channels == 6);
+    CHECK(t.source.analog_rate_hz == 1200.0);
+    CHECK(t.source.analog_labels.size() == 6);
+    CHECK(t.source.analog_labels[5] == "Analog6");
+    CHECK(t.source.rotations == 2);
+    CHECK(t.source.rotation_labels == std::vector<std::string>{"Segment1", "Segment2"});
+  }
+}
+
+TEST_CASE("A C3D without 3D points reads as no markers, and says what it holds instead",
+          "[io][c3d]") {
+  MarkerTrial none;
+  none.rate_hz = 100.0;
+  SECTION("analog only (a force-plate file)") {
+    TempFile file(".c3d");
+    write_c3d(file.path(), none,
+              C3dWriteOptions{.analog_channels = 8, .analog_samples_per_frame = 10,
+                              .frames_without_points = 50});
+    const MarkerTrial t = read_c3d(file.path());
+    CHECK(t.markers() == 0);
+    CHECK(t.source.frames == 50);
+    CHECK(t.source.analog_channels == 8);
+    CHECK(t.source.analog_rate_hz == 1000.0);
+    CHECK_THAT(error_of([&] { require_marker_data(t, file.path()); }),
+               Catch::StartsWith(file.path() + ": the file has no 3D marker data; it has 8 analog "
+                                               "channels at 1000 Hz over 50 frames. Fix:"));
+  }
+  SECTION("rotations only") {
+    TempFile file(".c3d");
+    write_c3d(file.path(), none, C3dWriteOptions{.rotations = 3, .frames_without_points = 40});
+    const MarkerTrial t = read_c3d(file.path());
+    CHECK(t.markers() == 0);
+    CHECK(t.source.rotations == 3);
+    CHECK_THAT(error_of([&] { require_marker_data(t, file.path()); }),
+               Catch::Contains("the file has no 3D marker data; it has 3 rotations over 40 "
+                               "frames"));
+  }
+  SECTION("nothing at all, and markers without frames") {
+    TempFile file(".c3d");
+    write_c3d(file.path(), none, C3dWriteOptions{});
+    CHECK_THAT(error_of([&] { require_marker_data(read_c3d(file.path()), file.path()); }),
+               Catch::Contains("no 3D marker data; it has no other data either"));
+    MarkerTrial empty = make_trial(2, 0, false);
+    CHECK_THAT(error_of([&] { require_marker_data(empty, "x.trc"); }),
+               Catch::StartsWith("x.trc: the file has 2 markers but no frames"));
+  }
+}
+
+TEST_CASE("An empty string parameter ending exactly at the end of the parameter section",
+          "[io][c3d]") {
+  // test_io is built with _GLIBCXX_ASSERTIONS: taking &section[size] for the empty value aborts.
+  std::vector<char> bytes(1024, 0);
+  bytes[0] = 2;       // parameter section at block 2
+  bytes[1] = 0x50;
+  bytes[16] = 3;      // header word 9: data start block 3 (the end of the file: no frames)
+  bytes[6] = 1;       // first frame 1, last 0: no frames
+  char* section = &bytes[512];
+  section[1] = 0x50;
+  section[2] = 1;     // one block
+  section[3] = 84;    // Intel
+  // Group POINT at byte 4; its "next" offset (at byte 11) jumps to byte 500.
+  const std::string group = "\x05\xff" "POINT";
+  std::copy(group.begin(), group.end(), section + 4);
+  section[11] = static_cast<char>((500 - 11) & 0xFF);
+  section[12] = static_cast<char>((500 - 11) >> 8);
+  // POINT:UNITS, a character parameter of length 0: 12 bytes ending at byte 512.
+  const std::string units("\x05\x01UNITS\x00\x00\xff\x01\x00", 12);
+  std::copy(units.begin(), units.end(), section + 500);
+  TempFile file(".c3d");
+  write_bytes(file.path(), bytes);
+  const MarkerTrial t = read_c3d(file.path());
+  CHECK(t.markers() == 0);
+  CHECK(t.source.units == "mm");  // blank: the format's default
+}
+
+// ---- What a recording holds (`fabrik info`) ----
+
+TEST_CASE("inspect_recording: markers with missing samples, exact zeros and longest gaps",
+          "[io][info]") {
+  MarkerTrial trial = make_trial(3, 20, false);
+  for (std::size_t f = 5; f < 12; ++f) trial.at(f, 0).setConstant(std::nan(""));  // a 7-frame gap
+  trial.at(15, 0).setConstant(std::nan(""));
+  for (std::size_t f = 0; f < 20; f += 2) trial.at(f, 2).setZero();  // every other frame zero
+  TempFile trc(".trc");
+  write_trc(trc.path(), trial);
+  const RecordingInfo info = inspect_recording(trc.path());
+  CHECK(info.kind == "markers");
+  CHECK(info.trial.source.format == "TRC");
+  CHECK(info.trial.source.frames == 20);
+  REQUIRE(info.markers.size() == 3);
+  CHECK(info.markers[0].missing == 8);
+  CHECK(info.markers[0].longest_gap == 7);
+  CHECK(info.markers[0].zeros == 0);
+  CHECK(info.markers[1].missing == 0);
+  CHECK(info.markers[2].missing == 10);
+  CHECK(info.markers[2].zeros == 10);
+  CHECK(info.markers[2].longest_gap == 1);
+  CHECK(info.trial.warnings.size() == 1);  // the zeros
+}
+
+TEST_CASE("inspect_recording: a C3D with analog channels only, and a truncated one",
+          "[io][info][c3d]") {
+  MarkerTrial none;
+  none.rate_hz = 50.0;
+  TempFile c3d(".c3d");
+  write_c3d(c3d.path(), none,
+            C3dWriteOptions{.processor = C3dProcessor::dec, .float_data = false,
+                            .analog_channels = 4, .analog_samples_per_frame = 20,
+                            .frames_without_points = 30});
+  const RecordingInfo info = inspect_recording(c3d.path());
+  CHECK(info.trial.markers() == 0);
+  CHECK(info.trial.source.number_format == "DEC int16");
+  CHECK(info.trial.source.frames == 30);
+  CHECK(info.trial.source.analog_channels == 4);
+  CHECK(info.trial.source.analog_rate_hz == 1000.0);
+
+  // Truncated data are shown as far as they go, with a warning.
+  write_c3d(c3d.path(), make_trial(30, 20, false), C3dProcessor::intel, true);
+  std::vector<char> bytes = read_bytes(c3d.path());
+  bytes.resize(bytes.size() - 512 * 4);
+  write_bytes(c3d.path(), bytes);
+  const RecordingInfo cut = inspect_recording(c3d.path());
+  CHECK(cut.trial.frames() < 20);
+  REQUIRE(cut.trial.warnings.size() == 1);
+  CHECK_THAT(cut.trial.warnings[0], Catch::StartsWith("3D data: the file holds"));
+}
+
+TEST_CASE("OpenSim tables: header, columns, rows, time span and rate", "[io][info]") {
+  TempFile sto(".sto"), mot(".mot"), other(".txt");
+  write_text(sto.path(),
+             "DataRate=50.000000\nDataType=Quaternion\nversion=3\nOpenSimVersion=4.1\nendheader\n"
+             "time\tpelvis_imu\ttorso_imu\n"
+             "0\t1,0,0,0\t0.7,0.7,0,0\n0.02\t1,0,0,0\t0.7,0.7,0,0\n0.04\t1,0,0,0\t0.7,0.7,0,0\n");
+  const RecordingInfo s = inspect_recording(sto.path());
+  REQUIRE(s.table);
+  CHECK(s.kind == "table");
+  CHECK(s.table->columns == std::vector<std::string>{"time", "pelvis_imu", "torso_imu"});
+  CHECK(s.table->rows == 3);
+  CHECK(s.table->rate_hz == 50.0);
+  CHECK(s.table->rate_source == "from DataRate");
+  CHECK(s.table->cell_kind == "quaternions (w,x,y,z)");
+  CHECK(s.table->last_time_s == 0.04);
+  CHECK(s.table->warnings.empty());
+
+  write_text(mot.path(),
+             "Coordinates\nversion=1\nnRows=5\nnColumns=3\ninDegrees=yes\n\nUnits are S.I.\n"
+             "endheader\ntime\tknee_angle_r\tankle_angle_r\n"
+             "      0.50\t  -5.0\t 1.0\n      0.60\t  -6.0\t 2.0\n      0.70\t  -7.0\n"
+             "      0.80\t  -8.0\t 3.0\n");
+  const RecordingInfo m = inspect_recording(mot.path());
+  REQUIRE(m.table);
+  CHECK(m.table->name == "Coordinates");
+  CHECK(m.table->rows == 3);  // the short row is left out, and said
+  CHECK(m.table->rate_hz == Approx(2.0 / 0.3));
+  CHECK(m.table->rate_source == "from the time column");
+  CHECK(m.table->cell_kind == "numbers");
+  REQUIRE(m.table->warnings.size() == 2);
+  CHECK_THAT(m.table->warnings[0], Catch::StartsWith("1 rows (the first on line 12)"));
+  CHECK(m.table->warnings[1] == "nRows is 5 but the table has 3");
+
+  write_text(mot.path(), "Coordinates\nversion=1\ntime\tx\n0\t1\n");
+  CHECK_THAT(error_of([&] { inspect_recording(mot.path()); }),
+             Catch::Contains("no 'endheader' line"));
+  write_text(other.path(), "hello\n");
+  CHECK_THAT(error_of([&] { inspect_recording(other.path()); }),
+             Catch::Contains("unknown file type '.txt': fabrik info reads .trc, .c3d (markers), "
+                             ".sto, .mot (OpenSim tables)"));
+}
+
+TEST_CASE("inspect_recording on every file of the shared data folder", "[io][info][data]") {
+  if (!fs::exists(kDataDir)) {
+    WARN("skipped: " << kDataDir << " not found");
+    return;
+  }
+  std::size_t seen = 0;
+  for (const auto& entry : fs::directory_iterator(kDataDir)) {
+    const std::string ext = entry.path().extension().string();
+    if (ext == ".md") continue;
+    INFO(entry.path().string());
+    const RecordingInfo info = inspect_recording(entry.path().string());
+    ++seen;
+    const std::string name = entry.path().filename().string();
+    if (name == "Vicon.c3d") {
+      CHECK(info.markers.size() == 51);
+      CHECK(info.trial.source.frames == 580);
+      CHECK(info.trial.source.analog_channels == 38);
+      CHECK(info.trial.source.analog_rate_hz == 2000.0);
+      CHECK(info.trial.warnings.empty());
+    } else if (name == "Optotrak.c3d") {
+      CHECK(info.trial.source.frames == 29);
+      CHECK(info.trial.warnings.size() == 1);
+    } else if (name == "subject01_walk1_ik.mot") {
+      REQUIRE(info.table);
+      CHECK(info.table->rows == 73);
+      CHECK(info.table->columns.size() == 24);
+      CHECK(info.table->rate_hz == Approx(60.0).epsilon(1e-6));
+      CHECK(info.table->warnings.empty());
+    } else if (name == "opensense_walking_orientations.sto") {
+      REQUIRE(info.table);
+      CHECK(info.table->rows == 2432);
+      CHECK(info.table->columns.size() == 9);
+      CHECK(info.table->rate_hz == 100.0);
+      CHECK(info.table->cell_kind == "quaternions (w,x,y,z)");
+    } else if (ext == ".trc") {
+      CHECK(info.trial.warnings.empty());
+      CHECK(info.trial.frames() > 0);
+      for (const MarkerSamples& m : info.markers) CHECK(m.missing == 0);
+    }
+  }
+  CHECK(seen >= 8);
 }

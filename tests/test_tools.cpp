@@ -1,14 +1,21 @@
 // The `fabrik replay|watch|synth` cores: synthetic trials with gaps, replay onto a SUB socket
 // (inproc and tcp, JSON and MessagePack), --drop parsing, and the watch decoder and tally.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <thread>
 #include <zmq_addon.hpp>
 
+#include "eval/eval.hpp"
 #include "io/marker_trial.hpp"
+#include "offline/marker_match.hpp"
+#include "offline/solve_trial.hpp"
+#include "process.hpp"
 #include "temp_file.hpp"
 #include "tools/replay.hpp"
 #include "tools/synth.hpp"
@@ -163,6 +170,8 @@ TEST_CASE("replay over inproc: every frame, numbered, in mm, nulls for missing a
   const ReplaySummary s = replay.join();
   CHECK(s.frames_sent == 50);
   CHECK(s.markers_nulled == 5 + 10);
+  CHECK(s.markers_missing == 5);
+  CHECK(s.markers_dropped == 10);
   zmq::message_t extra;
   CHECK_FALSE(sub.recv(extra, zmq::recv_flags::dontwait));
 
@@ -288,4 +297,246 @@ TEST_CASE("watch tally: gaps in frame numbers are loss, restarts are not") {
   CHECK(s["solve_us"]["max"].get<double>() == 40.0);
   CHECK(s["solve_us"]["p50"].get<double>() == 10.0);
   CHECK(s["last_stats"]["decode_errors"] == 2);
+}
+
+// ---- Recordings from other labs: zeros, files without markers, configs that fit nothing ----
+
+namespace {
+
+const std::string kFabrik = FABRIK_PATH;
+const std::string kDataDir = kSourceDir + "/../shared/data";
+
+// Runs `fabrik ARGS...` with stdout to `stdout_path` (if given); its exit code and stderr.
+std::pair<int, std::string> run_fabrik(const std::vector<std::string>& args,
+                                       const std::string& stdout_path = "/dev/null") {
+  std::string command = "exec '" + kFabrik + "'";
+  for (const std::string& a : args) command += " '" + a + "'";
+  command += " > '" + stdout_path + "'";
+  fabrik::test::Process p({"/bin/sh", "-c", command});
+  const std::optional<int> code = p.wait(std::chrono::seconds(60));
+  REQUIRE(code.has_value());  // fails (and the process is killed) after 60 s
+  return {*code, p.stderr_text()};
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// 2 s at 100 Hz of the default config's model moving, no noise, no gaps.
+MarkerTrial default_model_trial() {
+  const SynthSetup setup = load_synth_setup(kSourceDir + "/config/default.json");
+  SynthOptions o;
+  o.seconds = 2.0;
+  o.noise_mm = 0.0;
+  return make_synth_trial(setup, o).markers;
+}
+
+}  // namespace
+
+TEST_CASE("replay sends a recording's exact (0, 0, 0) samples as null and counts them") {
+  MarkerTrial trial = small_trial();
+  for (int f = 0; f < 50; ++f) trial.at(f, 2).setZero();  // Subj:C "not seen" throughout
+  TempFile file(".trc");
+  fabrik::io::write_trc(file.path(), trial);
+  const MarkerTrial read = fabrik::io::read_trial(file.path());
+
+  zmq::context_t context;
+  zmq::socket_t sub(context, zmq::socket_type::sub);
+  sub.set(zmq::sockopt::rcvhwm, 0);
+  sub.set(zmq::sockopt::subscribe, "markers");
+  sub.bind("inproc://replay-zeros");
+  ReplayThread replay(context, read, fast_options("inproc://replay-zeros"));
+  const auto msgs = receive(sub, 50);
+  const ReplaySummary s = replay.join();
+  CHECK(s.markers_nulled == 5 + 50);
+  CHECK(s.markers_missing == 5 + 50);
+  CHECK(s.markers_dropped == 0);
+  for (const auto& [raw, doc] : msgs) CHECK(doc["markers"]["Subj:C"].is_null());
+}
+
+TEST_CASE("solve summary leaves frames without markers out of the residual and counts them") {
+  const fabrik::DaemonConfig config = fabrik::default_daemon_config();
+  MarkerTrial trial = default_model_trial();
+  REQUIRE(trial.frames() == 200);
+  for (std::size_t f = 50; f < 80; ++f)  // 30 frames where nothing is seen
+    for (std::size_t m = 0; m < trial.markers(); ++m)
+      trial.at(f, m).setConstant(std::numeric_limits<double>::quiet_NaN());
+  const int lasi = trial.find("LASI"), rasi = trial.find("RASI");
+  REQUIRE(lasi >= 0);
+  REQUIRE(rasi >= 0);
+  for (std::size_t f = 0; f < 200; ++f) trial.at(f, std::size_t(lasi)).setConstant(NAN);
+  for (std::size_t f = 0; f < 120; ++f) trial.at(f, std::size_t(rasi)).setConstant(NAN);
+
+  const fabrik::TrialSolution s = fabrik::solve_trial(config, trial);
+  const json summary = fabrik::solution_summary(s);
+  CHECK(summary["frames"] == 200);
+  CHECK(summary["frames_without_markers"] == 30);
+  double sum_m = 0.0, all_m = 0.0;
+  for (std::size_t f = 0; f < 200; ++f) {
+    all_m += s.rms_m[f];
+    if (f < 50 || f >= 80) sum_m += s.rms_m[f];
+  }
+  CHECK(s.measured[60] == 0);
+  CHECK(s.measured[10] == 43);
+  CHECK(summary["residual_mm"]["rms_mean"].get<double>() == Approx(sum_m / 170 * 1e3));
+  CHECK(sum_m / 170 > all_m / 200);  // the 0 mm of unseen frames no longer dilute it
+
+  // Tracked markers missing in most of the trial, and one never seen.
+  CHECK(summary["markers_missing_in_trial"] == json::array({"LASI"}));
+  const json mostly = summary["markers_mostly_missing"];
+  REQUIRE(mostly.size() == 2);
+  CHECK(mostly[0]["marker"] == "LASI");
+  CHECK(mostly[0]["missing_frames"] == 200);
+  CHECK(mostly[1]["marker"] == "RASI");
+  CHECK(mostly[1]["missing_frames"] == 120 + 0);  // frames 50-79 lie inside the first 120
+}
+
+TEST_CASE("A trial that shares no marker name with the config is refused, with the closest") {
+  const fabrik::DaemonConfig config = fabrik::default_daemon_config();
+  MarkerTrial trial = default_model_trial();
+  for (std::string& l : trial.labels) {
+    if (l == "RASI") l = "Subj:RASI";
+    else if (l == "LASI") l = "lasi";
+    else if (l == "RKNE") l = "R.KNE";
+    else if (l == "LKNE") l = "L_KNEE";
+    else l = "X" + l + "X" + l;
+  }
+  std::string message;
+  try {
+    fabrik::require_shared_markers(config, trial, "walk.trc");
+  } catch (const std::runtime_error& e) {
+    message = e.what();
+  }
+  INFO(message);
+  CHECK_THAT(message, Catch::StartsWith("walk.trc: shares none of the 45 marker names of the "
+                                        "config <embedded>/default.json (45 labels in the file)"));
+  CHECK_THAT(message, Catch::Contains("\n  config: LASI, LPSI, RASI,"));
+  CHECK_THAT(message, Catch::Contains("\n  file:   lasi, "));
+  CHECK_THAT(message, Catch::Contains("\n  closest: LASI ~ lasi (case), RASI ~ Subj:RASI (after "
+                                      "'Subj:'), RKNE ~ R.KNE (punctuation), "));
+  CHECK_THAT(message, Catch::Contains("LKNE ~ L_KNEE (1 edit)"));
+  CHECK_THAT(message, Catch::Contains("\nFix: "));
+  // One shared name is enough.
+  trial.labels[0] = config.tracker.markers[0].marker;
+  CHECK_NOTHROW(fabrik::require_shared_markers(config, trial, "walk.trc"));
+}
+
+TEST_CASE("fabrik solve and calibrate on a C3D without 3D points: the truth, exit 2") {
+  MarkerTrial none;
+  none.rate_hz = 100.0;
+  TempFile c3d(".c3d"), out(".trc");
+  fabrik::io::write_c3d(c3d.path(), none,
+                        fabrik::io::C3dWriteOptions{.analog_channels = 12,
+                                                    .analog_samples_per_frame = 10,
+                                                    .frames_without_points = 300});
+  const std::string expected = c3d.path() +
+                               ": the file has no 3D marker data; it has 12 analog channels at "
+                               "1000 Hz over 300 frames";
+  const auto [solve_code, solve_err] =
+      run_fabrik({"solve", "--input", c3d.path(), "--output", out.path(), "--quiet"});
+  CHECK(solve_code == 2);
+  CHECK_THAT(solve_err, Catch::StartsWith("fabrik solve: " + expected));
+  const auto [calib_code, calib_err] =
+      run_fabrik({"calibrate", "--template", kSourceDir + "/config/templates/gait2354.json",
+                  "--static", c3d.path(), "--output", out.path()});
+  CHECK(calib_code == 2);
+  CHECK_THAT(calib_err, Catch::StartsWith("fabrik calibrate: " + expected));
+  CHECK_FALSE(fs::exists(out.path()));
+}
+
+TEST_CASE("fabrik solve refuses a config that fits nothing up front, exit 2") {
+  MarkerTrial trial = small_trial();  // labels A, B, Subj:C; the default config has none
+  TempFile trc(".trc"), out(".trc");
+  fabrik::io::write_trc(trc.path(), trial);
+  const auto [code, err] =
+      run_fabrik({"solve", "--input", trc.path(), "--output", out.path(), "--quiet"});
+  CHECK(code == 2);
+  CHECK_THAT(err, Catch::StartsWith("fabrik solve: " + trc.path() + ": shares none of the 45"));
+  CHECK_FALSE(fs::exists(out.path()));
+}
+
+TEST_CASE("fabrik info --json describes a recording for scripts") {
+  MarkerTrial trial = small_trial();
+  trial.at(3, 0).setZero();
+  TempFile c3d(".c3d"), json_out(".json");
+  fabrik::io::write_c3d(c3d.path(), trial,
+                        fabrik::io::C3dWriteOptions{.processor = fabrik::io::C3dProcessor::mips,
+                                                    .analog_channels = 2});
+  const auto [code, err] = run_fabrik({"info", "--json", c3d.path()}, json_out.path());
+  CHECK(code == 0);
+  const json j = json::parse(slurp(json_out.path()));
+  CHECK(j["format"] == "C3D");
+  CHECK(j["number_format"] == "MIPS float");
+  CHECK(j["rate_hz"] == 100.0);
+  CHECK(j["units"] == "mm");
+  CHECK(j["frames"] == 50);
+  CHECK(j["first_frame"] == 1);
+  CHECK(j["last_frame"] == 50);
+  REQUIRE(j["markers"].size() == 3);
+  CHECK(j["markers"][0] == json({{"label", "A"}, {"missing", 1}, {"zeros", 1}, {"longest_gap", 1}}));
+  CHECK(j["markers"][1]["missing"] == 5);
+  CHECK(j["markers"][1]["longest_gap"] == 5);
+  CHECK(j["analog"]["channels"] == 2);
+  CHECK(j["rotations"]["count"] == 0);
+  CHECK(j["warnings"].size() == 1);  // the zero
+
+  const auto [bad_code, bad_err] = run_fabrik({"info", kSourceDir + "/README.md"});
+  CHECK(bad_code == 2);
+  CHECK_THAT(bad_err, Catch::Contains("unknown file type '.md': fabrik info reads"));
+}
+
+TEST_CASE("fabrik info on every recording in the shared data folder") {
+  if (!fs::exists(kDataDir)) {
+    WARN("skipped: " << kDataDir << " not found");
+    return;
+  }
+  std::vector<std::string> args = {"info"};
+  for (const auto& entry : fs::directory_iterator(kDataDir))
+    if (entry.path().extension() != ".md") args.push_back(entry.path().string());
+  REQUIRE(args.size() >= 9);
+  TempFile text(".txt");
+  const auto [code, err] = run_fabrik(args, text.path());
+  INFO(err);
+  CHECK(code == 0);
+  const std::string out = slurp(text.path());
+  CHECK(std::count(out.begin(), out.end(), '\n') > 100);
+  CHECK_THAT(out, Catch::Contains("analog      38 channels at 2000 Hz"));
+  CHECK_THAT(out, Catch::Contains("rows        2432, time 0 to 24.31 s"));
+}
+
+TEST_CASE("walk1 with a tracked marker at (0, 0, 0) throughout tracks as without that marker") {
+  const std::string walk = kDataDir + "/subject01_walk1.trc";
+  if (!fs::exists(walk)) {
+    WARN("skipped: " << walk << " not found");
+    return;
+  }
+  const fabrik::DaemonConfig config = fabrik::eval::calibrate_config(
+      kSourceDir + "/config/templates/gait2354.json", kDataDir + "/subject01_static.trc");
+  MarkerTrial without = fabrik::io::read_trial(walk), zeros = without;
+  const int m = without.find("R.Thigh.Front");
+  REQUIRE(m >= 0);
+  for (std::size_t f = 0; f < without.frames(); ++f) {
+    without.at(f, std::size_t(m)).setConstant(NAN);
+    zeros.at(f, std::size_t(m)).setZero();
+  }
+  TempFile copy(".trc");
+  fabrik::io::write_trc(copy.path(), zeros);
+
+  const auto joints_rms_mm = [&](const fabrik::TrialSolution& a, const fabrik::TrialSolution& b) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < a.joints.positions_m.size(); ++i)
+      sum += (a.joints.positions_m[i] - b.joints.positions_m[i]).squaredNorm();
+    return std::sqrt(sum / static_cast<double>(a.joints.positions_m.size())) * 1e3;
+  };
+  const fabrik::TrialSolution reference = fabrik::solve_trial(config, without);
+  const fabrik::TrialSolution read = fabrik::solve_trial(config, fabrik::io::read_trial(copy.path()));
+  CHECK(joints_rms_mm(read, reference) < 0.5);
+  const json summary = fabrik::solution_summary(read);
+  CHECK(summary["markers_missing_in_trial"] == json::array({"R.Thigh.Front"}));
+  CHECK(summary["markers_mostly_missing"][0]["zero_frames"] == 151);
+  // Read as positions, the zeros pull the thigh towards the origin.
+  const fabrik::TrialSolution kept = fabrik::solve_trial(
+      config, fabrik::io::read_trial(copy.path(), {.zeros_are_missing = false}));
+  CHECK(joints_rms_mm(kept, reference) > 10.0);
 }

@@ -8,6 +8,7 @@
 
 #include "calib/calibrate.hpp"
 #include "config/daemon_config.hpp"
+#include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik {
@@ -15,12 +16,14 @@ namespace fabrik {
 namespace {
 struct CalibrateArgs {
   std::string template_path, static_path, output_path;
+  bool keep_zeros = false;
   calib::CalibrateOptions options;
 };
 
 void run_calibrate(const CalibrateArgs& a) {
   const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
-  const io::MarkerTrial trial = io::read_trial(a.static_path);
+  const io::MarkerTrial trial =
+      apps::read_trial_or_explain("calibrate", a.static_path, a.keep_zeros);
   const calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, a.options);
   // The config must load as the daemon will load it, before it is written.
   const std::string text = r.config.dump(2) + "\n";
@@ -51,6 +54,8 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--frames", args->options.frames,
                   "Frames to average (default: to the end of the trial)")
       ->check(CLI::PositiveNumber);
+  cmd->add_flag("--keep-zeros", args->keep_zeros,
+                "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
   cmd->callback([args] { tools::run_command("calibrate", [&] { run_calibrate(*args); }); });
 }
 

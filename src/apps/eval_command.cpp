@@ -7,6 +7,8 @@
 #include <memory>
 
 #include "eval/eval.hpp"
+#include "offline/marker_match.hpp"
+#include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -37,13 +39,19 @@ std::pair<DaemonConfig, io::MarkerTrial> subject(const EvalArgs& a) {
   require_file(a.walk_path, "--walk");
   if (!a.config_path.empty()) {
     require_file(a.config_path, "--config");
-    return {load_daemon_config_file(a.config_path), io::read_trial(a.walk_path)};
+    std::pair<DaemonConfig, io::MarkerTrial> s{load_daemon_config_file(a.config_path),
+                                               read_trial_or_explain("eval", a.walk_path, false)};
+    require_shared_markers(s.first, s.second, a.walk_path);
+    return s;
   }
   require_file(a.template_path, "--template");
   require_file(a.static_path, "--static");
   std::fprintf(stderr, "calibrating %s with %s; tracking %s\n", a.static_path.c_str(),
                a.template_path.c_str(), a.walk_path.c_str());
-  return {eval::calibrate_config(a.template_path, a.static_path), io::read_trial(a.walk_path)};
+  std::pair<DaemonConfig, io::MarkerTrial> s{eval::calibrate_config(a.template_path, a.static_path),
+                                             read_trial_or_explain("eval", a.walk_path, false)};
+  require_shared_markers(s.first, s.second, a.walk_path);
+  return s;
 }
 
 void write_json(const std::string& path, const nlohmann::json& j) {

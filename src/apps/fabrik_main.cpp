@@ -8,6 +8,7 @@
 #include "bench/latency_bench.hpp"
 #include "calibrate_command.hpp"
 #include "eval_command.hpp"
+#include "info_command.hpp"
 #include "solve_command.hpp"
 #include "tools/tools.hpp"
 #include "version.hpp"
@@ -61,6 +62,7 @@ int main(int argc, char** argv) {
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
   fabrik::apps::add_solve_command(app);
+  fabrik::apps::add_info_command(app);
   fabrik::add_calibrate_command(app);
   fabrik::apps::add_eval_command(app);
   fabrik::tools::add_tool_commands(app);  // run from their own callbacks

@@ -5,7 +5,9 @@
 #include <iostream>
 #include <memory>
 
+#include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
+#include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -14,7 +16,7 @@ namespace {
 
 struct SolveOptions {
   std::string config, input, output, markers_output, report;
-  bool quiet = false;
+  bool quiet = false, keep_zeros = false;
 };
 
 void progress_bar(std::size_t done, std::size_t total) {
@@ -28,12 +30,21 @@ void progress_bar(std::size_t done, std::size_t total) {
 void run(const SolveOptions& o) {
   const DaemonConfig config =
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
-  const io::MarkerTrial trial = io::read_trial(o.input);
+  const io::MarkerTrial trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
+  require_shared_markers(config, trial, o.input);
   if (!o.quiet)
     std::fprintf(stderr, "fabrik solve: %s (%zu frames at %g Hz, %zu markers) with %s\n",
                  o.input.c_str(), trial.frames(), trial.rate_hz, trial.markers(),
                  config.file.c_str());
   const TrialSolution s = solve_trial(config, trial, o.quiet ? nullptr : progress_bar);
+  for (const MostlyMissing& m : s.mostly_missing) {
+    std::fprintf(stderr,
+                 "fabrik solve: warning: tracked marker %s is missing in %zu of %zu frames%s\n",
+                 m.marker.c_str(), m.missing_frames, trial.frames(),
+                 m.zero_frames > 0
+                     ? (" (" + std::to_string(m.zero_frames) + " of them exact (0, 0, 0))").c_str()
+                     : "");
+  }
   write_trial_file(o.output, s.joints);
   if (!o.markers_output.empty()) write_trial_file(o.markers_output, s.markers);
   const nlohmann::json summary = solution_summary(s);
@@ -44,12 +55,13 @@ void run(const SolveOptions& o) {
   }
   const auto& r = summary["residual_mm"];
   std::printf(
-      "frames            %zu\n"
+      "frames            %zu (%zu without any tracked marker, left out of the residual)\n"
       "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
       "frame %zu)\n"
       "solve             p50 %.1f us, p99 %.1f us, %.1f iterations on average\n"
       "joint centres     %s\n",
-      summary["frames"].get<std::size_t>(), r["rms_mean"].get<double>(), r["rms_max"].get<double>(),
+      summary["frames"].get<std::size_t>(), summary["frames_without_markers"].get<std::size_t>(),
+      r["rms_mean"].get<double>(), r["rms_max"].get<double>(),
       r["max"].get<double>(), r["max_marker"].get<std::string>().c_str(),
       r["max_frame"].get<std::size_t>(), summary["solve_us"]["p50"].get<double>(),
       summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
@@ -75,6 +87,8 @@ void add_solve_command(CLI::App& app) {
                 "Also write the model's (gap-filled) markers, .trc or .csv");
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_flag("--quiet", o->quiet, "No progress bar");
+  c->add_flag("--keep-zeros", o->keep_zeros,
+              "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
   c->callback([o] { tools::run_command("solve", [&] { run(*o); }); });
 }
 

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <fstream>
+#include <istream>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -22,5 +24,17 @@ double check_trial_for_writing(const MarkerTrial& trial, const std::string& unit
                                const char* writer);
 
 std::string_view trim(std::string_view s);
+
+// Reads the next line into `line` without its line ending (LF or CRLF), storing at most
+// `max_bytes` of it: a line costs no more than that, whatever the file holds.
+enum class LineRead { line, end, too_long };
+LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes);
+
+// Metres per file unit for "mm", "cm" or "m" in any case (and their long names); none otherwise.
+std::optional<double> metres_per_unit(std::string_view units);
+
+// Adds one warning to `trial` when some of its samples were exactly (0, 0, 0)
+// (trial.source.zero_samples), saying which markers and how they were read.
+void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options);
 
 }  // namespace fabrik::io::detail

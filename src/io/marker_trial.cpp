@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <system_error>
 
@@ -15,13 +16,41 @@ int MarkerTrial::find(const std::string& label) const {
   return it == labels.end() ? -1 : static_cast<int>(it - labels.begin());
 }
 
-MarkerTrial read_trial(const std::string& path) {
+MarkerTrial read_trial(const std::string& path, const ReadOptions& options) {
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (ext == ".trc") return read_trc(path);
-  if (ext == ".c3d") return read_c3d(path);
+  if (ext == ".trc") return read_trc(path, options);
+  if (ext == ".c3d") return read_c3d(path, options);
   throw FormatError(path, "unknown file type '" + ext + "' (expected .trc or .c3d)");
+}
+
+void require_marker_data(const MarkerTrial& trial, const std::string& path) {
+  if (trial.markers() > 0 && trial.frames() > 0) return;
+  const RecordingFacts& f = trial.source;
+  if (trial.markers() > 0) {
+    throw FormatError(path, "the file has " + std::to_string(trial.markers()) +
+                                " markers but no frames of 3D data");
+  }
+  std::vector<std::string> other;
+  if (f.analog_channels > 0) {
+    char rate[32];
+    std::snprintf(rate, sizeof rate, "%g", f.analog_rate_hz);
+    other.push_back(std::to_string(f.analog_channels) + " analog channel" +
+                    (f.analog_channels == 1 ? "" : "s") +
+                    (f.analog_rate_hz > 0.0 ? std::string(" at ") + rate + " Hz" : ""));
+  }
+  if (f.rotations > 0) {
+    other.push_back(std::to_string(f.rotations) + " rotation" + (f.rotations == 1 ? "" : "s"));
+  }
+  std::string holds = "no other data either";
+  if (!other.empty()) {
+    holds = other[0] + (other.size() > 1 ? " and " + other[1] : "") + " over " +
+            std::to_string(f.frames) + " frame" + (f.frames == 1 ? "" : "s");
+  }
+  throw FormatError(path, "the file has no 3D marker data; it has " + holds +
+                              ". Fix: give a recording with labelled markers (check it with "
+                              "`fabrik info`)");
 }
 
 namespace detail {
@@ -69,6 +98,55 @@ std::string_view trim(std::string_view s) {
   while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
   while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
   return s;
+}
+
+LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes) {
+  line.clear();
+  std::streambuf* buf = in.rdbuf();
+  int c = buf->sbumpc();
+  if (c == std::char_traits<char>::eof()) return LineRead::end;
+  for (; c != std::char_traits<char>::eof() && c != '\n'; c = buf->sbumpc()) {
+    if (line.size() == max_bytes) return LineRead::too_long;
+    line.push_back(static_cast<char>(c));
+  }
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  return LineRead::line;
+}
+
+std::optional<double> metres_per_unit(std::string_view units) {
+  std::string u(trim(units));
+  std::transform(u.begin(), u.end(), u.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (u == "mm" || u == "millimeter" || u == "millimeters" || u == "millimetre" ||
+      u == "millimetres") {
+    return 0.001;
+  }
+  if (u == "cm" || u == "centimeter" || u == "centimeters" || u == "centimetre" ||
+      u == "centimetres") {
+    return 0.01;
+  }
+  if (u == "m" || u == "meter" || u == "meters" || u == "metre" || u == "metres") return 1.0;
+  return std::nullopt;
+}
+
+void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options) {
+  const std::vector<std::size_t>& zeros = trial.source.zero_samples;
+  std::size_t samples = 0, markers = 0, worst = 0;
+  for (std::size_t m = 0; m < zeros.size(); ++m) {
+    samples += zeros[m];
+    markers += zeros[m] > 0 ? 1 : 0;
+    if (zeros[m] > zeros[worst]) worst = m;
+  }
+  if (samples == 0) return;
+  trial.warnings.push_back(
+      std::to_string(samples) + " sample" + (samples == 1 ? "" : "s") + " of " +
+      std::to_string(markers) + " marker" + (markers == 1 ? "" : "s") +
+      " are exactly (0, 0, 0) (most: " + trial.labels[worst] + ", " +
+      std::to_string(zeros[worst]) + " of " + std::to_string(trial.frames()) + " frames): " +
+      (options.zeros_are_missing
+           ? "read as missing, as exporters write them for markers not seen (keep-zeros "
+             "reads them as positions)"
+           : "kept as positions at the origin (keep-zeros)"));
 }
 
 }  // namespace detail

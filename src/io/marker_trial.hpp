@@ -1,7 +1,8 @@
 // Marker recordings in memory and the files that hold them: TRC (OpenSim, Mokka) text and C3D
 // binary (Intel, DEC or MIPS number formats, int16 or float data). Readers convert to metres
 // once, when they read, and mark missing samples NaN. Every problem with a file is a
-// FormatError whose message starts with the file's path.
+// FormatError whose message starts with the file's path; what a reader noticed and worked
+// around is returned in MarkerTrial::warnings (the library does not log).
 #pragma once
 
 #include <Eigen/Core>
@@ -12,6 +13,23 @@
 
 namespace fabrik::io {
 
+// What a file says about itself beyond the markers' positions: for messages and `fabrik info`.
+struct RecordingFacts {
+  std::string format;         // "TRC" or "C3D" (empty for trials made in memory)
+  std::string number_format;  // "text", or the C3D processor and type: "Intel float", "DEC int16"
+  std::string units;          // the file's length unit as written ("mm", "MM", "m", "cm")
+  std::size_t frames = 0;     // frames the file holds, also when it holds no 3D points
+  // Per marker: samples that were exactly (0, 0, 0), which several exporters write for "not
+  // seen". Read as missing unless ReadOptions::zeros_are_missing is false.
+  std::vector<std::size_t> zero_samples;
+  // C3D analog channels and rotations: counted and named, their data is not read.
+  std::size_t analog_channels = 0;
+  double analog_rate_hz = 0.0;
+  std::vector<std::string> analog_labels;
+  std::size_t rotations = 0;
+  std::vector<std::string> rotation_labels;
+};
+
 // A marker recording in memory. Positions are in METRES (converted once, when read), NaN where a
 // marker is missing.
 struct MarkerTrial {
@@ -19,6 +37,10 @@ struct MarkerTrial {
   double rate_hz = 0.0;                      // frames per second
   int first_frame = 1;                       // number of the first frame in the source file
   std::vector<Eigen::Vector3d> positions_m;  // frame-major: [frame * labels.size() + marker]
+  RecordingFacts source;                     // filled by the readers
+  // What the reader found odd and how it read it, one sentence each, e.g. "header: NumFrames is
+  // 200 but the file has 151 data rows: read 151". Commands print them.
+  std::vector<std::string> warnings;
 
   std::size_t frames() const { return labels.empty() ? 0 : positions_m.size() / labels.size(); }
   std::size_t markers() const { return labels.size(); }
@@ -47,30 +69,71 @@ class FormatError : public std::runtime_error {
   std::string path_;
 };
 
-// TRC: tab-separated text. Units "mm" or "m"; an empty field, a short row or a "NaN" field is a
-// missing marker. Throws FormatError.
-MarkerTrial read_trc(const std::string& path);
+struct ReadOptions {
+  // Some exporters write a frame count larger than the data they store (the real Optotrak.c3d
+  // test file declares 1149 frames and holds 29). By default such a C3D file is rejected as
+  // truncated; with this set, the complete frames it holds are returned. (A TRC file's data
+  // rows are always trusted over its NumFrames, with a warning.)
+  bool allow_truncated_data = false;
+  // An exact (0, 0, 0) sample is a marker that was not seen (several exporters write it so).
+  // False keeps such samples as positions at the origin.
+  bool zeros_are_missing = true;
+};
+using C3dReadOptions = ReadOptions;
+
+// TRC: tab-separated text as OpenSim reads it: header values separated by any run of
+// whitespace; units mm, cm or m in any case; an empty field, a short row or a "NaN" field is a
+// missing marker; the data rows are trusted over NumFrames/NumMarkers (with a warning). What a
+// file can cost is bounded: a row may not be longer than its columns could need
+// (kTrcBytesPerField each, plus slack), and the positions may not take more than 64 times the
+// file's size (16 MiB at least; short rows are cheap to write but cost 24 bytes a marker).
+// Throws FormatError.
+MarkerTrial read_trc(const std::string& path, const ReadOptions& options = {});
+inline constexpr std::size_t kTrcBytesPerField = 256;
 // Writes an OpenSim/Mokka-compatible TRC (PathFileType 4, X/Y/Z), empty fields for missing
 // markers, 6 decimals in mm or 9 in m (1 nm either way). Units "mm" or "m"; a label must be
 // non-empty without tabs or line breaks (std::invalid_argument otherwise).
 void write_trc(const std::string& path, const MarkerTrial& trial, const std::string& units = "mm");
 
-struct C3dReadOptions {
-  // Some exporters write a frame count larger than the data they store (the real Optotrak.c3d
-  // test file declares 1149 frames and holds 29). By default such a file is rejected as
-  // truncated; with this set, the complete frames it holds are returned.
-  bool allow_truncated_data = false;
-};
-// C3D: 3D points only (analog data is skipped). Throws FormatError.
-MarkerTrial read_c3d(const std::string& path, const C3dReadOptions& options = {});
+// C3D: 3D points (analog channels and rotations are counted in `source`, not read). A file
+// whose POINT:DATA_START or POINT:FRAMES disagrees with its header is read as the data allow,
+// with a warning. Throws FormatError.
+MarkerTrial read_c3d(const std::string& path, const ReadOptions& options = {});
 
 // By extension, .trc or .c3d (any case); FormatError for anything else.
-MarkerTrial read_trial(const std::string& path);
+MarkerTrial read_trial(const std::string& path, const ReadOptions& options = {});
+
+// Throws FormatError(path, ...) unless the trial has at least one marker and one frame, saying
+// what the file holds instead, e.g. "the file has no 3D marker data; it has 38 analog channels".
+void require_marker_data(const MarkerTrial& trial, const std::string& path);
 
 // Writes a C3D file in any processor's number format, with int16 (scaled) or float data, so
 // the reader can be tested on every format without outside files. Missing markers get
 // residual -1. Units "mm" or "m" (std::invalid_argument otherwise).
 enum class C3dProcessor { intel, dec, mips };
+struct C3dWriteOptions {
+  C3dProcessor processor = C3dProcessor::intel;
+  bool float_data = true;
+  std::string units = "mm";
+  // What other writers do, for tests of the reader:
+  // analog channels sampled `analog_samples_per_frame` times per frame (a ramp per channel);
+  std::size_t analog_channels = 0;
+  std::size_t analog_samples_per_frame = 1;
+  // rotations (ROTATION group, identity matrices after the point data);
+  std::size_t rotations = 0;
+  // frames written when the trial has no markers (an analog- or rotation-only file);
+  std::size_t frames_without_points = 0;
+  // POINT:DATA_START written as 0 while the header's data-start word stays right (a DEC
+  // exporter does this);
+  bool point_data_start_zero = false;
+  // no TRIAL group (so the header's 16-bit frame numbers count), and the header's first frame
+  // word written as this value, the last as first + frames - 1 modulo 65536 (0: first_frame);
+  bool trial_group = true;
+  unsigned header_first_frame = 0;
+  // POINT:FRAMES written as this value (-1: the number of frames modulo 65536).
+  long point_frames = -1;
+};
+void write_c3d(const std::string& path, const MarkerTrial& trial, const C3dWriteOptions& options);
 void write_c3d(const std::string& path, const MarkerTrial& trial, C3dProcessor processor,
                bool float_data, const std::string& units = "mm");
 

@@ -1,6 +1,10 @@
 // TRC marker files: 5 header lines (PathFileType; header keys; header values; Frame# Time and
-// marker names; X1 Y1 Z1 ...), then one tab-separated row per frame.
+// marker names; X1 Y1 Z1 ...), then one tab-separated row per frame. Read as OpenSim reads
+// them: header keys and values separated by any run of whitespace (OpenSim itself writes
+// double tabs), data fields by single tabs.
+#include <algorithm>
 #include <charconv>
+#include <cstdint>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -18,6 +22,33 @@ namespace fabrik::io {
 namespace {
 using detail::trim;
 
+// Line 4 may hold thousands of marker names (line 5 their X/Y/Z), but not more than this; the
+// other header lines hold a few words.
+constexpr std::size_t kMaxNamesLineBytes = std::size_t{16} << 20;
+constexpr std::size_t kMaxHeaderLineBytes = std::size_t{64} << 10;
+// Short rows are missing markers, so a row's text can be much smaller than what it costs in
+// memory (24 bytes a marker): the positions may take this many times the file's size, or
+// kMinPositionBudgetBytes, before the file is refused as not a recording.
+constexpr std::uint64_t kPositionBytesPerFileByte = 64;
+constexpr std::uint64_t kMinPositionBudgetBytes = std::uint64_t{16} << 20;
+// Room beyond kTrcBytesPerField per column for a row's line ending and trailing whitespace.
+constexpr std::size_t kRowSlackBytes = 4096;
+
+bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r'; }
+
+// Fields of `line` separated by runs of whitespace (header lines).
+std::vector<std::string_view> split_words(std::string_view line) {
+  std::vector<std::string_view> words;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && is_space(line[i])) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !is_space(line[i])) ++i;
+    if (i > start) words.push_back(line.substr(start, i - start));
+  }
+  return words;
+}
+
 std::vector<std::string_view> split_tabs(std::string_view line) {
   std::vector<std::string_view> fields;
   std::size_t start = 0;
@@ -32,6 +63,31 @@ std::vector<std::string_view> split_tabs(std::string_view line) {
   }
 }
 
+// The tab-separated fields of a data row, one at a time: a row costs no more than its text,
+// however many empty fields it holds.
+class Fields {
+ public:
+  explicit Fields(std::string_view line) : rest_(line) {}
+  // The next field (trimmed), or nothing after the last.
+  std::optional<std::string_view> next() {
+    if (done_) return std::nullopt;
+    const std::size_t tab = rest_.find('\t');
+    const std::string_view field = rest_.substr(0, tab);
+    if (tab == std::string_view::npos) {
+      done_ = true;
+    } else {
+      rest_.remove_prefix(tab + 1);
+    }
+    return trim(field);
+  }
+  // Whether anything but whitespace is left.
+  bool rest_is_blank() const { return done_ || trim(rest_).empty(); }
+
+ private:
+  std::string_view rest_;
+  bool done_ = false;
+};
+
 // The whole (trimmed) field as a number; from_chars is locale-independent, unlike strtod.
 std::optional<double> parse_number(std::string_view s) {
   s = trim(s);
@@ -43,6 +99,23 @@ std::optional<double> parse_number(std::string_view s) {
   return v;
 }
 
+std::optional<std::size_t> parse_count(std::string_view s) {
+  s = trim(s);
+  std::size_t n = 0;
+  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), n);
+  if (s.empty() || ec != std::errc() || end != s.data() + s.size()) return std::nullopt;
+  return n;
+}
+
+bool equal_ci(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const auto lower = [](char c) { return c >= 'A' && c <= 'Z' ? static_cast<char>(c + 32) : c; };
+    if (lower(a[i]) != lower(b[i])) return false;
+  }
+  return true;
+}
+
 std::string quoted(std::string_view s) {
   constexpr std::size_t kMax = 40;  // keep messages readable for garbage input
   return "'" + std::string(s.substr(0, kMax)) + (s.size() > kMax ? "...'" : "'");
@@ -50,7 +123,9 @@ std::string quoted(std::string_view s) {
 
 class TrcParser {
  public:
-  TrcParser(const std::string& path, std::istream& in) : path_(path), in_(in) {}
+  TrcParser(const std::string& path, std::istream& in, std::uint64_t file_bytes,
+            const ReadOptions& options)
+      : path_(path), in_(in), file_bytes_(file_bytes), options_(options) {}
 
   MarkerTrial parse() {
     check_magic();
@@ -58,100 +133,163 @@ class TrcParser {
     header_line(line1);
     header_line(keys_line);
     header_line(values_line);
-    const std::vector<std::string_view> keys = split_tabs(keys_line);
-    const std::vector<std::string_view> values = split_tabs(values_line);
-    const auto value_of = [&](std::string_view key) -> std::optional<std::string_view> {
-      for (std::size_t i = 0; i < keys.size(); ++i) {
-        if (trim(keys[i]) == key) {
-          if (i < values.size()) return trim(values[i]);
-          return std::string_view();
-        }
-      }
-      return std::nullopt;
-    };
+    const Header header = read_header(keys_line, values_line);
 
     MarkerTrial trial;
-    std::optional<std::string_view> rate = value_of("DataRate");
-    if (!rate) rate = value_of("CameraRate");
-    if (!rate) fail("header: DataRate missing (line 2 names the header fields)");
-    const std::optional<double> rate_hz = parse_number(*rate);
-    if (!rate_hz || !(*rate_hz > 0.0) || !std::isfinite(*rate_hz)) {
-      fail("header: DataRate " + quoted(*rate) + " is not a positive number");
-    }
-    trial.rate_hz = *rate_hz;
-    const std::size_t num_markers = header_count(value_of("NumMarkers"), "NumMarkers");
-    const std::size_t num_frames = header_count(value_of("NumFrames"), "NumFrames");
-    const std::optional<std::string_view> units = value_of("Units");
-    if (!units) fail("header: Units missing");
-    double to_m = 0.0;
-    if (*units == "mm") {
-      to_m = 0.001;
-    } else if (*units == "m") {
-      to_m = 1.0;
-    } else {
-      fail("header: Units " + quoted(*units) + " is not supported (expected mm or m)");
-    }
+    trial.source.format = "TRC";
+    trial.source.number_format = "text";
+    trial.rate_hz = rate_of(header, trial);
+    const std::optional<std::string_view> units = header.value_of("Units");
+    if (!units || units->empty()) fail("header: Units missing");
+    const std::optional<double> to_m = detail::metres_per_unit(*units);
+    if (!to_m) fail("header: Units " + quoted(*units) + " is not supported (expected mm, cm or m)");
+    trial.source.units = std::string(*units);
 
-    header_line(names_line);
-    const std::vector<std::string_view> names = split_tabs(names_line);
-    if (trim(names[0]) != "Frame#") fail("line 4: expected 'Frame#' and the marker names");
-    for (std::size_t i = 2; i < names.size(); ++i) {
-      if (!trim(names[i]).empty()) trial.labels.emplace_back(trim(names[i]));
+    header_line(names_line, kMaxNamesLineBytes);
+    Fields names(names_line);
+    if (!equal_ci(names.next().value_or(""), "Frame#")) {
+      fail("line 4: expected 'Frame#' and the marker names");
     }
-    if (trial.labels.size() != num_markers) {
-      fail("line 4 names " + std::to_string(trial.labels.size()) + " markers but NumMarkers is " +
-           std::to_string(num_markers));
+    names.next();  // Time
+    while (const std::optional<std::string_view> name = names.next()) {
+      if (!name->empty()) trial.labels.emplace_back(*name);
     }
-    header_line(axes_line);  // X1 Y1 Z1 ...: nothing to learn from it
+    const std::size_t num_markers = trial.labels.size();
+    const std::optional<std::size_t> declared_markers = header.count_of("NumMarkers", trial);
+    if (declared_markers && *declared_markers != num_markers) {
+      trial.warnings.push_back("header: NumMarkers is " + std::to_string(*declared_markers) +
+                               " but line 4 names " + std::to_string(num_markers) +
+                               " markers: read " + std::to_string(num_markers));
+    }
+    header_line(axes_line, kMaxNamesLineBytes);  // X1 Y1 Z1 ...: nothing to learn from it
 
     const std::size_t columns = 2 + 3 * num_markers;
+    const std::size_t max_row_bytes = columns * kTrcBytesPerField + kRowSlackBytes;
+    const std::uint64_t budget_bytes =
+        std::max(kMinPositionBudgetBytes, kPositionBytesPerFileByte * file_bytes_);
+    trial.source.zero_samples.assign(num_markers, 0);
     const Eigen::Vector3d missing = Eigen::Vector3d::Constant(std::nan(""));
     std::size_t rows = 0;
     std::string line;
-    while (next_line(line)) {
+    while (next_line(line, max_row_bytes)) {
       if (trim(line).empty()) continue;  // blank separator and trailing lines
-      if (rows == num_frames) {
-        fail("line " + std::to_string(line_number_) + ": more data rows than NumFrames (" +
-             std::to_string(num_frames) + ")");
+      if ((trial.positions_m.size() + num_markers) * sizeof(Eigen::Vector3d) > budget_bytes) {
+        fail("line " + std::to_string(line_number_) + ": " + std::to_string(rows + 1) +
+             " rows of " + std::to_string(num_markers) + " markers would take more than " +
+             std::to_string(budget_bytes >> 20) + " MiB for a file of " +
+             std::to_string(file_bytes_) + " bytes: rows this short are not a recording");
       }
-      const std::vector<std::string_view> fields = split_tabs(line);
-      if (rows == 0) trial.first_frame = frame_number(fields[0]);
-      for (std::size_t c = columns; c < fields.size(); ++c) {
-        if (!trim(fields[c]).empty()) {
-          fail("line " + std::to_string(line_number_) + ": values beyond the " +
-               std::to_string(columns) + " columns of Frame#, Time and " +
-               std::to_string(num_markers) + " markers");
-        }
-      }
+      Fields fields(line);
+      const std::string_view frame_field = fields.next().value_or("");
+      if (rows == 0) trial.first_frame = frame_number(frame_field);
+      fields.next();  // Time: rounded in OpenSim's files; time comes from the rate
       for (std::size_t m = 0; m < num_markers; ++m) {
         Eigen::Vector3d p = missing;
         bool complete = true;
         for (std::size_t axis = 0; axis < 3; ++axis) {
-          const std::size_t c = 2 + 3 * m + axis;
-          const std::string_view field = c < fields.size() ? trim(fields[c]) : std::string_view();
+          const std::string_view field = fields.next().value_or("");
           if (field.empty()) {
             complete = false;  // a short row or an empty field: missing marker
             continue;
           }
           const std::optional<double> v = parse_number(field);
           if (!v) {
-            fail("line " + std::to_string(line_number_) + ", column " + std::to_string(c + 1) +
-                 ": " + quoted(field) + " is not a number");
+            fail("line " + std::to_string(line_number_) + ", column " +
+                 std::to_string(3 + 3 * m + axis) + ": " + quoted(field) + " is not a number");
           }
-          p[static_cast<Eigen::Index>(axis)] = *v * to_m;
+          p[static_cast<Eigen::Index>(axis)] = *v;
         }
-        trial.positions_m.push_back(complete && p.allFinite() ? p : missing);
+        if (complete && p.isZero(0.0)) {
+          ++trial.source.zero_samples[m];
+          complete = !options_.zeros_are_missing;
+        }
+        trial.positions_m.push_back(complete && p.allFinite() ? p * *to_m : missing);
+      }
+      if (!fields.rest_is_blank()) {
+        fail("line " + std::to_string(line_number_) + ": values beyond the " +
+             std::to_string(columns) + " columns of Frame#, Time and " +
+             std::to_string(num_markers) + " markers");
       }
       ++rows;
     }
-    if (rows < num_frames) {
-      fail("file ends after " + std::to_string(rows) + " of the " + std::to_string(num_frames) +
-           " frames NumFrames declares (truncated?)");
+    trial.source.frames = rows;
+    const std::optional<std::size_t> declared_frames = header.count_of("NumFrames", trial);
+    if (declared_frames && *declared_frames != rows) {
+      trial.warnings.push_back("header: NumFrames is " + std::to_string(*declared_frames) +
+                               " but the file has " + std::to_string(rows) +
+                               " data rows: read " + std::to_string(rows));
     }
+    detail::warn_about_zeros(trial, options_);
     return trial;
   }
 
  private:
+  // Line 2's keys and line 3's values.
+  struct Header {
+    std::vector<std::string_view> keys, values;
+
+    std::optional<std::string_view> value_of(std::string_view key) const {
+      for (std::size_t i = 0; i < keys.size(); ++i) {
+        if (equal_ci(trim(keys[i]), key)) {
+          return i < values.size() ? trim(values[i]) : std::string_view();
+        }
+      }
+      return std::nullopt;
+    }
+    // A whole number, or nothing (with a warning) when absent or unreadable: the data decide.
+    std::optional<std::size_t> count_of(std::string_view key, MarkerTrial& trial) const {
+      const std::optional<std::string_view> text = value_of(key);
+      if (!text) return std::nullopt;
+      const std::optional<std::size_t> n = parse_count(*text);
+      if (!n) {
+        trial.warnings.push_back("header: " + std::string(key) + " " + quoted(*text) +
+                                 " is not a whole number: ignored");
+      }
+      return n;
+    }
+  };
+
+  // Keys and values separated by runs of whitespace, as OpenSim reads them. When that gives a
+  // different number of keys and values, an empty value sits between two tabs: then fields are
+  // taken tab by tab.
+  Header read_header(const std::string& keys_line, const std::string& values_line) const {
+    Header h{split_words(keys_line), split_words(values_line)};
+    if (h.keys.size() != h.values.size()) {
+      std::vector<std::string_view> keys = split_tabs(keys_line), values = split_tabs(values_line);
+      while (!keys.empty() && trim(keys.back()).empty()) keys.pop_back();
+      while (values.size() > keys.size() && trim(values.back()).empty()) values.pop_back();
+      if (keys.size() == values.size()) {
+        h.keys = std::move(keys);
+        h.values = std::move(values);
+      }
+    }
+    return h;
+  }
+
+  // DataRate, or CameraRate when DataRate is absent or not positive.
+  double rate_of(const Header& header, MarkerTrial& trial) const {
+    const auto positive = [](std::optional<std::string_view> text) -> std::optional<double> {
+      if (!text) return std::nullopt;
+      const std::optional<double> v = parse_number(*text);
+      if (!v || !(*v > 0.0) || !std::isfinite(*v)) return std::nullopt;
+      return v;
+    };
+    const std::optional<std::string_view> data = header.value_of("DataRate");
+    const std::optional<std::string_view> camera = header.value_of("CameraRate");
+    if (const auto rate = positive(data)) return *rate;
+    if (const auto rate = positive(camera)) {
+      if (data) {
+        trial.warnings.push_back("header: DataRate " + quoted(*data) +
+                                 " is not a positive number: read the CameraRate, " +
+                                 std::string(trim(*camera)) + " Hz");
+      }
+      return *rate;
+    }
+    if (!data && !camera) fail("header: DataRate missing (line 2 names the header fields)");
+    fail("header: DataRate " + quoted(data.value_or("")) + " and CameraRate " +
+         quoted(camera.value_or("")) + " are not positive numbers");
+  }
+
   [[noreturn]] void fail(const std::string& problem) const { throw FormatError(path_, problem); }
 
   // Rejects binary or other files before reading a possibly huge "line" from them.
@@ -172,27 +310,23 @@ class TrcParser {
     in_.seekg(skip);
   }
 
-  bool next_line(std::string& line) {
-    if (!std::getline(in_, line)) return false;
+  // The next line without its line ending; FormatError if it is longer than `max_bytes`, before
+  // it is stored whole.
+  bool next_line(std::string& line, std::size_t max_bytes) {
+    const detail::LineRead got = detail::read_line(in_, line, max_bytes);
+    if (got == detail::LineRead::end) return false;
     ++line_number_;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (got == detail::LineRead::too_long) {
+      fail("line " + std::to_string(line_number_) + " is longer than " +
+           std::to_string(max_bytes) + " bytes, more than its columns can need: not a TRC row");
+    }
     return true;
   }
 
-  void header_line(std::string& line) {
-    if (!next_line(line)) {
+  void header_line(std::string& line, std::size_t max_bytes = kMaxHeaderLineBytes) {
+    if (!next_line(line, max_bytes)) {
       fail("file ends inside the header, at line " + std::to_string(line_number_ + 1) + " of 5");
     }
-  }
-
-  std::size_t header_count(std::optional<std::string_view> text, const char* key) const {
-    if (!text) fail(std::string("header: ") + key + " missing");
-    std::size_t n = 0;
-    const auto [end, ec] = std::from_chars(text->data(), text->data() + text->size(), n);
-    if (text->empty() || ec != std::errc() || end != text->data() + text->size()) {
-      fail(std::string("header: ") + key + " " + quoted(*text) + " is not a whole number");
-    }
-    return n;
   }
 
   int frame_number(std::string_view field) const {
@@ -206,6 +340,8 @@ class TrcParser {
 
   const std::string& path_;
   std::istream& in_;
+  std::uint64_t file_bytes_;
+  ReadOptions options_;
   std::size_t line_number_ = 0;
 };
 
@@ -218,9 +354,11 @@ void append_number(std::string& out, double v, int decimals) {
 }
 }  // namespace
 
-MarkerTrial read_trc(const std::string& path) {
+MarkerTrial read_trc(const std::string& path, const ReadOptions& options) {
   std::ifstream in = detail::open_input(path);
-  return TrcParser(path, in).parse();
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(path, ec);
+  return TrcParser(path, in, ec ? 0 : bytes, options).parse();
 }
 
 void write_trc(const std::string& path, const MarkerTrial& trial, const std::string& units) {

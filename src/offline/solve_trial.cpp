@@ -48,11 +48,16 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
 
   std::vector<Eigen::Vector3d> measured(n);
   std::vector<std::uint8_t> visible(n);
+  std::vector<std::size_t> missing_frames(n, 0);
   for (std::size_t f = 0; f < frames; ++f) {
+    int seen = 0;
     for (int i = 0; i < n; ++i) {
       measured[i] = column[i] >= 0 ? trial.at(f, column[i]) : Eigen::Vector3d::Constant(NAN);
       visible[i] = measured[i].allFinite() ? 1 : 0;
+      seen += visible[i];
+      if (column[i] >= 0 && !visible[i]) ++missing_frames[i];
     }
+    s.measured.push_back(seen);
     const TrackResult& r = tracker.track(trial.time_s(f), measured, visible);
     s.joints.positions_m.insert(s.joints.positions_m.end(), r.joints_world_m.begin(),
                                 r.joints_world_m.end());
@@ -66,19 +71,30 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
     s.status.emplace_back(to_string(r.solve.status));
     if (progress && (f % 64 == 0 || f + 1 == frames)) progress(f + 1, frames);
   }
+  for (int i = 0; i < n; ++i) {
+    if (column[i] < 0 || frames == 0 || 2 * missing_frames[i] <= frames) continue;
+    const std::vector<std::size_t>& zeros = trial.source.zero_samples;
+    const auto c = static_cast<std::size_t>(column[i]);
+    s.mostly_missing.push_back(
+        {config.tracker.markers[i].marker, missing_frames[i], c < zeros.size() ? zeros[c] : 0});
+    if (missing_frames[i] == frames) s.missing_in_trial.push_back(config.tracker.markers[i].marker);
+  }
   return s;
 }
 
 nlohmann::json solution_summary(const TrialSolution& s) {
   const std::size_t frames = s.rms_m.size();
-  double rms_sum = 0.0, max_m = 0.0;
-  std::size_t max_frame = 0;
+  double rms_sum = 0.0, rms_max = 0.0, max_m = 0.0;
+  std::size_t max_frame = 0, with_markers = 0;
   std::map<std::string, int> worst_count, status_count;
   for (std::size_t f = 0; f < frames; ++f) {
+    ++status_count[s.status[f]];
+    if (f < s.measured.size() && s.measured[f] == 0) continue;  // no residual to speak of
+    ++with_markers;
     rms_sum += s.rms_m[f];
+    rms_max = std::max(rms_max, s.rms_m[f]);
     if (s.max_m[f] > max_m) max_m = s.max_m[f], max_frame = f;
     if (s.worst[f] >= 0) ++worst_count[s.markers.labels[s.worst[f]]];
-    ++status_count[s.status[f]];
   }
   std::string worst_name;
   if (frames > 0 && s.worst[max_frame] >= 0) worst_name = s.markers.labels[s.worst[max_frame]];
@@ -89,10 +105,17 @@ nlohmann::json solution_summary(const TrialSolution& s) {
   std::vector<double> iterations(s.iterations.begin(), s.iterations.end());
   double it_sum = 0;
   for (double i : iterations) it_sum += i;
+  nlohmann::json mostly_missing = nlohmann::json::array();
+  for (const MostlyMissing& m : s.mostly_missing) {
+    mostly_missing.push_back({{"marker", m.marker},
+                              {"missing_frames", m.missing_frames},
+                              {"zero_frames", m.zero_frames}});
+  }
   return {{"frames", frames},
+          {"frames_without_markers", frames - with_markers},
           {"residual_mm",
-           {{"rms_mean", frames ? rms_sum / static_cast<double>(frames) * 1e3 : 0.0},
-            {"rms_max", frames ? *std::max_element(s.rms_m.begin(), s.rms_m.end()) * 1e3 : 0.0},
+           {{"rms_mean", with_markers ? rms_sum / static_cast<double>(with_markers) * 1e3 : 0.0},
+            {"rms_max", rms_max * 1e3},
             {"max", max_m * 1e3},
             {"max_frame", max_frame},
             {"max_marker", worst_name},
@@ -104,6 +127,7 @@ nlohmann::json solution_summary(const TrialSolution& s) {
           {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
           {"status", status_count},
           {"markers_missing_in_trial", s.missing_in_trial},
+          {"markers_mostly_missing", mostly_missing},
           {"trial_labels_not_tracked", s.ignored_in_trial}};
 }
 

@@ -12,6 +12,13 @@
 
 namespace fabrik {
 
+// A tracked marker that the trial misses in most of its frames.
+struct MostlyMissing {
+  std::string marker;
+  std::size_t missing_frames = 0;
+  std::size_t zero_frames = 0;  // of them, exact (0, 0, 0) samples read as missing
+};
+
 struct TrialSolution {
   io::MarkerTrial joints;                     // joint centres per frame (metres)
   io::MarkerTrial markers;                    // the model's markers per frame: gap-filled (metres)
@@ -21,7 +28,11 @@ struct TrialSolution {
   std::vector<double> solve_us;               // per frame
   std::vector<int> iterations;                // per frame
   std::vector<std::string> status;            // per frame, the solver's stop reason
-  std::vector<std::string> missing_in_trial;  // tracked markers the trial lacks entirely
+  std::vector<int> measured;                  // per frame: tracked markers with a measurement
+  // Tracked markers the trial lacks entirely: not among its labels, or never measured.
+  std::vector<std::string> missing_in_trial;
+  // Tracked markers missing in more than half of the frames (those never measured included).
+  std::vector<MostlyMissing> mostly_missing;
   std::vector<std::string> ignored_in_trial;  // trial labels that are not tracked
 };
 
@@ -29,7 +40,9 @@ struct TrialSolution {
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress = {});
 
-// Frames, residual RMS mean and max, worst marker, solve time quantiles.
+// Frames, residual RMS mean and max, worst marker, solve time quantiles. Frames without any
+// measured marker have no residual: they are left out of the residual figures and counted
+// (frames_without_markers).
 nlohmann::json solution_summary(const TrialSolution& s);
 
 // Writes a trial as .trc (mm) or .csv (header time + name_x/_y/_z in mm).

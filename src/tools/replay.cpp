@@ -128,8 +128,11 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
     }
     for (std::size_t m = 0; m < trial.markers(); ++m) {
       p_m[m] = trial.at(index, m);
-      visible[m] = !hidden[m] && p_m[m].allFinite() ? 1 : 0;
+      const bool recorded = p_m[m].allFinite();
+      visible[m] = !hidden[m] && recorded ? 1 : 0;
       summary.markers_nulled += visible[m] ? 0 : 1;
+      summary.markers_missing += recorded ? 0 : 1;
+      summary.markers_dropped += recorded && hidden[m] ? 1 : 0;
     }
     // Wall clock at sending, echoed by fabrikd in the pose: watchers on this
     // machine measure end-to-end latency from it.

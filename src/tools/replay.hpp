@@ -51,7 +51,9 @@ struct ReplayOptions {
 struct ReplaySummary {
   std::uint64_t frames_sent = 0;
   std::uint64_t loops = 0;           // complete passes over the recording
-  std::uint64_t markers_nulled = 0;  // null entries sent (missing or dropped)
+  std::uint64_t markers_nulled = 0;   // null entries sent: missing + dropped
+  std::uint64_t markers_missing = 0;  // null because the recording has no sample there
+  std::uint64_t markers_dropped = 0;  // null because of --drop (the recording has a sample)
   std::uint64_t late_frames = 0;     // left more than 1 ms after their deadline
   double max_behind_ms = 0.0;
   double elapsed_s = 0.0;

@@ -31,7 +31,7 @@ void catch_stop_signals() {
 void add_replay_command(CLI::App& app) {
   struct Args {
     std::string file, to, encoding = "json";
-    bool bind = false, loop = false;
+    bool bind = false, loop = false, keep_zeros = false;
     double speed = 1.0, wait_subscriber_s = -1.0;
     std::vector<std::string> drops;
     std::uint64_t frames = 0;
@@ -57,11 +57,16 @@ void add_replay_command(CLI::App& app) {
   cmd->add_option("--frames", a->frames, "Stop after N frames (0: all)");
   cmd->add_option("--wait-subscriber", a->wait_subscriber_s,
                   "Wait up to S seconds for a `markers` subscriber before sending");
+  cmd->add_flag("--keep-zeros", a->keep_zeros,
+                "Send exact (0, 0, 0) samples as positions (default: as null, missing)");
   cmd->callback([a] {
     run_command("replay", [&] {
       ReplayOptions o;
       for (const std::string& d : a->drops) o.drops.push_back(parse_drop_spec(d));
-      const io::MarkerTrial trial = io::read_trial(a->file);
+      const io::MarkerTrial trial = io::read_trial(a->file, {.zeros_are_missing = !a->keep_zeros});
+      for (const std::string& w : trial.warnings)
+        std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", a->file.c_str(), w.c_str());
+      io::require_marker_data(trial, a->file);
       o.endpoint = a->to;
       o.bind = a->bind;
       o.speed = a->speed;
@@ -85,12 +90,22 @@ void add_replay_command(CLI::App& app) {
                    a->encoding.c_str(), a->bind ? ", bound" : "");
       zmq::context_t context;
       const ReplaySummary s = replay_trial(context, trial, o);
+      std::size_t zeros = 0;
+      for (const std::size_t z : trial.source.zero_samples) zeros += z;
+      const std::string zero_note =
+          zeros > 0 ? std::string(a->keep_zeros ? "; the recording's " : ", the recording's ") +
+                          std::to_string(zeros) + " exact (0, 0, 0) samples " +
+                          (a->keep_zeros ? "sent as positions" : "among them")
+                    : "";
       std::fprintf(stderr,
                    "\nreplay: sent %llu frames (%llu complete passes) in %.2f s, %llu null "
-                   "markers, %llu frames late by > 1 ms (worst %.2f ms)%s\n",
+                   "markers (%llu missing in the recording%s; %llu dropped by --drop), %llu "
+                   "frames late by > 1 ms (worst %.2f ms)%s\n",
                    static_cast<unsigned long long>(s.frames_sent),
                    static_cast<unsigned long long>(s.loops), s.elapsed_s,
                    static_cast<unsigned long long>(s.markers_nulled),
+                   static_cast<unsigned long long>(s.markers_missing), zero_note.c_str(),
+                   static_cast<unsigned long long>(s.markers_dropped),
                    static_cast<unsigned long long>(s.late_frames), s.max_behind_ms,
                    s.stopped ? ", stopped by signal" : "");
     });

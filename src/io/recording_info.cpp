@@ -1,0 +1,43 @@
+#include "io/recording_info.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+
+namespace fabrik::io {
+
+const char* const kInfoFormats = ".trc, .c3d (markers), .sto, .mot (OpenSim tables)";
+
+RecordingInfo inspect_recording(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  RecordingInfo info;
+  info.path = path;
+  if (ext == ".sto" || ext == ".mot") {
+    info.kind = "table";
+    info.table = read_opensim_table(path);
+    return info;
+  }
+  if (ext != ".trc" && ext != ".c3d") {
+    throw FormatError(path, "unknown file type '" + ext + "': fabrik info reads " +
+                                std::string(kInfoFormats));
+  }
+  info.kind = "markers";
+  info.trial = read_trial(path, {.allow_truncated_data = true});
+  const MarkerTrial& t = info.trial;
+  for (std::size_t m = 0; m < t.markers(); ++m) {
+    MarkerSamples s{.label = t.labels[m]};
+    s.zeros = m < t.source.zero_samples.size() ? t.source.zero_samples[m] : 0;
+    std::size_t run = 0;
+    for (std::size_t f = 0; f < t.frames(); ++f) {
+      run = t.at(f, m).allFinite() ? 0 : run + 1;
+      s.missing += run > 0 ? 1 : 0;
+      s.longest_gap = std::max(s.longest_gap, run);
+    }
+    info.markers.push_back(std::move(s));
+  }
+  return info;
+}
+
+}  // namespace fabrik::io
