@@ -105,6 +105,35 @@ TEST_CASE("Each kind of bad model has its own clear message", "[loader]") {
        },
        "at /segments", "root"},
       {"bad format", [](json& d) { d["format"] = "other/2"; }, "at /format", "unsupported format"},
+      {"zero-length bone",
+       [](json& d) {
+         d["segments"][0]["points"]["j1"] = json::array({0, 0, 0});
+       },
+       "at /segments/0/points/j1", "joint 'j1' of segment 'a' sits on the segment's base 'root'"},
+      {"joint on a root", [](json& d) { d["segments"][0]["joint"] = {{"type", "hinge"}}; },
+       "at /segments/0/joint", "root segment 'a' has no parent joint"},
+      {"unknown joint type", [](json& d) { d["segments"][1]["joint"] = {{"type", "saddle"}}; },
+       "at /segments/1/joint/type", "unknown joint type 'saddle'"},
+      {"range of a held angle",
+       [](json& d) {
+         d["segments"][1]["joint"] = {{"type", "hinge"}, {"range_deg", {{"x", {-10, 10}}}}};
+       },
+       "at /segments/1/joint/range_deg/x", "holds its x angle"},
+      {"range min above max",
+       [](json& d) {
+         d["segments"][1]["joint"] = {{"type", "hinge"}, {"range_deg", {{"z", {10, -10}}}}};
+       },
+       "at /segments/1/joint/range_deg/z", "min is larger than max"},
+      {"frame not at right angles",
+       [](json& d) {
+         d["segments"][1]["frame"] = {{"x", {1, 0, 0}}, {"y", {1, 1, 0}}};
+       },
+       "at /segments/1/frame", "not at right angles"},
+      {"coordinate of an unknown segment",
+       [](json& d) {
+         d["coordinates"] = {{"flex", {{"segment", "zz"}, {"axis", "z"}}}};
+       },
+       "at /coordinates/flex/segment", "no segment 'zz'"},
   };
   for (const Case& c : cases) {
     json doc = good();

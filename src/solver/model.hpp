@@ -44,7 +44,8 @@ enum class JointType : std::uint8_t {
 struct JointLimits {
   JointType type = JointType::free;
   // Allowed angles, radians; for an angle the type holds, both are the rest
-  // angle. a_x stays within [-pi/2, pi/2] (the middle Cardan angle).
+  // angle. A moving a_x stays 0.01 rad inside [-pi/2, pi/2]: the Cardan
+  // decomposition is singular at +-pi/2.
   std::array<double, 3> min_rad{-3.141592653589793, -1.5707963267948966, -3.141592653589793};
   std::array<double, 3> max_rad{3.141592653589793, 1.5707963267948966, 3.141592653589793};
   std::array<double, 3> rest_rad{0.0, 0.0, 0.0};  // the angles at the rest posture

@@ -21,6 +21,7 @@ namespace {
 constexpr double kMinExtentM = 1e-9;
 constexpr double kMinBoneM = 1e-3;
 constexpr double kPi = 3.141592653589793;
+constexpr double kGimbalMarginRad = 0.01;
 
 std::string quoted(const std::string& s) {
   return "'" + s + "'";
@@ -87,8 +88,11 @@ JointLimits joint_limits(int spec_index, const SegmentSpec& spec,
                        std::string("the range of the joint's ") + kAxis[k] + " angle of segment " +
                            quoted(spec.name) + " must be [min, max] with min <= max within [-" +
                            (k == 1 ? "90, 90" : "180, 180") + "] degrees");
-    j.min_rad[k] = std::max(lo, -bound);
-    j.max_rad[k] = std::min(hi, bound);
+    // a_x stops short of +-90 degrees, where the Cardan decomposition is
+    // singular (a_z and a_y become one rotation) and no range can be checked.
+    const double reach = k == 1 ? bound - kGimbalMarginRad : bound;
+    j.min_rad[k] = std::clamp(lo, -reach, reach);
+    j.max_rad[k] = std::clamp(hi, -reach, reach);
   }
   return j;
 }
