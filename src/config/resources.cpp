@@ -11,6 +11,7 @@ namespace fabrik {
 namespace embedded {
 std::string_view paper_experiment();
 std::string_view paper_upper_body();
+std::string_view paper_upper_body_limits();
 std::string_view fullbody();
 std::string_view default_config();
 }  // namespace embedded
@@ -18,6 +19,8 @@ std::string_view default_config();
 std::optional<std::string_view> embedded_config(std::string_view relative_path) {
   if (relative_path == "paper_experiment.json") return embedded::paper_experiment();
   if (relative_path == "models/paper_upper_body.json") return embedded::paper_upper_body();
+  if (relative_path == "models/paper_upper_body_limits.json")
+    return embedded::paper_upper_body_limits();
   if (relative_path == "default.json") return embedded::default_config();
   if (relative_path == "models/fullbody.json") return embedded::fullbody();
   return std::nullopt;
