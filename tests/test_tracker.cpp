@@ -1,0 +1,145 @@
+// The Tracker: occlusion (absent, flagged, non-finite), the hold policy and
+// its expiry, residuals over measured markers only, size checks, cold and
+// warm starts.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <memory>
+
+#include "synth/synthetic_motion.hpp"
+#include "test_models.hpp"
+#include "tracking/tracker.hpp"
+
+using namespace fabrik;
+
+namespace {
+
+struct Scene {
+  std::shared_ptr<const Model> model;
+  TrackerSetup setup;
+  std::vector<int> points;
+};
+
+Scene fullbody_scene(double hold_s) {
+  Scene s;
+  s.model = std::make_shared<const Model>(test::fullbody_model());
+  s.setup.model = s.model;
+  for (int p : s.model->marker_points()) {
+    s.setup.markers.push_back({s.model->points[p].name, p, 0, 1.0});
+    s.points.push_back(p);
+  }
+  s.setup.solver.root = RootMode::free;
+  s.setup.solver.segment_fit = SegmentFit::rigid;
+  s.setup.solver.tolerance_m = 1e-4;
+  s.setup.solver.stall_tolerance_m = 1e-5;
+  s.setup.occlusion.hold_s = hold_s;
+  s.setup.occlusion.hold_level = -1;
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("A non-finite coordinate is occluded even when flagged visible", "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  SyntheticMotion motion(*s.model, {});
+  Posture truth = Posture::rest(*s.model);
+  motion.posture_at(0.2, truth);
+  std::vector<Eigen::Vector3d> pos(s.points.size());
+  motion.sample(truth, s.points, 0.0, pos);
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  tracker.track(0.0, pos, visible);
+  pos[3].y() = std::nan("");
+  pos[7].z() = INFINITY;
+  const TrackResult& r = tracker.track(0.01, pos, visible);
+  INFO("markers with a NaN or infinite coordinate must count as occluded");
+  CHECK(r.occluded[3] == 1);
+  CHECK(r.occluded[7] == 1);
+  CHECK(r.occluded_count == 2);
+  CHECK(r.residual_count == static_cast<int>(pos.size()) - 2);
+  CHECK(std::isfinite(r.residual_rms_m));
+  for (const Eigen::Vector3d& m : r.markers_world_m) CHECK(m.allFinite());
+  for (const Eigen::Vector3d& j : r.joints_world_m) CHECK(j.allFinite());
+}
+
+TEST_CASE("A held marker stops being held, and stops pulling, after hold_s", "[tracker]") {
+  Scene s = fullbody_scene(0.1);
+  Tracker tracker(s.setup);
+  SyntheticMotion motion(*s.model, {});
+  Posture truth = Posture::rest(*s.model);
+  std::vector<Eigen::Vector3d> pos(s.points.size());
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  const int hidden = 10;  // a marker occluded from 0.5 s on (last seen at 0.49 s)
+  int held_frames = 0, released_frames = 0;
+  for (int f = 0; f <= 100; ++f) {
+    const double t = 0.01 * f;
+    motion.posture_at(t, truth);
+    motion.sample(truth, s.points, 0.0, pos);
+    visible[hidden] = t < 0.5 - 1e-9 ? 1 : 0;
+    const TrackResult& r = tracker.track(t, pos, visible);
+    if (t < 0.5 - 1e-9) {
+      CHECK(r.held[hidden] == 0);
+    } else if (t - 0.49 <= 0.1 + 1e-9) {  // last seen at 0.49 s
+      CAPTURE(t);
+      CHECK(r.held[hidden] == 1);
+      ++held_frames;
+    } else {
+      CAPTURE(t);
+      INFO("an occluded marker is held for hold_s (0.1 s), then released");
+      CHECK(r.held[hidden] == 0);
+      CHECK(r.occluded[hidden] == 1);
+      ++released_frames;
+    }
+  }
+  CHECK(held_frames >= 10);
+  CHECK(released_frames >= 30);
+}
+
+TEST_CASE("A held marker pulls its point towards its last position", "[tracker]") {
+  // With the rest of a segment's markers gone too, only the hold keeps the
+  // point where it was last seen: with holding off, it drifts with the others.
+  for (double hold_s : {0.0, 10.0}) {
+    Scene s = fullbody_scene(hold_s);
+    Tracker tracker(s.setup);
+    SyntheticMotion motion(*s.model, {});
+    Posture truth = Posture::rest(*s.model);
+    std::vector<Eigen::Vector3d> pos(s.points.size());
+    std::vector<std::uint8_t> visible(pos.size(), 1);
+    motion.posture_at(0.0, truth);
+    motion.sample(truth, s.points, 0.0, pos);
+    tracker.track(0.0, pos, visible);
+    const Eigen::Vector3d last_seen = pos[0];
+    visible[0] = 0;
+    pos[0] = Eigen::Vector3d::Constant(NAN);
+    const TrackResult& r = tracker.track(0.01, pos, visible);
+    CAPTURE(hold_s);
+    CHECK(r.held[0] == (hold_s > 0.0 ? 1 : 0));
+    if (hold_s > 0.0) CHECK((r.markers_world_m[0] - last_seen).norm() < 2e-3);
+  }
+}
+
+TEST_CASE("Inputs of the wrong size give a status, not an exception", "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  std::vector<Eigen::Vector3d> pos(s.points.size() - 1, Eigen::Vector3d::Zero());
+  std::vector<std::uint8_t> visible(s.points.size() - 1, 1);
+  const TrackResult& r = tracker.track(0.0, pos, visible);
+  CHECK(r.solve.status == SolveStatus::size_mismatch);
+}
+
+TEST_CASE("reset() makes the next frame start cold from rest", "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  SyntheticMotion motion(*s.model, {});
+  Posture truth = Posture::rest(*s.model);
+  std::vector<Eigen::Vector3d> pos(s.points.size());
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  motion.posture_at(0.5, truth);
+  motion.sample(truth, s.points, 0.0, pos);
+  const int cold = tracker.track(0.0, pos, visible).solve.iterations;
+  const int warm = tracker.track(0.01, pos, visible).solve.iterations;
+  tracker.reset();
+  const int after_reset = tracker.track(0.02, pos, visible).solve.iterations;
+  CAPTURE(cold, warm, after_reset);
+  CHECK(warm < cold);
+  CHECK(after_reset == cold);
+}
