@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
+#include <stdexcept>
 
 #include "joint_angles.hpp"
 #include "joint_fit.hpp"
@@ -23,16 +25,27 @@ inline double length_over(double len, double dist_sq) {
 }
 }  // namespace
 
-FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options)
-    : FabrikSolver(std::make_shared<const Model>(model), std::move(targets), options) {}
+namespace {
+std::vector<int> levels_of(const std::vector<OrientationTarget>& orientations) {
+  std::vector<int> levels;
+  for (const OrientationTarget& o : orientations) levels.push_back(o.level);
+  return levels;
+}
+}  // namespace
+
+FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options,
+                           std::vector<OrientationTarget> orientations)
+    : FabrikSolver(std::make_shared<const Model>(model), std::move(targets), options,
+                   std::move(orientations)) {}
 
 FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<Target> targets,
-                           SolverOptions options)
+                           SolverOptions options, std::vector<OrientationTarget> orientations)
     : model_holder_(std::move(model_ptr)),
       model_(*model_holder_),
-      targets_(model_, std::move(targets)),
+      targets_(model_, std::move(targets), levels_of(orientations)),
       options_(options),
-      n_seg_(static_cast<int>(model_.segments.size())) {
+      n_seg_(static_cast<int>(model_.segments.size())),
+      orientations_(std::move(orientations)) {
   const Model& model = model_;
   n_pass_ = std::max<int>(1, static_cast<int>(targets_.levels().size()));
   active_.assign(static_cast<std::size_t>(n_pass_ * n_seg_), 0);
@@ -64,9 +77,33 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
     target_segment_.push_back(model.points[t.point].segment);
   link_tip_m_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::Zero());
   start_.resize(model.segments.size());
-  distances_m_.assign(targets_.targets().size(), 0.0);
-  previous_m_.assign(targets_.targets().size(), 0.0);
-  level_previous_m_.assign(targets_.targets().size(), 0.0);
+  const std::size_t n_all = targets_.targets().size() + orientations_.size();
+  distances_m_.assign(n_all, 0.0);
+  previous_m_.assign(n_all, 0.0);
+  level_previous_m_.assign(n_all, 0.0);
+
+  // Orientation targets, grouped by segment.
+  has_orientation_.assign(static_cast<std::size_t>(n_seg_), 0);
+  orient_first_.assign(static_cast<std::size_t>(n_seg_ + 1), 0);
+  for (const OrientationTarget& o : orientations_) {
+    if (o.segment < 0 || o.segment >= n_seg_)
+      throw std::invalid_argument("orientation target segment index out of range");
+    if (!(o.weight > 0.0) || !std::isfinite(o.weight))
+      throw std::invalid_argument("orientation target weight must be positive and finite");
+    orient_level_.push_back(targets_.index_of_level(o.level));
+    has_orientation_[o.segment] = 1;
+  }
+  for (int s = 0; s < n_seg_; ++s) {
+    orient_first_[s] = static_cast<int>(orient_by_segment_.size());
+    for (int k = 0; k < static_cast<int>(orientations_.size()); ++k)
+      if (orientations_[k].segment == s) orient_by_segment_.push_back(k);
+  }
+  orient_first_[n_seg_] = static_cast<int>(orient_by_segment_.size());
+  orient_weight_.assign(static_cast<std::size_t>(n_pass_) * orientations_.size(), 0.0);
+  orient_r_.assign(orientations_.size(), Eigen::Matrix3d::Identity());
+  orient_q_.assign(orientations_.size(), Eigen::Quaterniond::Identity());
+  orient_visible_.assign(orientations_.size(), 0);
+  marked_orient_visible_.assign(orientations_.size(), 0);
 
   limited_.assign(static_cast<std::size_t>(n_seg_), 0);
   parent_of_limited_.assign(static_cast<std::size_t>(n_seg_), 0);
@@ -116,24 +153,44 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
 }
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
-  if (marked_ && std::equal(visible.begin(), visible.end(), marked_visible_.begin())) return;
+  if (marked_ && std::equal(visible.begin(), visible.end(), marked_visible_.begin()) &&
+      std::equal(orient_visible_.begin(), orient_visible_.end(), marked_orient_visible_.begin()))
+    return;
   std::copy(visible.begin(), visible.end(), marked_visible_.begin());
+  std::copy(orient_visible_.begin(), orient_visible_.end(), marked_orient_visible_.begin());
   marked_ = true;
   std::fill(active_.begin(), active_.end(), std::uint8_t{0});
   const bool anchors = options_.use_priorities && options_.anchor_weight > 0.0;
-  for (int i = 0; i < targets_.size(); ++i) {
-    if (!visible[i]) continue;
-    const int own = options_.use_priorities ? targets_.level_index(i) : 0;
+  // A visible target marks the path from its segment to the root, for its
+  // own level's pass and, as an anchor, for the weaker levels' passes.
+  auto mark = [&](int segment, int level_index) {
+    const int own = options_.use_priorities ? level_index : 0;
     for (int pass = anchors ? 0 : own; pass <= own; ++pass) {
       const std::uint8_t bit = pass == own ? kOwn : kAnchor;
-      for (int s = model_.points[targets_.targets()[i].point].segment; s >= 0;
-           s = model_.segments[s].parent) {
+      for (int s = segment; s >= 0; s = model_.segments[s].parent) {
         std::uint8_t& flag = active_[pass * n_seg_ + s];
         if (flag & bit) break;  // the rest of the path is already marked
         flag |= bit;
       }
     }
-  }
+  };
+  for (int i = 0; i < targets_.size(); ++i)
+    if (visible[i]) mark(model_.points[targets_.targets()[i].point].segment, targets_.level_index(i));
+  const int n_orient = static_cast<int>(orientations_.size());
+  for (int k = 0; k < n_orient; ++k)
+    if (orient_visible_[k]) mark(orientations_[k].segment, orient_level_[k]);
+  for (int pass = 0; pass < n_pass_; ++pass)
+    for (int k = 0; k < n_orient; ++k) {
+      double w = 0.0;
+      if (orient_visible_[k]) {
+        const int level = orient_level_[k];
+        w = orientations_[k].weight;
+        if (options_.use_priorities)
+          w = level == pass ? w : level > pass ? w * options_.anchor_weight : 0.0;
+      }
+      orient_weight_[static_cast<std::size_t>(pass * n_orient + k)] =
+          w * options_.orientation_lever_m * options_.orientation_lever_m;
+    }
   const int n_slots = static_cast<int>(slots_.size());
   for (int pass = 0; pass < n_pass_; ++pass) {
     double* weight = slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * n_slots;
@@ -164,7 +221,7 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
   for (int s = 0; s < n_seg_; ++s) {
     bool link = runs && slot_first_[s + 1] - slot_first_[s] == 1 &&
                 (s != 0 || options_.root == RootMode::fixed) && !limited_[s] &&
-                !parent_of_limited_[s];
+                !parent_of_limited_[s] && !has_orientation_[s];
     for (int pass = 0; pass < passes && link; ++pass)
       if (pass_runs(pass) && !active(pass, s)) link = false;
     link_[s] = link;
@@ -192,6 +249,22 @@ double FabrikSolver::pass_weight(int pass, int t) const {
     if (weight[k] <= 0.0) continue;
     const Slot& slot = slots_[k];
     drivers_[n++] = {&slot, &desired_m(slot, target_world_m, posture), weight[k]};
+  }
+  orient_on_ = false;
+  if (has_orientation_[s]) {
+    // Three virtual points at the lever along the segment's axes, pulled to
+    // where the desired rotation puts them about the base: their alignment
+    // term sum_i (R_d a_i)(R a_i)^T is lever^2 R_d R^T, and they pull no
+    // translation. orient_m_ holds sum w lever^2 R_d over this pass's targets.
+    const int n_orient = static_cast<int>(orientations_.size());
+    const double* w = orient_weight_.data() + static_cast<std::ptrdiff_t>(pass) * n_orient;
+    orient_m_.setZero();
+    for (int i = orient_first_[s]; i < orient_first_[s + 1]; ++i) {
+      const int k = orient_by_segment_[i];
+      if (w[k] <= 0.0) continue;
+      orient_m_.noalias() += w[k] * orient_r_[k];
+      orient_on_ = true;
+    }
   }
   return n;
 }
@@ -229,8 +302,10 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
     }
     weight_sum += d.weight;
   }
-  const double inv = 1.0 / weight_sum;
-  const Eigen::Vector3d base_m(sx * inv, sy * inv, sz * inv);
+  // Only orientation targets pull (n == 0): the base stays.
+  const double inv = n > 0 ? 1.0 / weight_sum : 0.0;
+  const Eigen::Vector3d base_m =
+      n > 0 ? Eigen::Vector3d(sx * inv, sy * inv, sz * inv) : pose.base_world_m;
   if (turn)
     rotate_about_base(n, base_m, pose);
   else
@@ -244,7 +319,7 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
 [[gnu::always_inline]] inline void FabrikSolver::rotate_about_base(int n,
                                                                    const Eigen::Vector3d& base_m,
                                                                    SegmentPose& pose) const {
-  if (options_.segment_fit == SegmentFit::paper && n > 1) {
+  if (options_.segment_fit == SegmentFit::paper && n > 1 && !orient_on_) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
     double weight_sum = 0.0;
     for (int k = 0; k < n; ++k) {
@@ -255,12 +330,14 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
     const Eigen::Vector3d b = mean_desired / weight_sum - base_m;        // P_i(f) -> M(f)
     turn_minimal(a, b, pose);
-  } else if (n == 1) {
+  } else if (n == 1 && !orient_on_) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
     turn_minimal(pose.r_world * drivers_[0].a_local(), drivers_[0].d_world() - base_m, pose);
   } else {
+    // Orientation targets (virtual points, see gather) add lever^2 w R_d R^T.
     Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+    if (orient_on_) m.noalias() = orient_m_ * pose.r_world.transpose();
     for (int k = 0; k < n; ++k) {
       const Eigen::Vector3d a_world = pose.r_world * drivers_[k].a_local();
       m.noalias() += (drivers_[k].weight * (drivers_[k].d_world() - base_m)) * a_world.transpose();
@@ -275,6 +352,10 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
 // A free root is not pulled along a chain: it is placed by a weighted rigid
 // fit (Kabsch, about the centroid) of its drivers.
 void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
+  if (n == 0) {  // orientation targets alone turn the root about its base
+    rotate_about_base(0, pose.base_world_m, pose);
+    return;
+  }
   Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
   double weight_sum = 0.0;
   for (int k = 0; k < n; ++k) {
@@ -285,6 +366,7 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
   mean_local /= weight_sum;
   mean_desired /= weight_sum;
   Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
+  if (orient_on_) m.noalias() = orient_m_ * pose.r_world.transpose();
   for (int k = 0; k < n; ++k) {
     const Eigen::Vector3d a_world = pose.r_world * (drivers_[k].a_local() - mean_local);
     m.noalias() +=
@@ -313,7 +395,7 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
       forward_limited(n, s, posture);
     } else {  // see place_with_candidates for why one driver does not turn here
       place_with_candidates(n, posture.segments[s],
-                            root || slot_first_[s + 1] - slot_first_[s] > 1);
+                            root || slot_first_[s + 1] - slot_first_[s] > 1 || orient_on_);
     }
   }
 }
@@ -335,11 +417,18 @@ void FabrikSolver::hinge_fit(int n, int s, Posture& posture) {
     c += b_local.dot(hinge_across_[slot]);
     sn += b_local.dot(hinge_cross_[slot]);
   }
+  const Eigen::Vector3d& u = hinge_axis_local_[s];
+  if (orient_on_) {
+    // The virtual points (see gather): with M = R_parent^T sum w lever^2 R_d,
+    // their terms are trace(M) - u.M u and u . (M32 - M23, M13 - M31, M21 - M12).
+    const Eigen::Matrix3d m = parent.r_world.transpose() * orient_m_;
+    c += m.trace() - u.dot(m * u);
+    sn += u.dot(Eigen::Vector3d(m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1)));
+  }
   Turn& theta = turns_[s][0];
   theta = arcs_[s].clamp(0, peak_turn(c, sn, theta), theta);
   double ch, sh;
   half_turn(theta, ch, sh);
-  const Eigen::Vector3d& u = hinge_axis_local_[s];
   rel_q_[s] = Eigen::Quaterniond(ch, sh * u.x(), sh * u.y(), sh * u.z());
   pose.set_rotation(parent.q_world * rel_q_[s]);
 }
@@ -486,6 +575,7 @@ void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m, Post
   }
   // B = P^T W with P = R_parent J_parent and W = sum_k w_k (world vector)(joint-frame vector)^T.
   Eigen::Matrix3d w = Eigen::Matrix3d::Zero();
+  if (orient_on_) w.noalias() = orient_m_ * joint_child_[s];  // virtual points, see gather
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
     const std::size_t slot = static_cast<std::size_t>(d.slot - slots_.data());
@@ -511,17 +601,70 @@ bool FabrikSolver::level_settled(int pass, std::span<const Eigen::Vector3d> targ
     change_m = std::max(change_m, std::abs(d - level_previous_m_[i]));
     level_previous_m_[i] = d;
   }
+  for (int k = 0; k < static_cast<int>(orientations_.size()); ++k) {
+    if (!orient_visible_[k] || (options_.use_priorities && orient_level_[k] != pass)) continue;
+    const std::size_t i = targets_.targets().size() + static_cast<std::size_t>(k);
+    const double d = options_.orientation_lever_m *
+                     posture.segments[orientations_[k].segment].q_world.angularDistance(orient_q_[k]);
+    max_m = std::max(max_m, d);
+    change_m = std::max(change_m, std::abs(d - level_previous_m_[i]));
+    level_previous_m_[i] = d;
+  }
   return max_m <= options_.tolerance_m || change_m <= options_.stall_tolerance_m;
+}
+
+SolveResult FabrikSolver::measure(std::span<const Eigen::Vector3d> target_world_m,
+                                  std::span<const std::uint8_t> visible, const Posture& posture) {
+  const auto point_of = [&](int i) { return target_point_m(i, posture); };
+  const std::size_t n_point = targets_.targets().size();
+  SolveResult r = targets_.measure_with(point_of, target_world_m, visible,
+                                        std::span<double>(distances_m_).first(n_point));
+  if (orientations_.empty()) return r;
+  double sum_sq = r.rms_m * r.rms_m * r.visible_targets;
+  for (std::size_t k = 0; k < orientations_.size(); ++k) {
+    double& d = distances_m_[n_point + k];
+    if (!orient_visible_[k]) {
+      d = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    d = options_.orientation_lever_m *
+        posture.segments[orientations_[k].segment].q_world.angularDistance(orient_q_[k]);
+    sum_sq += d * d;
+    ++r.visible_targets;
+    if (d > r.max_m || r.worst_target < 0) {
+      r.max_m = d;
+      r.worst_target = static_cast<int>(n_point + k);
+    }
+  }
+  if (r.visible_targets > 0) r.rms_m = std::sqrt(sum_sq / r.visible_targets);
+  return r;
 }
 
 SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
                                 std::span<const std::uint8_t> visible, Posture& posture) {
+  return solve(target_world_m, visible, {}, {}, posture);
+}
+
+SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
+                                std::span<const std::uint8_t> visible,
+                                std::span<const Eigen::Quaterniond> q_world,
+                                std::span<const std::uint8_t> orientation_visible,
+                                Posture& posture) {
   if (static_cast<int>(target_world_m.size()) != targets_.size() ||
       static_cast<int>(visible.size()) != targets_.size() ||
+      q_world.size() != orientations_.size() || orientation_visible.size() != orientations_.size() ||
       static_cast<int>(posture.segments.size()) != n_seg_) {
     SolveResult mismatch;
     mismatch.status = SolveStatus::size_mismatch;
     return mismatch;
+  }
+  for (std::size_t k = 0; k < orientations_.size(); ++k) {
+    // A rotation that is not finite cannot pull: it counts as not visible.
+    orient_visible_[k] = orientation_visible[k] && q_world[k].coeffs().allFinite() &&
+                         q_world[k].norm() > 0.5;
+    if (!orient_visible_[k]) continue;
+    orient_q_[k] = q_world[k].normalized();
+    orient_r_[k] = orient_q_[k].toRotationMatrix();
   }
   mark_active(visible);
   for (int s = 1; s < n_seg_; ++s) {
@@ -538,8 +681,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
   if (any_link_)
     for (int s = 0; s < n_seg_; ++s)
       if (link_[s]) link_tip_m_[s] = posture.segments[s].to_world(slots_[slot_first_[s]].a_local);
-  const auto point_of = [&](int i) { return target_point_m(i, posture); };
-  SolveResult result = targets_.measure_with(point_of, target_world_m, visible, distances_m_);
+  SolveResult result = measure(target_world_m, visible, posture);
   int total_passes = 0;
   StopRule stop(options_);
   for (int iteration = 0;; ++iteration) {
@@ -571,7 +713,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       }
     }
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
-    result = targets_.measure_with(point_of, target_world_m, visible, distances_m_);
+    result = measure(target_world_m, visible, posture);
     result.iterations = iteration + 1;
     result.passes = total_passes;
   }

@@ -25,9 +25,10 @@ class FabrikSolver {
  public:
   // The solver shares ownership of the (immutable) model.
   FabrikSolver(std::shared_ptr<const Model> model, std::vector<Target> targets,
-               SolverOptions options);
+               SolverOptions options, std::vector<OrientationTarget> orientations = {});
   // The same with a copy of `model`.
-  FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options);
+  FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options,
+               std::vector<OrientationTarget> orientations = {});
 
   // target_world_m[i] and visible[i] belong to targets()[i]. `posture` is the
   // start (warm start: the previous frame's result) and receives the result.
@@ -35,14 +36,22 @@ class FabrikSolver {
   // Joints with limits (Segment::joint) end every solve within them.
   SolveResult solve(std::span<const Eigen::Vector3d> target_world_m,
                     std::span<const std::uint8_t> visible, Posture& posture);
+  // The same with orientation targets: q_world[k] (the segment's desired
+  // world rotation, unit) and orientation_visible[k] belong to orientations()[k].
+  SolveResult solve(std::span<const Eigen::Vector3d> target_world_m,
+                    std::span<const std::uint8_t> visible,
+                    std::span<const Eigen::Quaterniond> q_world,
+                    std::span<const std::uint8_t> orientation_visible, Posture& posture);
 
   const std::vector<Target>& targets() const { return targets_.targets(); }
+  const std::vector<OrientationTarget>& orientations() const { return orientations_; }
   const SolverOptions& options() const { return options_; }
   void set_options(const SolverOptions& options) {
     options_ = options;
     marked_ = false;  // the marks depend on the options
   }
-  // Distance of each target to its point after the last solve (NaN if not visible).
+  // Distance of each target to its point after the last solve (NaN if not
+  // visible): point targets, then orientation targets (angle times lever).
   std::span<const double> target_distances_m() const { return distances_m_; }
 
  private:
@@ -102,6 +111,10 @@ class FabrikSolver {
     return link_[s] ? link_tip_m_[s] : posture.point_world_m(model_, targets_.targets()[i].point);
   }
   void free_root_fit(int n, SegmentPose& pose) const;
+  // Distances of every target (points, then orientations) and their summary.
+  SolveResult measure(std::span<const Eigen::Vector3d> target_world_m,
+                      std::span<const std::uint8_t> visible, const Posture& posture);
+  bool orientation_visible(int k) const { return orient_visible_[k] != 0; }
   // A segment with a limited base joint: the rotation within its ranges that
   // best aims its drivers, about a given base.
   void limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture);
@@ -123,7 +136,7 @@ class FabrikSolver {
   std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
   // What the marks above were computed for: skipped when a frame has the same
   // visibility and options as the previous one (the usual case in a stream).
-  std::vector<std::uint8_t> marked_visible_;
+  std::vector<std::uint8_t> marked_visible_, marked_orient_visible_;
   bool marked_ = false;
   // Links, per marking: segments that one point alone drives in every pass
   // (classic FABRIK links). During a solve only that point's world position
@@ -151,6 +164,19 @@ class FabrikSolver {
   std::vector<SegmentPose> start_;   // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
+  // Orientation targets: by segment (orient_first_[s] .. orient_first_[s + 1]
+  // into orient_by_segment_), their level indices and per-pass weights, and
+  // per solve their desired rotations and visibility. gather() sums the terms
+  // that take part in a pass for one segment: sum of w lever^2 R_desired.
+  std::vector<OrientationTarget> orientations_;
+  std::vector<int> orient_level_, orient_first_, orient_by_segment_;
+  std::vector<double> orient_weight_;  // [pass][orientation target]
+  std::vector<Eigen::Matrix3d> orient_r_;
+  std::vector<Eigen::Quaterniond> orient_q_;
+  std::vector<std::uint8_t> orient_visible_;
+  std::vector<std::uint8_t> has_orientation_;  // per segment
+  Eigen::Matrix3d orient_m_ = Eigen::Matrix3d::Zero();
+  bool orient_on_ = false;
 };
 
 }  // namespace fabrik

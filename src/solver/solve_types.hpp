@@ -14,6 +14,17 @@ struct Target {
   double weight = 1.0;  // relative weight within its level
 };
 
+// A target that turns one segment towards a measured world orientation (an
+// IMU or a tracked rigid body, already brought into the segment's frame).
+// It weighs as much as three point targets at `orientation_lever_m` from the
+// segment's base along its axes would: an orientation error of theta radians
+// counts like a point lever * theta away.
+struct OrientationTarget {
+  int segment = -1;  // index into Model::segments
+  int level = 0;
+  double weight = 1.0;
+};
+
 enum class SegmentFit {
   paper,  // Moya & Colloud 2013: translate to the mean candidate, rotate by angle(a, b)
   rigid,  // least-squares rotation of all driving points of the segment
@@ -42,6 +53,8 @@ struct SolverOptions {
   // 0 disables it (the paper's literal loop, where each level pulls alone):
   // then a weak level can cost the strongest one accuracy in a conflict.
   double anchor_weight = 1000.0;
+  // The lever of orientation targets (see OrientationTarget), metres.
+  double orientation_lever_m = 0.1;
 };
 
 enum class SolveStatus : std::uint8_t {
@@ -73,9 +86,13 @@ struct SolveResult {
   int iterations = 0;  // of the convergence loop
   int passes = 0;      // forward + backward reaching passes, over all levels
   int visible_targets = 0;
-  double rms_m = 0.0;  // over visible targets, unweighted
+  // Over visible targets, unweighted; an orientation target counts as its
+  // angle times orientation_lever_m.
+  double rms_m = 0.0;
   double max_m = 0.0;
-  int worst_target = -1;  // index into the solver's targets, -1 if none visible
+  // Index into the solver's targets (point targets first, then orientation
+  // targets), -1 if none visible.
+  int worst_target = -1;
 };
 
 }  // namespace fabrik

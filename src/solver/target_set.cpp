@@ -6,8 +6,9 @@
 
 namespace fabrik {
 
-TargetSet::TargetSet(const Model& model, std::vector<Target> targets)
-    : targets_(std::move(targets)) {
+TargetSet::TargetSet(const Model& model, std::vector<Target> targets,
+                     const std::vector<int>& extra_levels)
+    : targets_(std::move(targets)), levels_(extra_levels) {
   const int n_seg = static_cast<int>(model.segments.size());
   for (const Target& t : targets_) {
     if (t.point < 0 || t.point >= static_cast<int>(model.points.size()))
@@ -18,9 +19,7 @@ TargetSet::TargetSet(const Model& model, std::vector<Target> targets)
   }
   std::sort(levels_.begin(), levels_.end());
   levels_.erase(std::unique(levels_.begin(), levels_.end()), levels_.end());
-  for (const Target& t : targets_)
-    level_index_.push_back(static_cast<int>(
-        std::lower_bound(levels_.begin(), levels_.end(), t.level) - levels_.begin()));
+  for (const Target& t : targets_) level_index_.push_back(index_of_level(t.level));
 
   seg_first_.assign(n_seg, 0);
   seg_count_.assign(n_seg, 0);
@@ -32,6 +31,10 @@ TargetSet::TargetSet(const Model& model, std::vector<Target> targets)
     const int s = model.points[targets_[i].point].segment;
     by_segment_[seg_first_[s] + fill[s]++] = i;
   }
+}
+
+int TargetSet::index_of_level(int level) const {
+  return static_cast<int>(std::lower_bound(levels_.begin(), levels_.end(), level) - levels_.begin());
 }
 
 SolveResult TargetSet::measure(const Model& model, const Posture& posture,

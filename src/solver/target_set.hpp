@@ -18,13 +18,18 @@ namespace fabrik {
 
 class TargetSet {
  public:
-  TargetSet(const Model& model, std::vector<Target> targets);
+  // `extra_levels`: levels of other kinds of targets (orientation targets)
+  // that take part in the priority loop too.
+  TargetSet(const Model& model, std::vector<Target> targets,
+            const std::vector<int>& extra_levels = {});
 
   const std::vector<Target>& targets() const { return targets_; }
   int size() const { return static_cast<int>(targets_.size()); }
   // Distinct levels, weakest first.
   const std::vector<int>& levels() const { return levels_; }
   int level_index(int target) const { return level_index_[target]; }
+  // Index of a level value in levels().
+  int index_of_level(int level) const;
   // Targets on segment s: ids()[first, first + count).
   std::span<const int> on_segment(int s) const {
     return {by_segment_.data() + seg_first_[s], static_cast<std::size_t>(seg_count_[s])};
