@@ -101,12 +101,16 @@ class PointerTrackingSax {
     return false;
   }
 
-  // The value being read: the member after the last key, or the next array element.
+  // The value being read: the member after the last key, or the array
+  // element in progress (the innermost array: the next one).
   std::string pointer() const {
     std::string p;
-    for (const Level& l : path_) {
+    for (std::size_t i = 0; i < path_.size(); ++i) {
+      const Level& l = path_[i];
       if (l.object && !l.has_key) break;
-      p += "/" + (l.object ? json_pointer_token(l.key) : std::to_string(l.count));
+      const bool innermost = i + 1 == path_.size();
+      p += "/" + (l.object ? json_pointer_token(l.key)
+                           : std::to_string(innermost ? l.count : l.count - 1));
     }
     return p;
   }
@@ -118,7 +122,7 @@ class PointerTrackingSax {
  private:
   struct Level {
     bool object;
-    std::size_t count;  // arrays: elements started so far
+    std::size_t count;  // arrays: elements begun so far
     std::string key;    // objects: the last key
     bool has_key = false;
   };

@@ -51,38 +51,50 @@ inline std::size_t utf8_sequence(std::string_view s) {
 
 }  // namespace safe_text_detail
 
+// Calls piece(bytes, length) for each output piece of `in` (a character
+// kept as is, or one byte escaped) until it returns false.
+template <class Piece>
+void safe_text_pieces(std::string_view in, Piece&& piece) {
+  static constexpr char hex[] = "0123456789abcdef";
+  for (std::size_t i = 0; i < in.size();) {
+    const auto c = static_cast<unsigned char>(in[i]);
+    const std::size_t seq = c >= 0x80 ? safe_text_detail::utf8_sequence(in.substr(i)) : 0;
+    if (c >= 0x20 && c < 0x7f) {
+      if (!piece(in.data() + i, 1)) return;
+      ++i;
+    } else if (seq > 0) {
+      if (!piece(in.data() + i, seq)) return;
+      i += seq;
+    } else {
+      const char escaped[4] = {'\\', 'x', hex[c >> 4], hex[c & 15]};
+      if (!piece(escaped, 4)) return;
+      ++i;
+    }
+  }
+}
+
 // Writes the safe form of `in` into out[0, capacity) and returns its length
 // (no terminating NUL). When it does not fit, it is cut at a character
 // boundary and ends in "...". capacity must be at least 4.
 inline std::size_t safe_text(std::string_view in, char* out, std::size_t capacity) {
-  static constexpr char hex[] = "0123456789abcdef";
   static constexpr std::string_view ellipsis = "...";
+  std::size_t total = 0;
+  safe_text_pieces(in, [&](const char*, std::size_t len) {
+    total += len;
+    return total <= capacity;
+  });
+  const bool cut = total > capacity;
+  const std::size_t room = cut ? capacity - ellipsis.size() : capacity;
   std::size_t n = 0;
-  for (std::size_t i = 0; i < in.size();) {
-    const auto c = static_cast<unsigned char>(in[i]);
-    char escaped[4];
-    const char* piece = escaped;
-    std::size_t len = 1, consumed = 1;
-    if (c >= 0x20 && c < 0x7f) {
-      escaped[0] = static_cast<char>(c);
-    } else if (const std::size_t seq =
-                   c >= 0x80 ? safe_text_detail::utf8_sequence(in.substr(i)) : 0;
-               seq > 0) {
-      piece = in.data() + i;
-      len = consumed = seq;
-    } else {
-      escaped[0] = '\\', escaped[1] = 'x', escaped[2] = hex[c >> 4], escaped[3] = hex[c & 15];
-      len = 4;
-    }
-    // Room for this piece, and for the ellipsis should anything follow it.
-    const bool last = i + consumed >= in.size();
-    if (n + len + (last ? 0 : ellipsis.size()) > capacity) {
-      std::memcpy(out + n, ellipsis.data(), ellipsis.size());
-      return n + ellipsis.size();
-    }
+  safe_text_pieces(in, [&](const char* piece, std::size_t len) {
+    if (n + len > room) return false;
     std::memcpy(out + n, piece, len);
     n += len;
-    i += consumed;
+    return true;
+  });
+  if (cut) {
+    std::memcpy(out + n, ellipsis.data(), ellipsis.size());
+    n += ellipsis.size();
   }
   return n;
 }
