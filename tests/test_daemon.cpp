@@ -511,10 +511,13 @@ TEST_CASE("A subscriber that never reads does not block the daemon", "[daemon]")
   CHECK(d.daemon.counters().frames_dropped == 0);
 }
 
-TEST_CASE("A subscriber that stalls gets fresh poses within a few frames of resuming",
+TEST_CASE("A subscriber that stalls gets fresh poses after the few queued for it",
           "[daemon][limits]") {
+  const int backlog = GENERATE(16, 1);
   zmq::context_t context;
-  RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
+  DaemonConfig cfg = config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*");
+  cfg.max_backlog_frames = backlog;
+  RunningDaemon d(context, std::move(cfg));
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   // A real-time subscriber keeps its own queue short too (README).
   zmq::socket_t late(context, zmq::socket_type::sub);
@@ -565,10 +568,14 @@ TEST_CASE("A subscriber that stalls gets fresh poses within a few frames of resu
       ++stale;
     }
   }
+  const int queued = wire::pose_queue_messages(backlog);
   WARN("a subscriber that stalled through 3000 poses read " << stale
-                                                             << " stale poses after resuming");
+                                                             << " stale poses after resuming ("
+                                                             << queued << " queued for it)");
   REQUIRE(fresh);
-  CHECK(stale <= 60);  // ZeroMQ's defaults (1000 messages, autotuned buffers): ~2000
+  // What waits in the daemon's queue for it, and a few poses in the kernel's
+  // buffers (ZeroMQ's defaults, 1000 messages and autotuned buffers: ~2000).
+  CHECK(stale <= queued + 20);
 }
 
 TEST_CASE("Bytes from the wire reach no output unsafe: topic, marker names, error texts",

@@ -59,7 +59,7 @@ zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const 
     s.set(zmq::sockopt::handshake_ivl, kHandshakeTimeoutMs);
     s.set(zmq::sockopt::rcvbuf, kInputReceiveBufferBytes);
   } else {
-    s.set(zmq::sockopt::sndhwm, c.max_backlog_frames + kPoseQueueSpare);
+    s.set(zmq::sockopt::sndhwm, pose_queue_messages(c.max_backlog_frames));
     s.set(zmq::sockopt::sndbuf, kPoseSendBufferBytes);
   }
   try {
@@ -243,7 +243,7 @@ void Daemon::attach_sockets(State& next, State* old) {
     next.monitor = std::move(old->monitor);
   }
   if (keep_pub) {
-    old->pub.set(zmq::sockopt::sndhwm, next.config.max_backlog_frames + kPoseQueueSpare);
+    old->pub.set(zmq::sockopt::sndhwm, pose_queue_messages(next.config.max_backlog_frames));
     next.pub = std::move(old->pub);
   }
 }
@@ -287,6 +287,11 @@ void Daemon::send(const char* topic, const std::string& payload) {
   // dontwait: PUB never blocks, but be explicit; a failed send is logged, never fatal.
   try {
     State& s = *state_;
+    // Reading ZMQ_EVENTS makes the socket take in what its I/O thread told it
+    // (how much each subscriber has read), which send() does at most about
+    // once a millisecond: without it a short queue looks full to a
+    // subscriber that keeps up, when poses go out faster than that.
+    (void)s.pub.get(zmq::sockopt::events);
     s.pub.send(zmq::buffer(std::string_view(topic)),
                zmq::send_flags::sndmore | zmq::send_flags::dontwait);
     s.pub.send(zmq::buffer(payload), zmq::send_flags::dontwait);

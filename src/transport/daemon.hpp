@@ -56,13 +56,19 @@ struct DaemonControl {
 static_assert(std::atomic<bool>::is_always_lock_free);
 
 // Transport limits (README, "Under overload").
-// Each subscriber's queue in the PUB socket, in messages, beyond the poses
-// of one catch-up burst: a stalled subscriber holds up at most this many
-// stale poses (plus kernel buffers), then PUB drops for it.
-constexpr int kPoseQueueSpare = 4;
-// Kernel send buffer per subscriber connection (bytes): small, so that a
-// stalled subscriber does not have seconds of poses waiting in the kernel.
-constexpr int kPoseSendBufferBytes = 32 * 1024;
+// Each subscriber's queue in the PUB socket (ZMQ_SNDHWM), in messages: the
+// poses of one catch-up burst (max_backlog_frames) and a stats message, times
+// two because a PUB socket learns what its subscriber has read only in
+// batches of half its queue. A stalled subscriber holds up at most this many
+// stale poses here (plus a few in kernel buffers), then PUB drops for it.
+inline int pose_queue_messages(int max_backlog_frames) {
+  return 2 * (max_backlog_frames + 4);
+}
+// Kernel send buffer per subscriber connection (bytes; the kernel doubles
+// it): small, so that a stalled subscriber does not have seconds of poses
+// waiting in the kernel, large enough for 1 kHz of full-body poses over a
+// link with a few milliseconds of round trip.
+constexpr int kPoseSendBufferBytes = 16 * 1024;
 // Memory for messages waiting on the input (ZeroMQ's queue, and the ring):
 // ZMQ_RCVHWM is this over ZMQ_MAXMSGSIZE (twice input.max_payload_bytes),
 // within [16, 1000].
