@@ -142,6 +142,19 @@ std::uint64_t pose_frame(const zmq::message_t& m) {
   return f;
 }
 
+// A subscriber whose own queue is one message and whose kernel buffer is
+// small: it sees what is new, not what queued up while it was busy.
+zmq::socket_t real_time_subscriber(zmq::context_t& context, const std::string& endpoint,
+                                   const std::string& topic) {
+  zmq::socket_t s(context, zmq::socket_type::sub);
+  s.set(zmq::sockopt::rcvhwm, 1);
+  s.set(zmq::sockopt::rcvbuf, 4096);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::subscribe, topic);
+  s.connect(endpoint);
+  return s;
+}
+
 std::uint64_t counter(const json& stats, const char* key) {
   return stats.at(key).get<std::uint64_t>();
 }
@@ -370,11 +383,7 @@ TEST_CASE("Under sustained overload the answered frame is the newest one, not on
   });
   // A real-time subscriber too: should this thread be descheduled, poses do
   // not queue up in front of it and count as the daemon's delay.
-  zmq::socket_t sub(context, zmq::socket_type::sub);
-  sub.set(zmq::sockopt::linger, 0);
-  sub.set(zmq::sockopt::rcvhwm, 1);
-  sub.set(zmq::sockopt::subscribe, "pose");
-  sub.connect(d.daemon.output_endpoint());
+  zmq::socket_t sub = real_time_subscriber(context, d.daemon.output_endpoint(), "pose");
   std::vector<double> age_us;
   const Clock::time_point until = Clock::now() + 1s;
   while (Clock::now() < until) {
@@ -490,12 +499,7 @@ TEST_CASE("A subscriber that never reads does not block the daemon", "[daemon]")
   zmq::context_t context;
   RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
   // The stalled subscriber: tiny buffers, never reads.
-  zmq::socket_t stalled(context, zmq::socket_type::sub);
-  stalled.set(zmq::sockopt::rcvhwm, 1);
-  stalled.set(zmq::sockopt::rcvbuf, 4096);
-  stalled.set(zmq::sockopt::linger, 0);
-  stalled.set(zmq::sockopt::subscribe, "");
-  stalled.connect(d.daemon.output_endpoint());
+  zmq::socket_t stalled = real_time_subscriber(context, d.daemon.output_endpoint(), "");
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   std::uint64_t frame = client.handshake();
   MotionSettings ms;
@@ -520,12 +524,7 @@ TEST_CASE("A subscriber that stalls gets fresh poses after the few queued for it
   RunningDaemon d(context, std::move(cfg));
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   // A real-time subscriber keeps its own queue short too (README).
-  zmq::socket_t late(context, zmq::socket_type::sub);
-  late.set(zmq::sockopt::rcvhwm, 1);
-  late.set(zmq::sockopt::rcvbuf, 4096);
-  late.set(zmq::sockopt::linger, 0);
-  late.set(zmq::sockopt::subscribe, "pose");
-  late.connect(d.daemon.output_endpoint());
+  zmq::socket_t late = real_time_subscriber(context, d.daemon.output_endpoint(), "pose");
   std::uint64_t frame = client.handshake();
   const std::string markers = rest_markers(d.daemon.config()).dump();
   int steps = 0;
@@ -733,17 +732,19 @@ TEST_CASE("Absurd but finite numbers: occluded beyond the plausible range, never
         {"subnormal", {tiny, 950.0, -tiny}, false},
     };
     const wire::DaemonCounters before = d.daemon.counters();
-    int rejected = 0;
-    for (const Case& c : cases) {
-      json m = markers;
-      m["RASI"] = c.coordinates;
-      const json doc = {{"frame", ++frame}, {"time", 0.5}, {"markers", m}};
+    auto send = [&](const json& doc) {
       if (msgpack) {
         const auto b = json::to_msgpack(doc);
         client.send(std::string(b.begin(), b.end()));
       } else {
         client.send(doc.dump());
       }
+    };
+    int rejected = 0;
+    for (const Case& c : cases) {
+      json m = markers;
+      m["RASI"] = c.coordinates;
+      send({{"frame", ++frame}, {"time", 0.5}, {"markers", m}});
       const auto pose = client.receive("pose");
       REQUIRE(pose);
       CAPTURE(c.what, msgpack);
@@ -760,14 +761,7 @@ TEST_CASE("Absurd but finite numbers: occluded beyond the plausible range, never
     }
     // Frame number 2^64-1, a huge time and stamp: echoed as they came.
     const std::uint64_t max_frame = std::numeric_limits<std::uint64_t>::max();
-    const json doc = {
-        {"frame", max_frame}, {"time", 1e308}, {"stamp_us", -1e300}, {"markers", markers}};
-    if (msgpack) {
-      const auto b = json::to_msgpack(doc);
-      client.send(std::string(b.begin(), b.end()));
-    } else {
-      client.send(doc.dump());
-    }
+    send({{"frame", max_frame}, {"time", 1e308}, {"stamp_us", -1e300}, {"markers", markers}});
     const auto pose = client.receive("pose");
     REQUIRE(pose);
     CHECK((*pose)["frame"].get<std::uint64_t>() == max_frame);

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "process.hpp"
@@ -46,6 +47,20 @@ json good_config(const std::string& tag) {
           {"output", {{"endpoint", base + "-out"}}},
           {"stats_interval_s", 0.1}};
 }
+
+// fabrikd started on a config file, with a client connected both ways.
+struct Running {
+  Running(const std::string& config_path, const json& config)
+      : process({kFabrikd, "--config", config_path}) {
+    REQUIRE(process.wait_for_output("markers in on", 5s));
+    client.emplace(context, config["input"]["endpoint"], config["output"]["endpoint"]);
+    frame = client->handshake();
+  }
+  Process process;
+  zmq::context_t context;
+  std::optional<SocketClient> client;
+  std::uint64_t frame = 0;
+};
 
 }  // namespace
 
@@ -116,11 +131,8 @@ TEST_CASE("A busy port is a clear setup error with exit code 2", "[fabrikd]") {
 TEST_CASE("SIGTERM and SIGINT stop fabrikd cleanly within a second", "[fabrikd]") {
   for (int sig : {SIGTERM, SIGINT}) {
     const json c = good_config("sig" + std::to_string(sig));
-    Process p({kFabrikd, "--config", write_file("sig.json", c.dump())});
-    REQUIRE(p.wait_for_output("markers in on", 5s));
-    zmq::context_t context;
-    SocketClient client(context, c["input"]["endpoint"], c["output"]["endpoint"]);
-    client.handshake();
+    Running r(write_file("sig.json", c.dump()), c);
+    Process& p = r.process;
     p.signal(sig);
     CHECK(p.wait(1s) == 0);
     CHECK_THAT(p.stderr_text(), Catch::Contains("stopping after"));
@@ -131,11 +143,10 @@ TEST_CASE("SIGHUP reloads the config and keeps the old one when the new one is i
           "[fabrikd]") {
   json c = good_config("hup");
   const std::string path = write_file("hup.json", c.dump());
-  Process p({kFabrikd, "--config", path});
-  REQUIRE(p.wait_for_output("markers in on", 5s));
-  zmq::context_t context;
-  SocketClient client(context, c["input"]["endpoint"], c["output"]["endpoint"]);
-  std::uint64_t frame = client.handshake();
+  Running r(path, c);
+  Process& p = r.process;
+  SocketClient& client = *r.client;
+  std::uint64_t frame = r.frame;
 
   // A valid change (output units) takes effect without reconnecting.
   c["output"]["units"] = "m";
@@ -287,11 +298,10 @@ TEST_CASE("A SIGHUP with an unusable config keeps answering frames throughout an
   json c = good_config("hup2");
   c["output"]["units"] = "m";  // the running config: poses in metres
   const std::string path = write_file("hup2.json", c.dump());
-  Process p({kFabrikd, "--config", path});
-  REQUIRE(p.wait_for_output("markers in on", 5s));
-  zmq::context_t context;
-  SocketClient client(context, c["input"]["endpoint"], c["output"]["endpoint"]);
-  std::uint64_t frame = client.handshake();
+  Running r(path, c);
+  Process& p = r.process;
+  SocketClient& client = *r.client;
+  std::uint64_t frame = r.frame;
   int poses = 0;
   auto answer = [&] {
     client.send_frame(++frame, {{"RASI", {10, 950, 120}}});
@@ -339,9 +349,9 @@ TEST_CASE("A SIGHUP with an unusable config keeps answering frames throughout an
                      },
                      "at /output/endpoint: cannot bind the output socket"});
   std::size_t failed = 0;
-  for (const Reload& r : reloads) {
-    CAPTURE(r.what);
-    r.make();
+  for (const Reload& reload : reloads) {
+    CAPTURE(reload.what);
+    reload.make();
     p.signal(SIGHUP);
     ++failed;
     // Frames are answered, on the old config, while the reload is read and refused.
@@ -351,7 +361,7 @@ TEST_CASE("A SIGHUP with an unusable config keeps answering frames throughout an
     } while (!p.wait_for_count("reload failed, keeping the running config", failed, 10ms) &&
              Clock::now() < deadline);
     REQUIRE(p.count("reload failed, keeping the running config") == failed);
-    CHECK_THAT(p.stderr_text(), Catch::Contains(r.expected));
+    CHECK_THAT(p.stderr_text(), Catch::Contains(reload.expected));
     answer();
   }
   CHECK(poses >= static_cast<int>(2 * reloads.size()));
@@ -382,11 +392,10 @@ TEST_CASE("A SIGHUP with an unusable config keeps answering frames throughout an
 TEST_CASE("One message cannot stop fabrikd: bytes that are not UTF-8 in the topic or a marker name",
           "[fabrikd][robustness]") {
   const json c = good_config("utf8");
-  Process p({kFabrikd, "--config", write_file("utf8.json", c.dump())});
-  REQUIRE(p.wait_for_output("markers in on", 5s));
-  zmq::context_t context;
-  SocketClient client(context, c["input"]["endpoint"], c["output"]["endpoint"]);
-  std::uint64_t frame = client.handshake();
+  Running r(write_file("utf8.json", c.dump()), c);
+  Process& p = r.process;
+  SocketClient& client = *r.client;
+  std::uint64_t frame = r.frame;
   client.send(json{{"frame", ++frame}, {"markers", json::object()}}.dump(),
               std::string("markers\xff", 8));
   // MessagePack {"frame": 1, "markers": {"\xff\xfe": "x"}}: a raw string, not UTF-8.
@@ -411,11 +420,10 @@ TEST_CASE("One message cannot stop fabrikd: bytes that are not UTF-8 in the topi
 
 TEST_CASE("A 64 MiB message is refused by ZeroMQ before it is buffered", "[fabrikd][limits]") {
   const json c = good_config("big");  // ipc: ZeroMQ's stream engine, as for tcp
-  Process p({kFabrikd, "--config", write_file("big.json", c.dump())});
-  REQUIRE(p.wait_for_output("markers in on", 5s));
-  zmq::context_t context;
-  SocketClient client(context, c["input"]["endpoint"], c["output"]["endpoint"]);
-  std::uint64_t frame = client.handshake();
+  Running r(write_file("big.json", c.dump()), c);
+  Process& p = r.process;
+  SocketClient& client = *r.client;
+  std::uint64_t frame = r.frame;
   const long before_kb = peak_rss_kb(p.pid());
   client.send(std::string(64 << 20, ' '));
   bool answered = false;
