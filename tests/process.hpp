@@ -56,7 +56,24 @@ class Process {
     }
     return true;
   }
+  // Reads stderr until `text` appears `n` times (true), or the timeout or end of output.
+  bool wait_for_count(const std::string& text, std::size_t n, std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (count(text) < n) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0 || !read_some(static_cast<int>(left.count()))) return false;
+    }
+    return true;
+  }
+  std::size_t count(const std::string& text) const {
+    std::size_t n = 0;
+    for (auto at = stderr_.find(text); at != std::string::npos; at = stderr_.find(text, at + 1))
+      ++n;
+    return n;
+  }
   void signal(int sig) { kill(pid_, sig); }
+  pid_t pid() const { return pid_; }
   // The exit code (128 + signal if killed), or nothing if still running at the timeout.
   std::optional<int> wait(std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;

@@ -1,16 +1,27 @@
 // A marker source and pose subscriber for tests over real ZeroMQ sockets.
 // ZeroMQ's PUB/SUB drops messages until a subscription has propagated, so
 // handshake() sends probe frames until the first pose comes back: the test
-// then knows both directions are connected (no sleeping).
+// then knows both directions are connected (no sleeping). Every wait here
+// has a deadline.
 #pragma once
 
 #include <chrono>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <vector>
 #include <zmq.hpp>
 
 namespace fabrik::test {
+
+// The payload decoded (JSON or MessagePack, told apart by the first byte).
+inline nlohmann::json decode_payload(const zmq::message_t& p) {
+  const auto* b = static_cast<const std::uint8_t*>(p.data());
+  if (p.size() > 0 && ((b[0] >= 0x80 && b[0] <= 0x8f) || b[0] == 0xde || b[0] == 0xdf))
+    return nlohmann::json::from_msgpack(b, b + p.size());
+  return nlohmann::json::parse(p.to_string_view());
+}
 
 class SocketClient {
  public:
@@ -28,7 +39,7 @@ class SocketClient {
     pub_.send(zmq::buffer(topic), zmq::send_flags::sndmore);
     pub_.send(zmq::buffer(payload));
   }
-  void send_parts(std::initializer_list<std::string> parts) {
+  void send_parts(const std::vector<std::string>& parts) {
     std::size_t i = 0;
     for (const std::string& p : parts)
       pub_.send(zmq::buffer(p),
@@ -38,8 +49,8 @@ class SocketClient {
     send(nlohmann::json{{"frame", frame}, {"units", "mm"}, {"markers", markers}}.dump());
   }
 
-  // The next message of `topic`, decoded (JSON or MessagePack), or nothing on timeout.
-  std::optional<nlohmann::json> receive(
+  // The next message of `topic`, undecoded, or nothing on timeout.
+  std::optional<zmq::message_t> receive_raw(
       const std::string& topic,
       std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
@@ -54,11 +65,31 @@ class SocketClient {
       (void)sub_.recv(t);
       if (!t.more()) continue;
       (void)sub_.recv(p);
-      if (t.to_string_view() != topic) continue;
-      const auto* b = static_cast<const std::uint8_t*>(p.data());
-      if (p.size() > 0 && ((b[0] >= 0x80 && b[0] <= 0x8f) || b[0] == 0xde || b[0] == 0xdf))
-        return nlohmann::json::from_msgpack(b, b + p.size());
-      return nlohmann::json::parse(p.to_string_view());
+      if (t.to_string_view() == topic) return p;
+    }
+  }
+
+  // The next message of `topic`, decoded (JSON or MessagePack), or nothing on
+  // timeout. A payload that is not valid JSON (or UTF-8) throws.
+  std::optional<nlohmann::json> receive(
+      const std::string& topic,
+      std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
+    auto p = receive_raw(topic, timeout);
+    if (!p) return std::nullopt;
+    return decode_payload(*p);
+  }
+
+  // The first `stats` for which done(stats) holds, or nothing after `timeout`.
+  template <class Done>
+  std::optional<nlohmann::json> stats_until(
+      Done done, std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      auto stats = receive("stats", left);
+      if (stats && done(*stats)) return stats;
     }
   }
 

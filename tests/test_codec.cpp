@@ -10,6 +10,7 @@
 #include "transport/json_sax_reader.hpp"
 #include "transport/marker_codec.hpp"
 #include "transport/pose_codec.hpp"
+#include "transport/safe_text.hpp"
 
 using namespace fabrik;
 using namespace fabrik::wire;
@@ -282,5 +283,90 @@ TEST_CASE("The JSON reader accepts exactly what nlohmann::json accepts", "[codec
       }
     }
     agree(m);
+  }
+}
+
+TEST_CASE("safe_text keeps printable UTF-8 and escapes everything else, within its capacity",
+          "[codec][safe_text]") {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"plain R.ASIS", "plain R.ASIS"},
+      {"caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80", "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80"},
+      {"markers\xff", "markers\\xff"},
+      {std::string("nul\0tab\tesc\x1b[31m del\x7f", 21), "nul\\x00tab\\x09esc\\x1b[31m del\\x7f"},
+      {"c1 \xc2\x85 nbsp \xc2\xa0", "c1 \\xc2\\x85 nbsp \xc2\xa0"},
+      {"overlong \xc0\xaf \xe0\x80\xaf", "overlong \\xc0\\xaf \\xe0\\x80\\xaf"},
+      {"surrogate \xed\xa0\x80", "surrogate \\xed\\xa0\\x80"},
+      {"too high \xf4\x90\x80\x80", "too high \\xf4\\x90\\x80\\x80"},
+      {"cut \xe2\x82", "cut \\xe2\\x82"},
+      {"stray \x80\xbf", "stray \\x80\\xbf"},
+      {"back\\slash \"quoted\"", "back\\slash \"quoted\""},
+  };
+  for (const auto& [in, expected] : cases) {
+    CAPTURE(in);
+    CHECK(wire::safe_text(in) == expected);
+    CHECK(wire::safe_text(wire::safe_text(in)) == expected);  // idempotent
+  }
+  // Bounded: cut at a character boundary, never inside an escape or a sequence.
+  const std::string long_text = std::string(300, 'a') + "\xff" + "\xc3\xa9";
+  const std::string cut = wire::safe_text(long_text, 64);
+  CHECK(cut.size() <= 64);
+  CHECK(cut == std::string(61, 'a') + "...");
+  CHECK(wire::safe_text(std::string(10, '\x01'), 12) == "\\x01\\x01...");
+  CHECK(wire::safe_text("\xc3\xa9\xc3\xa9\xc3\xa9", 6) == "\xc3\xa9\xc3\xa9\xc3\xa9");
+  CHECK(wire::safe_text("\xc3\xa9\xc3\xa9\xc3\xa9", 5) == "\xc3\xa9...");
+  CHECK(wire::safe_text("abcdef", 6) == "abcdef");  // exactly fits: no ellipsis
+  // Any bytes at all come out as valid UTF-8 without control characters.
+  std::mt19937 rng(17);
+  for (int i = 0; i < 2000; ++i) {
+    std::string bytes(rng() % 80, '\0');
+    for (char& c : bytes) c = static_cast<char>(rng() & 0xff);
+    const std::size_t capacity = 4 + rng() % 100;
+    const std::string out = wire::safe_text(bytes, capacity);
+    CAPTURE(bytes, capacity);
+    REQUIRE(out.size() <= capacity);
+    for (char c : out) REQUIRE((static_cast<unsigned char>(c) >= 0x20 && c != 0x7f));
+    json j;
+    REQUIRE_NOTHROW(j = json::parse("\"" + std::string(out.size(), ' ') + "\""));
+    std::string quoted = "\"";
+    for (char c : out) quoted += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
+    REQUIRE_NOTHROW(j = json::parse(quoted + "\""));  // nlohmann checks UTF-8
+    REQUIRE(j.get<std::string>() == out);
+  }
+}
+
+TEST_CASE("Markers beyond the plausible range or at exactly (0, 0, 0) are occlusions, counted",
+          "[codec]") {
+  MarkerFrame f;
+  std::string err;
+  {
+    MarkerDecoder d(kNames, 1e-3, 1 << 20);  // defaults: 100 m, zero is missing
+    f = d.make_frame();
+    REQUIRE(d.decode(bytes(R"({"frame": 1, "markers": {"A": [1e160, 0, 0], "B": [0, 0, 0],
+                                "C": [99999, -99999, 1]}})"),
+                     f, err));
+    CHECK(f.visible == std::vector<std::uint8_t>{0, 0, 1});
+    CHECK(f.rejected_count == 1);
+    CHECK(f.zero_count == 1);
+    // The range is in metres, whatever the frame's units.
+    REQUIRE(d.decode(bytes(R"({"frame": 2, "units": "m", "markers": {"A": [100.5, 0, 1],
+                                "B": [-0.0, 0.0, -0.0], "C": [-100, 5e-324, 1]}})"),
+                     f, err));
+    CHECK(f.visible == std::vector<std::uint8_t>{0, 0, 1});
+    CHECK(f.rejected_count == 1);
+    CHECK(f.zero_count == 1);
+    // A new frame starts its counts afresh.
+    REQUIRE(d.decode(bytes(R"({"frame": 3, "markers": {"A": [1, 2, 3]}})"), f, err));
+    CHECK(f.rejected_count == 0);
+    CHECK(f.zero_count == 0);
+  }
+  {
+    MarkerDecoder d(kNames, 1e-3, 1 << 20, wire::PlausibleMarkers{1.0, false});
+    f = d.make_frame();
+    REQUIRE(d.decode(bytes(R"({"frame": 1, "markers": {"A": [1001, 0, 0], "B": [0, 0, 0],
+                                "C": [999, 0, 0]}})"),
+                     f, err));
+    CHECK(f.visible == std::vector<std::uint8_t>{0, 1, 1});
+    CHECK(f.rejected_count == 1);
+    CHECK(f.zero_count == 0);
   }
 }

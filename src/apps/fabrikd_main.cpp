@@ -1,12 +1,16 @@
 // fabrikd: the real-time marker-tracking daemon. Setup errors (bad config,
 // busy port) exit with code 2 and a message that names the fix; once running,
-// no message can stop it: only SIGINT/SIGTERM (clean stop) and SIGHUP
-// (reload the config, keeping the old one if the new one is invalid).
+// no message can stop it: only SIGINT/SIGTERM (clean stop within a second,
+// also during a reload) and SIGHUP (reload the config off the frame loop,
+// keeping the old one if the new one is invalid).
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/resource.h>
+
 #include <CLI/CLI.hpp>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -18,15 +22,16 @@
 
 namespace {
 
-fabrik::wire::DaemonControl* g_control = nullptr;
+// Static storage, not a pointer to a stack object: the handler may run at
+// any time (before the daemon exists, after run() has thrown), and storing
+// to a lock-free atomic is async-signal-safe.
+fabrik::wire::DaemonControl g_control;
 
 extern "C" void on_signal(int sig) {
-  // Only lock-free atomic stores: async-signal-safe.
-  if (!g_control) return;
   if (sig == SIGHUP)
-    g_control->reload.store(true);
+    g_control.reload.store(true);
   else
-    g_control->stop.store(true);
+    g_control.stop.store(true);
 }
 
 void install_signal_handlers() {
@@ -34,6 +39,23 @@ void install_signal_handlers() {
   sa.sa_handler = on_signal;
   sigemptyset(&sa.sa_mask);
   for (int sig : {SIGINT, SIGTERM, SIGHUP}) sigaction(sig, &sa, nullptr);
+}
+
+// Every client connection costs a file descriptor, and when none is left
+// ZeroMQ's listener retries accept() in a busy loop. A soft limit of 1024 (a
+// common default) is raised to the hard limit, so thousands of connections
+// are only memory; connections that never complete ZeroMQ's handshake are
+// closed after kHandshakeTimeoutMs.
+void raise_open_file_limit() {
+  rlimit limit{};
+  if (getrlimit(RLIMIT_NOFILE, &limit) != 0 || limit.rlim_cur == limit.rlim_max) return;
+  const rlim_t before = limit.rlim_cur;
+  limit.rlim_cur = limit.rlim_max == RLIM_INFINITY ? rlim_t{1} << 20 : limit.rlim_max;
+  if (setrlimit(RLIMIT_NOFILE, &limit) != 0) {
+    spdlog::warn("open files limit stays at {} (cannot raise it to {})", before, limit.rlim_cur);
+    return;
+  }
+  spdlog::debug("open files limit raised from {} to {}", before, limit.rlim_cur);
 }
 
 struct Overrides {
@@ -80,27 +102,28 @@ int main(int argc, char** argv) {
   }
   spdlog::set_default_logger(spdlog::stderr_color_mt("fabrikd"));  // stdout stays clean
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  install_signal_handlers();
+  bool abandoned = false;
   try {
     fabrik::DaemonConfig config = load(o);
     spdlog::set_level(spdlog::level::from_str(config.log_level));
-    spdlog::info("fabrikd {}: config {}", fabrik::kVersion, config.file);
+    spdlog::info("fabrikd {}: config {}", fabrik::kVersion, fabrik::wire::safe_text(config.file));
+    raise_open_file_limit();
     zmq::context_t context(1);
-    fabrik::wire::DaemonControl control;
     fabrik::wire::Daemon daemon(context, std::move(config));
-    g_control = &control;
-    install_signal_handlers();
-    daemon.run(control, [&] {
-      fabrik::DaemonConfig c = load(o);
-      spdlog::set_level(spdlog::level::from_str(c.log_level));
-      return c;
-    });
-    g_control = nullptr;
+    daemon.run(g_control, [o] { return load(o); });
+    abandoned = daemon.reload_abandoned();
   } catch (const fabrik::ConfigError& e) {
     std::fprintf(stderr, "fabrikd: config error: %s\n", e.what());
     return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fabrikd: %s\n", e.what());
     return 2;
+  }
+  if (abandoned) {
+    // A reload thread is still reading: do not unwind under it.
+    spdlog::default_logger()->flush();
+    std::_Exit(0);
   }
   return 0;
 }

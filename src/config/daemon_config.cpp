@@ -25,8 +25,16 @@ Model read_model(const JsonReader& model, const std::string& config_file) {
   std::filesystem::path path(name);
   if (config_file != kEmbeddedDefault && path.is_relative())
     path = std::filesystem::path(config_file).parent_path() / path;
-  if (config_file != kEmbeddedDefault && std::filesystem::exists(path))
-    return load_model_file(path.string());
+  std::error_code ec;
+  if (config_file != kEmbeddedDefault &&
+      std::filesystem::symlink_status(path, ec).type() != std::filesystem::file_type::not_found) {
+    std::string text;
+    if (auto p = read_text_file(path.string(), text))
+      model.fail("model file '" + path.string() + "' " +
+                     (p->problem.rfind("is ", 0) == 0 ? p->problem : "cannot be used: " + p->problem),
+                 p->fix);
+    return load_model(JsonReader::parse(text, path.string()), path.string());
+  }
   if (auto text = embedded_config(name)) return load_model(JsonReader::parse(*text, name), name);
   model.fail("model file '" + path.string() + "' not found",
              "give a path relative to the config file, an embedded model (models/fullbody.json, "
@@ -136,13 +144,17 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
 
   if (root.has("input")) {
     const JsonReader in = root.at("input");
-    in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames"});
+    in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames",
+                  "max_abs_coordinate_mm", "zero_is_missing"});
     c.input = read_endpoint(in, c.input);
     if (in.has("units")) c.input_m_per_unit = metres_per_unit(in.at("units"));
     c.max_payload_bytes = static_cast<std::size_t>(
         in.get("max_payload_bytes", static_cast<long long>(c.max_payload_bytes), 64LL, 1LL << 30));
     c.max_backlog_frames = static_cast<int>(
         in.get("max_backlog_frames", static_cast<long long>(c.max_backlog_frames), 1LL, 10000LL));
+    c.max_abs_coordinate_m =
+        in.get("max_abs_coordinate_mm", c.max_abs_coordinate_m * 1e3, 1.0, 1e9) * 1e-3;
+    c.zero_is_missing = in.get("zero_is_missing", c.zero_is_missing);
   }
   if (root.has("output")) {
     const JsonReader out = root.at("output");

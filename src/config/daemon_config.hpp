@@ -29,6 +29,11 @@ struct DaemonConfig {
   std::string output_units = "mm";
   Encoding output_encoding = Encoding::json;
   std::size_t max_payload_bytes = 1 << 20;
+  // Input coordinates farther than this from the origin on any axis are not
+  // plausible measurements: the marker is taken as occluded (and counted).
+  double max_abs_coordinate_m = 100.0;
+  // An exact (0, 0, 0) is how several exporters write "not seen".
+  bool zero_is_missing = true;
   // Valid frames solved per wake-up at most; older queued ones are dropped.
   int max_backlog_frames = 16;
   double stats_interval_s = 1.0;

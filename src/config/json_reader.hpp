@@ -19,9 +19,11 @@ class JsonReader {
   JsonReader(const nlohmann::json& value, std::string file, std::string pointer = "")
       : value_(value), file_(std::move(file)), pointer_(std::move(pointer)) {}
 
-  // Parses text; a syntax error names the line and column.
+  // Parses text; a syntax error names the line and column and the JSON
+  // pointer of the value being read, and so does a number that does not fit
+  // a double (1e400) or nesting deeper than kMaxJsonDepth.
   static nlohmann::json parse(std::string_view text, const std::string& file);
-  // Reads and parses a file; a missing file is a ConfigError too.
+  // Reads (read_text_file) and parses a file; any problem is a ConfigError.
   static nlohmann::json parse_file(const std::string& path);
 
   const nlohmann::json& value() const { return value_; }
@@ -69,6 +71,22 @@ T read_choice(const JsonReader& value, const std::string& what,
   }
   value.fail("unknown " + what + " '" + v + "'", "use " + names);
 }
+
+// Config, model and template files: larger ones are refused (said in the error).
+constexpr std::size_t kMaxConfigFileBytes = std::size_t{16} << 20;
+constexpr int kMaxJsonDepth = 256;
+
+// Why a file cannot be read, and what to do about it.
+struct FileProblem {
+  std::string problem, fix;
+};
+
+// Reads `path` into `text` if it is a regular file (symbolic links followed)
+// of at most max_bytes; anything else (a directory, a device such as
+// /dev/zero, a FIFO, a symlink loop, a missing or unreadable file) is a
+// problem, found without blocking and without reading more than max_bytes + 1.
+std::optional<FileProblem> read_text_file(const std::string& path, std::string& text,
+                                          std::size_t max_bytes = kMaxConfigFileBytes);
 
 // "pointer/escaped~1key": RFC 6901 escaping of one reference token.
 std::string json_pointer_token(const std::string& key);

@@ -1,10 +1,9 @@
 #include "resources.hpp"
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include "config_error.hpp"
+#include "json_reader.hpp"
 
 namespace fabrik {
 
@@ -27,16 +26,22 @@ std::optional<std::string_view> embedded_config(std::string_view relative_path) 
 }
 
 std::string read_config_text(const std::string& path) {
-  if (std::filesystem::exists(path)) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw ConfigError(path, "", "cannot open the file", "check its permissions");
-    std::ostringstream text;
-    text << in.rdbuf();
-    return text.str();
+  // Anything at the path (a file, a directory, a dangling link) is read or
+  // refused as it is; only where nothing is does an embedded file stand in.
+  std::error_code ec;
+  const bool on_disk = std::filesystem::symlink_status(path, ec).type() !=
+                       std::filesystem::file_type::not_found;
+  if (on_disk || !embedded_config(path)) {
+    std::string text;
+    if (auto p = read_text_file(path, text)) {
+      if (!on_disk)
+        throw ConfigError(path, "", "no such file (and no embedded default of that name)",
+                          "check the path");
+      throw ConfigError(path, "", p->problem, p->fix);
+    }
+    return text;
   }
-  if (auto text = embedded_config(path)) return std::string(*text);
-  throw ConfigError(path, "", "no such file (and no embedded default of that name)",
-                    "check the path");
+  return std::string(*embedded_config(path));
 }
 
 }  // namespace fabrik

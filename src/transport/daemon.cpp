@@ -2,95 +2,265 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cerrno>
-#include <nlohmann/json.hpp>
+#include <condition_variable>
+#include <cstring>
 #include <stdexcept>
+#include <thread>
+
+#include "config/config_error.hpp"
+#include "wire_writer.hpp"
 
 namespace fabrik::wire {
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr int kMaxBatch =
-    4096;  // messages drained per wake-up: bounds the time before a pose goes out
+// Messages taken off the input per wake-up, and the time spent serving them,
+// at most: stats, reloads and a stop request are looked at in between.
+constexpr int kMaxBatch = 4096;
+constexpr auto kMaxServe = std::chrono::milliseconds(20);
 constexpr std::size_t kMaxUnknownLogged = 256;
+// How long a stop waits for a reload being read before leaving it behind.
+constexpr auto kReloadGraceAtStop = std::chrono::milliseconds(300);
 
 double us_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
 }
 
-zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const Endpoint& e,
-                          const char* role) {
+std::string_view view(const zmq::message_t& m) {
+  return {static_cast<const char*>(m.data()), m.size()};
+}
+
+// ZeroMQ refuses a message this large before buffering it, and drops the
+// peer that sent it (a connecting source reconnects by itself). Up to it,
+// an oversized payload reaches the decoder, which counts it in decode_errors.
+std::int64_t zmq_max_message_bytes(const DaemonConfig& c) {
+  return static_cast<std::int64_t>(2 * c.max_payload_bytes + 4096);
+}
+
+int input_queue_messages(const DaemonConfig& c) {
+  return static_cast<int>(std::clamp<std::int64_t>(
+      static_cast<std::int64_t>(kInputQueueBytes) / zmq_max_message_bytes(c), 16, 1000));
+}
+
+// Socket options are set before bind/connect, so they hold for every connection.
+zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const DaemonConfig& c) {
+  const bool input = type == zmq::socket_type::sub;
+  const Endpoint& e = input ? c.input : c.output;
+  const char* role = input ? "input" : "output";
   zmq::socket_t s(context, type);
   s.set(zmq::sockopt::linger, 0);
-  if (type == zmq::socket_type::sub) s.set(zmq::sockopt::subscribe, "markers");
+  if (input) {
+    s.set(zmq::sockopt::subscribe, "markers");
+    s.set(zmq::sockopt::maxmsgsize, zmq_max_message_bytes(c));
+    s.set(zmq::sockopt::rcvhwm, input_queue_messages(c));
+    s.set(zmq::sockopt::handshake_ivl, kHandshakeTimeoutMs);
+    s.set(zmq::sockopt::rcvbuf, kInputReceiveBufferBytes);
+  } else {
+    s.set(zmq::sockopt::sndhwm, pose_queue_messages(c.max_backlog_frames));
+    s.set(zmq::sockopt::sndbuf, kPoseSendBufferBytes);
+  }
   try {
     if (e.mode == SocketMode::bind)
       s.bind(e.address);
     else
       s.connect(e.address);
   } catch (const zmq::error_t& err) {
-    throw std::runtime_error(
-        std::string("cannot ") + (e.mode == SocketMode::bind ? "bind" : "connect") + " the " +
-        role + " socket to '" + e.address + "': " + err.what() +
-        (err.num() == EADDRINUSE
-             ? " (another fabrikd running? choose another port with --" + std::string(role) + ")"
-             : ""));
+    const std::string how = e.mode == SocketMode::bind ? "bind" : "connect";
+    std::string fix;
+    switch (err.num()) {
+      case EADDRINUSE:
+        fix = "another fabrikd running? choose another port here or with --" + std::string(role);
+        break;
+      case EADDRNOTAVAIL:
+      case ENODEV:
+        fix = "bind to an address of this machine (127.0.0.1, or 0.0.0.0 for every interface), "
+              "or use \"mode\": \"connect\" to reach another machine";
+        break;
+      case EACCES:
+        fix = "use a port above 1023, or a path you may write for ipc://";
+        break;
+      default:
+        fix = "check the endpoint (transport://address:port), here or with --" +
+              std::string(role);
+    }
+    throw ConfigError(c.file, std::string("/") + role + "/endpoint",
+                      "cannot " + how + " the " + role + " socket to '" + e.address + "': " +
+                          err.what(),
+                      fix);
   }
   return s;
+}
+
+// Whether every number of a result can be written: a pose never carries
+// NaN, infinity or null where the schema wants a number.
+bool all_finite(const TrackResult& r) {
+  if (!std::isfinite(r.residual_rms_m) || !std::isfinite(r.residual_max_m) ||
+      !std::isfinite(r.solve_us))
+    return false;
+  for (const Eigen::Vector3d& p : r.joints_world_m)
+    if (!p.allFinite()) return false;
+  for (const Eigen::Vector3d& p : r.markers_world_m)
+    if (!p.allFinite()) return false;
+  return true;
+}
+
+// What a stats payload carries (proto/stats.schema.json).
+struct StatsFields {
+  double uptime_s, interval_s, pose_rate_hz;
+  const DaemonCounters& c;
+  IntervalSamples &solve_us, &queue_us;
+  std::string_view last_error, config;  // both already safe (safe_text)
+};
+
+template <class Writer>
+void write_stats(Writer& w, const StatsFields& s) {
+  const auto count = [&](const char* key, std::uint64_t v) {
+    w.key(key);
+    w.uint(v);
+  };
+  const auto quantiles = [&](const char* key, IntervalSamples& q) {
+    w.key(key);
+    w.begin_map(3);
+    w.key("p50");
+    w.number(q.quantile(0.5), 2);
+    w.key("p99");
+    w.number(q.quantile(0.99), 2);
+    w.key("max");
+    w.number(q.max(), 2);
+    w.end_map();
+  };
+  w.begin_map(19);  // MessagePack needs the exact count of the keys below
+  w.key("uptime_s");
+  w.number(s.uptime_s, 3);
+  count("frames_in", s.c.frames_in);
+  count("frames_out", s.c.frames_out);
+  count("frames_dropped", s.c.frames_dropped);
+  count("decode_errors", s.c.decode_errors);
+  count("unknown_markers", s.c.unknown_markers);
+  quantiles("solve_us", s.solve_us);
+  quantiles("queue_latency_us", s.queue_us);
+  // Additions to the contract's minimum:
+  w.key("interval_s");
+  w.number(s.interval_s, 6);
+  w.key("pose_rate_hz");
+  w.number(s.pose_rate_hz, 3);
+  w.key("last_error");
+  if (s.last_error.empty())
+    w.null();
+  else
+    w.string(s.last_error);
+  count("reloads", s.c.reloads);
+  count("reload_errors", s.c.reload_errors);
+  w.key("config");
+  w.string(s.config);
+  count("rejected_coordinates", s.c.rejected_coordinates);
+  count("zero_markers", s.c.zero_markers);
+  count("internal_errors", s.c.internal_errors);
+  count("input_disconnects", s.c.input_disconnects);
+  count("accept_failures", s.c.accept_failures);
+  w.end_map();
 }
 
 }  // namespace
 
 struct Daemon::State {
   DaemonConfig config;
-  zmq::socket_t sub, pub;
+  std::string config_name;  // config.file made safe for any output
   std::unique_ptr<Tracker> tracker;
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
-  // Valid frames waiting to be solved, oldest first, in a ring with one
-  // slot more than the backlog limit: the spare one is decoded into.
-  std::vector<MarkerFrame> ring;
+  MarkerFrame frame;  // decoded into, one at a time
+  // Messages waiting to be served, oldest first: [first, first + count) of a
+  // ring of max_backlog_frames payloads, holding `bytes` at most kInputQueueBytes.
+  std::vector<zmq::message_t> waiting;
   std::vector<Clock::time_point> received_at;
+  int first = 0, count = 0;
+  std::size_t bytes = 0;
+  zmq::socket_t sub, pub;
+  zmq::socket_t monitor;  // the input socket's disconnect and accept-failure events
 };
 
-std::unique_ptr<Daemon::State> Daemon::make_state(DaemonConfig config, State* old) {
+struct Daemon::ReloadJob {
+  std::function<DaemonConfig()> load;
+  std::thread thread;
+  std::mutex mutex;
+  std::condition_variable finished;
+  std::atomic<bool> done{false};
+  std::unique_ptr<State> state;  // the result, or
+  std::string error;             // why there is none
+};
+
+std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   auto s = std::make_unique<State>();
   s->tracker = std::make_unique<Tracker>(config.tracker);
   std::vector<std::string> names;
   for (const MarkerTarget& m : config.tracker.markers) names.push_back(m.marker);
-  s->decoder =
-      std::make_unique<MarkerDecoder>(names, config.input_m_per_unit, config.max_payload_bytes);
+  s->decoder = std::make_unique<MarkerDecoder>(
+      names, config.input_m_per_unit, config.max_payload_bytes,
+      PlausibleMarkers{config.max_abs_coordinate_m, config.zero_is_missing});
   s->encoder = std::make_unique<PoseEncoder>(*s->tracker, config.output_units,
                                              config.output_encoding == Encoding::msgpack
                                                  ? PayloadEncoding::msgpack
                                                  : PayloadEncoding::json);
-  s->ring.resize(config.max_backlog_frames + 1);
-  for (MarkerFrame& f : s->ring) f = s->decoder->make_frame();
-  s->received_at.resize(s->ring.size());
-  // Sockets are reopened only when their endpoint changed, so a reload of
-  // the solver settings does not disturb connected clients. New sockets are
-  // opened before old ones are taken over: if one fails, the old state is whole.
-  auto same = [](const Endpoint& a, const Endpoint& b) {
-    return a.address == b.address && a.mode == b.mode;
-  };
-  const bool keep_sub = old && same(old->config.input, config.input);
-  const bool keep_pub = old && same(old->config.output, config.output);
-  if (!keep_sub) s->sub = open_socket(context_, zmq::socket_type::sub, config.input, "input");
-  if (!keep_pub) s->pub = open_socket(context_, zmq::socket_type::pub, config.output, "output");
-  if (keep_sub) s->sub = std::move(old->sub);
-  if (keep_pub) s->pub = std::move(old->pub);
+  s->frame = s->decoder->make_frame();
+  s->waiting.resize(static_cast<std::size_t>(config.max_backlog_frames));
+  s->received_at.resize(s->waiting.size());
+  s->config_name = safe_text(config.file);
   s->config = std::move(config);
   return s;
 }
 
-Daemon::Daemon(zmq::context_t& context, DaemonConfig config)
-    : context_(context), started_(Clock::now()) {
-  state_ = make_state(std::move(config), nullptr);
-  out_.reserve(1 << 16);
+// Sockets are reopened only when their endpoint changed, so a reload of the
+// solver settings does not disturb connected clients. New sockets are opened
+// before old ones are taken over: if one fails, the old state is whole.
+void Daemon::attach_sockets(State& next, State* old) {
+  auto same = [](const Endpoint& a, const Endpoint& b) {
+    return a.address == b.address && a.mode == b.mode;
+  };
+  const bool keep_sub = old && same(old->config.input, next.config.input);
+  const bool keep_pub = old && same(old->config.output, next.config.output);
+  if (!keep_sub) {
+    next.sub = open_socket(context_, zmq::socket_type::sub, next.config);
+    static std::atomic<int> monitors{0};
+    const std::string address = "inproc://fabrikd-input-monitor-" + std::to_string(++monitors);
+    if (zmq_socket_monitor(next.sub.handle(), address.c_str(),
+                           ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED) == 0) {
+      next.monitor = zmq::socket_t(context_, zmq::socket_type::pair);
+      next.monitor.set(zmq::sockopt::linger, 0);
+      next.monitor.connect(address);
+    }
+  }
+  if (!keep_pub) next.pub = open_socket(context_, zmq::socket_type::pub, next.config);
+  if (keep_sub) {
+    // New limits hold for connections made from now on; the decoder checks
+    // the payload limit on every message anyway.
+    old->sub.set(zmq::sockopt::maxmsgsize, zmq_max_message_bytes(next.config));
+    old->sub.set(zmq::sockopt::rcvhwm, input_queue_messages(next.config));
+    next.sub = std::move(old->sub);
+    next.monitor = std::move(old->monitor);
+  }
+  if (keep_pub) {
+    old->pub.set(zmq::sockopt::sndhwm, pose_queue_messages(next.config.max_backlog_frames));
+    next.pub = std::move(old->pub);
+  }
 }
 
-Daemon::~Daemon() = default;
+Daemon::Daemon(zmq::context_t& context, DaemonConfig config)
+    : context_(context), started_(Clock::now()) {
+  auto s = prepare_state(std::move(config));
+  attach_sockets(*s, nullptr);
+  state_ = std::move(s);
+  out_.reserve(1 << 16);
+  stats_out_.reserve(4096);
+}
+
+Daemon::~Daemon() {
+  // A reload thread still running owns its job; it must not be joined here.
+  if (reload_ && reload_->thread.joinable()) reload_->thread.detach();
+}
 
 const DaemonConfig& Daemon::config() const {
   return state_->config;
@@ -108,10 +278,20 @@ DaemonCounters Daemon::counters() const {
   return snapshot_;
 }
 
+void Daemon::update_snapshot() {
+  std::lock_guard lock(snapshot_mutex_);
+  snapshot_ = counters_;
+}
+
 void Daemon::send(const char* topic, const std::string& payload) {
   // dontwait: PUB never blocks, but be explicit; a failed send is logged, never fatal.
   try {
     State& s = *state_;
+    // Reading ZMQ_EVENTS makes the socket take in what its I/O thread told it
+    // (how much each subscriber has read), which send() does at most about
+    // once a millisecond: without it a short queue looks full to a
+    // subscriber that keeps up, when poses go out faster than that.
+    (void)s.pub.get(zmq::sockopt::events);
     s.pub.send(zmq::buffer(std::string_view(topic)),
                zmq::send_flags::sndmore | zmq::send_flags::dontwait);
     s.pub.send(zmq::buffer(payload), zmq::send_flags::dontwait);
@@ -120,120 +300,256 @@ void Daemon::send(const char* topic, const std::string& payload) {
   }
 }
 
-void Daemon::drain_and_solve() {
+// Every text that quotes input goes through safe_text before it is stored
+// or logged: last_error is fixed-size, so recording it cannot fail.
+void Daemon::bad_input(std::string_view what, std::string_view detail,
+                       std::string_view after) noexcept {
+  ++counters_.decode_errors;
+  char text[256];
+  std::size_t n = std::min(what.size(), sizeof text - 16);
+  std::memcpy(text, what.data(), n);
+  n += safe_text(detail, text + n, sizeof text - 8 - n);
+  const std::size_t tail = std::min(after.size(), sizeof text - n);
+  std::memcpy(text + n, after.data(), tail);
+  last_error_.assign_safe({text, n + tail});
+  bad_input_log_.warn("bad input: {}", last_error_.view());
+}
+
+void Daemon::internal_error(std::string_view where, std::string_view what) noexcept {
+  ++counters_.internal_errors;
+  char text[256];
+  std::size_t n = std::min(where.size(), sizeof text - 8);
+  std::memcpy(text, where.data(), n);
+  n += safe_text(what, text + n, sizeof text - n);
+  last_error_.assign_safe({text, n});
+  internal_log_.warn("internal error, carrying on: {}", last_error_.view());
+}
+
+// Takes what ZeroMQ has queued, without decoding, into the ring of waiting
+// messages. Returns how many messages it received.
+int Daemon::drain_input(int budget) {
   State& s = *state_;
-  const int ring_size = static_cast<int>(s.ring.size());
-  const int backlog_limit = ring_size - 1;
-  int first = 0, count = 0;  // the valid frames: ring[first, first + count)
-  std::string error;
-  for (int n = 0; n < kMaxBatch; ++n) {
-    if (!s.sub.recv(parts_[0], zmq::recv_flags::dontwait)) break;
-    const Clock::time_point received = Clock::now();
+  const int capacity = static_cast<int>(s.waiting.size());
+  int received = 0;
+  for (; received < budget; ++received) {
+    if (!s.sub.recv(topic_, zmq::recv_flags::dontwait)) break;
+    const Clock::time_point now = Clock::now();
     ++counters_.frames_in;
     int parts = 1;
-    for (bool more = parts_[0].more(); more; ++parts) {
-      zmq::message_t& m = parts == 1 ? parts_[1] : extra_;
+    for (bool more = topic_.more(); more; ++parts) {
+      zmq::message_t& m = parts == 1 ? payload_ : extra_;
       if (!s.sub.recv(m, zmq::recv_flags::dontwait)) break;  // parts arrive together
       more = m.more();
     }
     if (parts != 2) {
-      ++counters_.decode_errors;
-      last_error_ = "expected 2 message frames [topic, payload], got " + std::to_string(parts);
-      bad_input_log_.warn("bad input: {}", last_error_);
+      bad_input("expected 2 message frames [topic, payload], got ", std::to_string(parts));
       continue;
     }
-    if (parts_[0].to_string_view() != "markers") {
-      ++counters_.decode_errors;
-      last_error_ = "unknown topic '" + std::string(parts_[0].to_string_view().substr(0, 64)) + "'";
-      bad_input_log_.warn("bad input: {}", last_error_);
+    if (view(topic_) != "markers") {
+      bad_input("unknown topic '", view(topic_).substr(0, 64), "'");
       continue;
     }
-    const int slot = (first + count) % ring_size;
-    MarkerFrame& f = s.ring[slot];
-    const std::span<const std::uint8_t> payload(static_cast<const std::uint8_t*>(parts_[1].data()),
-                                                parts_[1].size());
-    if (!s.decoder->decode(payload, f, error)) {
-      ++counters_.decode_errors;
-      last_error_ = error;
-      bad_input_log_.warn("bad marker frame: {}", error);
-      continue;
+    // Behind: more frames waiting than the ring holds. Drop what waits and
+    // answer only the newest frames until a drain finds nothing new.
+    if (s.count == capacity || s.bytes + payload_.size() > kInputQueueBytes) overloaded_ = true;
+    if (overloaded_) {
+      counters_.frames_dropped += static_cast<std::uint64_t>(s.count);
+      s.first = (s.first + s.count) % capacity;
+      s.count = 0;
+      s.bytes = 0;
     }
-    if (f.unknown_count > 0) {
-      counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
-      for (int k = 0; k < f.unknown_listed; ++k) {
-        const std::string& name = f.unknown_names[k];
-        // Look up first: only a name not seen before costs an allocation.
-        if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(name)) {
-          unknown_seen_.insert(name);
-          spdlog::warn("marker '{}' is not in the model: ignored (reported once)", name);
-        }
+    const int slot = (s.first + s.count) % capacity;
+    s.waiting[slot].swap(payload_);
+    s.received_at[slot] = now;
+    s.bytes += s.waiting[slot].size();
+    ++s.count;
+  }
+  if (received == 0) overloaded_ = false;
+  return received;
+}
+
+void Daemon::serve_input() {
+  const Clock::time_point until = Clock::now() + kMaxServe;
+  int budget = kMaxBatch;
+  for (;;) {
+    State& s = *state_;
+    budget -= drain_input(budget);
+    if (s.count == 0) break;
+    const int slot = s.first;
+    s.first = (s.first + 1) % static_cast<int>(s.waiting.size());
+    --s.count;
+    s.bytes -= s.waiting[slot].size();
+    try {
+      serve_frame(slot);
+    } catch (const std::exception& e) {
+      internal_error("while serving a frame: ", e.what());
+    } catch (...) {
+      internal_error("while serving a frame: ", "unknown exception");
+    }
+    if (budget <= 0 || Clock::now() >= until) break;
+  }
+  update_snapshot();
+}
+
+void Daemon::serve_frame(int slot) {
+  State& s = *state_;
+  const zmq::message_t& m = s.waiting[slot];
+  const std::span<const std::uint8_t> payload(static_cast<const std::uint8_t*>(m.data()),
+                                              m.size());
+  if (!s.decoder->decode(payload, s.frame, decode_error_)) {
+    bad_input("bad marker frame: ", decode_error_);
+    return;
+  }
+  const MarkerFrame& f = s.frame;
+  counters_.rejected_coordinates += static_cast<std::uint64_t>(f.rejected_count);
+  counters_.zero_markers += static_cast<std::uint64_t>(f.zero_count);
+  counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
+  publish_pose(f, s.received_at[slot]);
+  try {
+    for (int k = 0; k < f.unknown_listed; ++k) {
+      const std::string& name = f.unknown_names[k];
+      // Look up first: only a name not seen before costs an allocation.
+      if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(name)) {
+        unknown_seen_.insert(name);
+        spdlog::warn("marker '{}' is not in the model: ignored (reported once)",
+                     safe_text(name, 128));
       }
     }
-    s.received_at[slot] = received;
-    if (count == backlog_limit) {
-      first = (first + 1) % ring_size;  // the oldest waiting frame gives way
-      ++counters_.frames_dropped;
-    } else {
-      ++count;
+  } catch (const std::exception&) {  // a log line lost when memory is short, nothing more
+  }
+}
+
+void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
+  State& s = *state_;
+  const double time_s = f.has_time ? f.time_s
+                                   : std::chrono::duration<double>(received - started_).count();
+  const TrackResult* r = &s.tracker->track(time_s, f.p_world_m, f.visible);
+  if (!all_finite(*r)) {
+    // A degenerate solve must not poison the warm start of every later frame.
+    internal_error("solve gave a non-finite pose: ", "restarted from the rest posture");
+    s.tracker->reset();
+    r = &s.tracker->track(time_s, f.p_world_m, f.visible);
+    if (!all_finite(*r)) return;
+  }
+  s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_);
+  ++counters_.frames_out;
+  ++interval_frames_out_;
+  update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it
+  send("pose", out_);
+  solve_us_.add(r->solve_us);
+  queue_us_.add(us_between(received, Clock::now()));
+}
+
+void Daemon::read_monitor() {
+  State& s = *state_;
+  for (int n = 0; n < kMaxBatch; ++n) {
+    zmq::message_t event, address;
+    if (!s.monitor.recv(event, zmq::recv_flags::dontwait)) break;
+    if (event.more()) (void)s.monitor.recv(address, zmq::recv_flags::dontwait);
+    if (event.size() < 6) continue;
+    std::uint16_t id;
+    std::uint32_t value;
+    std::memcpy(&id, event.data(), 2);
+    std::memcpy(&value, static_cast<const char*>(event.data()) + 2, 4);
+    if (id == ZMQ_EVENT_DISCONNECTED) {
+      ++counters_.input_disconnects;
+      peer_log_.info("an input peer disconnected (a source quit, or it sent a message over "
+                     "twice max_payload_bytes)");
+    } else if (id == ZMQ_EVENT_ACCEPT_FAILED) {
+      ++counters_.accept_failures;
+      peer_log_.warn("cannot accept a connection on the input: {}",
+                     std::strerror(static_cast<int>(value)));
     }
   }
-  for (int k = 0; k < count; ++k) {
-    const int slot = (first + k) % ring_size;
-    const MarkerFrame& f = s.ring[slot];
-    const double time_s =
-        f.has_time ? f.time_s
-                   : std::chrono::duration<double>(s.received_at[slot] - started_).count();
-    const TrackResult& r = s.tracker->track(time_s, f.p_world_m, f.visible);
-    s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, r, out_);
-    ++counters_.frames_out;
-    ++interval_frames_out_;
-    {
-      // Counters first, so whoever has seen a pose sees the counts that include it.
-      std::lock_guard lock(snapshot_mutex_);
-      snapshot_ = counters_;
-    }
-    send("pose", out_);
-    solve_us_.add(r.solve_us);
-    queue_us_.add(us_between(s.received_at[slot], Clock::now()));
-  }
-  std::lock_guard lock(snapshot_mutex_);
-  snapshot_ = counters_;
+  update_snapshot();
 }
 
 void Daemon::publish_stats(double interval_s) {
-  const DaemonConfig& c = state_->config;
-  nlohmann::json j = {
-      {"uptime_s", std::chrono::duration<double>(Clock::now() - started_).count()},
-      {"frames_in", counters_.frames_in},
-      {"frames_out", counters_.frames_out},
-      {"frames_dropped", counters_.frames_dropped},
-      {"decode_errors", counters_.decode_errors},
-      {"unknown_markers", counters_.unknown_markers},
-      {"solve_us",
-       {{"p50", solve_us_.quantile(0.5)},
-        {"p99", solve_us_.quantile(0.99)},
-        {"max", solve_us_.max()}}},
-      {"queue_latency_us",
-       {{"p50", queue_us_.quantile(0.5)},
-        {"p99", queue_us_.quantile(0.99)},
-        {"max", queue_us_.max()}}},
-      // Additions to the contract's minimum:
-      {"interval_s", interval_s},
-      {"pose_rate_hz",
-       interval_s > 0 ? static_cast<double>(interval_frames_out_) / interval_s : 0.0},
-      {"last_error", last_error_.empty() ? nlohmann::json(nullptr) : nlohmann::json(last_error_)},
-      {"reloads", counters_.reloads},
-      {"reload_errors", counters_.reload_errors},
-      {"config", c.file}};
+  const State& s = *state_;
+  const StatsFields fields{
+      std::chrono::duration<double>(Clock::now() - started_).count(),
+      interval_s,
+      interval_s > 0 ? static_cast<double>(interval_frames_out_) / interval_s : 0.0,
+      counters_,
+      solve_us_,
+      queue_us_,
+      last_error_.view(),
+      s.config_name};
+  if (s.config.output_encoding == Encoding::msgpack) {
+    MsgpackWriter w(stats_out_);
+    write_stats(w, fields);
+  } else {
+    JsonWriter w(stats_out_, 3);
+    write_stats(w, fields);
+  }
   solve_us_.clear();
   queue_us_.clear();
   interval_frames_out_ = 0;
-  if (c.output_encoding == Encoding::msgpack) {
-    const std::vector<std::uint8_t> bytes = nlohmann::json::to_msgpack(j);
-    send("stats", std::string(bytes.begin(), bytes.end()));
-  } else {
-    send("stats", j.dump());
+  send("stats", stats_out_);
+}
+
+void Daemon::switch_to(std::unique_ptr<State> next) {
+  attach_sockets(*next, state_.get());
+  state_ = std::move(next);
+  overloaded_ = false;
+  ++counters_.reloads;
+  spdlog::set_level(spdlog::level::from_str(state_->config.log_level));
+  spdlog::info("config reloaded from {}", state_->config_name);
+}
+
+void Daemon::start_reload(const std::function<DaemonConfig()>& load_config) {
+  auto job = std::make_shared<ReloadJob>();
+  job->load = load_config;
+  // The thread holds the job too: if a stop leaves it behind, it still
+  // writes only into memory it owns.
+  job->thread = std::thread([job] {
+    std::unique_ptr<State> state;
+    std::string error;
+    try {
+      state = prepare_state(job->load());
+    } catch (const std::exception& e) {
+      error = e.what();
+    } catch (...) {
+      error = "unknown exception";
+    }
+    std::lock_guard lock(job->mutex);
+    job->state = std::move(state);
+    job->error = std::move(error);
+    job->done = true;
+    job->finished.notify_all();
+  });
+  reload_ = std::move(job);
+}
+
+void Daemon::finish_reload() {
+  std::shared_ptr<ReloadJob> job = std::move(reload_);
+  job->thread.join();
+  try {
+    if (!job->state) throw std::runtime_error(job->error);
+    switch_to(std::move(job->state));
+  } catch (const std::exception& e) {
+    ++counters_.reload_errors;
+    char text[512];
+    const std::size_t n = safe_text(e.what(), text, sizeof text);
+    spdlog::error("reload failed, keeping the running config: {}", std::string_view(text, n));
   }
+  update_snapshot();
+}
+
+void Daemon::wait_for_reload_at_stop() {
+  if (!reload_) return;
+  {
+    std::unique_lock lock(reload_->mutex);
+    reload_->finished.wait_for(lock, kReloadGraceAtStop, [&] { return reload_->done.load(); });
+  }
+  if (reload_->done) {
+    reload_->thread.join();
+  } else {
+    spdlog::warn("stopping while a config reload is still being read: left behind");
+    reload_->thread.detach();
+    reload_abandoned_ = true;
+  }
+  reload_.reset();
 }
 
 void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& load_config) {
@@ -244,41 +560,51 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
                state_->tracker->marker_count());
   Clock::time_point last_stats = Clock::now();
   while (!control.stop.load()) {
-    if (control.reload.exchange(false)) {
+    if (reload_ && reload_->done) finish_reload();
+    if (!reload_ && control.reload.exchange(false)) {
       if (!load_config) {
         spdlog::warn("reload requested, but there is no config to reload from");
       } else {
         try {
-          state_ = make_state(load_config(), state_.get());
-          ++counters_.reloads;
-          spdlog::info("config reloaded from {}", state_->config.file);
-        } catch (const std::exception& e) {
-          ++counters_.reload_errors;
-          spdlog::error("reload failed, keeping the running config: {}", e.what());
+          start_reload(load_config);
+        } catch (const std::exception& e) {  // no thread to be had: try again on the next SIGHUP
+          internal_error("cannot start a reload: ", e.what());
         }
       }
     }
     const auto interval = std::chrono::duration_cast<Clock::duration>(
         std::chrono::duration<double>(state_->config.stats_interval_s));
     const auto next_stats = last_stats + interval;
-    // Wake at least every 100 ms so a stop request is seen promptly.
-    const auto wait =
-        std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(next_stats - Clock::now()),
-                   std::chrono::milliseconds(0), std::chrono::milliseconds(100));
-    zmq::pollitem_t items[] = {{state_->sub.handle(), 0, ZMQ_POLLIN, 0}};
+    // Wake at least every 100 ms so a stop request is seen promptly, and
+    // every 10 ms while a reload is being read.
+    const auto wait = std::clamp(
+        std::chrono::duration_cast<std::chrono::milliseconds>(next_stats - Clock::now()),
+        std::chrono::milliseconds(0), std::chrono::milliseconds(reload_ ? 10 : 100));
+    State& s = *state_;
+    zmq::pollitem_t items[] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
+                               {s.monitor.handle(), 0, ZMQ_POLLIN, 0}};
     try {
-      zmq::poll(items, 1, wait);
+      zmq::poll(items, s.monitor ? 2 : 1, wait);
+      if (items[0].revents & ZMQ_POLLIN) serve_input();
+      if (s.monitor && (items[1].revents & ZMQ_POLLIN)) read_monitor();
     } catch (const zmq::error_t& e) {
-      if (e.num() != EINTR) throw;
+      if (e.num() == ETERM) break;              // the context is going away
+      if (e.num() != EINTR) internal_error("on the input: ", e.what());
       continue;  // a signal: look at the flags
+    } catch (const std::exception& e) {
+      internal_error("on the input: ", e.what());
     }
-    if (items[0].revents & ZMQ_POLLIN) drain_and_solve();
     const Clock::time_point now = Clock::now();
     if (now >= next_stats) {
-      publish_stats(std::chrono::duration<double>(now - last_stats).count());
+      try {
+        publish_stats(std::chrono::duration<double>(now - last_stats).count());
+      } catch (const std::exception& e) {
+        internal_error("while publishing stats: ", e.what());
+      }
       last_stats = now;
     }
   }
+  wait_for_reload_at_stop();
   spdlog::info("fabrikd: stopping after {} frames in, {} poses out", counters_.frames_in,
                counters_.frames_out);
 }

@@ -1,11 +1,16 @@
 // fabrikd's loop: marker frames in on a SUB socket, poses and stats out on a
-// PUB socket (../shared/wire-contract.md, proto/). One thread does it all:
-// drain what is queued, decode every frame (so bad ones are counted), solve
-// the newest valid ones in order, at most `max_backlog_frames` per wake-up
-// (older ones are dropped and counted: when input outpaces the solver the
-// newest frames win and latency stays bounded, while a short stall of the
-// thread loses nothing), publish without ever blocking (PUB drops for a slow
-// subscriber), and send stats every interval.
+// PUB socket (../shared/wire-contract.md, proto/). One thread serves frames:
+// before each solve it drains whatever ZeroMQ has queued (cheaply, without
+// decoding) into a ring of at most `max_backlog_frames` messages, then
+// decodes, solves and publishes the oldest one. A short stall of the thread
+// loses nothing; when more frames pile up than the ring holds, the daemon is
+// behind: it drops what is queued and answers the newest frame it has, until
+// it has caught up (every dropped frame is counted). Publishing never blocks
+// (PUB drops for a slow subscriber), stats go out every interval, and a
+// config reload is read and validated on a thread of its own, so frames are
+// answered throughout. Nothing one message does (bad bytes, absurd numbers,
+// an exception, an allocation failure) leaves the loop: it is counted,
+// logged at most once a second, and the next frame is served.
 #pragma once
 
 #include <atomic>
@@ -16,6 +21,7 @@
 #include <mutex>
 #include <string>
 #include <unordered_set>
+#include <vector>
 #include <zmq.hpp>
 
 #include "config/daemon_config.hpp"
@@ -23,62 +29,119 @@
 #include "marker_codec.hpp"
 #include "pose_codec.hpp"
 #include "rate_limited_log.hpp"
+#include "safe_text.hpp"
 
 namespace fabrik::wire {
 
 struct DaemonCounters {
   std::uint64_t frames_in = 0;        // messages received on the input
   std::uint64_t frames_out = 0;       // poses published
-  std::uint64_t frames_dropped = 0;   // valid frames superseded by a newer one before solving
+  std::uint64_t frames_dropped = 0;   // frames superseded by newer ones before solving
   std::uint64_t decode_errors = 0;    // messages refused (format, types, size, parts, topic)
   std::uint64_t unknown_markers = 0;  // marker entries whose name is not in the model
   std::uint64_t reloads = 0, reload_errors = 0;
+  std::uint64_t rejected_coordinates = 0;  // markers beyond input.max_abs_coordinate_mm
+  std::uint64_t zero_markers = 0;          // markers at exactly (0, 0, 0), taken as missing
+  std::uint64_t internal_errors = 0;       // exceptions caught in the loop (frame, stats)
+  std::uint64_t input_disconnects = 0;     // input peers gone (quit, or dropped by ZeroMQ)
+  std::uint64_t accept_failures = 0;       // input connections ZeroMQ could not accept
 };
 
-// Signals to the loop, set from another thread or a signal handler.
+// Signals to the loop, set from another thread or a signal handler (the
+// atomics are lock-free, so storing to them is async-signal-safe).
 struct DaemonControl {
   std::atomic<bool> stop{false};
   std::atomic<bool> reload{false};
 };
+static_assert(std::atomic<bool>::is_always_lock_free);
+
+// Transport limits (README, "Under overload").
+// Each subscriber's queue in the PUB socket (ZMQ_SNDHWM), in messages: the
+// poses of one catch-up burst (max_backlog_frames) and a stats message, times
+// two because a PUB socket learns what its subscriber has read only in
+// batches of half its queue. A stalled subscriber holds up at most this many
+// stale poses here (plus a few in kernel buffers), then PUB drops for it.
+inline int pose_queue_messages(int max_backlog_frames) {
+  return 2 * (max_backlog_frames + 4);
+}
+// Kernel send buffer per subscriber connection (bytes; the kernel doubles
+// it): small, so that a stalled subscriber does not have seconds of poses
+// waiting in the kernel, large enough for 1 kHz of full-body poses over a
+// link with a few milliseconds of round trip.
+constexpr int kPoseSendBufferBytes = 16 * 1024;
+// Memory for messages waiting on the input (ZeroMQ's queue, and the ring):
+// ZMQ_RCVHWM is this over ZMQ_MAXMSGSIZE (twice input.max_payload_bytes),
+// within [16, 1000].
+constexpr std::size_t kInputQueueBytes = std::size_t{64} << 20;
+// Kernel receive buffer per input connection (bytes): frames that wait in
+// front of ZeroMQ's queue are bounded too (the source's own queue is its
+// business: README).
+constexpr int kInputReceiveBufferBytes = 256 * 1024;
+// A connection that has not completed ZeroMQ's handshake by then is closed
+// (idle or foreign TCP connections do not hold file descriptors for long).
+constexpr int kHandshakeTimeoutMs = 5000;
 
 class Daemon {
  public:
-  // Opens the sockets (bind or connect per config). Throws std::runtime_error
-  // naming the endpoint when one cannot be opened.
+  // Opens the sockets (bind or connect per config). Throws ConfigError
+  // (at /input/endpoint or /output/endpoint, with a fix) when one cannot be opened.
   Daemon(zmq::context_t& context, DaemonConfig config);
   ~Daemon();
 
-  // Runs until control.stop. On control.reload, calls load_config() and
-  // switches to the new config; if that throws, the old one stays and the
-  // error is logged.
+  // Runs until control.stop. On control.reload, calls load_config() on a
+  // thread of its own and switches to the new config when it is ready; if it
+  // throws, the old one stays and the error is counted and logged.
   void run(DaemonControl& control, const std::function<DaemonConfig()>& load_config = {});
 
   // The endpoints as opened (a "tcp://127.0.0.1:*" bind resolves to its port).
   std::string input_endpoint() const;
   std::string output_endpoint() const;
   DaemonCounters counters() const;
+  // The running config; not to be used across a reload.
   const DaemonConfig& config() const;
+  // run() returned while a reload was still being read (it waits a little
+  // for it): that thread was left running with data of its own; end the
+  // process without unwinding (std::_Exit) rather than returning from main.
+  bool reload_abandoned() const { return reload_abandoned_; }
 
  private:
-  struct State;  // everything that a reload replaces
-  std::unique_ptr<State> make_state(DaemonConfig config, State* old);
-  void drain_and_solve();
+  struct State;      // everything that a reload replaces
+  struct ReloadJob;  // a reload in progress, shared with its thread
+  static std::unique_ptr<State> prepare_state(DaemonConfig config);
+  void attach_sockets(State& next, State* old);
+  void switch_to(std::unique_ptr<State> next);
+  void start_reload(const std::function<DaemonConfig()>& load_config);
+  void finish_reload();
+  void wait_for_reload_at_stop();
+
+  void serve_input();
+  int drain_input(int budget);
+  void serve_frame(int slot);
+  void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received);
+  void read_monitor();
   void publish_stats(double interval_s);
   void send(const char* topic, const std::string& payload);
+  void bad_input(std::string_view what, std::string_view detail,
+                 std::string_view after = {}) noexcept;
+  void internal_error(std::string_view where, std::string_view what) noexcept;
+  void update_snapshot();
 
   zmq::context_t& context_;
   std::unique_ptr<State> state_;
+  std::shared_ptr<ReloadJob> reload_;
+  bool reload_abandoned_ = false;
   DaemonCounters counters_;
   mutable std::mutex snapshot_mutex_;  // counters() may be called from other threads
   DaemonCounters snapshot_;
   std::chrono::steady_clock::time_point started_;
   IntervalSamples solve_us_, queue_us_;
   std::uint64_t interval_frames_out_ = 0;
-  std::string last_error_;
+  FixedText<256> last_error_;  // never allocates: survives an out-of-memory error path
   std::unordered_set<std::string> unknown_seen_;
-  RateLimitedLog bad_input_log_, send_log_;
-  zmq::message_t parts_[2], extra_;
-  std::string out_;
+  RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_;
+  bool overloaded_ = false;  // behind the input: answer only the newest frame
+  zmq::message_t topic_, payload_, extra_;
+  std::string out_, stats_out_, decode_error_;
 };
 
 }  // namespace fabrik::wire

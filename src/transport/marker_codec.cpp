@@ -16,6 +16,7 @@ using nlohmann::json;
 // extra top-level fields may nest a little, anything deeper is refused.
 constexpr int kMaxDepth = 8;
 constexpr std::size_t kMaxUnknownNames = 8;
+constexpr std::size_t kMaxUnknownNameBytes = 64;  // longer names are cut in lists and messages
 
 // SAX handler: a small state machine over the token stream.
 class FrameSax : public nlohmann::json_sax<json> {
@@ -126,10 +127,14 @@ class FrameSax : public nlohmann::json_sax<json> {
       marker_ = it == index_.end() ? -1 : it->second;
       if (marker_ < 0) {
         ++out_.unknown_count;
-        if (out_.unknown_listed < static_cast<int>(out_.unknown_names.size()))
-          out_.unknown_names[out_.unknown_listed++].assign(k);  // reuses the string's buffer
+        if (out_.unknown_listed < static_cast<int>(out_.unknown_names.size())) {
+          // Cut to the reserved capacity: listing an unknown name never allocates.
+          std::string& listed = out_.unknown_names[out_.unknown_listed++];
+          listed.assign(k, 0, std::min(k.size(), listed.capacity()));
+        }
       }
-      marker_name_.assign(k);
+      // Kept for messages only, cut to its reserved capacity: no allocation.
+      marker_name_.assign(k, 0, std::min(k.size(), marker_name_.capacity()));
       state_ = State::marker_value;
       return true;
     }
@@ -264,11 +269,13 @@ PayloadEncoding detect_encoding(std::span<const std::uint8_t> payload) {
 }
 
 MarkerDecoder::MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
-                             std::size_t max_payload_bytes)
+                             std::size_t max_payload_bytes, PlausibleMarkers plausible)
     : count_(static_cast<int>(names.size())),
       default_m_per_unit_(default_m_per_unit),
-      max_payload_bytes_(max_payload_bytes) {
+      max_payload_bytes_(max_payload_bytes),
+      plausible_(plausible) {
   for (int i = 0; i < count_; ++i) index_.emplace(names[i], i);
+  marker_name_.reserve(kMaxUnknownNameBytes);
 }
 
 MarkerFrame MarkerDecoder::make_frame() const {
@@ -276,6 +283,7 @@ MarkerFrame MarkerDecoder::make_frame() const {
   f.p_world_m.assign(count_, Eigen::Vector3d::Zero());
   f.visible.assign(count_, 0);
   f.unknown_names.resize(kMaxUnknownNames);
+  for (std::string& name : f.unknown_names) name.reserve(kMaxUnknownNameBytes);
   return f;
 }
 
@@ -302,6 +310,8 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   out.has_stamp = false;
   out.unknown_count = 0;
   out.unknown_listed = 0;
+  out.rejected_count = 0;
+  out.zero_count = 0;
   std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
   FrameSax sax(index_, out, error, marker_name_);
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
@@ -322,8 +332,18 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
     return false;
   }
   const double scale = sax.m_per_unit > 0.0 ? sax.m_per_unit : default_m_per_unit_;
-  for (int i = 0; i < count_; ++i)
-    if (out.visible[i]) out.p_world_m[i] *= scale;  // units converted once, here
+  for (int i = 0; i < count_; ++i) {
+    if (!out.visible[i]) continue;
+    Eigen::Vector3d& p = out.p_world_m[i];
+    p *= scale;  // units converted once, here
+    if (plausible_.zero_is_missing && p.x() == 0.0 && p.y() == 0.0 && p.z() == 0.0) {
+      out.visible[i] = 0;
+      ++out.zero_count;
+    } else if (!(p.cwiseAbs().maxCoeff() <= plausible_.max_abs_coordinate_m)) {
+      out.visible[i] = 0;
+      ++out.rejected_count;
+    }
+  }
   return true;
 }
 

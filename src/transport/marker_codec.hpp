@@ -32,9 +32,20 @@ struct MarkerFrame {
   double stamp_us = 0.0;
   std::vector<Eigen::Vector3d> p_world_m;  // per known marker, metres
   std::vector<std::uint8_t> visible;       // per known marker
+  int rejected_count = 0;  // known markers beyond the plausible range: taken as occluded
+  int zero_count = 0;      // known markers at exactly (0, 0, 0): taken as occluded
   int unknown_count = 0;                   // marker names not in the model
-  std::vector<std::string> unknown_names;  // the first unknown_listed of them, for the log
+  std::vector<std::string> unknown_names;  // the first unknown_listed of them (cut), for the log
   int unknown_listed = 0;
+};
+
+// What a measured position must be to count as seen.
+struct PlausibleMarkers {
+  // A coordinate beyond this (metres, either sign) is an occlusion: nothing
+  // a capture volume measures is that far, and squaring it would overflow.
+  double max_abs_coordinate_m = 100.0;
+  // An exact (0, 0, 0) is an occlusion (exporters write it for "not seen").
+  bool zero_is_missing = true;
 };
 
 class MarkerDecoder {
@@ -42,7 +53,7 @@ class MarkerDecoder {
   // `names`: the marker names in tracker order. Frames without "units" are in
   // `default_m_per_unit`. Larger payloads than `max_payload_bytes` are errors.
   MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
-                std::size_t max_payload_bytes);
+                std::size_t max_payload_bytes, PlausibleMarkers plausible = {});
 
   // A frame sized for this decoder's markers.
   MarkerFrame make_frame() const;
@@ -56,6 +67,7 @@ class MarkerDecoder {
   int count_;
   double default_m_per_unit_;
   std::size_t max_payload_bytes_;
+  PlausibleMarkers plausible_;
   // Its buffers are reused from frame to frame: one decoder per thread.
   mutable JsonSaxReader json_reader_;
   mutable std::string marker_name_;  // the marker being read, for messages

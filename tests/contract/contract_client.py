@@ -482,7 +482,12 @@ def run_main(args, workdir, model_markers_rest, rest_joints, root):
         print(f"contract: {len(battery)} bad payloads dropped and counted in decode_errors, "
               "daemon still answering")
 
-        # 5. Stats: at least once per second, counters never go back.
+        # 5. Hostile input: bytes that are not UTF-8, absurd numbers, zeros, a
+        # message far over the limit. Each is survived, counted, and every pose
+        # and stats after it is valid (pump() decodes and validates them all).
+        run_hostile(d, markers, frame)
+
+        # 6. Stats: at least once per second, counters never go back.
         arrivals = [a for a, _ in d.stats]
         gaps = [b - a for a, b in zip(arrivals, arrivals[1:])]
         check(gaps and max(gaps) <= 1.0 + 0.25,
@@ -497,9 +502,83 @@ def run_main(args, workdir, model_markers_rest, rest_joints, root):
         print(f"contract: {len(d.stats)} stats messages valid, max gap {max(gaps):.2f} s; "
               f"last: {json.dumps(last, sort_keys=True)}")
 
-        # 6. SIGTERM: exit code 0 within 1 s.
+        # 7. SIGTERM: exit code 0 within 1 s.
         d.stop()
         print("contract: SIGTERM -> exit code 0 within 1 s")
+
+
+def run_hostile(d, markers, frame):
+    """Section 5 of run_main."""
+    base = d.stats_after(time.monotonic())
+    frame = 5_000_000
+
+    def answered(doc, what, raw=None, topic=b"markers"):
+        """Sends doc (or raw bytes), then a valid frame that must be answered."""
+        nonlocal frame
+        d.send(raw if raw is not None else json.dumps(doc).encode(), topic)
+        frame += 1
+        d.send(json.dumps(marker_frame(frame, markers)).encode())
+        d.wait_pose(frame, f"the valid frame after {what}")
+
+    def raw_msgpack(f, name, value):
+        """{"frame": f, "markers": {name: value}} with a name that need not be UTF-8."""
+        return (b"\x82\xa5frame" + msgpack.packb(f) + b"\xa7markers\x81\xdb"
+                + len(name).to_bytes(4, "big") + name + msgpack.packb(value))
+
+    answered(marker_frame(1, markers), "a topic that is not UTF-8", topic=b"markers\xff")
+    answered(None, "an unknown marker name that is not UTF-8",
+             raw=raw_msgpack(frame + 100, b"\xff\xfe\x1b[31m", [1.0, 2.0, 3.0]))
+    answered(None, "a bad marker whose name is not UTF-8",
+             raw=raw_msgpack(BAD_BASE + 20, b"R\xc0\xaf\x00", "here"))
+    answered(None, "a units string with control characters",
+             raw=b'{"frame": %d, "units": "m\\u0000\\u001bm"}' % (BAD_BASE + 21))
+    after_bytes = d.stats_after(time.monotonic())
+    last_error = after_bytes["last_error"]
+    check(isinstance(last_error, str) and "\\x1b" in last_error and len(last_error) <= 256,
+          f"last_error not escaped: {last_error!r}")
+
+    # Absurd but finite numbers: RASI occluded beyond 100 m, poses all numbers.
+    cases = [("1e160", [1e160, 950.0, 120.0], True), ("1e308", [1e308, -1e308, 1e308], True),
+             ("-0.0", [-0.0, 950.0, -0.0], False), ("subnormal", [5e-324, 950.0, -5e-324], False),
+             ("zero", [0.0, 0.0, 0.0], True)]
+    for i, (what, xyz, occluded) in enumerate(cases):
+        for enc in ("json", "msgpack"):
+            frame += 1
+            doc = marker_frame(frame, {**markers, "RASI": xyz}, 0.25)
+            d.send(msgpack.packb(doc) if enc == "msgpack" else json.dumps(doc).encode())
+            pose = d.wait_pose(frame, f"the frame with RASI at {what} ({enc})")
+            check(("RASI" in pose["occluded"]) == occluded,
+                  f"RASI at {what} ({enc}): occluded {pose['occluded']}")
+            check(all(math.isfinite(v) for v in (pose["residual"]["rms"], pose["residual"]["max"])),
+                  f"RASI at {what} ({enc}): residual {pose['residual']}")
+    for enc in ("json", "msgpack"):
+        doc = marker_frame(2**64 - 1, markers, 1e308)
+        d.send(msgpack.packb(doc) if enc == "msgpack" else json.dumps(doc).encode())
+        pose = d.wait_pose(2**64 - 1, f"frame 2^64-1 ({enc})")
+        check(pose["time"] == 1e308, f"frame 2^64-1: time {pose.get('time')}")
+        d.poses.pop(2**64 - 1)
+    after_numbers = d.stats_after(time.monotonic())
+    check(after_numbers["rejected_coordinates"] - base["rejected_coordinates"] == 4,
+          f"rejected_coordinates grew by "
+          f"{after_numbers['rejected_coordinates'] - base['rejected_coordinates']}, expected 4")
+    check(after_numbers["zero_markers"] - base["zero_markers"] == 2,
+          f"zero_markers grew by {after_numbers['zero_markers'] - base['zero_markers']}, "
+          "expected 2")
+
+    # Far over the limit: refused by ZeroMQ, the connection dropped; this PUB
+    # reconnects by itself and frames sent after it are answered again.
+    d.pub.send_multipart([b"markers", b" " * (4 * MAX_PAYLOAD)])
+    d.wait_for(lambda: d.stats and d.stats[-1][1]["input_disconnects"] > base["input_disconnects"],
+               3.0, "input_disconnects to count the oversized message")
+    frame += 1
+    d.send(json.dumps(marker_frame(frame, markers)).encode())
+    d.wait_pose(frame, "the valid frame after a message 4 times the payload limit")
+    final = d.stats_after(time.monotonic())
+    check(final["internal_errors"] == 0, f"internal_errors {final['internal_errors']}")
+    answered_bad = [f for f in d.poses if BAD_BASE <= f < PROBE_BASE]
+    check(not answered_bad, f"bad payloads were answered with poses: frames {answered_bad}")
+    print("contract: hostile input (not UTF-8, 1e308, -0.0, subnormals, zeros, frame 2^64-1, "
+          "a message 4x the limit) survived and counted; every pose and stats valid")
 
 
 def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):

@@ -45,6 +45,9 @@ def bad_configs(good):
         ("bad input units", edit(put(["input", "units"], "cm"))),
         ("max_backlog_frames 0", edit(put(["input", "max_backlog_frames"], 0))),
         ("max_payload_bytes not an integer", edit(put(["input", "max_payload_bytes"], "1M"))),
+        ("max_abs_coordinate_mm 0", edit(put(["input", "max_abs_coordinate_mm"], 0))),
+        ("max_abs_coordinate_mm beyond 1e9", edit(put(["input", "max_abs_coordinate_mm"], 2e9))),
+        ("zero_is_missing not a bool", edit(put(["input", "zero_is_missing"], "yes"))),
         ("bad output encoding", edit(put(["output", "encoding"], "cbor"))),
         ("endpoint without transport", edit(put(["output", "endpoint"], "127.0.0.1:5556"))),
         ("weight 0", edit(put(["targets", "default", "weight"], 0))),
@@ -106,6 +109,11 @@ def main():
     for name, doc in bad_configs(default):
         if validator.is_valid(doc):
             failures.append(f"bad config accepted by the schema: {name}")
+    # Optional fields at values the daemon accepts must pass too.
+    good = copy.deepcopy(default)
+    good.setdefault("input", {}).update({"max_abs_coordinate_mm": 5000, "zero_is_missing": False})
+    for e in validator.iter_errors(good):
+        failures.append(f"valid input limits rejected by the schema: {e.message}")
 
     if failures:
         print("validate_configs: FAILED", file=sys.stderr)

@@ -1,0 +1,132 @@
+// Reading config and model files: only regular files of bounded size, never
+// blocking; JSON errors (a number overflowing a double included) name the
+// JSON pointer; the daemon config's input limits.
+#include <sys/stat.h>
+
+#include <catch2/catch.hpp>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+
+#include "config/config_error.hpp"
+#include "config/daemon_config.hpp"
+#include "config/json_reader.hpp"
+#include "temp_file.hpp"
+
+using namespace fabrik;
+using nlohmann::json;
+
+namespace {
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST_CASE("read_text_file reads regular files and refuses anything else without blocking",
+          "[config][files]") {
+  test::TempFile file(".json"), dir(""), loop(""), fifo(""), link("");
+  std::ofstream(file.path()) << R"({"a": 1})";
+  std::filesystem::create_directory(dir.path());
+  std::filesystem::create_symlink(loop.path(), loop.path());
+  REQUIRE(mkfifo(fifo.path().c_str(), 0600) == 0);  // opening it for reading would wait for a writer
+  std::filesystem::create_symlink(file.path(), link.path());
+  std::string text;
+  CHECK_FALSE(read_text_file(file.path(), text));
+  CHECK(text == R"({"a": 1})");
+  CHECK_FALSE(read_text_file(link.path(), text));  // a link to a regular file is fine
+  CHECK(text == R"({"a": 1})");
+  // /proc files are regular but say they are empty: read all the same.
+  CHECK_FALSE(read_text_file("/proc/self/status", text));
+  CHECK_THAT(text, Catch::Contains("Name:"));
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {dir.path(), "is a directory, not a regular file"},
+      {loop.path(), "too many levels of symbolic links"},
+      {fifo.path(), "is a FIFO, not a regular file"},
+      {"/dev/zero", "is a character device (like /dev/zero), not a regular file"},
+      {"/nonexistent/x.json", "cannot open the file: no such file"},
+  };
+  for (const auto& [path, expected] : refused) {
+    CAPTURE(path);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto problem = read_text_file(path, text);
+    CHECK(std::chrono::steady_clock::now() - t0 < std::chrono::seconds(1));
+    REQUIRE(problem);
+    CHECK_THAT(problem->problem, Catch::Contains(expected));
+    CHECK_FALSE(problem->fix.empty());
+  }
+  // The size limit, said in the error.
+  std::ofstream(file.path()) << std::string(100, ' ');
+  CHECK_FALSE(read_text_file(file.path(), text, 100));
+  const auto big = read_text_file(file.path(), text, 99);
+  REQUIRE(big);
+  CHECK_THAT(big->problem, Catch::Contains("100 bytes, over the limit of 99 bytes"));
+  CHECK(kMaxConfigFileBytes == 16u << 20);
+}
+
+TEST_CASE("JSON errors name the pointer: a number overflowing a double, syntax, depth",
+          "[config][json]") {
+  const std::string overflow =
+      error_of([] { JsonReader::parse("{\"solver\": {\"tolerance_mm\": 1e400}}", "c.json"); });
+  CHECK_THAT(overflow, Catch::StartsWith("c.json: at /solver/tolerance_mm: the number '1e400' "
+                                         "(line 1, column"));
+  CHECK_THAT(overflow, Catch::Contains("too large for a double") && Catch::Contains("Fix: "));
+  CHECK_THAT(error_of([] { JsonReader::parse("{\"a\": [1, 2,\n -1e999]}", "c.json"); }),
+             Catch::StartsWith("c.json: at /a/2: the number '-1e999' (line 2, column"));
+  const std::string syntax = error_of(
+      [] { JsonReader::parse("{\"format\": \"fabrikd-config/1\",\n \"model\" }", "c.json"); });
+  CHECK_THAT(syntax, Catch::StartsWith("c.json: at /model: not valid JSON (line 2"));
+  std::string deep = "{\"a\": ";
+  for (int i = 0; i < 1000; ++i) deep += "[";
+  const std::string depth = error_of([&] { JsonReader::parse(deep, "c.json"); });
+  CHECK_THAT(depth, Catch::Contains("nesting deeper than 256 levels") && Catch::Contains("Fix: "));
+  CHECK_THAT(depth, Catch::StartsWith("c.json: at /a/0/0/"));
+  // Valid documents parse as before, tiny numbers included.
+  const json doc = JsonReader::parse(R"({"a": [1e-400, -0.0, 1.7976931348623157e308]})", "c.json");
+  CHECK(doc["a"][0].get<double>() == 0.0);
+  CHECK(doc["a"][2].get<double>() > 1e308);
+}
+
+TEST_CASE("Daemon config and model files go through the same checks", "[config][files]") {
+  test::TempFile dir(""), config(".json"), model_dir("");
+  std::filesystem::create_directory(dir.path());
+  std::filesystem::create_directory(model_dir.path());
+  CHECK_THAT(error_of([&] { load_daemon_config_file(dir.path()); }),
+             Catch::Contains(dir.path() + ": at /: is a directory, not a regular file. Fix:"));
+  std::ofstream(config.path()) << json{{"format", "fabrikd-config/1"}, {"model", model_dir.path()}};
+  CHECK_THAT(error_of([&] { load_daemon_config_file(config.path()); }),
+             Catch::Contains(config.path() + ": at /model: model file '" + model_dir.path() +
+                             "' is a directory, not a regular file. Fix:"));
+  // An embedded default still stands in where nothing is on disk.
+  std::ofstream(config.path()) << json{{"format", "fabrikd-config/1"},
+                                       {"model", "models/fullbody.json"}};
+  CHECK_NOTHROW(load_daemon_config_file(config.path()));
+}
+
+TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {
+  const auto with_input = [](const json& input) {
+    return json{{"format", "fabrikd-config/1"}, {"model", "models/fullbody.json"}, {"input", input}}
+        .dump();
+  };
+  const DaemonConfig d = default_daemon_config();
+  CHECK(d.max_abs_coordinate_m == 100.0);
+  CHECK(d.zero_is_missing);
+  const DaemonConfig c = load_daemon_config(
+      with_input({{"max_abs_coordinate_mm", 5000}, {"zero_is_missing", false}}), "c.json");
+  CHECK(c.max_abs_coordinate_m == 5.0);
+  CHECK_FALSE(c.zero_is_missing);
+  CHECK_THAT(error_of([&] {
+               load_daemon_config(with_input({{"max_abs_coordinate_mm", 0}}), "c.json");
+             }),
+             Catch::Contains("at /input/max_abs_coordinate_mm: value 0 is out of range"));
+  CHECK_THAT(error_of([&] {
+               load_daemon_config(with_input({{"zero_is_missing", "yes"}}), "c.json");
+             }),
+             Catch::Contains("at /input/zero_is_missing: expected true or false"));
+}
