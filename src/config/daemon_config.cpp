@@ -114,6 +114,25 @@ void read_targets(const JsonReader& targets, const Model& model, std::vector<Mar
     targets.fail("no marker is tracked", "keep at least one model marker with \"track\": true");
 }
 
+// Gap filling from the recent past (PredictionSettings): on unless switched off.
+PredictionSettings read_prediction(const JsonReader& root, int default_level) {
+  PredictionSettings p;
+  p.enabled = true;
+  p.level = default_level;
+  if (!root.has("prediction")) return p;
+  const JsonReader r = root.at("prediction");
+  r.only_keys({"enabled", "level", "weight", "velocity_decay_s", "velocity_window_s",
+               "return_speed_mm_per_s"});
+  p.enabled = r.get("enabled", p.enabled);
+  p.level = static_cast<int>(r.get("level", static_cast<long long>(p.level), -1001LL, 1000LL));
+  p.weight = r.get("weight", p.weight, 1e-9, 1e9);
+  p.velocity_decay_s = r.get("velocity_decay_s", p.velocity_decay_s, 0.0, 10.0);
+  p.velocity_window_s = r.get("velocity_window_s", p.velocity_window_s, 0.0, 1.0);
+  p.return_speed_m_per_s =
+      r.get("return_speed_mm_per_s", p.return_speed_m_per_s * 1e3, 1.0, 1e6) * 1e-3;
+  return p;
+}
+
 }  // namespace
 
 DaemonConfig load_daemon_config(const std::string& text, const std::string& file) {
@@ -121,7 +140,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   const JsonReader root(doc, file);
   root.expect_object();
   root.only_keys({"format", "description", "model", "targets", "solver", "input", "output",
-                  "occlusion", "stats_interval_s", "log_level"});
+                  "occlusion", "prediction", "stats_interval_s", "log_level"});
   if (root.at("format").as_string() != kFormat)
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
                            std::string("use \"") + kFormat + "\"");
@@ -183,6 +202,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     c.tracker.occlusion.hold_level = static_cast<int>(o.get(
         "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
   }
+  c.tracker.prediction = read_prediction(root, weakest - 1);
   c.stats_interval_s = root.get("stats_interval_s", 1.0, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();

@@ -34,11 +34,21 @@ bool finite(const Eigen::Vector3d& p) {
   return p.allFinite();
 }
 
+// The model point of every marker, checked (the predictor is built before the solver).
+std::vector<int> marker_points(const TrackerSetup& s) {
+  std::vector<int> points;
+  for (const Target& t : solver_targets(s)) points.push_back(t.point);
+  points.resize(s.markers.size());
+  return points;
+}
+
 }  // namespace
 
 Tracker::Tracker(TrackerSetup setup)
     : setup_(std::move(setup)),
-      solver_(setup_.model, solver_targets(setup_), setup_.solver),
+      predictor_(*setup_.model, marker_points(setup_), setup_.prediction),
+      solver_(setup_.model, solver_targets(setup_), setup_.solver,
+              predictor_.orientation_targets()),
       rest_(Posture::rest(*setup_.model)),
       posture_(rest_),
       n_(static_cast<int>(setup_.markers.size())) {
@@ -55,6 +65,10 @@ Tracker::Tracker(TrackerSetup setup)
   result_.markers_world_m = markers_m_;
   result_.occluded = occluded_;
   result_.held = held_;
+  predicted_q_world_.assign(predictor_.orientation_targets().size(), Eigen::Quaterniond::Identity());
+  predicted_visible_.assign(predictor_.orientation_targets().size(), 0);
+  gap_s_.assign(n_, 0.0);
+  result_.gap_s = gap_s_;
   coordinates_.assign(model().coordinates.size(), 0.0);
   segment_q_.assign(model().segments.size(), Eigen::Quaterniond::Identity());
   segment_origin_m_.assign(model().segments.size(), Eigen::Vector3d::Zero());
@@ -67,6 +81,7 @@ void Tracker::reset() {
   posture_ = rest_;
   warm_ = false;
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
+  predictor_.reset();
 }
 
 const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
@@ -99,8 +114,14 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     }
   }
   if (!warm_) posture_ = rest_;  // same size: copies without allocating
+  if (!warm_) predictor_.reset();
+  const std::span<const std::uint8_t> seen(target_visible_.data(), n_);
+  predictor_.before_solve(time_s, seen, last_seen_m_,
+                          std::span(target_world_m_).first(n_), predicted_q_world_,
+                          predicted_visible_);
   const auto t0 = std::chrono::steady_clock::now();
-  result_.solve = solver_.solve(target_world_m_, target_visible_, posture_);
+  result_.solve = solver_.solve(target_world_m_, target_visible_, predicted_q_world_,
+                                predicted_visible_, posture_);
   const auto t1 = std::chrono::steady_clock::now();
   result_.solve_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
   warm_ = warm_ || result_.solve.status != SolveStatus::no_targets;
@@ -117,6 +138,7 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     ++count;
     if (worst < 0 || d_m > max_m) max_m = d_m, worst = i;
   }
+  predictor_.after_solve(time_s, posture_, seen, measured_world_m, markers_m_, gap_s_);
   result_.occluded_count = occluded_count;
   result_.residual_count = count;
   result_.residual_rms_m = count > 0 ? std::sqrt(sq_m2 / count) : 0.0;

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "gap_predictor.hpp"
 #include "solver/fabrik_solver.hpp"
 #include "solver/model.hpp"
 #include "solver/posture.hpp"
@@ -39,6 +40,7 @@ struct TrackerSetup {
   std::vector<MarkerTarget> markers;
   SolverOptions solver;
   OcclusionPolicy occlusion;
+  PredictionSettings prediction;  // gap filling from the recent past (gap_predictor.hpp)
 };
 
 // The outcome of one frame. Spans stay valid until the next track() call.
@@ -49,6 +51,7 @@ struct TrackResult {
   std::span<const Eigen::Vector3d> markers_world_m;  // per marker of the setup: model position
   std::span<const std::uint8_t> occluded;            // per marker: no valid measurement
   std::span<const std::uint8_t> held;                // per marker: occluded but held
+  std::span<const double> gap_s;  // per marker: time since last measured (0 when measured)
   int occluded_count = 0;
   // Residual between measured and model positions over the markers measured
   // in this frame (held ones excluded), metres.
@@ -87,6 +90,7 @@ class Tracker {
 
  private:
   TrackerSetup setup_;
+  GapPredictor predictor_;  // before the solver: it gives the solver its orientation targets
   FabrikSolver solver_;
   Posture rest_;  // the cold start
   Posture posture_;
@@ -101,6 +105,9 @@ class Tracker {
   std::vector<Eigen::Quaterniond> segment_q_;
   std::vector<Eigen::Vector3d> segment_origin_m_;
   std::vector<std::uint8_t> occluded_, held_;
+  std::vector<Eigen::Quaterniond> predicted_q_world_;  // per orientation target of the predictor
+  std::vector<std::uint8_t> predicted_visible_;
+  std::vector<double> gap_s_;
   TrackResult result_;
 };
 

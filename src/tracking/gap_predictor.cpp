@@ -1,0 +1,268 @@
+#include "gap_predictor.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+namespace fabrik {
+
+namespace {
+
+// Postures kept for velocities: at 60-100 Hz this spans well over the
+// velocity window; at higher rates the window shrinks to what it holds.
+constexpr int kRing = 32;
+
+// Rotation vector (axis times angle, radians) of a unit quaternion, angle in [0, pi].
+Eigen::Vector3d rotation_vector(Eigen::Quaterniond q) {
+  if (q.w() < 0.0) q.coeffs() = -q.coeffs();
+  const double n = q.vec().norm();
+  if (n < 1e-12) return 2.0 * q.vec();
+  return q.vec() * (2.0 * std::atan2(n, q.w()) / n);
+}
+
+Eigen::Quaterniond from_rotation_vector(const Eigen::Vector3d& v) {
+  const double angle = v.norm();
+  if (angle < 1e-12) return Eigen::Quaterniond(1.0, 0.5 * v.x(), 0.5 * v.y(), 0.5 * v.z()).normalized();
+  const Eigen::Vector3d axis = v / angle;
+  const double s = std::sin(0.5 * angle);
+  return {std::cos(0.5 * angle), s * axis.x(), s * axis.y(), s * axis.z()};
+}
+
+double knob(const char* name, double fallback) {
+  const char* v = std::getenv(name);
+  return v ? std::atof(v) : fallback;
+}
+
+}  // namespace
+
+GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_points,
+                           const PredictionSettings& settings)
+    : model_(model), settings_(settings), n_(static_cast<int>(marker_points.size())) {
+  const int n_seg = static_cast<int>(model.segments.size());
+  target_of_segment_.assign(static_cast<std::size_t>(n_seg), -1);
+  for (int p : marker_points) {
+    const Point& point = model.points[p];
+    marker_segment_.push_back(point.segment);
+    marker_local_m_.push_back(point.p_local_m);
+    if (settings_.enabled && target_of_segment_[point.segment] < 0) {
+      target_of_segment_[point.segment] = static_cast<int>(targets_.size());
+      targets_.push_back({point.segment, settings_.level, settings_.weight});
+    }
+  }
+  ring_.resize(kRing);
+  for (Past& p : ring_) p.posture = Posture::rest(model);
+  in_gap_.assign(static_cast<std::size_t>(n_seg), 0);
+  gap_start_s_.assign(static_cast<std::size_t>(n_seg), 0.0);
+  has_history_.assign(static_cast<std::size_t>(n_seg), 0);
+  q_rel_start_.assign(static_cast<std::size_t>(n_seg), Eigen::Quaterniond::Identity());
+  omega_rel_.assign(static_cast<std::size_t>(n_seg), Eigen::Vector3d::Zero());
+  offset_local_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+  has_offset_.assign(static_cast<std::size_t>(n_), 0);
+  was_seen_.assign(static_cast<std::size_t>(n_), 0);
+  ever_seen_.assign(static_cast<std::size_t>(n_), 0);
+  last_seen_s_.assign(static_cast<std::size_t>(n_), 0.0);
+  handover_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+  handing_over_.assign(static_cast<std::size_t>(n_), 0);
+  has_mean_q_.assign(static_cast<std::size_t>(n_seg), 0);
+  q_rel_mean_.assign(static_cast<std::size_t>(n_seg), Eigen::Quaterniond::Identity());
+  has_mean_offset_.assign(static_cast<std::size_t>(n_), 0);
+  mean_offset_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+}
+
+void GapPredictor::reset() {
+  newest_ = -1;
+  kept_ = 0;
+  started_ = false;
+  std::fill(in_gap_.begin(), in_gap_.end(), std::uint8_t{0});
+  std::fill(has_history_.begin(), has_history_.end(), std::uint8_t{0});
+  std::fill(has_offset_.begin(), has_offset_.end(), std::uint8_t{0});
+  std::fill(was_seen_.begin(), was_seen_.end(), std::uint8_t{0});
+  std::fill(ever_seen_.begin(), ever_seen_.end(), std::uint8_t{0});
+  std::fill(handing_over_.begin(), handing_over_.end(), std::uint8_t{0});
+  std::fill(has_mean_q_.begin(), has_mean_q_.end(), std::uint8_t{0});
+  std::fill(has_mean_offset_.begin(), has_mean_offset_.end(), std::uint8_t{0});
+}
+
+const GapPredictor::Past* GapPredictor::past(int age) const {
+  if (age >= kept_) return nullptr;
+  return &ring_[static_cast<std::size_t>((newest_ - age + kRing) % kRing)];
+}
+
+const GapPredictor::Past* GapPredictor::velocity_base() const {
+  if (kept_ < 2) return nullptr;
+  const double newest_s = past(0)->time_s;
+  for (int age = 1; age < kept_; ++age)
+    if (newest_s - past(age)->time_s >= settings_.velocity_window_s) return past(age);
+  return past(kept_ - 1);
+}
+
+void GapPredictor::world_velocity(int s, Eigen::Vector3d& omega, Eigen::Vector3d& v) const {
+  omega.setZero();
+  v.setZero();
+  const Past* base = velocity_base();
+  if (!base) return;
+  const Past& now = *past(0);
+  const double dt = now.time_s - base->time_s;
+  if (!(dt > 0.0)) return;
+  const SegmentPose& a = base->posture.segments[s];
+  const SegmentPose& b = now.posture.segments[s];
+  omega = rotation_vector(b.q_world * a.q_world.conjugate()) / dt;
+  v = (b.base_world_m - a.base_world_m) / dt;
+}
+
+Eigen::Quaterniond GapPredictor::relative(const Posture& posture, int s) const {
+  const int parent = model_.segments[s].parent;
+  if (parent < 0) return posture.segments[s].q_world;
+  return posture.segments[parent].q_world.conjugate() * posture.segments[s].q_world;
+}
+
+void GapPredictor::start_gap(int s, const Posture& posture) {
+  q_rel_start_[s] = relative(posture, s);
+  omega_rel_[s].setZero();
+  const Past* base = velocity_base();
+  if (!base) return;
+  const double dt = past(0)->time_s - base->time_s;
+  if (!(dt > 0.0)) return;
+  omega_rel_[s] = rotation_vector(relative(base->posture, s).conjugate() * q_rel_start_[s]) / dt;
+}
+
+void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> seen,
+                                std::span<const Eigen::Vector3d> last_seen_m,
+                                std::span<Eigen::Vector3d> target_world_m,
+                                std::span<Eigen::Quaterniond> q_world,
+                                std::span<std::uint8_t> q_visible) {
+  std::fill(q_visible.begin(), q_visible.end(), std::uint8_t{0});
+  static const bool no_q = std::getenv("HG_NO_Q") != nullptr;
+  if (started_ && !(time_s >= past(0)->time_s)) reset();  // the clock restarted
+  if (!settings_.enabled) return;
+  const Past* last = started_ ? past(0) : nullptr;
+  const double dt = last ? time_s - last->time_s : 0.0;
+
+  // Segments: which are in a gap now, and their predicted world rotations.
+  for (int i = 0; i < n_; ++i) {
+    if (seen[i]) continue;
+    const int s = marker_segment_[i];
+    if (in_gap_[s] == 2) continue;  // already handled in this frame
+    if (!in_gap_[s]) {
+      gap_start_s_[s] = last ? last->time_s : time_s;
+      has_history_[s] = last ? 1 : 0;
+      if (last) start_gap(s, last->posture);
+    }
+    in_gap_[s] = 2;
+    const int k = target_of_segment_[s];
+    const int parent = model_.segments[s].parent;
+    if (!last || (parent < 0 && !has_history_[s])) continue;
+    Eigen::Quaterniond q_rel = Eigen::Quaterniond::Identity();  // rest: no past to go by
+    if (has_history_[s]) {
+      const double tau = settings_.velocity_decay_s;
+      const double g = time_s - gap_start_s_[s];
+      const double turn_s = tau > 0.0 ? tau * (1.0 - std::exp(-g / tau)) : 0.0;
+      q_rel = q_rel_start_[s] * from_rotation_vector(omega_rel_[s] * turn_s);
+      static const double t_rel = knob("HG_T_REL", 0.0);
+      if (t_rel > 0.0) q_rel = q_rel.slerp(1.0 - std::exp(-g / t_rel), q_rel_mean_[s]);
+    }
+    Eigen::Quaterniond q_parent = Eigen::Quaterniond::Identity();
+    if (parent >= 0) {
+      Eigen::Vector3d omega, v;
+      world_velocity(parent, omega, v);
+      q_parent = from_rotation_vector(omega * dt) * last->posture.segments[parent].q_world;
+    }
+    q_world[k] = (q_parent * q_rel).normalized();
+    q_visible[k] = no_q ? 0 : 1;
+  }
+  for (std::size_t s = 0; s < in_gap_.size(); ++s) in_gap_[s] = in_gap_[s] == 2 ? 1 : 0;
+
+  // Markers: the offset at which a newly occluded one was last measured, and
+  // the hand-over of returning ones.
+  const double step_m = settings_.return_speed_m_per_s * dt;
+  for (int i = 0; i < n_; ++i) {
+    const int s = marker_segment_[i];
+    if (!seen[i]) {
+      handing_over_[i] = 0;
+      if (was_seen_[i] && last) {
+        const SegmentPose& pose = last->posture.segments[s];
+        offset_local_m_[i] = pose.r_world.transpose() * (last_seen_m[i] - pose.to_world(marker_local_m_[i]));
+        has_offset_[i] = 1;
+      }
+      continue;
+    }
+    if (!was_seen_[i] && last) {
+      // Where the prediction would have put it now: its segment moved on at its recent velocity.
+      Eigen::Vector3d omega, v;
+      world_velocity(s, omega, v);
+      const SegmentPose& pose = last->posture.segments[s];
+      const Eigen::Quaterniond q = from_rotation_vector(omega * dt) * pose.q_world;
+      const Eigen::Vector3d local = marker_local_m_[i] + (has_offset_[i] ? offset_local_m_[i]
+                                                                        : Eigen::Vector3d::Zero());
+      const Eigen::Vector3d predicted = pose.base_world_m + v * dt + q * local;
+      handover_m_[i] = predicted - target_world_m[i];
+      handing_over_[i] = handover_m_[i].allFinite() ? 1 : 0;
+    } else if (handing_over_[i]) {
+      const double norm = handover_m_[i].norm();
+      if (norm <= step_m) {
+        handing_over_[i] = 0;
+      } else {
+        handover_m_[i] *= (norm - step_m) / norm;
+      }
+    }
+    if (handing_over_[i]) target_world_m[i] += handover_m_[i];
+  }
+}
+
+void GapPredictor::after_solve(double time_s, const Posture& posture,
+                               std::span<const std::uint8_t> seen,
+                               std::span<const Eigen::Vector3d> measured,
+                               std::span<Eigen::Vector3d> markers_world_m, std::span<double> gap_s) {
+  if (!started_) first_time_s_ = time_s;
+  static const double t_mean = knob("HG_T_MEAN", 1.0);
+  const double dt = started_ ? time_s - past(0)->time_s : 0.0;
+  const double alpha = started_ ? std::min(1.0, dt / t_mean) : 1.0;
+  if (settings_.enabled) {
+    for (std::size_t s = 0; s < in_gap_.size(); ++s) {
+      if (target_of_segment_[s] < 0 || in_gap_[s]) continue;
+      Eigen::Quaterniond q = relative(posture, static_cast<int>(s));
+      if (!has_mean_q_[s]) {
+        q_rel_mean_[s] = q;
+        has_mean_q_[s] = 1;
+        continue;
+      }
+      if (q.dot(q_rel_mean_[s]) < 0.0) q.coeffs() = -q.coeffs();
+      q_rel_mean_[s].coeffs() += alpha * (q.coeffs() - q_rel_mean_[s].coeffs());
+      q_rel_mean_[s].normalize();
+    }
+  }
+  for (int i = 0; i < n_; ++i) {
+    if (seen[i] && settings_.enabled) {
+      const SegmentPose& pose = posture.segments[marker_segment_[i]];
+      const Eigen::Vector3d off = pose.r_world.transpose() * (measured[i] - pose.to_world(marker_local_m_[i]));
+      if (!has_mean_offset_[i]) mean_offset_m_[i] = off, has_mean_offset_[i] = 1;
+      else mean_offset_m_[i] += alpha * (off - mean_offset_m_[i]);
+    }
+    if (seen[i]) {
+      gap_s[i] = 0.0;
+      last_seen_s_[i] = time_s;
+      was_seen_[i] = ever_seen_[i] = 1;
+      continue;
+    }
+    gap_s[i] = time_s - (ever_seen_[i] ? last_seen_s_[i] : first_time_s_);
+    was_seen_[i] = 0;
+    static const bool no_offset = std::getenv("HG_NO_OFFSET") != nullptr;
+    static const double t_off = knob("HG_T_OFF", 0.0);
+    if (settings_.enabled && has_offset_[i] && !no_offset) {
+      Eigen::Vector3d off = offset_local_m_[i];
+      if (t_off > 0.0) {
+        const double g = gap_s[i];
+        off = mean_offset_m_[i] + (off - mean_offset_m_[i]) * std::exp(-g / t_off);
+      }
+      markers_world_m[i] += posture.segments[marker_segment_[i]].r_world * off;
+    }
+  }
+  newest_ = (newest_ + 1) % kRing;
+  kept_ = std::min(kept_ + 1, kRing);
+  Past& p = ring_[static_cast<std::size_t>(newest_)];
+  p.time_s = time_s;
+  std::copy(posture.segments.begin(), posture.segments.end(), p.posture.segments.begin());
+  started_ = true;
+}
+
+}  // namespace fabrik
