@@ -1,6 +1,7 @@
 #include "tables.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <stdexcept>
 
@@ -204,6 +205,91 @@ nlohmann::json synthetic_json(const std::vector<SyntheticRow>& rows) {
                    {"joint_max_mm", r.joint_max_m * 1e3},
                    {"marker_rms_mean_mm", r.marker_rms_mean_m * 1e3}});
   return out;
+}
+
+namespace {
+
+constexpr double kDegPerRad = 180.0 / 3.141592653589793;
+
+// Display units: degrees for rotations, millimetres for translations.
+double display(const CoordinateComparison& c, double si) {
+  return si * (c.kind == CoordinateKind::rotation ? kDegPerRad : 1e3);
+}
+const char* display_unit(const CoordinateComparison& c) {
+  return c.kind == CoordinateKind::rotation ? "deg" : "mm";
+}
+std::string list(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out.empty() ? "none" : out;
+}
+
+}  // namespace
+
+std::string angles_table(const AngleReport& r) {
+  std::string out = "Coordinates vs " + r.reference_file + ": " + std::to_string(r.time_s.size()) +
+                    " frames shared";
+  if (!r.time_s.empty())
+    out += " (" + fmt("%.3f", r.time_s.front()) + "-" + fmt("%.3f", r.time_s.back()) + " s)";
+  out += "\nmarker residual over the whole trial: " + mm2(r.residual_rms_mean_m) +
+         " mm mean RMS, " + mm2(r.residual_max_m) + " mm max (" + r.residual_max_marker +
+         ", frame index " + std::to_string(r.residual_max_frame) + ")\n\n";
+  out += pad("coordinate", 20) + pad("unit", 5) + pad("RMS", 8, true) + pad("offset", 8, true) +
+         pad("RMS-off", 8, true) + pad("r", 7, true) + pad("ROM fab", 8, true) +
+         pad("ROM ref", 8, true) + "\n";
+  for (const CoordinateComparison& c : r.rows) {
+    const std::string pr = std::isnan(c.pearson_r) ? "-" : fmt("%.3f", c.pearson_r);
+    out += pad(c.name, 20) + pad(display_unit(c), 5) + pad(fmt("%.2f", display(c, c.rms_si)), 8, true) +
+           pad(fmt("%.2f", display(c, c.offset_si)), 8, true) +
+           pad(fmt("%.2f", display(c, c.rms_centered_si)), 8, true) + pad(pr, 7, true) +
+           pad(fmt("%.1f", display(c, c.range_fabrik_si)), 8, true) +
+           pad(fmt("%.1f", display(c, c.range_reference_si)), 8, true) + "\n";
+  }
+  out += "\nRMS-off: RMS after removing the mean offset (fabrik - reference); r: Pearson;\n"
+         "ROM: range of motion (max - min) over the shared frames\n";
+  out += "in the model, not in the reference: " + list(r.not_in_reference) + "\n";
+  out += "in the reference, not in the model: " + list(r.not_in_model) + "\n";
+  return out;
+}
+
+nlohmann::json angles_json(const AngleReport& r) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (const CoordinateComparison& c : r.rows) {
+    nlohmann::json row = {{"name", c.name},
+                          {"unit", display_unit(c)},
+                          {"samples", c.samples},
+                          {"rms", display(c, c.rms_si)},
+                          {"offset", display(c, c.offset_si)},
+                          {"rms_offset_removed", display(c, c.rms_centered_si)},
+                          {"pearson_r", nullptr},
+                          {"range_fabrik", display(c, c.range_fabrik_si)},
+                          {"range_reference", display(c, c.range_reference_si)}};
+    if (!std::isnan(c.pearson_r)) row["pearson_r"] = c.pearson_r;
+    rows.push_back(row);
+  }
+  return {{"reference", r.reference_file},
+          {"frames_shared", r.time_s.size()},
+          {"time_first_s", r.time_s.empty() ? 0.0 : r.time_s.front()},
+          {"time_last_s", r.time_s.empty() ? 0.0 : r.time_s.back()},
+          {"residual_mm",
+           {{"rms_mean", r.residual_rms_mean_m * 1e3},
+            {"max", r.residual_max_m * 1e3},
+            {"max_frame_index", r.residual_max_frame},
+            {"max_marker", r.residual_max_marker}}},
+          {"coordinates", rows},
+          {"not_in_reference", r.not_in_reference},
+          {"not_in_model", r.not_in_model}};
+}
+
+void write_angles_csv(const std::string& path, const AngleReport& r) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << "coordinate,unit,frame,time_s,fabrik,reference\n";
+  for (const CoordinateComparison& c : r.rows)
+    for (std::size_t k = 0; k < c.fabrik_si.size(); ++k)
+      out << c.name << ',' << display_unit(c) << ',' << r.frames[k] << ','
+          << fmt("%.5f", r.time_s[k]) << ',' << fmt("%.4f", display(c, c.fabrik_si[k])) << ','
+          << fmt("%.4f", display(c, c.reference_si[k])) << '\n';
 }
 
 }  // namespace fabrik::eval

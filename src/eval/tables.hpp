@@ -1,11 +1,12 @@
 // The evaluations' results as text tables (for the terminal and the README),
-// JSON (--json) and CSV (for scripts/plot_*.py). Lengths in mm.
+// JSON (--json) and CSV (for scripts/plot_*.py). Lengths in mm, angles in degrees.
 #pragma once
 
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
+#include "angles.hpp"
 #include "gaps.hpp"
 #include "reduction.hpp"
 #include "synthetic.hpp"
@@ -28,5 +29,11 @@ nlohmann::json reduction_json(const std::vector<ReductionRow>& rows);
 
 std::string synthetic_table(const std::vector<SyntheticRow>& rows);
 nlohmann::json synthetic_json(const std::vector<SyntheticRow>& rows);
+
+// Rotations in degrees, translations in millimetres; "-" where r is undefined.
+std::string angles_table(const AngleReport& r);
+nlohmann::json angles_json(const AngleReport& r);
+// coordinate,unit,frame,time_s,fabrik,reference (deg or mm), for scripts/plot_angles.py
+void write_angles_csv(const std::string& path, const AngleReport& r);
 
 }  // namespace fabrik::eval
