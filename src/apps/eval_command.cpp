@@ -87,8 +87,10 @@ void run(const std::string& which, const EvalArgs& a) {
     std::cout << "withheld vs predicted traces: " << a.csv_path << "\n";
   } else if (which == "angles") {
     require_file(a.reference_path, "--reference");
-    const eval::AngleReport r = eval::eval_angles(
-        config, trial, io::read_opensim_table(a.reference_path), a.reference_path);
+    const io::OpenSimTable reference = io::read_opensim_table(a.reference_path);
+    for (const std::string& w : reference.warnings)
+      std::fprintf(stderr, "%s: warning: %s\n", a.reference_path.c_str(), w.c_str());
+    const eval::AngleReport r = eval::eval_angles(config, trial, reference, a.reference_path);
     std::cout << eval::angles_table(r);
     write_json(a.json_path, eval::angles_json(r));
     eval::write_angles_csv(a.csv_path, r);

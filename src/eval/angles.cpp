@@ -99,7 +99,7 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
   const double tolerance_s =
       options.time_tolerance_s > 0.0 ? options.time_tolerance_s : 0.25 / trial.rate_hz;
   std::vector<std::size_t> rows;
-  for (std::size_t row = 0; row < reference.rows(); ++row) {
+  for (std::size_t row = 0; row < reference.rows; ++row) {
     const double t = reference.time_s[row];
     const double index = std::round(t * trial.rate_hz - (trial.first_frame - 1));
     if (index < 0.0 || index >= static_cast<double>(frames)) continue;
@@ -112,7 +112,7 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
   if (rows.empty())
     throw std::invalid_argument(
         "angles: no row of " + reference_file + " matches a frame of the trial in time (" +
-        std::to_string(reference.rows()) + " rows; trial " +
+        std::to_string(reference.rows) + " rows; trial " +
         std::to_string(file_time_s(trial, 0)) + "-" +
         std::to_string(file_time_s(trial, frames ? frames - 1 : 0)) +
         " s). Fix: compare a reference made from this trial");
@@ -122,7 +122,7 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
   for (std::size_t c = 0; c < n; ++c) {
     const Coordinate& coord = model.coordinates[c];
     const int column = reference.find(coord.name);
-    if (column < 0) {
+    if (column <= 0) {  // absent (0 is the time column)
       r.not_in_reference.push_back(coord.name);
       continue;
     }
@@ -137,8 +137,9 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
     compare(cmp);
     r.rows.push_back(std::move(cmp));
   }
-  for (const std::string& label : reference.labels)
-    if (model.find_coordinate(label) < 0) r.not_in_model.push_back(label);
+  for (std::size_t c = 1; c < reference.columns.size(); ++c)
+    if (model.find_coordinate(reference.columns[c]) < 0)
+      r.not_in_model.push_back(reference.columns[c]);
   return r;
 }
 

@@ -208,9 +208,10 @@ OpenSimTable read_opensim_table(const std::string& path) {
     }
     if (t.rows > 0 && *time_s <= previous_s) bad();  // kept, but said
     previous_s = *time_s;
+    t.cell_width = width;
     t.add_row(*time_s, cells);
   }
-  t.cell_width = width == 0 ? 1 : width;
+  if (width == 0) t.cell_width = 1;
   if (bad_rows > 0) {
     t.warnings.push_back(std::to_string(bad_rows) + " rows (the first on line " +
                          std::to_string(first_bad) +
