@@ -17,6 +17,7 @@
 #include "solver/joint_angles.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "temp_file.hpp"
+#include "tools/watch.hpp"
 #include "tracking/tracker.hpp"
 #include "transport/pose_codec.hpp"
 
@@ -127,6 +128,26 @@ TEST_CASE("A pose carries angles, translations and every segment's frame, in JSO
       CHECK(b["segments"][seg.name]["origin"][k].get<double>() == Approx(base_m[k]).margin(1e-9));
     }
   }
+}
+
+TEST_CASE("fabrik watch shows the latest pose's sagittal angles, else its first four", "[angles][tools]") {
+  tools::WatchTally tally;
+  const auto pose = [](std::uint64_t frame, json angles) {
+    return json{{"frame", frame},
+                {"units", "mm"},
+                {"occluded", json::array()},
+                {"residual", {{"rms", 1.0}, {"max", 2.0}, {"worst", "A"}, {"count", 3}}},
+                {"solver", {{"status", "converged"}, {"iterations", 2}, {"solve_us", 10.0}}},
+                {"angles", angles}};
+  };
+  tally.add_pose(pose(1, {{"knee_angle_r", -10.0}, {"elbow_flex_r", 30.0}}), 0.01);
+  tally.add_pose(pose(2, {{"knee_angle_r", -12.34}, {"elbow_flex_r", 31.0}, {"hip_flexion_r", 20.0}}),
+                 0.02);
+  const std::string line = tally.live_line(0.03);
+  CHECK_THAT(line, Catch::Contains("deg hip_flexion_r 20.0 knee_angle_r -12.3"));
+  CHECK_THAT(line, !Catch::Contains("elbow_flex_r"));
+  tally.add_pose(pose(3, {{"a", 1.0}, {"b", 2.0}, {"c", 3.0}, {"d", 4.0}, {"e", 5.0}}), 0.04);
+  CHECK_THAT(tally.live_line(0.05), Catch::EndsWith("deg a 1.0 b 2.0 c 3.0 d 4.0"));
 }
 
 TEST_CASE("OpenSim tables: a Coordinates file and a quaternion table survive a round trip",
