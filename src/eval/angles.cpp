@@ -38,9 +38,10 @@ double pearson(const std::vector<double>& a, const std::vector<double>& b) {
     saa += (a[i] - ma) * (a[i] - ma);
     sbb += (b[i] - mb) * (b[i] - mb);
   }
-  // A series that does not move (a locked coordinate) has no correlation.
-  constexpr double kFlat = 1e-18;
-  if (saa <= kFlat * static_cast<double>(a.size()) || sbb <= kFlat * static_cast<double>(a.size()))
+  // A series that does not move (a locked coordinate: OpenSim writes its
+  // rounding noise, ~1e-8 rad) has no correlation.
+  constexpr double kFlatSi = 1e-6;  // radians or metres
+  if (range(a) < kFlatSi || range(b) < kFlatSi || saa <= 0.0 || sbb <= 0.0)
     return std::numeric_limits<double>::quiet_NaN();
   return sab / std::sqrt(saa * sbb);
 }

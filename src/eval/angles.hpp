@@ -28,7 +28,7 @@ struct CoordinateComparison {
   double rms_si = 0.0;          // of fabrik - reference
   double offset_si = 0.0;       // mean of fabrik - reference
   double rms_centered_si = 0.0; // of fabrik - reference - offset
-  double pearson_r = 0.0;       // NaN when either series is constant
+  double pearson_r = 0.0;       // NaN when either series moves less than 1e-6 (rad or m)
   double range_fabrik_si = 0.0, range_reference_si = 0.0;  // max - min (range of motion)
   std::vector<double> fabrik_si, reference_si;             // per shared frame
 };
