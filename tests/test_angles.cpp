@@ -320,6 +320,10 @@ struct Walk1 {
     return eval::calibrate_config(std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json",
                                   static_path);
   }
+  eval::AngleReport angles() const {
+    return eval::eval_angles(config(), io::read_trial(walk_path), io::read_opensim_table(ik_path),
+                             ik_path);
+  }
 };
 
 const eval::CoordinateComparison& row_of(const eval::AngleReport& r, const std::string& name) {
@@ -377,9 +381,7 @@ TEST_CASE("walk1 with gait2354 vs OpenSim's IK: hip flexion and the knee follow 
           "[angles][data]") {
   const Walk1 data;
   if (!data.present) return;
-  const eval::AngleReport r =
-      eval::eval_angles(data.config(), io::read_trial(data.walk_path),
-                        io::read_opensim_table(data.ik_path), data.ik_path);
+  const eval::AngleReport r = data.angles();
   CHECK(r.time_s.size() == 73);
   CHECK(r.not_in_model.empty());  // every OpenSim coordinate has its fabrik counterpart
   for (const char* name : {"hip_flexion_r", "hip_flexion_l", "knee_angle_r", "knee_angle_l"}) {
@@ -404,9 +406,7 @@ TEST_CASE("walk1 must-show: hip, knee and ankle r >= 0.98 and <= 3 deg after the
           "[angles][data][!mayfail]") {
   const Walk1 data;
   if (!data.present) return;
-  const eval::AngleReport r =
-      eval::eval_angles(data.config(), io::read_trial(data.walk_path),
-                        io::read_opensim_table(data.ik_path), data.ik_path);
+  const eval::AngleReport r = data.angles();
   for (const char* name : {"hip_flexion_r", "hip_flexion_l", "knee_angle_r", "knee_angle_l",
                            "ankle_angle_r", "ankle_angle_l"}) {
     const eval::CoordinateComparison& c = row_of(r, name);

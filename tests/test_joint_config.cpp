@@ -45,13 +45,22 @@ json model_doc() {
     }})");
 }
 
-std::string model_error(const json& doc) {
+// One mistake: how to make it, and what the message must name.
+struct Case {
+  const char* what;
+  std::function<void(json&)> edit;
+  const char* pointer;
+  const char* text;
+};
+
+// The message of the ConfigError `run` throws (fails the test if it throws none).
+std::string error_of(const std::function<void()>& run) {
   try {
-    load_model(doc, "bad.json");
+    run();
   } catch (const ConfigError& e) {
     return e.what();
   }
-  FAIL("the model loaded but should have been rejected");
+  FAIL("accepted, but should have been rejected");
   return "";
 }
 
@@ -112,15 +121,6 @@ calib::CalibrationResult calibrate_template(const json& doc) {
   return calib::calibrate(t, static_trial(), "static.trc");
 }
 
-std::string calibration_error(const json& doc) {
-  try {
-    calibrate_template(doc);
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  FAIL("the template calibrated but should have been rejected");
-  return "";
-}
 
 Eigen::Vector3d axis_of(const nlohmann::ordered_json& seg, const char* name) {
   const auto& a = seg["frame"][name];
@@ -170,12 +170,6 @@ TEST_CASE("A model's frames, joints and coordinates load as written", "[loader][
 
 TEST_CASE("Each mistake in a model's frames, joints or coordinates has its own message",
           "[loader][joints]") {
-  struct Case {
-    const char* what;
-    std::function<void(json&)> edit;
-    const char* pointer;
-    const char* text;
-  };
   const std::vector<Case> cases = {
       {"one axis", [](json& d) { d["segments"][1]["frame"] = {{"x", {1, 0, 0}}}; },
        "at /segments/1/frame:", "a frame needs at least two of its axes"},
@@ -222,7 +216,7 @@ TEST_CASE("Each mistake in a model's frames, joints or coordinates has its own m
     INFO(c.what);
     json d = model_doc();
     c.edit(d);
-    const std::string msg = model_error(d);
+    const std::string msg = error_of([&] { load_model(d, "bad.json"); });
     CHECK_THAT(msg, Catch::StartsWith("bad.json: "));
     CHECK_THAT(msg, Catch::Contains(c.pointer));
     CHECK_THAT(msg, Catch::Contains(c.text));
@@ -268,12 +262,6 @@ TEST_CASE("A template's frames go into the calibrated model; joints and coordina
 
 TEST_CASE("Each mistake in a template's frames, joints or coordinates names the template",
           "[calib][joints]") {
-  struct Case {
-    const char* what;
-    std::function<void(json&)> edit;
-    const char* pointer;
-    const char* text;
-  };
   const std::vector<Case> at_load = {
       {"joint on the root", [](json& d) { d["segments"][0]["joint"] = {{"type", "ball"}}; },
        "at /segments/0/joint:", "the root segment has no parent joint"},
@@ -284,21 +272,6 @@ TEST_CASE("Each mistake in a template's frames, joints or coordinates names the 
       {"coordinates not an object", [](json& d) { d["coordinates"] = json::array(); },
        "at /coordinates:", ""},
   };
-  for (const Case& c : at_load) {
-    INFO(c.what);
-    json d = template_doc();
-    c.edit(d);
-    std::string msg;
-    try {
-      calib::load_template(d, "leg.json");
-    } catch (const ConfigError& e) {
-      msg = e.what();
-    }
-    CHECK_THAT(msg, Catch::StartsWith("leg.json: "));
-    CHECK_THAT(msg, Catch::Contains(c.pointer));
-    CHECK_THAT(msg, Catch::Contains(c.text));
-    CHECK_THAT(msg, Catch::Contains("Fix: "));
-  }
   // Joints and coordinates are checked when the model is built; the message
   // still points into the template, where the mistake is.
   const std::vector<Case> at_calibration = {
@@ -312,16 +285,25 @@ TEST_CASE("Each mistake in a template's frames, joints or coordinates names the 
        [](json& d) { d["coordinates"]["knee_angle_r"]["segment"] = "r_shin"; },
        "at /coordinates/knee_angle_r/segment:", "the model has no segment 'r_shin'"},
   };
-  for (const Case& c : at_calibration) {
-    INFO(c.what);
-    json d = template_doc();
-    c.edit(d);
-    const std::string msg = calibration_error(d);
-    CHECK_THAT(msg, Catch::StartsWith("leg.json: "));
-    CHECK_THAT(msg, Catch::Contains(c.pointer));
-    CHECK_THAT(msg, Catch::Contains(c.text));
-    CHECK_THAT(msg, Catch::Contains("Fix: "));
-  }
+  const auto check = [](const std::vector<Case>& cases, bool calibrate) {
+    for (const Case& c : cases) {
+      INFO(c.what);
+      json d = template_doc();
+      c.edit(d);
+      const std::string msg = error_of([&] {
+        if (calibrate)
+          calibrate_template(d);
+        else
+          calib::load_template(d, "leg.json");
+      });
+      CHECK_THAT(msg, Catch::StartsWith("leg.json: "));
+      CHECK_THAT(msg, Catch::Contains(c.pointer));
+      CHECK_THAT(msg, Catch::Contains(c.text));
+      CHECK_THAT(msg, Catch::Contains("Fix: "));
+    }
+  };
+  check(at_load, false);
+  check(at_calibration, true);
 }
 
 TEST_CASE("The shipped templates and the built-in model have frames, joints and coordinates",
