@@ -123,7 +123,8 @@ void add_eval_command(CLI::App& app) {
     }
     if (!csv_default.empty()) {
       a->csv_path = csv_default;
-      c->add_option("--csv", a->csv_path, "CSV for scripts/plot_eval.py")->capture_default_str();
+      c->add_option("--csv", a->csv_path, "CSV for scripts/plot_eval.py or plot_angles.py")
+          ->capture_default_str();
     }
     c->add_option("--json", a->json_path, "Also write the results as JSON");
     c->callback([name, a] { tools::run_command("eval " + name, [&] { run(name, *a); }); });
