@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 
 #include "eval/eval.hpp"
@@ -133,12 +134,17 @@ void add_eval_command(CLI::App& app) {
   add("walk", "Marker residuals of a calibrated subject on a recorded trial", true,
       "eval_walk.csv");
   auto [gaps, ga] =
-      add("gaps", "Withhold each marker for 0.5 s and 1 s windows; compare the gap-filled position",
+      add("gaps",
+          "Withhold each marker in turn for 0.1-2 s windows; compare the live and offline fill",
           true, "eval_gaps.csv");
   gaps->add_option("--windows", ga->gaps.windows_s, "Gap lengths (s)")->capture_default_str();
   gaps->add_option("--stride", ga->gaps.stride_s, "Between window starts (s)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  gaps->add_option("--modes", ga->gaps.modes, "live, offline or both")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, eval::GapMode>{{"live", eval::GapMode::live},
+                                               {"offline", eval::GapMode::offline}}));
   gaps->add_option("--markers", ga->gaps.markers, "Markers to withhold (default: all tracked)");
   auto [angles, aa] = add("angles",
                           "Joint angles and translations vs a reference .mot (e.g. OpenSim's IK)",

@@ -68,42 +68,58 @@ void write_walk_csv(const std::string& path, const WalkReport& r) {
 std::string gaps_table(const GapReport& r) {
   std::string out;
   std::vector<double> windows;
-  for (const GapSummary& s : r.summary) windows.push_back(s.window_s);
-  out +=
-      "Withheld marker vs the model's gap-filled position (RMS / max mm); joint centres and end\n"
-      "sites vs the all-markers solution during the gap (RMS / max mm)\n\n";
-  out += pad("marker", 16);
-  for (double w : windows) {
-    const std::string t = fmt("%gs", w);
-    out += pad(t + " RMS", 9, true) + pad(t + " max", 9, true) + pad("joint RMS", 10, true) +
-           pad("joint max", 10, true);
+  std::vector<GapMode> modes;
+  for (const GapSummary& s : r.summary) {
+    if (std::find(windows.begin(), windows.end(), s.window_s) == windows.end())
+      windows.push_back(s.window_s);
+    if (std::find(modes.begin(), modes.end(), s.mode) == modes.end()) modes.push_back(s.mode);
   }
-  out += "\n";
+  out +=
+      "Withheld marker vs its gap-filled position (RMS mm per gap length); live also the joint\n"
+      "centres and end sites vs the all-markers solution (RMS mm, at the longest gap) and their\n"
+      "largest step on the marker's return beyond the neighbouring frames' (mm, over all gaps)\n";
   std::vector<std::string> names;
   for (const GapStats& g : r.rows)
     if (std::find(names.begin(), names.end(), g.marker) == names.end()) names.push_back(g.marker);
-  for (const std::string& name : names) {
-    out += pad(name, 16);
-    for (double w : windows) {
-      const auto it = std::find_if(r.rows.begin(), r.rows.end(), [&](const GapStats& g) {
-        return g.marker == name && g.window_s == w;
-      });
-      if (it == r.rows.end()) {
-        out += pad("-", 9, true) + pad("-", 9, true) + pad("-", 10, true) + pad("-", 10, true);
-        continue;
-      }
-      out += pad(mm2(it->rms_m), 9, true) + pad(mm2(it->max_m), 9, true) +
-             pad(mm2(it->joint_rms_m), 10, true) + pad(mm2(it->joint_max_m), 10, true);
-    }
+  for (GapMode mode : modes) {
+    out += std::string("\n") + to_string(mode) + "\n" + pad("marker", 16);
+    for (double w : windows) out += pad(fmt("%gs", w), 8, true);
+    if (mode == GapMode::live) out += pad("joint RMS", 10, true) + pad("return", 8, true);
     out += "\n";
+    for (const std::string& name : names) {
+      out += pad(name, 16);
+      const GapStats* last = nullptr;
+      double jump_m = 0.0;
+      for (double w : windows) {
+        const auto it = std::find_if(r.rows.begin(), r.rows.end(), [&](const GapStats& g) {
+          return g.marker == name && g.window_s == w && g.mode == mode;
+        });
+        if (it == r.rows.end()) {
+          out += pad("-", 8, true);
+          continue;
+        }
+        out += pad(mm2(it->rms_m), 8, true);
+        last = &*it;
+        jump_m = std::max(jump_m, it->return_jump_m);
+      }
+      if (mode == GapMode::live)
+        out += pad(last ? mm2(last->joint_rms_m) : "-", 10, true) + pad(mm2(jump_m), 8, true);
+      out += "\n";
+    }
   }
   out += "\n";
-  for (const GapSummary& s : r.summary)
-    out += fmt("%g s gaps: ", s.window_s) + std::to_string(s.markers) + " markers, " +
-           std::to_string(s.windows) + " windows; median over markers RMS " + mm2(s.median_rms_m) +
-           " mm, max " + mm2(s.median_max_m) + " mm; worst marker " + s.worst_marker + " " +
-           mm2(s.worst_rms_m) + " mm RMS; joints " + mm2(s.joint_rms_m) + " mm RMS, " +
-           mm2(s.joint_max_m) + " mm max\n";
+  for (const GapSummary& s : r.summary) {
+    out += std::string(to_string(s.mode)) + (s.mode == GapMode::live ? "    " : " ") +
+           fmt("%g s gaps: ", s.window_s) +
+           std::to_string(s.markers) + " markers, " + std::to_string(s.windows) +
+           " windows; median over markers RMS " + mm2(s.median_rms_m) + " mm, max " +
+           mm2(s.median_max_m) + " mm; worst marker " + s.worst_marker + " " +
+           mm2(s.worst_rms_m) + " mm RMS";
+    if (s.mode == GapMode::live)
+      out += "; joints " + mm2(s.joint_rms_m) + " mm RMS, " + mm2(s.joint_max_m) +
+             " mm max; return jump " + mm2(s.return_jump_m) + " mm";
+    out += "\n";
+  }
   return out;
 }
 
@@ -111,15 +127,18 @@ nlohmann::json gaps_json(const GapReport& r) {
   nlohmann::json rows = nlohmann::json::array(), summary = nlohmann::json::array();
   for (const GapStats& g : r.rows)
     rows.push_back({{"marker", g.marker},
+                    {"mode", to_string(g.mode)},
                     {"window_s", g.window_s},
                     {"windows", g.windows},
                     {"samples", g.samples},
                     {"rms_mm", g.rms_m * 1e3},
                     {"max_mm", g.max_m * 1e3},
                     {"joint_rms_mm", g.joint_rms_m * 1e3},
-                    {"joint_max_mm", g.joint_max_m * 1e3}});
+                    {"joint_max_mm", g.joint_max_m * 1e3},
+                    {"return_jump_mm", g.return_jump_m * 1e3}});
   for (const GapSummary& s : r.summary)
-    summary.push_back({{"window_s", s.window_s},
+    summary.push_back({{"mode", to_string(s.mode)},
+                       {"window_s", s.window_s},
                        {"markers", s.markers},
                        {"windows", s.windows},
                        {"median_rms_mm", s.median_rms_m * 1e3},
@@ -127,19 +146,20 @@ nlohmann::json gaps_json(const GapReport& r) {
                        {"worst_marker", s.worst_marker},
                        {"worst_rms_mm", s.worst_rms_m * 1e3},
                        {"joint_rms_mm", s.joint_rms_m * 1e3},
-                       {"joint_max_mm", s.joint_max_m * 1e3}});
+                       {"joint_max_mm", s.joint_max_m * 1e3},
+                       {"return_jump_mm", s.return_jump_m * 1e3}});
   return {{"summary", summary}, {"markers", rows}};
 }
 
 void write_gaps_csv(const std::string& path, const GapReport& r) {
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path + ": cannot write");
-  out << "marker,window_s,start_frame,frame,time_s,real_x_mm,real_y_mm,real_z_mm,pred_x_mm,"
+  out << "marker,mode,window_s,start_frame,frame,time_s,real_x_mm,real_y_mm,real_z_mm,pred_x_mm,"
          "pred_y_mm,pred_z_mm,error_mm\n";
   for (const GapTrace& t : r.traces)
     for (std::size_t k = 0; k < t.real_m.size(); ++k) {
       const std::size_t f = static_cast<std::size_t>(t.first_frame) + k;
-      out << t.marker << ',' << t.window_s << ',' << t.first_frame << ',' << f << ','
+      out << t.marker << ',' << to_string(t.mode) << ',' << t.window_s << ',' << t.first_frame << ',' << f << ','
           << fmt("%.4f", static_cast<double>(f) / r.rate_hz);
       for (const Eigen::Vector3d* v : {&t.real_m[k], &t.predicted_m[k]})
         for (int a = 0; a < 3; ++a) out << ',' << fmt("%.3f", (*v)[a] * 1e3);

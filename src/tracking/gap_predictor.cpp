@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 namespace fabrik {
 
@@ -28,11 +27,6 @@ Eigen::Quaterniond from_rotation_vector(const Eigen::Vector3d& v) {
   return {std::cos(0.5 * angle), s * axis.x(), s * axis.y(), s * axis.z()};
 }
 
-double knob(const char* name, double fallback) {
-  const char* v = std::getenv(name);
-  return v ? std::atof(v) : fallback;
-}
-
 }  // namespace
 
 GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_points,
@@ -56,17 +50,20 @@ GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_point
   has_history_.assign(static_cast<std::size_t>(n_seg), 0);
   q_rel_start_.assign(static_cast<std::size_t>(n_seg), Eigen::Quaterniond::Identity());
   omega_rel_.assign(static_cast<std::size_t>(n_seg), Eigen::Vector3d::Zero());
+  q_rel_pred_.assign(static_cast<std::size_t>(n_seg), Eigen::Quaterniond::Identity());
+  predicted_.assign(static_cast<std::size_t>(n_seg), 0);
+  segment_seen_.assign(static_cast<std::size_t>(n_seg), 0);
   offset_local_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
   has_offset_.assign(static_cast<std::size_t>(n_), 0);
   was_seen_.assign(static_cast<std::size_t>(n_), 0);
   ever_seen_.assign(static_cast<std::size_t>(n_), 0);
   last_seen_s_.assign(static_cast<std::size_t>(n_), 0.0);
+  previous_s_.assign(static_cast<std::size_t>(n_), 0.0);
+  latest_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+  previous_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+  has_previous_.assign(static_cast<std::size_t>(n_), 0);
   handover_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
   handing_over_.assign(static_cast<std::size_t>(n_), 0);
-  has_mean_q_.assign(static_cast<std::size_t>(n_seg), 0);
-  q_rel_mean_.assign(static_cast<std::size_t>(n_seg), Eigen::Quaterniond::Identity());
-  has_mean_offset_.assign(static_cast<std::size_t>(n_), 0);
-  mean_offset_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
 }
 
 void GapPredictor::reset() {
@@ -76,11 +73,10 @@ void GapPredictor::reset() {
   std::fill(in_gap_.begin(), in_gap_.end(), std::uint8_t{0});
   std::fill(has_history_.begin(), has_history_.end(), std::uint8_t{0});
   std::fill(has_offset_.begin(), has_offset_.end(), std::uint8_t{0});
+  std::fill(has_previous_.begin(), has_previous_.end(), std::uint8_t{0});
   std::fill(was_seen_.begin(), was_seen_.end(), std::uint8_t{0});
   std::fill(ever_seen_.begin(), ever_seen_.end(), std::uint8_t{0});
   std::fill(handing_over_.begin(), handing_over_.end(), std::uint8_t{0});
-  std::fill(has_mean_q_.begin(), has_mean_q_.end(), std::uint8_t{0});
-  std::fill(has_mean_offset_.begin(), has_mean_offset_.end(), std::uint8_t{0});
 }
 
 const GapPredictor::Past* GapPredictor::past(int age) const {
@@ -127,28 +123,29 @@ void GapPredictor::start_gap(int s, const Posture& posture) {
 }
 
 void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> seen,
-                                std::span<const Eigen::Vector3d> last_seen_m,
                                 std::span<Eigen::Vector3d> target_world_m,
                                 std::span<Eigen::Quaterniond> q_world,
                                 std::span<std::uint8_t> q_visible) {
   std::fill(q_visible.begin(), q_visible.end(), std::uint8_t{0});
-  static const bool no_q = std::getenv("HG_NO_Q") != nullptr;
   if (started_ && !(time_s >= past(0)->time_s)) reset();  // the clock restarted
+  std::fill(predicted_.begin(), predicted_.end(), std::uint8_t{0});
+  std::fill(segment_seen_.begin(), segment_seen_.end(), std::uint8_t{0});
+  for (int i = 0; i < n_; ++i)
+    if (seen[i]) segment_seen_[marker_segment_[i]] = 1;
   if (!settings_.enabled) return;
   const Past* last = started_ ? past(0) : nullptr;
   const double dt = last ? time_s - last->time_s : 0.0;
 
   // Segments: which are in a gap now, and their predicted world rotations.
-  for (int i = 0; i < n_; ++i) {
-    if (seen[i]) continue;
-    const int s = marker_segment_[i];
-    if (in_gap_[s] == 2) continue;  // already handled in this frame
-    if (!in_gap_[s]) {
+  for (int i = 0; i < n_; ++i)
+    if (!seen[i]) in_gap_[marker_segment_[i]] |= 2;
+  for (int s = 0; s < static_cast<int>(in_gap_.size()); ++s) {
+    if (!(in_gap_[s] & 2)) continue;
+    if (!(in_gap_[s] & 1)) {
       gap_start_s_[s] = last ? last->time_s : time_s;
       has_history_[s] = last ? 1 : 0;
       if (last) start_gap(s, last->posture);
     }
-    in_gap_[s] = 2;
     const int k = target_of_segment_[s];
     const int parent = model_.segments[s].parent;
     if (!last || (parent < 0 && !has_history_[s])) continue;
@@ -158,8 +155,6 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
       const double g = time_s - gap_start_s_[s];
       const double turn_s = tau > 0.0 ? tau * (1.0 - std::exp(-g / tau)) : 0.0;
       q_rel = q_rel_start_[s] * from_rotation_vector(omega_rel_[s] * turn_s);
-      static const double t_rel = knob("HG_T_REL", 0.0);
-      if (t_rel > 0.0) q_rel = q_rel.slerp(1.0 - std::exp(-g / t_rel), q_rel_mean_[s]);
     }
     Eigen::Quaterniond q_parent = Eigen::Quaterniond::Identity();
     if (parent >= 0) {
@@ -167,10 +162,12 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
       world_velocity(parent, omega, v);
       q_parent = from_rotation_vector(omega * dt) * last->posture.segments[parent].q_world;
     }
+    q_rel_pred_[s] = q_rel;
+    predicted_[s] = parent >= 0 ? 1 : 0;
     q_world[k] = (q_parent * q_rel).normalized();
-    q_visible[k] = no_q ? 0 : 1;
+    q_visible[k] = 1;
   }
-  for (std::size_t s = 0; s < in_gap_.size(); ++s) in_gap_[s] = in_gap_[s] == 2 ? 1 : 0;
+  for (std::size_t s = 0; s < in_gap_.size(); ++s) in_gap_[s] = (in_gap_[s] & 2) ? 1 : 0;
 
   // Markers: the offset at which a newly occluded one was last measured, and
   // the hand-over of returning ones.
@@ -179,11 +176,6 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
     const int s = marker_segment_[i];
     if (!seen[i]) {
       handing_over_[i] = 0;
-      if (was_seen_[i] && last) {
-        const SegmentPose& pose = last->posture.segments[s];
-        offset_local_m_[i] = pose.r_world.transpose() * (last_seen_m[i] - pose.to_world(marker_local_m_[i]));
-        has_offset_[i] = 1;
-      }
       continue;
     }
     if (!was_seen_[i] && last) {
@@ -214,48 +206,39 @@ void GapPredictor::after_solve(double time_s, const Posture& posture,
                                std::span<const Eigen::Vector3d> measured,
                                std::span<Eigen::Vector3d> markers_world_m, std::span<double> gap_s) {
   if (!started_) first_time_s_ = time_s;
-  static const double t_mean = knob("HG_T_MEAN", 1.0);
-  const double dt = started_ ? time_s - past(0)->time_s : 0.0;
-  const double alpha = started_ ? std::min(1.0, dt / t_mean) : 1.0;
-  if (settings_.enabled) {
-    for (std::size_t s = 0; s < in_gap_.size(); ++s) {
-      if (target_of_segment_[s] < 0 || in_gap_[s]) continue;
-      Eigen::Quaterniond q = relative(posture, static_cast<int>(s));
-      if (!has_mean_q_[s]) {
-        q_rel_mean_[s] = q;
-        has_mean_q_[s] = 1;
-        continue;
-      }
-      if (q.dot(q_rel_mean_[s]) < 0.0) q.coeffs() = -q.coeffs();
-      q_rel_mean_[s].coeffs() += alpha * (q.coeffs() - q_rel_mean_[s].coeffs());
-      q_rel_mean_[s].normalize();
-    }
-  }
   for (int i = 0; i < n_; ++i) {
-    if (seen[i] && settings_.enabled) {
-      const SegmentPose& pose = posture.segments[marker_segment_[i]];
-      const Eigen::Vector3d off = pose.r_world.transpose() * (measured[i] - pose.to_world(marker_local_m_[i]));
-      if (!has_mean_offset_[i]) mean_offset_m_[i] = off, has_mean_offset_[i] = 1;
-      else mean_offset_m_[i] += alpha * (off - mean_offset_m_[i]);
-    }
     if (seen[i]) {
       gap_s[i] = 0.0;
+      previous_m_[i] = latest_m_[i];
+      previous_s_[i] = last_seen_s_[i];
+      has_previous_[i] = was_seen_[i];
+      latest_m_[i] = measured[i];
       last_seen_s_[i] = time_s;
       was_seen_[i] = ever_seen_[i] = 1;
       continue;
     }
     gap_s[i] = time_s - (ever_seen_[i] ? last_seen_s_[i] : first_time_s_);
+    const bool gap_starts = was_seen_[i] != 0;
     was_seen_[i] = 0;
-    static const bool no_offset = std::getenv("HG_NO_OFFSET") != nullptr;
-    static const double t_off = knob("HG_T_OFF", 0.0);
-    if (settings_.enabled && has_offset_[i] && !no_offset) {
-      Eigen::Vector3d off = offset_local_m_[i];
-      if (t_off > 0.0) {
-        const double g = gap_s[i];
-        off = mean_offset_m_[i] + (off - mean_offset_m_[i]) * std::exp(-g / t_off);
-      }
-      markers_world_m[i] += posture.segments[marker_segment_[i]].r_world * off;
+    if (!settings_.enabled || !ever_seen_[i]) continue;
+    const int s = marker_segment_[i];
+    const SegmentPose& pose = posture.segments[s];
+    // No marker of its own holds the segment: carry the marker on the
+    // predicted rotation relative to the (solved) parent instead.
+    const bool carry = predicted_[s] && !segment_seen_[s];
+    const Eigen::Quaterniond q =
+        carry ? posture.segments[model_.segments[s].parent].q_world * q_rel_pred_[s] : pose.q_world;
+    if (gap_starts) {
+      // Where the marker would be now, moving on at its last measured
+      // velocity: the prediction starts there, so nothing jumps when it is lost.
+      Eigen::Vector3d expected_m = latest_m_[i];
+      const double span_s = last_seen_s_[i] - previous_s_[i];
+      if (has_previous_[i] && span_s > 0.0)
+        expected_m += (latest_m_[i] - previous_m_[i]) * ((time_s - last_seen_s_[i]) / span_s);
+      offset_local_m_[i] = q.conjugate() * (expected_m - pose.base_world_m) - marker_local_m_[i];
+      has_offset_[i] = offset_local_m_[i].allFinite() ? 1 : 0;
     }
+    if (has_offset_[i]) markers_world_m[i] = pose.base_world_m + q * (marker_local_m_[i] + offset_local_m_[i]);
   }
   newest_ = (newest_ + 1) % kRing;
   kept_ = std::min(kept_ + 1, kRing);

@@ -53,7 +53,6 @@ class GapPredictor {
   // visibility (per orientation target) and, for markers being handed over,
   // moves their measured targets in `target_world_m` (first marker count entries).
   void before_solve(double time_s, std::span<const std::uint8_t> seen,
-                    std::span<const Eigen::Vector3d> last_seen_m,
                     std::span<Eigen::Vector3d> target_world_m,
                     std::span<Eigen::Quaterniond> q_world, std::span<std::uint8_t> q_visible);
 
@@ -100,16 +99,17 @@ class GapPredictor {
   std::vector<std::uint8_t> has_history_;
   std::vector<Eigen::Quaterniond> q_rel_start_;  // relative rotation when the gap began
   std::vector<Eigen::Vector3d> omega_rel_;       // its angular velocity then (segment frame)
+  std::vector<Eigen::Quaterniond> q_rel_pred_;   // this frame's predicted relative rotation
+  std::vector<std::uint8_t> predicted_, segment_seen_;  // per segment, this frame
 
   // Per marker.
   std::vector<Eigen::Vector3d> offset_local_m_;  // measured minus model point, segment frame
   std::vector<std::uint8_t> has_offset_, was_seen_, ever_seen_;
-  std::vector<double> last_seen_s_;
+  std::vector<double> last_seen_s_, previous_s_;
+  std::vector<Eigen::Vector3d> latest_m_, previous_m_;  // the two latest measurements
+  std::vector<std::uint8_t> has_previous_;
   std::vector<Eigen::Vector3d> handover_m_;  // target minus measurement, shrinking
   std::vector<std::uint8_t> handing_over_;
-  std::vector<std::uint8_t> has_mean_q_, has_mean_offset_;
-  std::vector<Eigen::Quaterniond> q_rel_mean_;
-  std::vector<Eigen::Vector3d> mean_offset_m_;
 };
 
 }  // namespace fabrik

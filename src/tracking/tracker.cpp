@@ -116,7 +116,7 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   if (!warm_) posture_ = rest_;  // same size: copies without allocating
   if (!warm_) predictor_.reset();
   const std::span<const std::uint8_t> seen(target_visible_.data(), n_);
-  predictor_.before_solve(time_s, seen, last_seen_m_,
+  predictor_.before_solve(time_s, seen,
                           std::span(target_world_m_).first(n_), predicted_q_world_,
                           predicted_visible_);
   const auto t0 = std::chrono::steady_clock::now();

@@ -74,6 +74,14 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   for (std::size_t i = 0; i < markers_.size(); ++i)
     if (r.held[i]) w.string(markers_[i].plain);
   w.end_array();
+  w.key("gap_s");  // addition: per occluded marker, seconds since it was last measured
+  w.begin_map(static_cast<std::size_t>(r.occluded_count));
+  for (std::size_t i = 0; i < markers_.size(); ++i) {
+    if (!r.occluded[i]) continue;
+    w.named_key(markers_[i].plain, markers_[i].json_key);
+    w.number(r.gap_s[i], 4);
+  }
+  w.end_map();
   w.key("residual");
   w.begin_map(4);
   w.key("rms");
