@@ -35,7 +35,8 @@ def plot_walk(path, out):
 
 
 def plot_gaps(path, out, markers, window):
-    rows = [r for r in csv.DictReader(open(path)) if float(r["window_s"]) == window]
+    rows = [r for r in csv.DictReader(open(path))
+            if float(r["window_s"]) == window and r.get("mode", "live") == "live"]
     fig, axes = plt.subplots(len(markers), 1, figsize=(8, 2.0 * len(markers)), sharex=True)
     for ax, marker in zip(axes, markers):
         mine = [r for r in rows if r["marker"] == marker]

@@ -170,6 +170,12 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
   for (const auto& [name, p] : a["markers"].items())
     for (int k = 0; k < 3; ++k)
       CHECK(p[k].get<double>() == Approx(b["markers"][name][k].get<double>()).margin(1e-4));
+  CHECK(a["gap_s"] == json::object({{"RKNE", 0.0}}));  // never measured: since the first frame
+  CHECK(b["gap_s"] == a["gap_s"]);
+  const TrackResult& later = tracker.track(0.25, measured, visible);
+  je.encode({13, true, 0.75, false, 0.0}, later, jp);
+  CHECK(json::parse(jp)["gap_s"]["RKNE"].get<double>() == Approx(0.25));
+  CHECK(json::parse(jp)["gap_s"].size() == 1);
   CHECK(wire_status(SolveStatus::stalled) == "converged");
   CHECK(wire_status(SolveStatus::max_iterations) == "max_iterations");
 }

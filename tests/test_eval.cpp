@@ -41,16 +41,18 @@ TEST_CASE("gap evaluation: a marker of a rigid cluster is predicted from its nei
   options.windows_s = {0.5, 1.0};
   options.markers = {"RTHF", "LTIB", "STRN"};  // thigh, shank and torso: three markers or more
   const eval::GapReport r = eval::eval_gaps(config, trial, options);
-  REQUIRE(r.rows.size() == 6);
+  REQUIRE(r.rows.size() == 12);  // live and offline
   for (const eval::GapStats& g : r.rows) {
     INFO(g.marker << " " << g.window_s << " s: RMS " << g.rms_m * 1e3 << " mm");
     CHECK(g.windows >= 2);
     CHECK(g.samples > 0);
     CHECK(g.rms_m < 1e-3);
     CHECK(g.joint_rms_m < 1e-3);
+    CHECK(g.return_jump_m < 1e-3);
   }
-  REQUIRE(r.summary.size() == 2);
+  REQUIRE(r.summary.size() == 4);
   CHECK(r.summary[1].median_rms_m < 1e-3);
+  CHECK(r.summary[3].median_rms_m < 1e-3);
   CHECK_FALSE(r.traces.empty());
 }
 
@@ -103,6 +105,7 @@ TEST_CASE("real data: subject01 walk1 residuals and 1 s gaps (skipped without ..
 
   eval::GapOptions options;
   options.windows_s = {1.0};
+  options.modes = {eval::GapMode::live};
   const eval::GapReport g = eval::eval_gaps(config, trial, options);
   REQUIRE(g.summary.size() == 1);
   INFO("1 s gaps: median RMS " << g.summary[0].median_rms_m * 1e3 << " mm");

@@ -49,7 +49,10 @@ void run(const SolveOptions& o) {
                      : "");
   }
   write_trial_file(o.output, s.joints);
-  if (!o.markers_output.empty()) write_trial_file(o.markers_output, s.markers);
+  if (!o.markers_output.empty()) {
+    write_trial_file(o.markers_output, s.markers);
+    write_filled_csv(o.markers_output + ".filled.csv", s, trial);
+  }
   if (!o.angles.empty()) io::write_opensim_table(o.angles, angles_table(s));
   const nlohmann::json summary = solution_summary(s);
   if (!o.report.empty()) {
@@ -70,6 +73,11 @@ void run(const SolveOptions& o) {
       r["max_frame"].get<std::size_t>(), summary["solve_us"]["p50"].get<double>(),
       summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
       o.output.c_str());
+  std::size_t filled_samples = 0;
+  for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
+  std::printf("gaps filled       %zu samples in %zu runs (both sides)%s\n", filled_samples,
+              s.filled.size(),
+              o.markers_output.empty() ? "" : (": " + o.markers_output + ".filled.csv").c_str());
   if (!s.missing_in_trial.empty())
     std::printf("not in the trial   %zu tracked markers (%s...)\n", s.missing_in_trial.size(),
                 s.missing_in_trial.front().c_str());
@@ -88,7 +96,8 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--input", o->input, "Trial, .trc or .c3d")->required()->check(CLI::ExistingFile);
   c->add_option("--output", o->output, "Joint centres, .trc (mm) or .csv")->required();
   c->add_option("--markers", o->markers_output,
-                "Also write the model's (gap-filled) markers, .trc or .csv");
+                "Also write the model's markers, gaps filled from both sides, .trc or .csv "
+                "(and FILE.filled.csv: the filled samples per marker)");
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_option("--angles", o->angles,
                 "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");

@@ -2,8 +2,12 @@
 // or fail (except that a broken setup is an error).
 #pragma once
 
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+
+#include "solver/model.hpp"
+#include "solver/solve_types.hpp"
 
 namespace fabrik::bench {
 
@@ -27,6 +31,10 @@ struct FullbodyOptions {
 // Tracking of the built-in full-body model on smooth synthetic motion; a
 // model with joint limits is tracked with them and, in the same run, without.
 nlohmann::json run_fullbody(const FullbodyOptions& options);
+// Per-frame solve time through the Tracker under a moving occlusion, gap
+// prediction off and on, interleaved (prediction_bench.cpp).
+nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& model,
+                                         const FullbodyOptions& options, const SolverOptions& o);
 std::string fullbody_table(const nlohmann::json& result);
 
 }  // namespace fabrik::bench

@@ -97,6 +97,7 @@ json run_fullbody(const FullbodyOptions& options) {
     const auto free_model = std::make_shared<const Model>(without_joint_limits(m));
     out["without_limits"] = track_json(track(free_model, m, options, o));
   }
+  out["gap_prediction"] = run_prediction_comparison(model, options, o);
   out["benchmark"] = "fullbody";
   out["model"] = {{"name", m.name},
                   {"file", path},
@@ -142,14 +143,27 @@ std::string fullbody_table(const json& r) {
                 r["motion"]["noise_mm"].get<double>(),
                 r["solver"]["segment_fit"].get<std::string>().c_str());
   std::string out = head;
-  if (!r.contains("without_limits")) return out + figures("no joint limits in the model", r);
-  out += figures("with the model's joint limits", r);
-  out += figures("the same motion, joints free", r["without_limits"]);
-  char ratio[128];
-  std::snprintf(ratio, sizeof ratio, "  median time with limits / without: %.2f\n",
-                r["solve_us"]["median"].get<double>() /
-                    r["without_limits"]["solve_us"]["median"].get<double>());
-  return out + ratio;
+  if (!r.contains("without_limits")) {
+    out += figures("no joint limits in the model", r);
+  } else {
+    out += figures("with the model's joint limits", r);
+    out += figures("the same motion, joints free", r["without_limits"]);
+    char ratio[128];
+    std::snprintf(ratio, sizeof ratio, "  median time with limits / without: %.2f\n",
+                  r["solve_us"]["median"].get<double>() /
+                      r["without_limits"]["solve_us"]["median"].get<double>());
+    out += ratio;
+  }
+  const json& g = r["gap_prediction"];
+  char gaps[384];
+  std::snprintf(gaps, sizeof gaps,
+                "through the Tracker, %s\n"
+                "  solve per frame   median %.2f us without gap prediction, %.2f us with: "
+                "ratio %.3f\n",
+                g["occlusion"].get<std::string>().c_str(),
+                g["solve_us_median_without"].get<double>(),
+                g["solve_us_median_with"].get<double>(), g["ratio"].get<double>());
+  return out + gaps;
 }
 
 }  // namespace fabrik::bench

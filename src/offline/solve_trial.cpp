@@ -7,6 +7,7 @@
 
 #include "common/quantile.hpp"
 #include "tracking/tracker.hpp"
+#include "tracking/two_sided_fill.hpp"
 
 namespace fabrik {
 
@@ -77,6 +78,24 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
     s.coordinates.insert(s.coordinates.end(), r.coordinates.begin(), r.coordinates.end());
     if (progress && (f % 64 == 0 || f + 1 == frames)) progress(f + 1, frames);
   }
+  // Offline both sides of every gap are known: the written markers take the
+  // two-sided fill there (the joint centres keep the causal prediction).
+  std::vector<double> times_s(frames);
+  std::vector<Eigen::Vector3d> all_m(frames * n);
+  std::vector<std::uint8_t> all_visible(frames * n);
+  for (std::size_t f = 0; f < frames; ++f) {
+    times_s[f] = trial.time_s(f);
+    for (int i = 0; i < n; ++i) {
+      const std::size_t k = f * n + i;
+      all_m[k] = column[i] >= 0 ? trial.at(f, column[i]) : Eigen::Vector3d::Constant(NAN);
+      all_visible[k] = all_m[k].allFinite() ? 1 : 0;
+    }
+  }
+  const TwoSidedFill fill = fill_two_sided(config.tracker, times_s, all_m, all_visible);
+  for (std::size_t k = 0; k < fill.filled.size(); ++k)
+    if (fill.filled[k]) s.markers.positions_m[k] = fill.markers_m[k];
+  for (const FilledGap& g : fill.gaps)
+    s.filled.push_back({config.tracker.markers[g.marker].marker, g.first, g.end});
   for (int i = 0; i < n; ++i) {
     if (column[i] < 0 || frames == 0 || 2 * missing_frames[i] <= frames) continue;
     const std::vector<std::size_t>& zeros = trial.source.zero_samples;
@@ -117,6 +136,11 @@ nlohmann::json solution_summary(const TrialSolution& s) {
                               {"missing_frames", m.missing_frames},
                               {"zero_frames", m.zero_frames}});
   }
+  // Per marker, the filled runs as [first, last] frame numbers of the file.
+  nlohmann::json filled = nlohmann::json::object();
+  for (const FilledRun& r : s.filled)
+    filled[r.marker].push_back({s.markers.first_frame + static_cast<long long>(r.first),
+                                s.markers.first_frame + static_cast<long long>(r.end) - 1});
   return {{"frames", frames},
           {"frames_without_markers", frames - with_markers},
           {"residual_mm",
@@ -133,6 +157,7 @@ nlohmann::json solution_summary(const TrialSolution& s) {
           {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
           {"status", status_count},
           {"markers_missing_in_trial", s.missing_in_trial},
+          {"filled", filled},
           {"markers_mostly_missing", mostly_missing},
           {"trial_labels_not_tracked", s.ignored_in_trial}};
 }
@@ -152,6 +177,17 @@ io::OpenSimTable angles_table(const TrialSolution& s) {
     t.add_row(file_time_s(s.joints, f), row);
   }
   return t;
+}
+
+void write_filled_csv(const std::string& path, const TrialSolution& s, const io::MarkerTrial& trial) {
+  std::ofstream out(path);
+  if (!out) throw io::FormatError(path, "cannot write the file");
+  out << "marker,first_frame,last_frame,first_time_s,last_time_s,samples\n";
+  for (const FilledRun& r : s.filled)
+    out << r.marker << ',' << trial.first_frame + static_cast<long long>(r.first) << ','
+        << trial.first_frame + static_cast<long long>(r.end) - 1 << ','
+        << file_time_s(trial, r.first) << ',' << file_time_s(trial, r.end - 1) << ','
+        << r.end - r.first << '\n';
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {

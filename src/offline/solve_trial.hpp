@@ -21,9 +21,18 @@ struct MostlyMissing {
   std::size_t zero_frames = 0;  // of them, exact (0, 0, 0) samples read as missing
 };
 
+// Samples of one marker filled by the two-sided fill: frames [first, end) (indices).
+struct FilledRun {
+  std::string marker;
+  std::size_t first = 0, end = 0;
+};
+
 struct TrialSolution {
   io::MarkerTrial joints;                     // joint centres per frame (metres)
-  io::MarkerTrial markers;                    // the model's markers per frame: gap-filled (metres)
+  // The model's markers per frame (metres); where a tracked marker is missing
+  // between or beside measured samples, the two-sided fill (two_sided_fill.hpp).
+  io::MarkerTrial markers;
+  std::vector<FilledRun> filled;  // by marker, then by frame
   std::vector<double> rms_m;                  // per frame, over measured markers
   std::vector<double> max_m;                  // per frame
   std::vector<int> worst;                     // per frame: index into markers.labels, -1 if none
@@ -60,6 +69,10 @@ double file_time_s(const io::MarkerTrial& trial, std::size_t f);
 // The coordinates as an OpenSim Coordinates table (.mot): rotations in
 // degrees (inDegrees=yes), translations in metres, times per file_time_s.
 io::OpenSimTable angles_table(const TrialSolution& s);
+
+// The filled samples as CSV, one run a line: marker, first and last frame
+// number and time as the trial's file counts them, samples.
+void write_filled_csv(const std::string& path, const TrialSolution& s, const io::MarkerTrial& trial);
 
 // Writes a trial as .trc (mm) or .csv (header time + name_x/_y/_z in mm).
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial);
