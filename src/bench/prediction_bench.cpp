@@ -21,6 +21,7 @@ nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& mod
   for (int p : points) setup.markers.push_back({m.points[p].name, p, 0, 1.0});
   setup.solver = o;
   setup.prediction.enabled = false;
+  setup.prediction.level = 0;  // the markers' level, as the daemon config's default
   Tracker without(setup);
   setup.prediction.enabled = true;
   Tracker with(setup);

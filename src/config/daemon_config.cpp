@@ -114,7 +114,8 @@ void read_targets(const JsonReader& targets, const Model& model, std::vector<Mar
     targets.fail("no marker is tracked", "keep at least one model marker with \"track\": true");
 }
 
-// Gap filling from the recent past (PredictionSettings): on unless switched off.
+// Gap filling from the recent past (PredictionSettings): on unless switched off, by default
+// on the weakest marker level with a small weight (README, "Gap filling").
 PredictionSettings read_prediction(const JsonReader& root, int default_level) {
   PredictionSettings p;
   p.enabled = true;
@@ -202,7 +203,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     c.tracker.occlusion.hold_level = static_cast<int>(o.get(
         "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
   }
-  c.tracker.prediction = read_prediction(root, weakest - 1);
+  c.tracker.prediction = read_prediction(root, weakest);
   c.stats_interval_s = root.get("stats_interval_s", 1.0, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();

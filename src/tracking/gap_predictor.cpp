@@ -132,7 +132,8 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
   std::fill(segment_seen_.begin(), segment_seen_.end(), std::uint8_t{0});
   for (int i = 0; i < n_; ++i)
     if (seen[i]) segment_seen_[marker_segment_[i]] = 1;
-  if (!settings_.enabled) return;
+  // Nothing measured at all: no prediction to anchor (the solve reports no_targets).
+  if (!settings_.enabled || std::find(seen.begin(), seen.end(), 1) == seen.end()) return;
   const Past* last = started_ ? past(0) : nullptr;
   const double dt = last ? time_s - last->time_s : 0.0;
 

@@ -23,9 +23,13 @@ namespace fabrik {
 
 struct PredictionSettings {
   bool enabled = false;
-  // Priority level and weight of the predicted rotations (orientation targets).
-  int level = -1;
-  double weight = 1.0;
+  // Priority level and weight of the predicted rotations (orientation
+  // targets). The daemon config puts them on the weakest marker level with
+  // weight 0.05: a pull that markers on the same level outweigh, which takes
+  // no extra priority pass (a level of their own below the markers' costs one
+  // and, where markers of children constrain the segment, leaves it nothing).
+  int level = 0;
+  double weight = 0.05;
   // The relative angular velocity at the start of a gap decays with this time
   // constant, so the prediction turns at most velocity * decay and then holds
   // (0: hold from the start).

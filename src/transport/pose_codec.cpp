@@ -35,7 +35,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
     w.end_array();
   };
-  w.begin_map(11 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
+  w.begin_map(12 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
   if (header.has_time) {
