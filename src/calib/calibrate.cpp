@@ -340,6 +340,12 @@ class Calibrator {
     c["solver"] = {{"tolerance_mm", 0.1},  {"stall_tolerance_mm", 0.1},
                    {"max_iterations", 50}, {"segment_fit", "rigid"},
                    {"root", "free"},       {"priorities", true}};
+    // Real subjects' markers are never exactly reachable by the model: there
+    // FABRIK's own fixed point with limited joints is far from the best
+    // fit, and the carry closes most of the gap (README "subtree carry").
+    bool limited = false;
+    for (const auto& sd : t_.segments) limited = limited || !sd.joint.is_null();
+    if (limited) c["solver"]["subtree_carry"] = 0.5;
     c["input"] = {{"endpoint", "tcp://127.0.0.1:5555"},
                   {"mode", "bind"},
                   {"units", "mm"},
