@@ -106,6 +106,15 @@ SensorCalibration calibrate_sensors(const SensorSection& spec, const Model& mode
   return out;
 }
 
+Posture calibration_posture(const Model& model, const std::string& pose) {
+  Posture p = Posture::rest(model);
+  if (pose == "rest") return p;
+  for (std::size_t s = 0; s < model.segments.size(); ++s)
+    p.segments[s].set_rotation(model.segments[s].q_anatomical.conjugate());
+  connect_joints(model, p);
+  return p;
+}
+
 SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const Model& model,
                                                const io::OrientationTable& table,
                                                std::vector<double>& spread_deg) {
@@ -115,7 +124,7 @@ SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const 
     for (std::size_t r = 0; r < table.rows(); ++r) column[r] = table.at(r, k);
     mean[k] = mean_rotation(column, &spread[k]);
   }
-  SensorCalibration c = calibrate_sensors(spec, model, Posture::rest(model), table.sensors, mean);
+  SensorCalibration c = calibrate_sensors(spec, model, calibration_posture(model, spec.calibration_pose), table.sensors, mean);
   spread_deg.clear();
   for (const SensorEntry& e : c.section.entries)
     spread_deg.push_back(spread[static_cast<std::size_t>(table.find(e.sensor))] * kDegPerRad);
@@ -127,7 +136,7 @@ std::string sensor_report(const SensorCalibration& c, std::span<const double> sp
   const SensorWorld& w = c.section.world;
   std::string out = "\nOrientation sensors (" + table_name + ", " + std::to_string(rows) +
                     (rows == 1 ? " row" : " rows averaged") +
-                    "; the subject in the model's rest posture):\n";
+                    "; the subject in the pose '" + c.section.calibration_pose + "'):\n";
   char line[256];
   std::snprintf(line, sizeof line,
                 "  sensors' world: rotation_deg [%g, %g, %g], up %s, heading %.2f deg%s\n",

@@ -42,7 +42,12 @@ SensorCalibration calibrate_sensors(const SensorSection& spec, const Model& mode
                                     const Posture& pose, std::span<const std::string> names,
                                     std::span<const Eigen::Quaterniond> q_sensors_sensor);
 
-// The same from a table recorded in the model's rest posture: each sensor's
+// The posture a section's calibration_pose names: "rest", or "zero_angles"
+// (each segment turned so that its anatomical frame is parallel to the
+// world, joints connected, the root's base where the rest posture has it).
+Posture calibration_posture(const Model& model, const std::string& pose);
+
+// The same from a table recorded in the section's calibration pose: each sensor's
 // rows are averaged (mean_rotation); spread_deg[k] is how far any row of
 // entry k's sensor is from its mean (a subject who moved shows there).
 SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const Model& model,

@@ -47,8 +47,15 @@ Eigen::Quaterniond SensorWorld::q_world_sensors() const {
 SensorSection read_sensor_section(const JsonReader& sensors,
                                   const std::vector<std::string>& segments, bool rotations) {
   sensors.expect_object();
-  sensors.only_keys({"world", "default", "orientations"});
+  sensors.only_keys({"world", "default", "orientations", "calibration_pose", "description"});
   SensorSection out;
+  if (sensors.has("calibration_pose")) {
+    const JsonReader p = sensors.at("calibration_pose");
+    out.calibration_pose = p.as_string();
+    if (out.calibration_pose != "zero_angles" && out.calibration_pose != "rest")
+      p.fail("unknown calibration pose '" + out.calibration_pose + "'",
+             "use \"zero_angles\" (OpenSim's default pose) or \"rest\" (the model's rest posture)");
+  }
   if (sensors.has("world")) {
     const JsonReader w = sensors.at("world");
     w.only_keys({"rotation_deg", "up", "heading_deg", "heading_from"});
@@ -157,7 +164,7 @@ nlohmann::ordered_json sensor_section_json(const SensorSection& section) {
                      round(q.z(), 1e12)};
     list[e.sensor] = j;
   }
-  return {{"world", world}, {"orientations", list}};
+  return {{"calibration_pose", section.calibration_pose}, {"world", world}, {"orientations", list}};
 }
 
 }  // namespace fabrik

@@ -44,6 +44,11 @@ struct SensorEntry {
 
 struct SensorSection {
   SensorWorld world;
+  // The pose the calibration recording was taken in: "zero_angles" (every
+  // anatomical frame parallel to the world: all joint angles 0, OpenSim's
+  // default pose, as OpenSense's IMU placer assumes) or "rest" (the model's
+  // rest posture: the static trial's averaged posture for a calibrated model).
+  std::string calibration_pose = "zero_angles";
   std::vector<SensorEntry> entries;  // in file order
 };
 

@@ -37,10 +37,10 @@ struct OrientationTable {
   void sample(double t_s, std::span<Eigen::Quaterniond> out) const;
 };
 
-// Throws FormatError (path first) when the file has no `endheader`, no labels,
-// no usable row, or says another DataType than Quaternion. Rows with a
-// different number of fields or a time not after the previous row's are left
-// out, and cells that are not four numbers read as missing, with warnings.
+// Read with read_opensim_table (its refusals and warnings apply); throws
+// FormatError (path first) when the file says another DataType than
+// Quaternion or its cells are not w,x,y,z. Quaternions that are not finite or
+// not unit within 0.01 read as missing, with a warning.
 OrientationTable read_orientation_table(const std::string& path);
 
 // True if the file's name ends in .sto (any case): an OpenSim table rather than markers.
