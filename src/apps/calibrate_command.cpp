@@ -45,12 +45,8 @@ io::OrientationTable read_orientations(const std::string& path) {
 // Sensors of the template (or of the config) calibrated from the calibration pose.
 std::string calibrated_sensors(const SensorSection& spec, const Model& model,
                                const std::string& table_path, nlohmann::ordered_json& config) {
-  const io::OrientationTable table = read_orientations(table_path);
-  std::vector<double> spread_deg;
-  const calib::SensorCalibration c =
-      calib::calibrate_sensors_from_table(spec, model, table, spread_deg);
-  config["sensors"] = sensor_section_json(c.section);
-  return calib::sensor_report(c, spread_deg, table_path, table.rows());
+  return calib::calibrate_sensors_into(spec, model, read_orientations(table_path), table_path,
+                                       config);
 }
 
 void run_calibrate(const CalibrateArgs& a) {

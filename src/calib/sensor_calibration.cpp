@@ -131,6 +131,15 @@ SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const 
   return c;
 }
 
+std::string calibrate_sensors_into(const SensorSection& spec, const Model& model,
+                                   const io::OrientationTable& table,
+                                   const std::string& table_name, nlohmann::ordered_json& config) {
+  std::vector<double> spread_deg;
+  const SensorCalibration c = calibrate_sensors_from_table(spec, model, table, spread_deg);
+  config["sensors"] = sensor_section_json(c.section);
+  return sensor_report(c, spread_deg, table_name, table.rows());
+}
+
 std::string sensor_report(const SensorCalibration& c, std::span<const double> spread_deg,
                           const std::string& table_name, std::size_t rows) {
   const SensorWorld& w = c.section.world;

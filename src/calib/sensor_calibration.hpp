@@ -54,6 +54,12 @@ SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const 
                                                const io::OrientationTable& table,
                                                std::vector<double>& spread_deg);
 
+// Calibrates `spec` from `table` (calibrate_sensors_from_table), writes the
+// result into `config`'s "sensors" and returns the report (sensor_report).
+std::string calibrate_sensors_into(const SensorSection& spec, const Model& model,
+                                   const io::OrientationTable& table,
+                                   const std::string& table_name, nlohmann::ordered_json& config);
+
 // What `fabrik calibrate` prints about the sensors.
 std::string sensor_report(const SensorCalibration& c, std::span<const double> spread_deg,
                           const std::string& table_name, std::size_t rows);
