@@ -279,3 +279,55 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   WARN("MessagePack decode: " << static_cast<double>(msgpack_decode_allocations) / 58.0
                               << " allocations per frame, for one marker name of 22 bytes");
 }
+
+TEST_CASE("The per-frame path with orientation sensors performs no heap allocation",
+          "[alloc][sensors]") {
+  DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  std::vector<std::string> sensor_names;
+  for (int s = 0; s < static_cast<int>(model.segments.size()); ++s) {
+    sensor_names.push_back(model.segments[s].name + "_imu");
+    config.tracker.sensors.sensors.push_back({sensor_names.back(), s, 0, 1.0});
+  }
+  Tracker tracker(config.tracker);
+  const wire::PoseEncoder encoder(tracker, "mm", wire::PayloadEncoding::json);
+  std::vector<std::string> names;
+  std::vector<int> points;
+  for (const MarkerTarget& m : config.tracker.markers)
+    names.push_back(m.marker), points.push_back(m.point);
+  const wire::MarkerDecoder decoder(names, 1e-3, 1 << 20, {}, sensor_names);
+  wire::MarkerFrame frame = decoder.make_frame();
+  SyntheticMotion motion(model, MotionSettings{});
+  Posture truth = Posture::rest(model);
+  std::vector<Eigen::Vector3d> measured(names.size());
+  std::vector<std::uint8_t> visible(names.size(), 1);
+  std::vector<Eigen::Quaterniond> q(sensor_names.size());
+  std::vector<std::uint8_t> q_visible(q.size(), 1);
+  std::string payload, out, error;
+  payload.reserve(1 << 16);
+  out.reserve(1 << 16);
+  long allocations = 0;
+  for (int f = 0; f < 40; ++f) {
+    const double t = f / 100.0;
+    motion.posture_at(t, truth);
+    motion.sample(truth, points, 0.001, measured);
+    for (std::size_t k = 0; k < q.size(); ++k) q[k] = truth.segments[k].q_world;
+    q_visible[f % q.size()] = 0;  // a moving dropout; markers gone in every other frame
+    q_visible[(f + 5) % q.size()] = 1;
+    std::fill(visible.begin(), visible.end(), f % 2);
+    const wire::SensorSamples samples{sensor_names, q, q_visible};
+    for (auto enc : {wire::PayloadEncoding::json, wire::PayloadEncoding::msgpack}) {
+      wire::encode_marker_frame(static_cast<std::uint64_t>(f), &t, names, measured, visible, "mm",
+                                enc, payload, nullptr, &samples);
+      const long before = g_allocations.load();
+      REQUIRE(decoder.decode(
+          {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, frame, error));
+      const TrackResult& r =
+          tracker.track(t, frame.p_world_m, frame.visible, frame.q_sensor, frame.sensor_visible);
+      encoder.encode({frame.frame, true, t, false, 0.0}, r, out);
+      if (f >= 2) allocations += g_allocations.load() - before;
+    }
+  }
+  CHECK(frame.sensor_visible[(39 + 5) % q.size()] == 1);
+  CHECK(allocations == 0);
+}

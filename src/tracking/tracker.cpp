@@ -1,5 +1,6 @@
 #include "tracker.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -38,7 +39,8 @@ bool finite(const Eigen::Vector3d& p) {
 
 Tracker::Tracker(TrackerSetup setup)
     : setup_(std::move(setup)),
-      solver_(setup_.model, solver_targets(setup_), setup_.solver),
+      sensors_(setup_.sensors, *setup_.model),
+      solver_(setup_.model, solver_targets(setup_), setup_.solver, sensors_.solver_targets()),
       rest_(Posture::rest(*setup_.model)),
       posture_(rest_),
       n_(static_cast<int>(setup_.markers.size())) {
@@ -61,6 +63,8 @@ Tracker::Tracker(TrackerSetup setup)
   result_.coordinates = coordinates_;
   result_.segment_q_world = segment_q_;
   result_.segment_origin_world_m = segment_origin_m_;
+  result_.sensor_occluded = sensors_.occluded();
+  result_.sensor_error_rad = sensors_.error_rad();
 }
 
 void Tracker::reset() {
@@ -71,7 +75,15 @@ void Tracker::reset() {
 
 const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                                   std::span<const std::uint8_t> visible) {
-  if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_) {
+  return track(time_s, measured_world_m, visible, {}, {});
+}
+
+const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                                  std::span<const std::uint8_t> visible,
+                                  std::span<const Eigen::Quaterniond> q_sensors_sensor,
+                                  std::span<const std::uint8_t> sensor_visible) {
+  if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_ ||
+      !sensors_.set_measured(q_sensors_sensor, sensor_visible)) {
     result_.solve = SolveResult{};
     result_.solve.status = SolveStatus::size_mismatch;
     return result_;
@@ -99,11 +111,23 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     }
   }
   if (!warm_) posture_ = rest_;  // same size: copies without allocating
+  const bool any_point = std::find(target_visible_.begin(), target_visible_.end(), 1) !=
+                         target_visible_.end();
+  const Eigen::Vector3d root_before_m = posture_.segments[0].base_world_m;
   const auto t0 = std::chrono::steady_clock::now();
-  result_.solve = solver_.solve(target_world_m_, target_visible_, posture_);
+  result_.solve = solver_.solve(target_world_m_, target_visible_, sensors_.q_world_segment(),
+                                sensors_.visible(), posture_);
   const auto t1 = std::chrono::steady_clock::now();
   result_.solve_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
   warm_ = warm_ || result_.solve.status != SolveStatus::no_targets;
+  // Rotations say nothing about where the body is: without a marker, the
+  // chain may have dragged the root while the segments turned. Moving the
+  // whole posture back changes no rotation and no joint connection.
+  result_.root_held = !any_point && result_.solve.status != SolveStatus::no_targets;
+  if (result_.root_held) {
+    const Eigen::Vector3d shift_m = root_before_m - posture_.segments[0].base_world_m;
+    for (SegmentPose& pose : posture_.segments) pose.base_world_m += shift_m;
+  }
 
   for (std::size_t j = 0; j < joints_m_.size(); ++j)
     joints_m_[j] = posture_.point_world_m(model(), model().joints[j].point);
@@ -122,6 +146,11 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   result_.residual_rms_m = count > 0 ? std::sqrt(sq_m2 / count) : 0.0;
   result_.residual_max_m = max_m;
   result_.worst_marker = worst;
+  sensors_.measure(posture_);
+  result_.sensor_occluded_count = sensors_.occluded_count();
+  result_.sensor_rms_rad = sensors_.rms_rad();
+  result_.sensor_max_rad = sensors_.max_rad();
+  result_.worst_sensor = sensors_.worst();
   coordinate_values(model(), posture_, coordinates_);
   for (std::size_t s = 0; s < segment_q_.size(); ++s) {
     const SegmentPose& pose = posture_.segments[s];

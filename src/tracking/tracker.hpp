@@ -16,6 +16,7 @@
 #include "solver/fabrik_solver.hpp"
 #include "solver/model.hpp"
 #include "solver/posture.hpp"
+#include "tracking/sensor_targets.hpp"
 
 namespace fabrik {
 
@@ -39,6 +40,7 @@ struct TrackerSetup {
   std::vector<MarkerTarget> markers;
   SolverOptions solver;
   OcclusionPolicy occlusion;
+  SensorSetup sensors;  // orientation sensors (sensor_targets.hpp); none by default
 };
 
 // The outcome of one frame. Spans stay valid until the next track() call.
@@ -61,6 +63,17 @@ struct TrackResult {
   // Per segment: its anatomical frame's world rotation, and its base (origin) in the world.
   std::span<const Eigen::Quaterniond> segment_q_world;
   std::span<const Eigen::Vector3d> segment_origin_world_m;
+  // Orientation sensors, per sensor of the setup: no usable measurement in this
+  // frame; and the angle between each measured sensor's desired segment
+  // rotation and the segment's tracked one (radians, NaN when occluded).
+  std::span<const std::uint8_t> sensor_occluded;
+  int sensor_occluded_count = 0;
+  std::span<const double> sensor_error_rad;
+  double sensor_rms_rad = 0.0, sensor_max_rad = 0.0;
+  int worst_sensor = -1;  // index into the setup's sensors, -1 if none measured
+  // No marker pulled in this frame (orientation sensors alone): the root's
+  // position is unknown, so it was held where the previous frame left it.
+  bool root_held = false;
 };
 
 class Tracker {
@@ -73,6 +86,7 @@ class Tracker {
   const TrackerSetup& setup() const { return setup_; }
   const Model& model() const { return *setup_.model; }
   int marker_count() const { return static_cast<int>(setup_.markers.size()); }
+  int sensor_count() const { return sensors_.size(); }
 
   // One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
   // occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
@@ -80,6 +94,16 @@ class Tracker {
   // SolveStatus::size_mismatch and leave the posture as it was.
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible);
+  // The same with orientation sensors: q_sensors_sensor[k] (sensor k's frame in
+  // the sensors' world, unit) and sensor_visible[k] belong to
+  // setup().sensors.sensors[k]; empty spans mean no sensor measured. With no
+  // marker measured or held, the root cannot be placed: it keeps its position
+  // from the previous frame (the rest position when cold) and the sensors turn
+  // the segments about it.
+  const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                           std::span<const std::uint8_t> visible,
+                           std::span<const Eigen::Quaterniond> q_sensors_sensor,
+                           std::span<const std::uint8_t> sensor_visible);
 
   // Forget the previous frame: the next one starts cold from the rest posture.
   void reset();
@@ -87,6 +111,7 @@ class Tracker {
 
  private:
   TrackerSetup setup_;
+  SensorTargets sensors_;  // before solver_: its targets are the solver's
   FabrikSolver solver_;
   Posture rest_;  // the cold start
   Posture posture_;

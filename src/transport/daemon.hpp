@@ -45,6 +45,8 @@ struct DaemonCounters {
   std::uint64_t internal_errors = 0;       // exceptions caught in the loop (frame, stats)
   std::uint64_t input_disconnects = 0;     // input peers gone (quit, or dropped by ZeroMQ)
   std::uint64_t accept_failures = 0;       // input connections ZeroMQ could not accept
+  std::uint64_t rejected_orientations = 0;  // sensor quaternions not usable (length, NaN, not unit)
+  std::uint64_t unknown_sensors = 0;        // orientation entries whose sensor is not in the config
 };
 
 // Signals to the loop, set from another thread or a signal handler (the
