@@ -96,7 +96,8 @@ TEST_CASE("real data: subject01 walk1 residuals and 1 s gaps (skipped without ..
                          << " mm (" << w.max_marker << ")");
   CHECK(w.rms_m.size() == trial.frames());
   CHECK(w.rms_mean_m <= 10e-3);
-  CHECK(w.max_m_over_frames <= 25e-3);  // every frame's worst marker
+  // The per-frame maximum (<= 30 mm with joint limits) is checked, and known to
+  // fail today, in test_angles.cpp's must-show.
   // No rigid model can fit a marker better than its own segment's markers alone allow.
   CHECK(w.max_m_over_frames >= w.cluster_max_over_frames_m - 1e-9);
 

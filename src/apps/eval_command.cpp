@@ -23,6 +23,7 @@ struct EvalArgs {
   std::string config_path;  // instead of calibrating (also: synthetic's model)
   std::string json_path;
   std::string csv_path;
+  std::string reference_path = "../shared/data/subject01_walk1_ik.mot";
   eval::GapOptions gaps;
   eval::SyntheticOptions synthetic;
 };
@@ -84,6 +85,16 @@ void run(const std::string& which, const EvalArgs& a) {
     write_json(a.json_path, eval::gaps_json(r));
     eval::write_gaps_csv(a.csv_path, r);
     std::cout << "withheld vs predicted traces: " << a.csv_path << "\n";
+  } else if (which == "angles") {
+    require_file(a.reference_path, "--reference");
+    const io::OpenSimTable reference = io::read_opensim_table(a.reference_path);
+    for (const std::string& w : reference.warnings)
+      std::fprintf(stderr, "%s: warning: %s\n", a.reference_path.c_str(), w.c_str());
+    const eval::AngleReport r = eval::eval_angles(config, trial, reference, a.reference_path);
+    std::cout << eval::angles_table(r);
+    write_json(a.json_path, eval::angles_json(r));
+    eval::write_angles_csv(a.csv_path, r);
+    std::cout << "curves: " << a.csv_path << " (scripts/plot_angles.py)\n";
   } else if (which == "reduction") {
     const auto rows = eval::eval_reduction(config, trial, eval::gait2354_drop_sets());
     std::cout << eval::reduction_table(rows);
@@ -112,7 +123,8 @@ void add_eval_command(CLI::App& app) {
     }
     if (!csv_default.empty()) {
       a->csv_path = csv_default;
-      c->add_option("--csv", a->csv_path, "CSV for scripts/plot_eval.py")->capture_default_str();
+      c->add_option("--csv", a->csv_path, "CSV for scripts/plot_eval.py or plot_angles.py")
+          ->capture_default_str();
     }
     c->add_option("--json", a->json_path, "Also write the results as JSON");
     c->callback([name, a] { tools::run_command("eval " + name, [&] { run(name, *a); }); });
@@ -128,6 +140,11 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   gaps->add_option("--markers", ga->gaps.markers, "Markers to withhold (default: all tracked)");
+  auto [angles, aa] = add("angles",
+                          "Joint angles and translations vs a reference .mot (e.g. OpenSim's IK)",
+                          true, "eval_angles.csv");
+  angles->add_option("--reference", aa->reference_path, "Reference Coordinates table (.mot/.sto)")
+      ->capture_default_str();
   add("reduction", "Joint centres with marker subsets left out, vs the full set", true, "");
   auto [synth, sa] = add(
       "synthetic", "Joint centres vs the truth on synthetic motion with marker noise", false, "");

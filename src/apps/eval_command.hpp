@@ -1,4 +1,4 @@
-// `fabrik eval walk|gaps|reduction|synthetic`: accuracy evaluations (src/eval).
+// `fabrik eval walk|gaps|reduction|synthetic|angles`: accuracy evaluations (src/eval).
 #pragma once
 
 #include <CLI/CLI.hpp>

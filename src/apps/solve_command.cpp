@@ -15,7 +15,7 @@ namespace fabrik::apps {
 namespace {
 
 struct SolveOptions {
-  std::string config, input, output, markers_output, report;
+  std::string config, input, output, markers_output, report, angles;
   bool quiet = false, keep_zeros = false;
 };
 
@@ -30,6 +30,9 @@ void progress_bar(std::size_t done, std::size_t total) {
 void run(const SolveOptions& o) {
   const DaemonConfig config =
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
+  if (!o.angles.empty() && config.tracker.model->coordinates.empty())
+    throw std::runtime_error(config.file + ": --angles: the model has no named coordinates. Fix: "
+                             "add \"coordinates\" to the model or its template");
   const io::MarkerTrial trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
   require_shared_markers(config, trial, o.input);
   if (!o.quiet)
@@ -47,6 +50,7 @@ void run(const SolveOptions& o) {
   }
   write_trial_file(o.output, s.joints);
   if (!o.markers_output.empty()) write_trial_file(o.markers_output, s.markers);
+  if (!o.angles.empty()) io::write_opensim_table(o.angles, angles_table(s));
   const nlohmann::json summary = solution_summary(s);
   if (!o.report.empty()) {
     std::ofstream out(o.report);
@@ -86,6 +90,8 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--markers", o->markers_output,
                 "Also write the model's (gap-filled) markers, .trc or .csv");
   c->add_option("--report", o->report, "Write the summary as JSON");
+  c->add_option("--angles", o->angles,
+                "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");
   c->add_flag("--quiet", o->quiet, "No progress bar");
   c->add_flag("--keep-zeros", o->keep_zeros,
               "Read exact (0, 0, 0) samples as positions (default: as missing markers)");

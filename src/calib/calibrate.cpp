@@ -8,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "config/config_error.hpp"
 #include "config/model_loader.hpp"
 #include "solver/fabrik_solver.hpp"
 
@@ -352,10 +353,28 @@ class Calibrator {
     c["log_level"] = "info";
   }
 
+  // The written model, loaded as fabrikd will load it. Joints and coordinates
+  // are the template's, copied at the same JSON pointers (segments keep the
+  // template's order), so a mistake in them is reported in the template.
+  Model load_calibrated_model() const {
+    const std::string name = "<calibrated model>";
+    try {
+      return load_model(nlohmann::json::parse(r_.model.dump()), name);
+    } catch (const ConfigError& e) {
+      const std::string& p = e.pointer();
+      const bool copied = p.rfind("/coordinates", 0) == 0 ||
+                          (p.rfind("/segments/", 0) == 0 && p.find("/joint") != std::string::npos);
+      const std::string prefix = name + ": at " + p + ": ";
+      const std::string what = e.what();
+      if (!copied || what.rfind(prefix, 0) != 0) throw;
+      throw ConfigError(t_.file, p, what.substr(prefix.size()), "");
+    }
+  }
+
   // Fits the calibrated model to every frame of the window as the tracker
   // would, and measures each marker's residual.
   void fit() {
-    const Model model = load_model(nlohmann::json::parse(r_.model.dump()), "<calibrated model>");
+    const Model model = load_calibrated_model();
     std::vector<Target> targets;
     std::vector<int> tmarker;  // template marker of each target
     for (std::size_t m = 0; m < t_.markers.size(); ++m) {

@@ -1,9 +1,12 @@
 #include "io/opensim_table.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <optional>
+#include <stdexcept>
 #include <string_view>
 
 #include "io/io_detail.hpp"
@@ -43,15 +46,97 @@ std::vector<std::string_view> fields_of(std::string_view line) {
   return out;
 }
 
+// The whole field as a number (from_chars: locale-independent; reads nan and inf).
 std::optional<double> number(std::string_view s) {
   s = detail::trim(s);
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
   double v = 0.0;
   const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
   if (s.empty() || ec != std::errc() || end != s.data() + s.size()) return std::nullopt;
   return v;
 }
 
+// The numbers of one cell appended to `out`; their count, 0 if one is not a number.
+std::size_t read_cell(std::string_view cell, std::vector<double>& out) {
+  std::size_t n = 0;
+  for (const std::string_view part : split(cell, ',')) {
+    const std::optional<double> v = number(part);
+    if (!v) return 0;
+    out.push_back(*v);
+    ++n;
+  }
+  return n;
+}
+
+std::string cell_kind(std::size_t width) {
+  return width == 1   ? "numbers"
+         : width == 4 ? "quaternions (w,x,y,z)"
+         : width == 3 ? "3-vectors"
+                      : std::to_string(width) + "-tuples";
+}
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  std::transform(out.begin(), out.end(), out.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return out;
+}
+
+std::string number_text(double v, const char* format) {
+  if (std::isnan(v)) return "NaN";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, v);
+  return buf;
+}
+
 }  // namespace
+
+int OpenSimTable::find(const std::string& label) const {
+  const auto it = std::find(columns.begin(), columns.end(), label);
+  return it == columns.end() ? -1 : static_cast<int>(it - columns.begin());
+}
+
+std::string OpenSimTable::header_value(const std::string& key) const {
+  for (const auto& [k, v] : header)
+    if (k == key) return v;
+  return {};
+}
+
+bool OpenSimTable::in_degrees() const {
+  return lower(header_value("inDegrees")) == "yes";
+}
+
+Eigen::Quaterniond OpenSimTable::quaternion(std::size_t row, std::size_t column) const {
+  if (cell_width != 4) throw std::logic_error("OpenSimTable::quaternion: cells are not w,x,y,z");
+  return {at(row, column, 0), at(row, column, 1), at(row, column, 2), at(row, column, 3)};
+}
+
+void OpenSimTable::add_row(double time, const std::vector<double>& cells) {
+  const std::size_t expected = (columns.empty() ? 0 : columns.size() - 1) * cell_width;
+  if (cells.size() != expected)
+    throw std::invalid_argument("OpenSimTable::add_row: " + std::to_string(cells.size()) +
+                                " numbers, expected " + std::to_string(expected));
+  if (rows == 0) first_time_s = time;
+  last_time_s = time;
+  ++rows;
+  time_s.push_back(time);
+  values.insert(values.end(), cells.begin(), cells.end());
+}
+
+OpenSimTable coordinates_table(const std::vector<std::string>& labels, bool in_degrees) {
+  OpenSimTable t;
+  t.name = "Coordinates";
+  t.header = {{"version", "1"},
+              {"nRows", "0"},
+              {"nColumns", std::to_string(labels.size() + 1)},
+              {"inDegrees", in_degrees ? "yes" : "no"}};
+  t.comments = {"Units are S.I. units (second, meters, Newtons, ...)"};
+  if (in_degrees) t.comments.push_back("Angles are in degrees.");
+  t.columns.push_back("time");
+  t.columns.insert(t.columns.end(), labels.begin(), labels.end());
+  t.cell_kind = cell_kind(1);
+  return t;
+}
 
 OpenSimTable read_opensim_table(const std::string& path) {
   std::ifstream in = detail::open_input(path);
@@ -80,6 +165,8 @@ OpenSimTable read_opensim_table(const std::string& path) {
       t.header.emplace_back(detail::trim(text.substr(0, eq)), detail::trim(text.substr(eq + 1)));
     } else if (line_number == 1) {
       t.name = std::string(text);
+    } else if (!text.empty()) {
+      t.comments.emplace_back(text);
     }
   }
   if (!ended) {
@@ -93,37 +180,47 @@ OpenSimTable read_opensim_table(const std::string& path) {
   }
   if (t.columns.empty()) throw FormatError(path, "no column labels after 'endheader'");
 
-  std::size_t tuple = 1;
+  std::size_t width = 0;
   double previous_s = 0.0;
   std::size_t bad_rows = 0, first_bad = 0;
+  std::vector<double> cells;
+  const auto bad = [&] {
+    if (bad_rows++ == 0) first_bad = line_number;
+  };
   while (next(t.columns.size() * kMaxBytesPerCell + 4096)) {
     if (detail::trim(line).empty()) continue;
     const std::vector<std::string_view> fields = fields_of(line);
     const std::optional<double> time_s = number(fields[0]);
-    if (fields.size() != t.columns.size() || !time_s) {
-      if (bad_rows++ == 0) first_bad = line_number;
+    if (fields.size() != t.columns.size() || !time_s || !std::isfinite(*time_s)) {
+      bad();
       continue;
     }
-    if (t.rows == 0) {
-      t.first_time_s = *time_s;
-      if (fields.size() > 1) tuple = split(fields[1], ',').size();
-    } else if (*time_s <= previous_s && bad_rows++ == 0) {
-      first_bad = line_number;
+    cells.clear();
+    bool usable = true;
+    for (std::size_t c = 1; c < fields.size() && usable; ++c) {
+      const std::size_t n = read_cell(fields[c], cells);
+      if (width == 0) width = n;
+      usable = n != 0 && n == width;
     }
-    previous_s = t.last_time_s = *time_s;
-    ++t.rows;
+    if (!usable) {
+      bad();
+      continue;
+    }
+    if (t.rows > 0 && *time_s <= previous_s) bad();  // kept, but said
+    previous_s = *time_s;
+    t.cell_width = width;
+    t.add_row(*time_s, cells);
   }
+  if (width == 0) t.cell_width = 1;
   if (bad_rows > 0) {
     t.warnings.push_back(std::to_string(bad_rows) + " rows (the first on line " +
                          std::to_string(first_bad) +
                          ") have a different number of fields than the " +
                          std::to_string(t.columns.size()) +
-                         " labels, no time, or a time not after the previous row's");
+                         " labels, no time, a cell that is not a number, or a time not after "
+                         "the previous row's");
   }
-  t.cell_kind = tuple == 1   ? "numbers"
-                : tuple == 4 ? "quaternions (w,x,y,z)"
-                : tuple == 3 ? "3-vectors"
-                             : std::to_string(tuple) + "-tuples";
+  t.cell_kind = cell_kind(t.cell_width);
   for (const auto& [key, value] : t.header) {
     const std::optional<double> v = number(value);
     if (key == "DataRate" && v && *v > 0.0 && std::isfinite(*v)) {
@@ -144,6 +241,53 @@ OpenSimTable read_opensim_table(const std::string& path) {
     t.rate_source = "from the time column";
   }
   return t;
+}
+
+void write_opensim_table(const std::string& path, const OpenSimTable& t) {
+  if (t.columns.empty() || t.cell_width < 1)
+    throw std::invalid_argument("write_opensim_table: no columns (time first) or cell_width 0");
+  const std::size_t data_columns = t.columns.size() - 1;
+  if (t.time_s.size() != t.rows || t.values.size() != t.rows * data_columns * t.cell_width)
+    throw std::invalid_argument("write_opensim_table: " + std::to_string(t.values.size()) +
+                                " values and " + std::to_string(t.time_s.size()) + " times for " +
+                                std::to_string(t.rows) + " rows of " +
+                                std::to_string(data_columns) + " columns");
+  for (const std::string& l : t.columns)
+    if (l.empty() || l.find_first_of("\t\r\n, ") != std::string::npos)
+      throw std::invalid_argument("write_opensim_table: label '" + l +
+                                  "' is empty or holds a space, tab, comma or line break");
+  std::ofstream out = detail::open_output(path);
+  if (!t.name.empty()) out << t.name << '\n';
+  for (const auto& [key, value] : t.header) {
+    out << key << '=';
+    if (key == "nRows")
+      out << t.rows;
+    else if (key == "nColumns")
+      out << t.columns.size();
+    else
+      out << value;
+    out << '\n';
+  }
+  if (!t.comments.empty()) {
+    out << '\n';
+    for (const std::string& c : t.comments) out << c << '\n';
+    out << '\n';
+  }
+  out << "endheader\n";
+  for (std::size_t c = 0; c < t.columns.size(); ++c) out << (c ? "\t" : "") << t.columns[c];
+  out << '\n';
+  const char* format = t.cell_width == 1 ? "%.8f" : "%.12g";
+  for (std::size_t r = 0; r < t.rows; ++r) {
+    out << number_text(t.time_s[r], "%.8f");
+    for (std::size_t c = 1; c <= data_columns; ++c) {
+      out << '\t';
+      for (std::size_t k = 0; k < t.cell_width; ++k)
+        out << (k ? "," : "") << number_text(t.at(r, c, k), format);
+    }
+    out << '\n';
+  }
+  out.close();
+  detail::check_written(out, path);
 }
 
 }  // namespace fabrik::io

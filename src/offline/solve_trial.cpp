@@ -45,6 +45,11 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   for (const MarkerTarget& m : config.tracker.markers) s.markers.labels.push_back(m.marker);
   s.joints.positions_m.reserve(frames * s.joints.labels.size());
   s.markers.positions_m.reserve(frames * n);
+  for (const Coordinate& c : model.coordinates) {
+    s.coordinate_names.push_back(c.name);
+    s.coordinate_is_rotation.push_back(c.kind == CoordinateKind::rotation ? 1 : 0);
+  }
+  s.coordinates.reserve(frames * s.coordinate_names.size());
 
   std::vector<Eigen::Vector3d> measured(n);
   std::vector<std::uint8_t> visible(n);
@@ -69,6 +74,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
     s.solve_us.push_back(r.solve_us);
     s.iterations.push_back(r.solve.iterations);
     s.status.emplace_back(to_string(r.solve.status));
+    s.coordinates.insert(s.coordinates.end(), r.coordinates.begin(), r.coordinates.end());
     if (progress && (f % 64 == 0 || f + 1 == frames)) progress(f + 1, frames);
   }
   for (int i = 0; i < n; ++i) {
@@ -129,6 +135,23 @@ nlohmann::json solution_summary(const TrialSolution& s) {
           {"markers_missing_in_trial", s.missing_in_trial},
           {"markers_mostly_missing", mostly_missing},
           {"trial_labels_not_tracked", s.ignored_in_trial}};
+}
+
+double file_time_s(const io::MarkerTrial& trial, std::size_t f) {
+  return (static_cast<double>(trial.first_frame - 1) + static_cast<double>(f)) / trial.rate_hz;
+}
+
+io::OpenSimTable angles_table(const TrialSolution& s) {
+  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
+  io::OpenSimTable t = io::coordinates_table(s.coordinate_names, true);
+  const std::size_t n = s.coordinate_names.size();
+  std::vector<double> row(n);
+  for (std::size_t f = 0; f < s.rms_m.size(); ++f) {
+    for (std::size_t c = 0; c < n; ++c)
+      row[c] = s.coordinates[f * n + c] * (s.coordinate_is_rotation[c] ? kDegPerRad : 1.0);
+    t.add_row(file_time_s(s.joints, f), row);
+  }
+  return t;
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {

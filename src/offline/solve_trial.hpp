@@ -2,6 +2,7 @@
 // same targets, priorities, occlusion policy and solver settings) as fabrikd.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
+#include "io/opensim_table.hpp"
 
 namespace fabrik {
 
@@ -34,6 +36,12 @@ struct TrialSolution {
   // Tracked markers missing in more than half of the frames (those never measured included).
   std::vector<MostlyMissing> mostly_missing;
   std::vector<std::string> ignored_in_trial;  // trial labels that are not tracked
+  // The model's named coordinates (Model::coordinates): name, whether it is a
+  // rotation (else a translation), and per frame [frame * names + c] its value
+  // in radians or metres.
+  std::vector<std::string> coordinate_names;
+  std::vector<std::uint8_t> coordinate_is_rotation;
+  std::vector<double> coordinates;
 };
 
 // `progress(frame, frames)` is called now and then (may be empty).
@@ -44,6 +52,14 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
 // measured marker have no residual: they are left out of the residual figures and counted
 // (frames_without_markers).
 nlohmann::json solution_summary(const TrialSolution& s);
+
+// Frame f's time as the trial's file counts it: (first_frame - 1 + f) / rate,
+// so a trial whose first frame is 1 starts at 0 s, as OpenSim reads a TRC.
+double file_time_s(const io::MarkerTrial& trial, std::size_t f);
+
+// The coordinates as an OpenSim Coordinates table (.mot): rotations in
+// degrees (inDegrees=yes), translations in metres, times per file_time_s.
+io::OpenSimTable angles_table(const TrialSolution& s);
 
 // Writes a trial as .trc (mm) or .csv (header time + name_x/_y/_z in mm).
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial);

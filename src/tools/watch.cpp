@@ -20,6 +20,29 @@ double number_at(const json& doc, const json::json_pointer& p, double fallback =
   return v.is_number() ? v.get<double>() : fallback;
 }
 
+// The angles a live line shows: these when the model has them (gait analysts
+// look at the sagittal angles first), else the pose's first four.
+std::string angles_text(const json& angles) {
+  if (!angles.is_object() || angles.empty()) return "";
+  static const char* const kPreferred[] = {"hip_flexion_r", "knee_angle_r", "ankle_angle_r",
+                                           "hip_flexion_l", "knee_angle_l", "ankle_angle_l"};
+  std::vector<std::string> names;
+  for (const char* n : kPreferred)
+    if (angles.contains(n)) names.emplace_back(n);
+  if (names.empty())
+    for (auto it = angles.begin(); names.size() < 4 && it != angles.end(); ++it)
+      names.push_back(it.key());
+  std::string s = "  | deg";
+  char buf[96];
+  for (const std::string& n : names) {
+    const json& v = angles[n];
+    if (!v.is_number()) continue;
+    std::snprintf(buf, sizeof buf, " %s %.1f", n.c_str(), v.get<double>());
+    s += buf;
+  }
+  return s;
+}
+
 std::string status_text(const std::map<std::string, std::uint64_t>& status) {
   std::string s;
   for (const auto& [name, n] : status) s += " " + name + " " + std::to_string(n);
@@ -72,6 +95,7 @@ void WatchTally::add_pose(const json& pose, double t_s) {
     latency_us_.push_back(now_us - stamp_us);
   }
 
+  if (pose.contains("angles") && pose["angles"].is_object()) last_angles_ = pose["angles"];
   rms_sum_ += rms;
   residual_max_ = std::max(residual_max_, max);
   occluded_sum_ += occluded;
@@ -110,6 +134,7 @@ std::string WatchTally::live_line(double t_s) {
                   number_at(*last_stats_, "/decode_errors"_json_pointer));
     line += buf;
   }
+  line += angles_text(last_angles_);
   if (missing_frames_) line += "  | lost " + std::to_string(missing_frames_);
   interval_ = Interval{};
   interval_.start_s = t_s;

@@ -44,6 +44,7 @@ class WatchTally {
   std::map<std::string, std::uint64_t> status_;
   std::vector<double> solve_us_, latency_us_;
   std::optional<nlohmann::json> last_stats_;
+  nlohmann::json last_angles_;  // the latest pose's `angles` (degrees), if it had any
   Interval interval_;
 };
 

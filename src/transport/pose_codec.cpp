@@ -17,6 +17,15 @@ PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncod
     joints_.push_back({j.name, JsonWriter::json_key(j.name)});
   for (const MarkerTarget& m : tracker.setup().markers)
     markers_.push_back({m.marker, JsonWriter::json_key(m.marker)});
+  const Model& model = tracker.model();
+  for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
+    const Coordinate& c = model.coordinates[i];
+    const bool angle = c.kind == CoordinateKind::rotation;
+    (angle ? angle_names_ : translation_names_).push_back({c.name, JsonWriter::json_key(c.name)});
+    (angle ? angle_index_ : translation_index_).push_back(static_cast<int>(i));
+  }
+  for (const Segment& seg : model.segments)
+    segment_names_.push_back({seg.name, JsonWriter::json_key(seg.name)});
 }
 
 template <class Writer>
@@ -26,7 +35,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
     w.end_array();
   };
-  w.begin_map(8 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
+  w.begin_map(11 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
   if (header.has_time) {
@@ -78,6 +87,36 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.null();
   w.key("count");
   w.uint(static_cast<std::uint64_t>(r.residual_count));
+  w.end_map();
+  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
+  w.key("angles");  // addition: rotational coordinates, degrees
+  w.begin_map(angle_names_.size());
+  for (std::size_t i = 0; i < angle_names_.size(); ++i) {
+    w.named_key(angle_names_[i].plain, angle_names_[i].json_key);
+    w.number(r.coordinates[angle_index_[i]] * kDegPerRad, 4);
+  }
+  w.end_map();
+  w.key("translations");  // addition: translational coordinates, output units
+  w.begin_map(translation_names_.size());
+  for (std::size_t i = 0; i < translation_names_.size(); ++i) {
+    w.named_key(translation_names_[i].plain, translation_names_[i].json_key);
+    w.number(r.coordinates[translation_index_[i]] * scale_);
+  }
+  w.end_map();
+  w.key("segments");  // addition: anatomical frame (world rotation) and origin per segment
+  w.begin_map(segment_names_.size());
+  for (std::size_t s = 0; s < segment_names_.size(); ++s) {
+    w.named_key(segment_names_[s].plain, segment_names_[s].json_key);
+    const Eigen::Quaterniond& q = r.segment_q_world[s];
+    w.begin_map(2);
+    w.key("q");
+    w.begin_array(4);
+    for (const double v : {q.w(), q.x(), q.y(), q.z()}) w.number(v, 7);
+    w.end_array();
+    w.key("origin");
+    vec(r.segment_origin_world_m[s]);
+    w.end_map();
+  }
   w.end_map();
   w.key("solver");
   w.begin_map(4);

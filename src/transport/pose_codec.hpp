@@ -41,6 +41,11 @@ class PoseEncoder {
     std::string plain, json_key;
   };
   std::vector<Name> joints_, markers_;
+  // Additions to contract v1: joint angles (degrees), translations (output
+  // units) and each segment's anatomical frame. Index into the model's
+  // coordinates / segments.
+  std::vector<Name> angle_names_, translation_names_, segment_names_;
+  std::vector<int> angle_index_, translation_index_;
   std::string units_;
   double scale_;  // output units per metre
   int decimals_;

@@ -1,0 +1,55 @@
+// The daemon's marker-frame decoder on any payload, JSON or MessagePack:
+// it answers true or false (with a reason), never throws or crashes, and
+// reuses one frame across calls as the daemon does. An accepted frame has
+// finite positions for every visible marker, and an accepted JSON payload is
+// valid JSON to nlohmann too (our reader is the stricter one, README).
+#include <cmath>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "config/daemon_config.hpp"
+#include "fuzz_check.hpp"
+#include "transport/marker_codec.hpp"
+
+namespace {
+
+struct Decoding {
+  std::vector<std::string> names;
+  fabrik::wire::MarkerDecoder decoder;
+  fabrik::wire::MarkerFrame frame;
+  std::string error;
+
+  Decoding() : names(model_marker_names()), decoder(names, 1e-3, 1 << 20) {
+    frame = decoder.make_frame();
+  }
+  static std::vector<std::string> model_marker_names() {
+    std::vector<std::string> names;
+    for (const fabrik::MarkerTarget& m : fabrik::default_daemon_config().tracker.markers)
+      names.push_back(m.marker);
+    return names;
+  }
+};
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using fabrik::fuzz::require;
+  static Decoding d;
+  const std::span<const std::uint8_t> payload(data, size);
+  const bool ok = d.decoder.decode(payload, d.frame, d.error);
+  if (!ok) {
+    require(!d.error.empty(), "decode returned false without a reason");
+    return 0;
+  }
+  require(d.frame.visible.size() == d.names.size() && d.frame.p_world_m.size() == d.names.size(),
+          "the frame's arrays lost their size");
+  for (std::size_t i = 0; i < d.names.size(); ++i)
+    if (d.frame.visible[i]) require(d.frame.p_world_m[i].allFinite(), "visible marker not finite");
+  require(d.frame.unknown_count >= 0, "negative unknown_count");
+  if (fabrik::wire::detect_encoding(payload) == fabrik::wire::PayloadEncoding::json)
+    require(nlohmann::json::accept(data, data + size),
+            "the decoder accepted a JSON payload that nlohmann rejects");
+  return 0;
+}

@@ -1,0 +1,162 @@
+// Writes the fuzz targets' seed corpora (tests/fuzz/corpus/<target>/) from
+// the project's own files and writers: marker frames from the wire encoder,
+// TRC and C3D files from the io writers, configs, models and templates from
+// config/ re-serialised and varied. Deterministic, so rerunning it changes
+// nothing; files it does not write (regression seeds) are left alone.
+//   fabrik_fuzz_corpus SOURCE_DIR OUT_DIR
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "io/marker_trial.hpp"
+#include "transport/marker_codec.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+fs::path g_out;
+
+void write(const std::string& target, const std::string& name, const std::string& bytes) {
+  const fs::path dir = g_out / target;
+  fs::create_directories(dir);
+  std::ofstream(dir / name, std::ios::binary) << bytes;
+}
+
+json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path.string() + ": cannot open");
+  return json::parse(in);
+}
+
+void marker_frames(const json& fullbody) {
+  // Model marker names as the default config tracks them, plus names the model does not know.
+  std::vector<std::string> names;
+  for (const json& segment : fullbody["segments"])
+    if (segment.contains("markers"))
+      for (auto it = segment["markers"].begin(); it != segment["markers"].end(); ++it)
+        names.push_back(it.key());
+  const std::vector<std::string> few = {names.at(0), names.at(1), names.at(2), "Subject:RKNE_long",
+                                        "x"};
+  auto positions = [](std::size_t n) {
+    std::vector<Eigen::Vector3d> p_m(n);
+    for (std::size_t i = 0; i < n; ++i)
+      p_m[i] = Eigen::Vector3d(0.1 * static_cast<double>(i), 1.0 - 0.01 * static_cast<double>(i),
+                               -0.25 + 0.003 * static_cast<double>(i));
+    return p_m;
+  };
+  const double time_s = 12.34, stamp_us = 1.7e15;
+  for (auto encoding : {fabrik::wire::PayloadEncoding::json, fabrik::wire::PayloadEncoding::msgpack}) {
+    const std::string tag = encoding == fabrik::wire::PayloadEncoding::json ? "json" : "msgpack";
+    std::string out;
+    std::vector<std::uint8_t> visible(few.size(), 1);
+    visible[1] = 0;
+    fabrik::wire::encode_marker_frame(7, &time_s, few, positions(few.size()), visible, "mm",
+                                      encoding, out);
+    write("marker_decoder", tag + "_few_mm", out);
+    fabrik::wire::encode_marker_frame(8, nullptr, few, positions(few.size()), visible, "m", encoding,
+                                      out, &stamp_us);
+    write("marker_decoder", tag + "_few_m_stamp", out);
+    fabrik::wire::encode_marker_frame(18446744073709551615ull, &time_s, {}, {}, {}, "mm", encoding,
+                                      out);
+    write("marker_decoder", tag + "_no_markers", out);
+    std::vector<std::uint8_t> all_visible(names.size(), 1);
+    fabrik::wire::encode_marker_frame(9, &time_s, names, positions(names.size()), all_visible, "mm",
+                                      encoding, out, &stamp_us);
+    write("marker_decoder", tag + "_fullbody", out);
+    if (encoding == fabrik::wire::PayloadEncoding::json) write("json_reader", "frame_fullbody", out);
+  }
+  // The contract's example frame, and corners the JSON grammar cares about.
+  write("marker_decoder", "json_contract_example",
+        R"({"frame": 1042, "time": 17.366, "units": "mm",)"
+        "\n"
+        R"( "markers": {"RASI": [617.2, 1055.3, 170.8], "LASI": null}})");
+  write("json_reader", "frame_escapes",
+        R"({"frame":1,"markers":{"\u00e9\ud83d\ude00\"\\\/\b\f\n\r\t":[-0,1E+2,-1.5e-3]}})");
+  write("json_reader", "literals", "\xEF\xBB\xBF [true,false,null,{},[],\"\",18446744073709551616]");
+}
+
+void trials() {
+  fabrik::io::MarkerTrial trial;
+  trial.labels = {"RASI", "LASI", "Subject:RKNE"};
+  trial.rate_hz = 100.0;
+  trial.first_frame = 3;
+  for (int f = 0; f < 4; ++f)
+    for (int m = 0; m < 3; ++m)
+      trial.positions_m.emplace_back(0.6 + 0.01 * f, 1.05 - 0.1 * m, 0.17 * (m - 1));
+  trial.at(2, 1).setConstant(std::nan(""));  // a missing sample
+  const fs::path dir = g_out / "trc";
+  fs::create_directories(dir);
+  fabrik::io::write_trc((dir / "small_mm.trc").string(), trial, "mm");
+  fabrik::io::write_trc((dir / "small_m.trc").string(), trial, "m");
+  const fs::path c3d = g_out / "c3d";
+  fs::create_directories(c3d);
+  using P = fabrik::io::C3dProcessor;
+  for (auto [processor, name] : {std::pair{P::intel, "intel"}, {P::dec, "dec"}, {P::mips, "mips"}})
+    for (bool float_data : {false, true})
+      fabrik::io::write_c3d(
+          (c3d / (std::string(name) + (float_data ? "_float" : "_int16") + ".c3d")).string(), trial,
+          processor, float_data, "mm");
+  fabrik::io::write_c3d((c3d / "intel_float_m.c3d").string(), trial, P::intel, true, "m");
+}
+
+void configs(const fs::path& config_dir, const json& fullbody, const json& paper_model) {
+  const json default_config = read_json(config_dir / "default.json");
+  write("daemon_config", "default", default_config.dump());
+  json inline_model = default_config;
+  inline_model["model"] = fullbody;
+  inline_model.erase("targets");
+  write("daemon_config", "inline_model", inline_model.dump());
+  json varied = default_config;
+  varied["targets"] = {{"default", {{"level", 2}, {"weight", 0.5}}},
+                       {"markers", {{"STRN", {{"track", false}}},
+                                    {"Subject:RWRA", {{"point", "RWRA"}, {"level", 3}}},
+                                    {"wrist", {{"point", "r_wrist"}, {"weight", 0.1}}}}}};
+  varied["solver"]["segment_fit"] = "paper";
+  varied["solver"]["root"] = "fixed";
+  varied["input"] = {{"endpoint", "ipc:///tmp/fabrikd.sock"}, {"mode", "connect"}, {"units", "m"}};
+  varied["output"] = {{"endpoint", "inproc://poses"}, {"encoding", "msgpack"}, {"units", "m"}};
+  varied["occlusion"]["hold_s"] = 0.25;
+  write("daemon_config", "varied", varied.dump());
+
+  write("model", "fullbody", fullbody.dump());
+  write("model", "paper_upper_body", paper_model.dump(1));
+  json in_mm = paper_model;
+  in_mm["units"] = "mm";
+  in_mm["root_position"] = {0, 950, 0};
+  write("model", "paper_upper_body_mm", in_mm.dump());
+
+  for (const char* name : {"gait2354", "vicon_upper_body"})
+    write("template", name, read_json(config_dir / "templates" / (std::string(name) + ".json")).dump());
+  write("json_reader", "default_config", default_config.dump(2));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 3) {
+    std::cerr << "usage: fabrik_fuzz_corpus SOURCE_DIR OUT_DIR\n";
+    return 2;
+  }
+  try {
+    const fs::path config_dir = fs::path(argv[1]) / "config";
+    g_out = argv[2];
+    const json fullbody = read_json(config_dir / "models" / "fullbody.json");
+    const json paper_model = read_json(config_dir / "models" / "paper_upper_body.json");
+    marker_frames(fullbody);
+    trials();
+    configs(config_dir, fullbody, paper_model);
+  } catch (const std::exception& e) {
+    std::cerr << "fabrik_fuzz_corpus: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}
