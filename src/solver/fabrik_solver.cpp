@@ -523,10 +523,10 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
       // Nothing below pulls on this segment: it rides rigidly on its parent.
       const SegmentPose& parent_now = posture.segments[seg.parent];
       const SegmentPose& parent_then = start_[seg.parent];
-      const Eigen::Quaterniond previous = pose.q_world;
       pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
       pose.base_world_m = base_m;
-      if (limited_[s]) enforce_joint_limits(model_, s, previous, posture);
+      // Its rotation relative to the parent is the one it had when the pass
+      // began, which solve() brought within range: no limit to enforce.
       continue;
     }
     const int n = gather(pass, s, target_world_m, visible, posture);
@@ -669,6 +669,10 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
   mark_active(visible);
   for (int s = 1; s < n_seg_; ++s) {
     if (!limited_[s]) continue;
+    // Every fit keeps a joint within range and a segment that rides on its
+    // parent keeps its relative rotation, so one check here keeps every
+    // joint of the solve within range, even from a start that was not.
+    enforce_joint_limits(model_, s, posture.segments[s].q_world, posture);
     const Eigen::Quaterniond& q_parent = posture.segments[model_.segments[s].parent].q_world;
     rel_q_[s] = q_parent.conjugate() * posture.segments[s].q_world;
     if (hinge_[s])  // the turn about the axis: the twist of the relative rotation
