@@ -44,6 +44,12 @@ double joint_distance_m(const TrialSolution& a, const TrialSolution& b, std::siz
   return (a.joints.positions_m[f * n + j] - b.joints.positions_m[f * n + j]).norm();
 }
 
+std::vector<int> marker_points(const DaemonConfig& config) {
+  std::vector<int> points;
+  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  return points;
+}
+
 double outlier_percent(const TrialSolution& s) {
   std::size_t flagged = 0, measured = 0;
   for (std::uint8_t o : s.outlier) flagged += o;
@@ -131,8 +137,7 @@ TEST_CASE("fast synthetic motion (running pace): outliers in under 0.5 % of mark
                                  .max_swing_rad = 1.2,
                                  .root_travel_m = 3.0,
                                  .root_turn_rad = 0.5});
-  std::vector<int> points;
-  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  const std::vector<int> points = marker_points(config);
   Tracker tracker(config.tracker);
   Posture truth = Posture::rest(model);
   std::vector<Eigen::Vector3d> measured(points.size());
@@ -159,8 +164,7 @@ TEST_CASE("A ghost (a marker 30 cm off) and a stray zero are left out, live as o
   const DaemonConfig config = default_daemon_config();
   const Model& model = *config.tracker.model;
   SyntheticMotion motion(model, {});
-  std::vector<int> points;
-  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  const std::vector<int> points = marker_points(config);
   Tracker tracker(config.tracker), clean(config.tracker);
   Posture truth = Posture::rest(model);
   std::vector<Eigen::Vector3d> measured(points.size()), bad(points.size());
@@ -225,8 +229,7 @@ TEST_CASE("A cold first frame of a bent posture, turned and far away, converges"
           "[cold_start]") {
   const DaemonConfig config = default_daemon_config();
   const Model& model = *config.tracker.model;
-  std::vector<int> points;
-  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  const std::vector<int> points = marker_points(config);
   std::vector<Eigen::Vector3d> measured(points.size());
   std::vector<std::uint8_t> visible(points.size(), 1);
   DaemonConfig warm_only = config;  // the warm frame's budget, from the rest posture as it is
@@ -256,8 +259,7 @@ TEST_CASE("A reset and a long gap start cold; a short gap does not", "[cold_star
   const DaemonConfig config = default_daemon_config();
   const Model& model = *config.tracker.model;
   SyntheticMotion motion(model, {});
-  std::vector<int> points;
-  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  const std::vector<int> points = marker_points(config);
   Tracker tracker(config.tracker);
   Posture truth = Posture::rest(model);
   std::vector<Eigen::Vector3d> measured(points.size());
@@ -285,8 +287,7 @@ TEST_CASE("residual.quality: good within the config's thresholds, poor beyond, n
   DaemonConfig config = default_daemon_config();
   const Model& model = *config.tracker.model;
   SyntheticMotion motion(model, {});
-  std::vector<int> points;
-  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  const std::vector<int> points = marker_points(config);
   Posture truth = Posture::rest(model);
   motion.posture_at(0.3, truth);
   std::vector<Eigen::Vector3d> measured(points.size());
