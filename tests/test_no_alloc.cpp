@@ -238,12 +238,16 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   out.reserve(1 << 16);
   long track_allocations = 0, encode_allocations = 0, json_decode_allocations = 0,
        msgpack_decode_allocations = 0;
+  int outlier_frames = 0, cold_frames = 0;
   for (int f = 0; f < 60; ++f) {
     motion.posture_at(f / 100.0, truth);
     motion.sample(truth, points, 0.001, measured);
     visible[f % names.size()] = 0;  // a moving occlusion
     visible[(f + 7) % names.size()] = 1;
-    const double t = f / 100.0;
+    // Outliers (a label swap, then a ghost) and a cold start after a gap cost no allocation.
+    if (f >= 20 && f < 30) std::swap(measured[10], measured[30]);
+    if (f >= 40 && f < 45) measured[22] += Eigen::Vector3d(0.4, 0.0, 0.0);
+    const double t = f / 100.0 + (f >= 50 ? 5.0 : 0.0);
     std::copy(measured.begin(), measured.end(), sent_m.begin());
     std::copy(visible.begin(), visible.end(), sent_visible.begin());
     bool ok = true;
@@ -262,6 +266,8 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
     long before = g_allocations.load();
     const TrackResult& r = tracker.track(t, frame.p_world_m, frame.visible);
     track_allocations += g_allocations.load() - before;
+    outlier_frames += r.outlier_count > 0;
+    cold_frames += r.cold_start;
     before = g_allocations.load();
     encoder.encode({frame.frame, true, t, false, 0.0}, r, out);
     msgpack.encode({frame.frame, true, t, false, 0.0}, r, out);
@@ -270,6 +276,8 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   }
   CHECK(track_allocations == 0);
   CHECK(encode_allocations == 0);
+  CHECK(outlier_frames >= 5);  // the filter's extra solves ran (the ghost at least)
+  CHECK(cold_frames == 2);      // the first frame and the one after the gap
   // The JSON reader's and the frame's buffers are reused from frame to frame.
   CHECK(frame.unknown_count == 1);
   CHECK(json_decode_allocations == 0);

@@ -117,6 +117,10 @@ void add_calibrate_command(CLI::App& app) {
   cmd->add_option("--frames", args->options.frames,
                   "Frames to average (default: to the end of the trial)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--auto-window", args->options.auto_window,
+                  "Average the stillest window of N frames (fewest missing samples, then least "
+                  "marker motion) instead of --first-frame/--frames")
+      ->check(CLI::PositiveNumber);
   cmd->add_flag("--keep-zeros", args->keep_zeros,
                 "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
   cmd->callback([args] { tools::run_command("calibrate", [&] { run_calibrate(*args); }); });

@@ -86,6 +86,13 @@ void run(const SolveOptions& o) {
       r["max_frame"].get<std::size_t>(), summary["solve_us"]["p50"].get<double>(),
       summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
       o.output.c_str());
+  const auto& out = summary["outliers"];
+  const auto& q = summary["quality"];
+  std::printf("fit quality       good %d, poor %d frames (quality thresholds of the config)\n"
+              "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
+              "out of their solve\n",
+              q.value("good", 0), q.value("poor", 0), out["samples"].get<std::size_t>(),
+              out["percent_of_measured"].get<double>(), out["frames"].get<std::size_t>());
   if (!s.missing_in_trial.empty())
     std::printf("not in the trial   %zu tracked markers (%s...)\n", s.missing_in_trial.size(),
                 s.missing_in_trial.front().c_str());

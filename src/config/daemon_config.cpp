@@ -9,6 +9,7 @@
 #include "resources.hpp"
 #include "sensors_json.hpp"
 #include "solver_options_json.hpp"
+#include "tracking_options_json.hpp"
 
 namespace fabrik {
 
@@ -124,7 +125,8 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   const JsonReader root(doc, file);
   root.expect_object();
   root.only_keys({"format", "description", "model", "targets", "sensors", "solver", "input",
-                  "output", "occlusion", "stats_interval_s", "log_level"});
+                  "output", "occlusion", "outliers", "quality", "cold_start", "stats_interval_s",
+                  "log_level"});
   if (root.at("format").as_string() != kFormat)
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
                            std::string("use \"") + kFormat + "\"");
@@ -196,6 +198,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     c.tracker.occlusion.hold_level = static_cast<int>(o.get(
         "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
   }
+  read_tracking_options(root, c.tracker);
   c.stats_interval_s = root.get("stats_interval_s", 1.0, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();

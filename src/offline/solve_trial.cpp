@@ -108,6 +108,9 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
                                 r.joints_world_m.end());
     s.markers.positions_m.insert(s.markers.positions_m.end(), r.markers_world_m.begin(),
                                  r.markers_world_m.end());
+    s.outlier.insert(s.outlier.end(), r.outliers.begin(), r.outliers.end());
+    s.outlier_count.push_back(r.outlier_count);
+    s.quality.push_back(r.quality);
     s.rms_m.push_back(r.residual_rms_m);
     s.max_m.push_back(r.residual_max_m);
     s.worst.push_back(r.worst_marker);
@@ -131,10 +134,20 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
 nlohmann::json solution_summary(const TrialSolution& s) {
   const std::size_t frames = s.rms_m.size();
   double rms_sum = 0.0, rms_max = 0.0, max_m = 0.0;
-  std::size_t max_frame = 0, with_markers = 0;
-  std::map<std::string, int> worst_count, status_count;
+  std::size_t max_frame = 0, with_markers = 0, outlier_samples = 0, outlier_frames = 0;
+  std::size_t measured_samples = 0;
+  std::map<std::string, int> worst_count, status_count, quality_count, outlier_markers;
   for (std::size_t f = 0; f < frames; ++f) {
     ++status_count[s.status[f]];
+    if (f < s.quality.size()) ++quality_count[std::string(to_string(s.quality[f]))];
+    if (f < s.outlier_count.size()) {
+      outlier_samples += static_cast<std::size_t>(s.outlier_count[f]);
+      outlier_frames += s.outlier_count[f] > 0 ? 1 : 0;
+      const std::size_t n = s.markers.labels.size();
+      for (std::size_t i = 0; i < n; ++i)
+        if (s.outlier[f * n + i]) ++outlier_markers[s.markers.labels[i]];
+    }
+    if (f < s.measured.size()) measured_samples += static_cast<std::size_t>(s.measured[f]);
     if (f < s.measured.size() && s.measured[f] == 0) continue;  // no residual to speak of
     ++with_markers;
     rms_sum += s.rms_m[f];
@@ -177,6 +190,15 @@ nlohmann::json solution_summary(const TrialSolution& s) {
             {"max", quantile(s.solve_us, 1.0)}}},
           {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
           {"status", status_count},
+          {"quality", quality_count},
+          {"outliers",
+           {{"samples", outlier_samples},
+            {"frames", outlier_frames},
+            {"percent_of_measured",
+             measured_samples ? 100.0 * static_cast<double>(outlier_samples) /
+                                    static_cast<double>(measured_samples)
+                              : 0.0},
+            {"markers", outlier_markers}}},
           {"markers_missing_in_trial", s.missing_in_trial},
           {"markers_mostly_missing", mostly_missing},
           {"trial_labels_not_tracked", s.ignored_in_trial}};

@@ -32,6 +32,11 @@ struct TrialSolution {
   std::vector<int> iterations;                // per frame
   std::vector<std::string> status;            // per frame, the solver's stop reason
   std::vector<int> measured;                  // per frame: tracked markers with a measurement
+  // Per frame and marker [frame * markers + i]: left out of the solve as an outlier (or
+  // relabelled as a swap: outlier_filter.hpp).
+  std::vector<std::uint8_t> outlier;
+  std::vector<int> outlier_count;  // per frame
+  std::vector<FitQuality> quality;  // per frame: residual.quality against config.quality
   // Tracked markers the trial lacks entirely: not among its labels, or never measured.
   std::vector<std::string> missing_in_trial;
   // Tracked markers missing in more than half of the frames (those never measured included).

@@ -31,6 +31,12 @@ std::vector<Target> solver_targets(const TrackerSetup& s) {
   return targets;
 }
 
+std::vector<int> marker_points(const TrackerSetup& s) {
+  std::vector<int> points;
+  for (const MarkerTarget& m : s.markers) points.push_back(m.point);
+  return points;
+}
+
 bool finite(const Eigen::Vector3d& p) {
   return p.allFinite();
 }
@@ -43,6 +49,9 @@ Tracker::Tracker(TrackerSetup setup)
       solver_(setup_.model, solver_targets(setup_), setup_.solver, sensors_.solver_targets()),
       rest_(Posture::rest(*setup_.model)),
       posture_(rest_),
+      cold_options_(cold_solver_options(setup_.solver, setup_.cold_start)),
+      outliers_(setup_.outliers, marker_points(setup_)),
+      start_(rest_),
       n_(static_cast<int>(setup_.markers.size())) {
   const int n_targets = static_cast<int>(solver_.targets().size());
   target_world_m_.assign(n_targets, Eigen::Vector3d::Zero());
@@ -65,6 +74,15 @@ Tracker::Tracker(TrackerSetup setup)
   result_.segment_origin_world_m = segment_origin_m_;
   result_.sensor_occluded = sensors_.occluded();
   result_.sensor_error_rad = sensors_.error_rad();
+  marker_points_ = marker_points(setup_);
+  outlier_.assign(n_, 0);
+  relabelled_from_.assign(n_, -1);
+  result_.relabelled_from = relabelled_from_;
+  beyond_.assign(n_, 0);
+  marker_residual_m_.assign(n_, NAN);
+  result_.outliers = outlier_;
+  result_.beyond = beyond_;
+  result_.marker_residual_m = marker_residual_m_;
 }
 
 void Tracker::reset() {
@@ -94,10 +112,10 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     const bool seen = visible[i] != 0 && finite(measured_world_m[i]);
     occluded_[i] = seen ? 0 : 1;
     target_visible_[i] = seen ? 1 : 0;
+    outlier_[i] = 0;
+    relabelled_from_[i] = -1;
     if (seen) {
       target_world_m_[i] = measured_world_m[i];
-      last_seen_m_[i] = measured_world_m[i];
-      last_seen_s_[i] = time_s;
     } else {
       ++occluded_count;
     }
@@ -110,16 +128,33 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
       target_world_m_[n_ + i] = last_seen_m_[i];
     }
   }
-  if (!warm_) posture_ = rest_;  // same size: copies without allocating
   const bool any_point = std::find(target_visible_.begin(), target_visible_.end(), 1) !=
                          target_visible_.end();
-  const Eigen::Vector3d root_before_m = posture_.segments[0].base_world_m;
+  // A long gap (either way: a source may restart its clock) makes the last pose stale.
+  const double gap_s = time_s - last_solved_s_;
+  const bool cold = !warm_ || !(std::abs(gap_s) <= setup_.cold_start.after_gap_s);
   const auto t0 = std::chrono::steady_clock::now();
-  result_.solve = solver_.solve(target_world_m_, target_visible_, sensors_.q_world_segment(),
-                                sensors_.visible(), posture_);
+  if (cold) {
+    start_ = rest_;  // same size: copies without allocating
+    if (setup_.cold_start.align)
+      align_rigidly(model(), marker_points_, target_world_m_,
+                    std::span<const std::uint8_t>(target_visible_).first(n_), start_);
+    solver_.set_options(cold_options_);
+  } else {
+    start_ = posture_;
+  }
+  const Eigen::Vector3d root_before_m = start_.segments[0].base_world_m;
+  result_.solve = outliers_.solve(solver_, model(), target_world_m_, target_visible_,
+                                  sensors_.q_world_segment(), sensors_.visible(), start_, posture_,
+                                  outlier_, relabelled_from_);
+  if (cold) solver_.set_options(setup_.solver);
   const auto t1 = std::chrono::steady_clock::now();
   result_.solve_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
-  warm_ = warm_ || result_.solve.status != SolveStatus::no_targets;
+  result_.cold_start = cold;
+  if (result_.solve.status != SolveStatus::no_targets) {
+    warm_ = true;
+    last_solved_s_ = time_s;
+  }
   // Rotations say nothing about where the body is: without a marker, the
   // chain may have dragged the root while the segments turned. Moving the
   // whole posture back changes no rotation and no joint connection.
@@ -128,20 +163,30 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     const Eigen::Vector3d shift_m = root_before_m - posture_.segments[0].base_world_m;
     for (SegmentPose& pose : posture_.segments) pose.base_world_m += shift_m;
   }
+  for (int i = 0; i < n_; ++i) {
+    if (occluded_[i] || !target_visible_[i]) continue;  // outliers left out are not held
+    last_seen_m_[i] = target_world_m_[i];
+    last_seen_s_[i] = time_s;
+  }
 
   for (std::size_t j = 0; j < joints_m_.size(); ++j)
     joints_m_[j] = posture_.point_world_m(model(), model().joints[j].point);
   double sq_m2 = 0.0, max_m = 0.0;
-  int count = 0, worst = -1;
+  int count = 0, worst = -1, outlier_count = 0;
   for (int i = 0; i < n_; ++i) {
     markers_m_[i] = posture_.point_world_m(model(), setup_.markers[i].point);
+    marker_residual_m_[i] = NAN;
     if (occluded_[i]) continue;
-    const double d_m = (markers_m_[i] - measured_world_m[i]).norm();
+    const double d_m = (markers_m_[i] - target_world_m_[i]).norm();
+    marker_residual_m_[i] = d_m;
+    outlier_count += outlier_[i];
+    if (!target_visible_[i]) continue;  // an outlier left out
     sq_m2 += d_m * d_m;
     ++count;
     if (worst < 0 || d_m > max_m) max_m = d_m, worst = i;
   }
   result_.occluded_count = occluded_count;
+  result_.outlier_count = outlier_count;
   result_.residual_count = count;
   result_.residual_rms_m = count > 0 ? std::sqrt(sq_m2 / count) : 0.0;
   result_.residual_max_m = max_m;
@@ -151,6 +196,13 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   result_.sensor_rms_rad = sensors_.rms_rad();
   result_.sensor_max_rad = sensors_.max_rad();
   result_.worst_sensor = sensors_.worst();
+  result_.quality = judge_fit(setup_.quality, count, result_.residual_rms_m, max_m);
+  int beyond_count = 0;
+  for (int i = 0; i < n_; ++i) {
+    beyond_[i] = !occluded_[i] && target_visible_[i] && marker_residual_m_[i] > setup_.quality.max_m;
+    beyond_count += beyond_[i];
+  }
+  result_.beyond_count = beyond_count;
   coordinate_values(model(), posture_, coordinates_);
   for (std::size_t s = 0; s < segment_q_.size(); ++s) {
     const SegmentPose& pose = posture_.segments[s];

@@ -17,6 +17,9 @@
 #include "solver/model.hpp"
 #include "solver/posture.hpp"
 #include "tracking/sensor_targets.hpp"
+#include "tracking/cold_start.hpp"
+#include "tracking/fit_quality.hpp"
+#include "tracking/outlier_filter.hpp"
 
 namespace fabrik {
 
@@ -41,6 +44,9 @@ struct TrackerSetup {
   SolverOptions solver;
   OcclusionPolicy occlusion;
   SensorSetup sensors;  // orientation sensors (sensor_targets.hpp); none by default
+  OutlierSettings outliers;
+  QualitySettings quality;
+  ColdStartSettings cold_start;
 };
 
 // The outcome of one frame. Spans stay valid until the next track() call.
@@ -53,7 +59,7 @@ struct TrackResult {
   std::span<const std::uint8_t> held;                // per marker: occluded but held
   int occluded_count = 0;
   // Residual between measured and model positions over the markers measured
-  // in this frame (held ones excluded), metres.
+  // in this frame and solved with (held ones and outliers left out excluded), metres.
   double residual_rms_m = 0.0;
   double residual_max_m = 0.0;
   int residual_count = 0;
@@ -74,6 +80,21 @@ struct TrackResult {
   // No marker pulled in this frame (orientation sensors alone): the root's
   // position is unknown, so it was held where the previous frame left it.
   bool root_held = false;
+  // Per marker: measured, but the measurement under its label disagreed with the model far
+  // beyond the others (outlier_filter.hpp): left out of the solve, unless relabelled_from
+  // names the marker whose measurement it was solved with instead (a label swap), else -1.
+  std::span<const std::uint8_t> outliers;
+  int outlier_count = 0;
+  std::span<const int> relabelled_from;
+  // Per marker: distance between the measurement it was solved with (its own, or for an
+  // outlier left out its own) and its model position (metres); NaN when not measured.
+  std::span<const double> marker_residual_m;
+  // The verdict against setup().quality, and per marker whether it was solved with and ended
+  // beyond quality.max_m.
+  FitQuality quality = FitQuality::none;
+  std::span<const std::uint8_t> beyond;
+  int beyond_count = 0;
+  bool cold_start = false;  // this frame started cold (cold_start.hpp)
 };
 
 class Tracker {
@@ -105,7 +126,7 @@ class Tracker {
                            std::span<const Eigen::Quaterniond> q_sensors_sensor,
                            std::span<const std::uint8_t> sensor_visible);
 
-  // Forget the previous frame: the next one starts cold from the rest posture.
+  // Forget the previous frame: the next one starts cold (cold_start.hpp).
   void reset();
   const Posture& posture() const { return posture_; }
 
@@ -116,6 +137,11 @@ class Tracker {
   Posture rest_;  // the cold start
   Posture posture_;
   bool warm_ = false;
+  double last_solved_s_ = 0.0;  // time of the last frame with a measured marker
+  SolverOptions cold_options_;
+  OutlierFilter outliers_;
+  Posture start_;  // the frame's start posture, for the outlier filter's re-solves
+  std::vector<int> marker_points_;
   int n_ = 0;                                    // markers
   std::vector<Eigen::Vector3d> target_world_m_;  // [n_]: measured, [n_, 2n_): held
   std::vector<std::uint8_t> target_visible_;
@@ -125,7 +151,9 @@ class Tracker {
   std::vector<double> coordinates_;
   std::vector<Eigen::Quaterniond> segment_q_;
   std::vector<Eigen::Vector3d> segment_origin_m_;
-  std::vector<std::uint8_t> occluded_, held_;
+  std::vector<std::uint8_t> occluded_, held_, outlier_, beyond_;
+  std::vector<double> marker_residual_m_;
+  std::vector<int> relabelled_from_;
   TrackResult result_;
 };
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "wire_writer.hpp"
 
@@ -132,7 +133,7 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  w.begin_map(21);  // MessagePack needs the exact count of the keys below
+  w.begin_map(25);  // MessagePack needs the exact count of the keys below
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -163,6 +164,11 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("accept_failures", s.c.accept_failures);
   count("rejected_orientations", s.c.rejected_orientations);
   count("unknown_sensors", s.c.unknown_sensors);
+  count("unmatched_frames", s.c.unmatched_frames);
+  w.key("config_mismatch");
+  w.boolean(s.c.config_mismatch);
+  count("outliers", s.c.outliers);
+  count("poor_frames", s.c.poor_frames);
   w.end_map();
 }
 
@@ -175,6 +181,7 @@ struct Daemon::State {
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
   MarkerFrame frame;  // decoded into, one at a time
+  NameMismatchWatch names;  // does the stream use the config's marker names?
   // Messages waiting to be served, oldest first: [first, first + count) of a
   // ring of max_backlog_frames payloads, holding `bytes` at most kInputQueueBytes.
   std::vector<zmq::message_t> waiting;
@@ -411,6 +418,9 @@ void Daemon::serve_frame(int slot) {
   counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
   counters_.rejected_orientations += static_cast<std::uint64_t>(f.rejected_orientations);
   counters_.unknown_sensors += static_cast<std::uint64_t>(f.unknown_sensor_count);
+  if (f.known_count == 0 && f.unknown_count > 0) ++counters_.unmatched_frames;
+  const bool warn_mismatch = s.names.observe(f.known_count, f.unknown_count);
+  counters_.config_mismatch = s.names.mismatched();
   publish_pose(f, s.received_at[slot]);
   try {
     // Look up first: only a name not seen before costs an allocation.
@@ -424,8 +434,25 @@ void Daemon::serve_frame(int slot) {
     for (int k = 0; k < f.unknown_listed; ++k) report_once(f.unknown_names[k], "marker");
     for (int k = 0; k < f.unknown_sensors_listed; ++k)
       report_once(f.unknown_sensor_names[k], "orientation sensor");
+    if (warn_mismatch) warn_config_mismatch(f);
   } catch (const std::exception&) {  // a log line lost when memory is short, nothing more
   }
+}
+
+void Daemon::warn_config_mismatch(const MarkerFrame& f) {
+  std::vector<std::string> config_names, stream_names;
+  for (const MarkerTarget& m : state_->config.tracker.markers) config_names.push_back(m.marker);
+  for (int k = 0; k < f.unknown_listed; ++k) stream_names.push_back(safe_text(f.unknown_names[k], 64));
+  for (const std::string& name : unknown_seen_)
+    if (std::find(stream_names.begin(), stream_names.end(), name) == stream_names.end())
+      stream_names.push_back(safe_text(name, 64));
+  spdlog::error(
+      "the stream's marker names share none with the config {} ({} frames in a row): every "
+      "frame is solved without targets.{}\nFix: start fabrikd with a config made for this "
+      "marker set (fabrik calibrate), or rename the config's target markers "
+      "(stats: config_mismatch, unmatched_frames)",
+      state_->config_name, NameMismatchWatch::kFramesInARow,
+      names_beside(config_names, "stream:", stream_names));
 }
 
 void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
@@ -442,6 +469,8 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
     if (!all_finite(*r)) return;
   }
   s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_);
+  counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
+  counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
   ++interval_frames_out_;
   update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it

@@ -142,6 +142,7 @@ class FrameSax : public nlohmann::json_sax<json> {
     if (state_ == State::marker_key) {
       const auto it = index_.find(k);
       marker_ = it == index_.end() ? -1 : it->second;
+      if (marker_ >= 0) ++out_.known_count;
       if (marker_ < 0) {
         ++out_.unknown_count;
         if (out_.unknown_listed < static_cast<int>(out_.unknown_names.size())) {
@@ -379,6 +380,7 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   out.has_time = false;
   out.time_s = 0.0;
   out.has_stamp = false;
+  out.known_count = 0;
   out.unknown_count = 0;
   out.unknown_listed = 0;
   out.rejected_count = 0;

@@ -35,6 +35,7 @@ struct MarkerFrame {
   std::vector<std::uint8_t> visible;       // per known marker
   int rejected_count = 0;  // known markers beyond the plausible range: taken as occluded
   int zero_count = 0;      // known markers at exactly (0, 0, 0): taken as occluded
+  int known_count = 0;                     // marker names of the config (null ones included)
   int unknown_count = 0;                   // marker names not in the model
   std::vector<std::string> unknown_names;  // the first unknown_listed of them (cut), for the log
   int unknown_listed = 0;
