@@ -12,6 +12,7 @@
 
 #include "calib/calib_template.hpp"
 #include "calib/calibrate.hpp"
+#include "calib/static_window.hpp"
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
 #include "config/model_loader.hpp"
@@ -322,4 +323,41 @@ TEST_CASE("gait2354 calibrated on subject01_static.trc is anatomically plausible
   CHECK(r.fit_rms_m < 3e-3);  // a static trial: marker noise and a little sway
   const Model m = load_model(json::parse(r.config["model"].dump()), "subject01");
   CHECK(m.marker_points().size() == 41);
+}
+
+TEST_CASE("calibrate reports how much the subject moved in the window; --auto-window picks the "
+          "stillest",
+          "[calib]") {
+  const std::string path = FABRIK_SHARED_DATA_DIR "/subject01_static.trc";
+  if (!std::filesystem::exists(path)) {
+    WARN("skipped: " << path << " not found");
+    return;
+  }
+  const calib::CalibTemplate tmpl =
+      calib::load_template_file(FABRIK_SOURCE_DIR "/config/templates/gait2354.json");
+  io::MarkerTrial trial = io::read_trial(path);
+  // The subject steps 10 mm forward at frame 100: a window across it moved about 5 mm.
+  for (std::size_t f = 100; f < trial.frames(); ++f)
+    for (std::size_t m = 0; m < trial.markers(); ++m) trial.at(f, m).x() += 0.010;
+  const auto has_motion_note = [](const calib::CalibrationResult& r) {
+    for (const std::string& n : r.notes)
+      if (n.find("moved in the static window") != std::string::npos) return true;
+    return false;
+  };
+  const calib::CalibrationResult across =
+      calib::calibrate(tmpl, trial, "s.trc", {.first_frame = 91, .frames = 20});
+  CHECK(across.window_motion_m >= 0.0049);
+  CHECK(has_motion_note(across));
+  CHECK_THAT(calib::calibration_report(across), Catch::Contains("motion in it"));
+  const calib::CalibrationResult still =
+      calib::calibrate(tmpl, trial, "s.trc", {.auto_window = 20});
+  CHECK(still.frames == 20);
+  CHECK(still.window_motion_m < calib::kStillWindowWarn_m);
+  CHECK_FALSE(has_motion_note(still));
+  // No window of 20 frames is stiller than the chosen one.
+  for (long long first = 1; first + 19 <= static_cast<long long>(trial.frames()); first += 7)
+    CHECK(calib::calibrate(tmpl, trial, "s.trc", {.first_frame = first, .frames = 20})
+              .window_motion_m >= still.window_motion_m - 1e-12);
+  CHECK_THROWS_WITH(calib::calibrate(tmpl, trial, "s.trc", {.frames = 20, .auto_window = 20}),
+                    Catch::Contains("--auto-window"));
 }

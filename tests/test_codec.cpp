@@ -376,3 +376,56 @@ TEST_CASE("Markers beyond the plausible range or at exactly (0, 0, 0) are occlus
     CHECK(f.zero_count == 0);
   }
 }
+
+TEST_CASE("Orientations: bad quaternions are occlusions, unknown sensors ignored, both counted",
+          "[codec][sensors]") {
+  const std::vector<std::string> sensors = {"S0", "S1", "S2", "S3", "S4", "S5", "S6"};
+  MarkerDecoder d(kNames, 1e-3, 1 << 20, {}, sensors);
+  MarkerFrame f = d.make_frame();
+  std::string err;
+  const double h = std::sqrt(0.5);
+  // S0 good (rounded to 3 digits: within the tolerance), S1 zero, S2 not unit,
+  // S3 three numbers, S4 five, S5 null, S6 absent; two unknown names.
+  const std::string p = R"({"frame": 3, "markers": {"A": [1, 2, 3]}, "orientations": {
+      "S0": [0.707, 0.707, 0, 0], "S1": [0, 0, 0, 0], "S2": [2, 0, 0, 0], "S3": [1, 0, 0],
+      "S4": [1, 0, 0, 0, 0], "S5": null, "X": [1, 0, 0, 0], "Y": null}})";
+  REQUIRE(d.decode(bytes(p), f, err));
+  CHECK(f.sensor_visible == std::vector<std::uint8_t>{1, 0, 0, 0, 0, 0, 0});
+  CHECK(f.q_sensor[0].angularDistance(Eigen::Quaterniond(h, h, 0, 0)) < 1e-3);
+  CHECK(f.q_sensor[0].norm() == Approx(1.0).margin(1e-12));
+  CHECK(f.rejected_orientations == 4);
+  CHECK(f.unknown_sensor_count == 2);
+  CHECK(f.unknown_sensors_listed == 2);
+  CHECK(f.unknown_sensor_names[0] == "X");
+  CHECK(f.visible == std::vector<std::uint8_t>{1, 0, 0});
+  // NaN and infinity (MessagePack can carry them) are occlusions too.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const json m = {{"frame", 4},
+                  {"markers", json::object()},
+                  {"orientations",
+                   {{"S0", {nan, 0, 0, 1}}, {"S1", {std::numeric_limits<double>::infinity(), 0, 0, 0}},
+                    {"S2", {1, 0, 0, 0}}}}};
+  REQUIRE(d.decode(bytes(msgpack(m)), f, err));
+  CHECK(f.sensor_visible == std::vector<std::uint8_t>{0, 0, 1, 0, 0, 0, 0});
+  CHECK(f.rejected_orientations == 2);
+  // A component that is not a number, or orientations that are not an object, are errors.
+  CHECK_FALSE(d.decode(bytes(R"({"frame": 5, "orientations": {"S0": [1, "a", 0, 0]}})"), f, err));
+  CHECK_THAT(err, Catch::Contains("S0"));
+  CHECK_FALSE(d.decode(bytes(R"({"frame": 5, "orientations": [1, 0, 0, 0]})"), f, err));
+  CHECK_THAT(err, Catch::Contains("orientations"));
+  // What encode_marker_frame writes decodes back.
+  const std::vector<Eigen::Quaterniond> q(sensors.size(), Eigen::Quaterniond(h, 0, h, 0));
+  std::vector<std::uint8_t> seen(sensors.size(), 1);
+  seen[2] = 0;
+  const SensorSamples samples{sensors, q, seen};
+  const std::vector<Eigen::Vector3d> p_m(kNames.size(), Eigen::Vector3d(0.1, 0.2, 0.3));
+  const std::vector<std::uint8_t> visible(kNames.size(), 1);
+  std::string out;
+  for (auto enc : {PayloadEncoding::json, PayloadEncoding::msgpack}) {
+    encode_marker_frame(9, nullptr, kNames, p_m, visible, "mm", enc, out, nullptr, &samples);
+    REQUIRE(d.decode(bytes(out), f, err));
+    CHECK(f.sensor_visible == seen);
+    CHECK(f.q_sensor[0].angularDistance(q[0]) < 1e-8);
+    CHECK(f.rejected_orientations == 0);
+  }
+}

@@ -1,6 +1,8 @@
 // The daemon loop over real ZeroMQ sockets (inproc and loopback tcp with
 // ports chosen by the system), running on its own thread. Every wait has a
 // deadline and fails with a message.
+#include <spdlog/sinks/ringbuffer_sink.h>
+
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdlib>
@@ -900,4 +902,49 @@ TEST_CASE("A reload is read off the frame loop: frames are answered meanwhile, a
   CHECK(d.daemon.reload_abandoned());
   never.set_value();  // the thread left behind finishes on its own data
   CHECK(d.run_error.empty());
+}
+
+TEST_CASE("A stream that shares no marker name with the config is logged once, with the closest "
+          "names, and shown in stats",
+          "[daemon]") {
+  zmq::context_t context;
+  auto log = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(64);
+  struct RestoreLogger {
+    std::shared_ptr<spdlog::logger> previous = spdlog::default_logger();
+    ~RestoreLogger() { spdlog::set_default_logger(previous); }
+  } restore;
+  spdlog::set_default_logger(std::make_shared<spdlog::logger>("test", log));
+  RunningDaemon d(context, config_on("inproc://markers-mismatch", "inproc://poses-mismatch"));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  const wire::DaemonCounters before = d.daemon.counters();
+  // The config's names behind a Vicon subject prefix: none matches exactly.
+  json prefixed = json::object();
+  const json rest = rest_markers(d.daemon.config());
+  for (const auto& [name, p] : rest.items()) prefixed["Sub:" + name] = p;
+  const int frames = 2 * wire::NameMismatchWatch::kFramesInARow;
+  for (int i = 0; i < frames; ++i) {
+    client.send(json{{"frame", ++frame}, {"markers", prefixed}}.dump());
+    REQUIRE(client.receive("pose"));
+  }
+  const auto stats = client.stats_until([&](const json& s) {
+    return counter(s, "unmatched_frames") - before.unmatched_frames == std::uint64_t(frames);
+  });
+  REQUIRE(stats);
+  CHECK((*stats)["config_mismatch"] == true);
+  std::string errors;
+  int mismatch_lines = 0;
+  for (const std::string& line : log->last_formatted()) {
+    errors += line;
+    mismatch_lines += line.find("share none with the config") != std::string::npos;
+  }
+  CHECK(mismatch_lines == 1);  // once, however many frames
+  CHECK_THAT(errors, Catch::Contains("closest:") && Catch::Contains("(after 'Sub:')") &&
+                         Catch::Contains("<embedded>/default.json"));
+  // The right names again: the flag clears.
+  client.send_frame(++frame, rest_markers(d.daemon.config()));
+  REQUIRE(client.receive("pose"));
+  const auto matched =
+      client.stats_until([](const json& s) { return s["config_mismatch"] == false; });
+  CHECK(matched);
 }

@@ -114,3 +114,45 @@ TEST_CASE("real data: subject01 walk1 residuals and 1 s gaps (skipped without ..
   CHECK(g.summary[0].markers == static_cast<int>(config.tracker.markers.size()));
   CHECK(g.summary[0].median_rms_m <= 15e-3);
 }
+
+TEST_CASE("IMUs on synthetic truth: 1 deg noise, IMU-only joint angles within 3 deg RMS",
+          "[eval][sensors]") {
+  eval::ImuSyntheticOptions o;
+  o.seconds = 3.0;
+  const auto rows = eval::eval_imu_synthetic(default_daemon_config(), o);
+  REQUIRE(rows.size() == 3);
+  CHECK(rows[1].sensors == 15);
+  CHECK(rows[1].markers == 0);
+  CHECK(rows[1].joint_angle_rms_rad * 180 / 3.141592653589793 < 3.0);
+  CHECK(rows[2].markers == 4);
+  CHECK(rows[2].joint_angle_rms_rad * 180 / 3.141592653589793 < 3.0);
+}
+
+TEST_CASE("real data: the OpenSense walk from its 8 IMUs (skipped without ../shared/data)",
+          "[eval][sensors]") {
+  const std::string dir = std::string(FABRIK_SHARED_DATA_DIR) + "/";
+  const std::string stat = dir + "subject01_static.trc",
+                    placement = dir + "opensense_placement_orientations.sto",
+                    walk = dir + "opensense_walking_orientations.sto";
+  if (!std::filesystem::exists(stat) || !std::filesystem::exists(walk)) {
+    WARN("SKIPPED: " << walk << " is absent (real data lives in ../shared/data)");
+    return;
+  }
+  const eval::OpenSenseRun run = eval::eval_imu_opensense(
+      std::string(FABRIK_SOURCE_DIR) + "/config/templates/opensense_gait2354.json", stat,
+      placement, walk);
+  const eval::GaitReport& g = run.report;
+  CHECK(g.frames == 2432);
+  CHECK(g.frames_tracked == g.frames);
+  CHECK(g.strides.size() >= 20);
+  for (const eval::GaitStride& s : g.strides) {
+    CAPTURE(s.side, s.time_s);
+    CHECK(s.knee_flexion_deg >= 50.0);
+    CHECK(s.knee_flexion_deg <= 80.0);
+  }
+  CHECK(g.alternating);
+  CHECK(g.knee_flexion_min_deg >= -5.0 - 1e-6);  // the knee's hyperextension limit
+  CHECK(g.hip_flexion_min_deg >= -30.0);
+  CHECK(g.hip_flexion_max_deg <= 45.0);
+  CHECK(g.max_jump_deg <= 10.0);
+}

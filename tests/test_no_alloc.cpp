@@ -238,12 +238,16 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   out.reserve(1 << 16);
   long track_allocations = 0, encode_allocations = 0, json_decode_allocations = 0,
        msgpack_decode_allocations = 0;
+  int outlier_frames = 0, cold_frames = 0;
   for (int f = 0; f < 60; ++f) {
     motion.posture_at(f / 100.0, truth);
     motion.sample(truth, points, 0.001, measured);
     visible[f % names.size()] = 0;  // a moving occlusion
     visible[(f + 7) % names.size()] = 1;
-    const double t = f / 100.0;
+    // Outliers (a label swap, then a ghost) and a cold start after a gap cost no allocation.
+    if (f >= 20 && f < 30) std::swap(measured[10], measured[30]);
+    if (f >= 40 && f < 45) measured[22] += Eigen::Vector3d(0.4, 0.0, 0.0);
+    const double t = f / 100.0 + (f >= 50 ? 5.0 : 0.0);
     std::copy(measured.begin(), measured.end(), sent_m.begin());
     std::copy(visible.begin(), visible.end(), sent_visible.begin());
     bool ok = true;
@@ -262,6 +266,8 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
     long before = g_allocations.load();
     const TrackResult& r = tracker.track(t, frame.p_world_m, frame.visible);
     track_allocations += g_allocations.load() - before;
+    outlier_frames += r.outlier_count > 0;
+    cold_frames += r.cold_start;
     before = g_allocations.load();
     encoder.encode({frame.frame, true, t, false, 0.0}, r, out);
     msgpack.encode({frame.frame, true, t, false, 0.0}, r, out);
@@ -270,6 +276,8 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   }
   CHECK(track_allocations == 0);
   CHECK(encode_allocations == 0);
+  CHECK(outlier_frames >= 5);  // the filter's extra solves ran (the ghost at least)
+  CHECK(cold_frames == 2);      // the first frame and the one after the gap
   // The JSON reader's and the frame's buffers are reused from frame to frame.
   CHECK(frame.unknown_count == 1);
   CHECK(json_decode_allocations == 0);
@@ -278,4 +286,56 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   CHECK(msgpack_decode_allocations <= 58);
   WARN("MessagePack decode: " << static_cast<double>(msgpack_decode_allocations) / 58.0
                               << " allocations per frame, for one marker name of 22 bytes");
+}
+
+TEST_CASE("The per-frame path with orientation sensors performs no heap allocation",
+          "[alloc][sensors]") {
+  DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  std::vector<std::string> sensor_names;
+  for (int s = 0; s < static_cast<int>(model.segments.size()); ++s) {
+    sensor_names.push_back(model.segments[s].name + "_imu");
+    config.tracker.sensors.sensors.push_back({sensor_names.back(), s, 0, 1.0});
+  }
+  Tracker tracker(config.tracker);
+  const wire::PoseEncoder encoder(tracker, "mm", wire::PayloadEncoding::json);
+  std::vector<std::string> names;
+  std::vector<int> points;
+  for (const MarkerTarget& m : config.tracker.markers)
+    names.push_back(m.marker), points.push_back(m.point);
+  const wire::MarkerDecoder decoder(names, 1e-3, 1 << 20, {}, sensor_names);
+  wire::MarkerFrame frame = decoder.make_frame();
+  SyntheticMotion motion(model, MotionSettings{});
+  Posture truth = Posture::rest(model);
+  std::vector<Eigen::Vector3d> measured(names.size());
+  std::vector<std::uint8_t> visible(names.size(), 1);
+  std::vector<Eigen::Quaterniond> q(sensor_names.size());
+  std::vector<std::uint8_t> q_visible(q.size(), 1);
+  std::string payload, out, error;
+  payload.reserve(1 << 16);
+  out.reserve(1 << 16);
+  long allocations = 0;
+  for (int f = 0; f < 40; ++f) {
+    const double t = f / 100.0;
+    motion.posture_at(t, truth);
+    motion.sample(truth, points, 0.001, measured);
+    for (std::size_t k = 0; k < q.size(); ++k) q[k] = truth.segments[k].q_world;
+    q_visible[f % q.size()] = 0;  // a moving dropout; markers gone in every other frame
+    q_visible[(f + 5) % q.size()] = 1;
+    std::fill(visible.begin(), visible.end(), f % 2);
+    const wire::SensorSamples samples{sensor_names, q, q_visible};
+    for (auto enc : {wire::PayloadEncoding::json, wire::PayloadEncoding::msgpack}) {
+      wire::encode_marker_frame(static_cast<std::uint64_t>(f), &t, names, measured, visible, "mm",
+                                enc, payload, nullptr, &samples);
+      const long before = g_allocations.load();
+      REQUIRE(decoder.decode(
+          {reinterpret_cast<const std::uint8_t*>(payload.data()), payload.size()}, frame, error));
+      const TrackResult& r =
+          tracker.track(t, frame.p_world_m, frame.visible, frame.q_sensor, frame.sensor_visible);
+      encoder.encode({frame.frame, true, t, false, 0.0}, r, out);
+      if (f >= 2) allocations += g_allocations.load() - before;
+    }
+  }
+  CHECK(frame.sensor_visible[(39 + 5) % q.size()] == 1);
+  CHECK(allocations == 0);
 }

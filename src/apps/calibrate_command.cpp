@@ -7,7 +7,11 @@
 #include <memory>
 
 #include "calib/calibrate.hpp"
+#include "calib/sensor_calibration.hpp"
 #include "config/daemon_config.hpp"
+#include "config/json_reader.hpp"
+#include "config/model_loader.hpp"
+#include "io/orientation_table.hpp"
 #include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
@@ -15,26 +19,80 @@ namespace fabrik {
 
 namespace {
 struct CalibrateArgs {
-  std::string template_path, static_path, output_path;
+  std::string template_path, static_path, output_path, orientations_path, config_path;
   bool keep_zeros = false;
   calib::CalibrateOptions options;
 };
 
-void run_calibrate(const CalibrateArgs& a) {
-  const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
-  const io::MarkerTrial trial =
-      apps::read_trial_or_explain("calibrate", a.static_path, a.keep_zeros);
-  const calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, a.options);
-  // The config must load as the daemon will load it, before it is written.
-  const std::string text = r.config.dump(2) + "\n";
-  load_daemon_config(text, a.output_path);
-  std::ofstream out(a.output_path, std::ios::binary);
-  if (!out) throw std::runtime_error(a.output_path + ": cannot write the config");
+// The config must load as the daemon will load it, before it is written.
+DaemonConfig write_config(const nlohmann::ordered_json& config, const std::string& path) {
+  const std::string text = config.dump(2) + "\n";
+  DaemonConfig loaded = load_daemon_config(text, path);
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw std::runtime_error(path + ": cannot write the config");
   out << text;
   out.close();
-  if (!out) throw std::runtime_error(a.output_path + ": writing the config failed");
-  std::cout << calib::calibration_report(r) << "Wrote " << a.output_path << " (model '" << tmpl.name
-            << "', " << r.fits.size() << " tracked markers)\n";
+  if (!out) throw std::runtime_error(path + ": writing the config failed");
+  return loaded;
+}
+
+io::OrientationTable read_orientations(const std::string& path) {
+  io::OrientationTable table = io::read_orientation_table(path);
+  apps::print_warnings("calibrate", path, table.warnings);
+  return table;
+}
+
+// Sensors of the template (or of the config) calibrated from the calibration pose.
+std::string calibrated_sensors(const SensorSection& spec, const Model& model,
+                               const std::string& table_path, nlohmann::ordered_json& config) {
+  return calib::calibrate_sensors_into(spec, model, read_orientations(table_path), table_path,
+                                       config);
+}
+
+void run_calibrate(const CalibrateArgs& a) {
+  if (!a.config_path.empty()) {
+    // Sensors only: a subject's config, a new calibration pose (a new session).
+    if (!a.template_path.empty() || !a.static_path.empty() || a.orientations_path.empty())
+      throw std::runtime_error("--config recalibrates a config's sensors: give it with "
+                               "--static-orientations only (no --template, no --static)");
+    const DaemonConfig config = load_daemon_config_file(a.config_path);
+    if (config.sensors.entries.empty())
+      throw std::runtime_error(a.config_path + ": has no \"sensors\" to calibrate. Fix: "
+                               "calibrate from a template with \"sensors\"");
+    std::string text;
+    if (auto p = read_text_file(a.config_path, text)) throw std::runtime_error(p->problem);
+    nlohmann::ordered_json json = nlohmann::ordered_json::parse(text);
+    const std::string report =
+        calibrated_sensors(config.sensors, *config.tracker.model, a.orientations_path, json);
+    write_config(json, a.output_path);
+    std::cout << report << "Wrote " << a.output_path << " (the sensors of " << a.config_path
+              << " recalibrated)\n";
+    return;
+  }
+  if (a.template_path.empty() || a.static_path.empty())
+    throw std::runtime_error("give --template and --static (or --config with "
+                             "--static-orientations to recalibrate a config's sensors)");
+  const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
+  if (!a.orientations_path.empty() && tmpl.sensors.entries.empty())
+    throw std::runtime_error(a.template_path + " lists no orientation sensors, so --static-"
+                             "orientations has nothing to calibrate. Fix: add \"sensors\" to "
+                             "the template");
+  const io::MarkerTrial trial =
+      apps::read_trial_or_explain("calibrate", a.static_path, a.keep_zeros);
+  calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, a.options);
+  std::string sensors;
+  if (!a.orientations_path.empty()) {
+    const Model model = load_model(nlohmann::json::parse(r.model.dump()), "<calibrated model>");
+    sensors = calibrated_sensors(tmpl.sensors, model, a.orientations_path, r.config);
+  } else if (!tmpl.sensors.entries.empty()) {
+    sensors = "\nnote: the template's " + std::to_string(tmpl.sensors.entries.size()) +
+              " orientation sensors are left out of the config: calibrate them with "
+              "--static-orientations\n";
+  }
+  const DaemonConfig written = write_config(r.config, a.output_path);
+  std::cout << calib::calibration_report(r) << sensors << "Wrote " << a.output_path
+            << " (model '" << tmpl.name << "', " << r.fits.size() << " tracked markers, "
+            << written.tracker.sensors.sensors.size() << " orientation sensors)\n";
 }
 }  // namespace
 
@@ -43,9 +101,14 @@ void add_calibrate_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "calibrate",
       "Build a subject's model from a template and a static trial; write a daemon config");
-  cmd->add_option("--template", args->template_path, "Model template (fabrikd-template/1 JSON)")
-      ->required();
-  cmd->add_option("--static", args->static_path, "Static trial (.trc or .c3d)")->required();
+  cmd->add_option("--template", args->template_path, "Model template (fabrikd-template/1 JSON)");
+  cmd->add_option("--static", args->static_path, "Static trial (.trc or .c3d)");
+  cmd->add_option("--static-orientations", args->orientations_path,
+                  "Orientation sensors recorded in the model's rest posture (OpenSim quaternion "
+                  ".sto): calibrates the template's sensors");
+  cmd->add_option("--config", args->config_path,
+                  "Instead of --template and --static: recalibrate this config's sensors from "
+                  "--static-orientations");
   cmd->add_option("--output", args->output_path, "Daemon config to write (fabrikd-config/1)")
       ->required();
   cmd->add_option("--first-frame", args->options.first_frame,
@@ -53,6 +116,10 @@ void add_calibrate_command(CLI::App& app) {
                   "first)");
   cmd->add_option("--frames", args->options.frames,
                   "Frames to average (default: to the end of the trial)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--auto-window", args->options.auto_window,
+                  "Average the stillest window of N frames (fewest missing samples, then least "
+                  "marker motion) instead of --first-frame/--frames")
       ->check(CLI::PositiveNumber);
   cmd->add_flag("--keep-zeros", args->keep_zeros,
                 "Read exact (0, 0, 0) samples as positions (default: as missing markers)");

@@ -27,6 +27,10 @@ struct EvalArgs {
   std::string reference_path = "../shared/data/subject01_walk1_ik.mot";
   eval::GapOptions gaps;
   eval::SyntheticOptions synthetic;
+  eval::ImuSyntheticOptions imu;
+  std::string placement_path = "../shared/data/opensense_placement_orientations.sto";
+  std::string imu_walk_path = "../shared/data/opensense_walking_orientations.sto";
+  std::string angles_path;  // eval imu: the OpenSense walk's coordinates (.mot)
 };
 
 void require_file(const std::string& path, const char* option) {
@@ -71,6 +75,50 @@ void run(const std::string& which, const EvalArgs& a) {
     std::cout << "model: " << config.tracker.model->name << " (" << config.file << ")\n"
               << eval::synthetic_table(rows);
     write_json(a.json_path, eval::synthetic_json(rows));
+    return;
+  }
+  if (which == "imu") {
+    const DaemonConfig config =
+        a.config_path.empty() ? default_daemon_config() : load_daemon_config_file(a.config_path);
+    const auto rows = eval::eval_imu_synthetic(config, a.imu);
+    std::cout << "model: " << config.tracker.model->name << " (" << config.file << ")\n"
+              << eval::imu_synthetic_table(rows, a.imu);
+    nlohmann::json j = nlohmann::json::array();
+    for (const auto& r : rows)
+      j.push_back({{"setup", r.setup}, {"markers", r.markers}, {"sensors", r.sensors},
+                   {"joint_angle_rms_deg", r.joint_angle_rms_rad * 180 / 3.141592653589793},
+                   {"joint_angle_max_deg", r.joint_angle_max_rad * 180 / 3.141592653589793},
+                   {"joint_rms_mm", r.joint_rms_m * 1e3}, {"joint_max_mm", r.joint_max_m * 1e3}});
+    nlohmann::json out = {{"synthetic", j}};
+    for (const auto& [path, option] : {std::pair{a.template_path, "--template"},
+                                       {a.static_path, "--static"},
+                                       {a.placement_path, "--placement"},
+                                       {a.imu_walk_path, "--walk"}})
+      if (!std::filesystem::is_regular_file(path)) {
+        std::cout << "\nOpenSense walk skipped: " << path << " not found (" << option << ")\n";
+        write_json(a.json_path, out);
+        return;
+      }
+    const eval::OpenSenseRun run = eval::eval_imu_opensense(a.template_path, a.static_path,
+                                                            a.placement_path, a.imu_walk_path);
+    std::cout << "\n" << eval::gait_table(run.report);
+    if (!a.angles_path.empty()) {
+      io::write_opensim_table(a.angles_path, angles_table(run.solution));
+      std::cout << "coordinates: " << a.angles_path << " (scripts/plot_angles.py --mot)\n";
+    }
+    const eval::GaitReport& g = run.report;
+    nlohmann::json peaks = nlohmann::json::array();
+    for (const auto& st : g.strides)
+      peaks.push_back({{"side", std::string(1, st.side)}, {"time_s", st.time_s},
+                       {"knee_flexion_deg", st.knee_flexion_deg}});
+    out["opensense"] = {{"frames", g.frames}, {"frames_tracked", g.frames_tracked},
+                        {"knee_peaks", peaks}, {"alternating", g.alternating},
+                        {"knee_flexion_min_deg", g.knee_flexion_min_deg},
+                        {"hip_flexion_deg", {g.hip_flexion_min_deg, g.hip_flexion_max_deg}},
+                        {"max_jump_deg", g.max_jump_deg},
+                        {"max_jump_coordinate", g.max_jump_coordinate},
+                        {"sensor_error_rms_deg", g.sensor_error_rms_deg}};
+    write_json(a.json_path, out);
     return;
   }
   const auto [config, trial] = subject(a);
@@ -160,6 +208,30 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   synth->add_option("--seed", sa->synthetic.seed, "Motion and noise seed")->capture_default_str();
+  auto ia = std::make_shared<EvalArgs>();
+  ia->template_path = "config/templates/opensense_gait2354.json";
+  CLI::App* imu = eval->add_subcommand(
+      "imu", "Orientation sensors: synthetic truth (markers, IMUs, pelvis markers + IMUs) and "
+             "the OpenSense walk from its IMUs alone");
+  imu->add_option("--config", ia->config_path,
+                  "Daemon config for the synthetic part (default: the embedded default)");
+  imu->add_option("--noise-deg", ia->imu.sensor_noise_deg, "IMU noise per axis (deg)")
+      ->capture_default_str();
+  imu->add_option("--drift-deg-per-s", ia->imu.drift_deg_per_s, "IMU heading drift rate bound")
+      ->capture_default_str();
+  imu->add_option("--seconds", ia->imu.seconds, "Synthetic duration")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  imu->add_option("--seed", ia->imu.seed, "Motion and noise seed")->capture_default_str();
+  imu->add_option("--template", ia->template_path, "Template with sensors")->capture_default_str();
+  imu->add_option("--static", ia->static_path, "Static marker trial (the body's geometry)")
+      ->capture_default_str();
+  imu->add_option("--placement", ia->placement_path, "Calibration pose orientations (.sto)")
+      ->capture_default_str();
+  imu->add_option("--walk", ia->imu_walk_path, "Walk orientations (.sto)")->capture_default_str();
+  imu->add_option("--angles", ia->angles_path, "Write the walk's coordinates (.mot)");
+  imu->add_option("--json", ia->json_path, "Also write the results as JSON");
+  imu->callback([ia] { tools::run_command("eval imu", [&] { run("imu", *ia); }); });
 }
 
 }  // namespace fabrik::apps

@@ -1,6 +1,8 @@
 #include "read_recording.hpp"
 
+#include <algorithm>
 #include <cstdio>
+#include <stdexcept>
 
 namespace fabrik::apps {
 
@@ -17,6 +19,32 @@ io::MarkerTrial read_trial_or_explain(const std::string& command, const std::str
   print_warnings(command, path, trial.warnings);
   io::require_marker_data(trial, path);
   return trial;
+}
+
+io::OrientationTable read_orientations_or_explain(const std::string& command,
+                                                  const DaemonConfig& config,
+                                                  const std::string& path) {
+  io::OrientationTable table = io::read_orientation_table(path);
+  print_warnings(command, path, table.warnings);
+  const std::vector<SensorTarget>& sensors = config.tracker.sensors.sensors;
+  const auto list = [](const std::vector<std::string>& names) {
+    std::string s;
+    for (std::size_t i = 0; i < names.size() && i < 12; ++i) s += (i ? ", " : "") + names[i];
+    return s + (names.size() > 12 ? ", ..." : "");
+  };
+  if (sensors.empty())
+    throw std::runtime_error(path + ": " + config.file +
+                             " has no orientation sensors (\"sensors\"). Fix: calibrate a "
+                             "template with \"sensors\" (fabrik calibrate --static-orientations)");
+  std::vector<std::string> names;
+  for (const SensorTarget& t : sensors) names.push_back(t.sensor);
+  if (std::none_of(names.begin(), names.end(),
+                   [&](const std::string& n) { return table.find(n) >= 0; }))
+    throw std::runtime_error(path + ": shares none of the " + std::to_string(names.size()) +
+                             " sensor names of " + config.file + ".\n  config: " + list(names) +
+                             "\n  file:   " + list(table.sensors) +
+                             "\nFix: use a config calibrated for these sensors");
+  return table;
 }
 
 }  // namespace fabrik::apps

@@ -6,12 +6,21 @@
 #include <string>
 #include <vector>
 
+#include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
+#include "io/orientation_table.hpp"
 
 namespace fabrik::apps {
 
 io::MarkerTrial read_trial_or_explain(const std::string& command, const std::string& path,
                                       bool keep_zeros);
+
+// An orientation table for `config`'s sensors, warnings printed; refused
+// (runtime_error, exit 2) when the config has no sensors or the table shares
+// none of their names.
+io::OrientationTable read_orientations_or_explain(const std::string& command,
+                                                  const DaemonConfig& config,
+                                                  const std::string& path);
 
 // The reader's warnings on stderr, one line each.
 void print_warnings(const std::string& command, const std::string& path,

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
@@ -15,7 +16,7 @@ namespace fabrik::apps {
 namespace {
 
 struct SolveOptions {
-  std::string config, input, output, markers_output, report, angles;
+  std::string config, input, output, markers_output, report, angles, orientations;
   bool quiet = false, keep_zeros = false;
 };
 
@@ -33,13 +34,28 @@ void run(const SolveOptions& o) {
   if (!o.angles.empty() && config.tracker.model->coordinates.empty())
     throw std::runtime_error(config.file + ": --angles: the model has no named coordinates. Fix: "
                              "add \"coordinates\" to the model or its template");
-  const io::MarkerTrial trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
-  require_shared_markers(config, trial, o.input);
-  if (!o.quiet)
+  if (o.input.empty() && o.orientations.empty())
+    throw std::runtime_error("give --input (markers), --orientations (sensors), or both");
+  io::MarkerTrial trial;
+  if (!o.input.empty()) {
+    trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
+    if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
+  }
+  std::optional<io::OrientationTable> table;
+  if (!o.orientations.empty()) {
+    table = read_orientations_or_explain("solve", config, o.orientations);
+    if (!o.quiet)
+      std::fprintf(stderr, "fabrik solve: %s (%zu rows at %g Hz, %zu sensors)%s\n",
+                   o.orientations.c_str(), table->rows(), table->rate_hz, table->sensors.size(),
+                   o.input.empty() ? ", no markers: the root stays where the rest posture puts it"
+                                   : ", joined on time with the markers");
+  }
+  if (!o.quiet && !o.input.empty())
     std::fprintf(stderr, "fabrik solve: %s (%zu frames at %g Hz, %zu markers) with %s\n",
                  o.input.c_str(), trial.frames(), trial.rate_hz, trial.markers(),
                  config.file.c_str());
-  const TrialSolution s = solve_trial(config, trial, o.quiet ? nullptr : progress_bar);
+  const TrialSolution s = solve_trial(config, trial, o.quiet ? nullptr : progress_bar,
+                                      table ? &*table : nullptr);
   for (const MostlyMissing& m : s.mostly_missing) {
     std::fprintf(stderr,
                  "fabrik solve: warning: tracked marker %s is missing in %zu of %zu frames%s\n",
@@ -73,6 +89,13 @@ void run(const SolveOptions& o) {
       r["max_frame"].get<std::size_t>(), summary["solve_us"]["p50"].get<double>(),
       summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
       o.output.c_str());
+  const auto& out = summary["outliers"];
+  const auto& q = summary["quality"];
+  std::printf("fit quality       good %d, poor %d frames (quality thresholds of the config)\n"
+              "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
+              "out of their solve\n",
+              q.value("good", 0), q.value("poor", 0), out["samples"].get<std::size_t>(),
+              out["percent_of_measured"].get<double>(), out["frames"].get<std::size_t>());
   std::size_t filled_samples = 0;
   for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
   std::printf("gaps filled       %zu samples in %zu runs (both sides)%s\n", filled_samples,
@@ -81,6 +104,17 @@ void run(const SolveOptions& o) {
   if (!s.missing_in_trial.empty())
     std::printf("not in the trial   %zu tracked markers (%s...)\n", s.missing_in_trial.size(),
                 s.missing_in_trial.front().c_str());
+  if (summary.contains("orientations")) {
+    const auto& so = summary["orientations"];
+    std::printf("orientations      %zu frames with sensors; sensor error RMS %.2f deg (mean over "
+                "frames), worst frame %.2f deg\n",
+                so["frames_with_sensors"].get<std::size_t>(),
+                so["sensor_error_deg"]["rms_mean"].get<double>(),
+                so["sensor_error_deg"]["rms_max"].get<double>());
+    if (!s.ignored_in_table.empty())
+      std::printf("not tracked        %zu table columns (%s...)\n", s.ignored_in_table.size(),
+                  s.ignored_in_table.front().c_str());
+  }
   if (!s.ignored_in_trial.empty())
     std::printf("not tracked        %zu trial labels (%s...)\n", s.ignored_in_trial.size(),
                 s.ignored_in_trial.front().c_str());
@@ -93,7 +127,11 @@ void add_solve_command(CLI::App& app) {
   CLI::App* c =
       app.add_subcommand("solve", "Track a recorded trial offline, through the daemon's pipeline");
   c->add_option("--config", o->config, "Daemon config (default: the embedded default)");
-  c->add_option("--input", o->input, "Trial, .trc or .c3d")->required()->check(CLI::ExistingFile);
+  c->add_option("--input", o->input, "Trial, .trc or .c3d (markers)")->check(CLI::ExistingFile);
+  c->add_option("--orientations", o->orientations,
+                "Orientation sensors, OpenSim quaternion .sto (alone, or joined on time with "
+                "--input)")
+      ->check(CLI::ExistingFile);
   c->add_option("--output", o->output, "Joint centres, .trc (mm) or .csv")->required();
   c->add_option("--markers", o->markers_output,
                 "Also write the model's markers, gaps filled from both sides, .trc or .csv "

@@ -25,15 +25,24 @@ struct Track {
   double max_residual_mm = 0.0;
 };
 
+// Every marker at level 0, or, as the embedded daemon config does, the
+// pelvis markers (the model's root segment) one level stronger.
+std::vector<Target> bench_targets(const Model& m, bool pelvis_stronger) {
+  std::vector<Target> targets;
+  for (int p : m.marker_points()) {
+    const bool pelvis = m.points[p].segment == 0;
+    targets.push_back({p, pelvis_stronger && pelvis ? 1 : 0, 1.0});
+  }
+  return targets;
+}
+
 // Tracks the synthetic motion of `truth_model` with a solver on `model`
 // (the same geometry, with or without joint limits), warm-started.
 Track track(const std::shared_ptr<const Model>& model, const Model& truth_model,
-            const FullbodyOptions& options, const SolverOptions& o) {
+            const FullbodyOptions& options, const SolverOptions& o, bool pelvis_stronger) {
   const Model& m = *model;
   const std::vector<int> points = m.marker_points();
-  std::vector<Target> targets;
-  for (int p : points) targets.push_back({p, 0, 1.0});
-  FabrikSolver solver(model, targets, o);
+  FabrikSolver solver(model, bench_targets(m, pelvis_stronger), o);
   MotionSettings ms;
   ms.seed = options.seed;
   SyntheticMotion motion(truth_model, ms);
@@ -91,12 +100,18 @@ json run_fullbody(const FullbodyOptions& options) {
 
   // The same motion (within the joint ranges, if the model has them) tracked
   // with the limits on and, for comparison in the same run, off.
-  json out = track_json(track(model, m, options, o));
+  json out = track_json(track(model, m, options, o, false));
   const bool limits = m.has_joint_limits();
-  if (limits) {
-    const auto free_model = std::make_shared<const Model>(without_joint_limits(m));
-    out["without_limits"] = track_json(track(free_model, m, options, o));
-  }
+  const auto free_model = std::make_shared<const Model>(without_joint_limits(m));
+  if (limits) out["without_limits"] = track_json(track(free_model, m, options, o, false));
+  // The embedded daemon config's shape: two priority levels (pelvis markers
+  // stronger), the priority loop on.
+  SolverOptions prioritized = o;
+  prioritized.use_priorities = true;
+  out["two_levels"] = track_json(track(model, m, options, prioritized, true));
+  if (limits)
+    out["two_levels"]["without_limits"] =
+        track_json(track(free_model, m, options, prioritized, true));
   out["gap_prediction"] = run_prediction_comparison(model, options, o);
   out["benchmark"] = "fullbody";
   out["model"] = {{"name", m.name},
@@ -115,6 +130,18 @@ json run_fullbody(const FullbodyOptions& options) {
                    {"max_iterations", o.max_iterations},
                    {"warm_start", true}};
   return out;
+}
+
+static std::string gap_prediction(const json& g) {
+  char gaps[384];
+  std::snprintf(gaps, sizeof gaps,
+                "through the Tracker, %s\n"
+                "  solve per frame   median %.2f us without gap prediction, %.2f us with: "
+                "ratio %.3f\n",
+                g["occlusion"].get<std::string>().c_str(),
+                g["solve_us_median_without"].get<double>(),
+                g["solve_us_median_with"].get<double>(), g["ratio"].get<double>());
+  return gaps;
 }
 
 std::string fullbody_table(const json& r) {
@@ -143,27 +170,26 @@ std::string fullbody_table(const json& r) {
                 r["motion"]["noise_mm"].get<double>(),
                 r["solver"]["segment_fit"].get<std::string>().c_str());
   std::string out = head;
+  auto ratio = [](const json& with, const json& without) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "  median time with limits / without: %.2f\n",
+                  with["solve_us"]["median"].get<double>() /
+                      without["solve_us"]["median"].get<double>());
+    return std::string(buf);
+  };
+  const json& two = r["two_levels"];
   if (!r.contains("without_limits")) {
-    out += figures("no joint limits in the model", r);
-  } else {
-    out += figures("with the model's joint limits", r);
-    out += figures("the same motion, joints free", r["without_limits"]);
-    char ratio[128];
-    std::snprintf(ratio, sizeof ratio, "  median time with limits / without: %.2f\n",
-                  r["solve_us"]["median"].get<double>() /
-                      r["without_limits"]["solve_us"]["median"].get<double>());
-    out += ratio;
+    out += figures("no joint limits in the model; every marker at one level", r);
+    out += figures("pelvis markers one level stronger (the default config's shape)", two);
+    return out + gap_prediction(r["gap_prediction"]);
   }
-  const json& g = r["gap_prediction"];
-  char gaps[384];
-  std::snprintf(gaps, sizeof gaps,
-                "through the Tracker, %s\n"
-                "  solve per frame   median %.2f us without gap prediction, %.2f us with: "
-                "ratio %.3f\n",
-                g["occlusion"].get<std::string>().c_str(),
-                g["solve_us_median_without"].get<double>(),
-                g["solve_us_median_with"].get<double>(), g["ratio"].get<double>());
-  return out + gaps;
+  out += figures("every marker at one level, with the model's joint limits", r);
+  out += figures("the same, joints free", r["without_limits"]);
+  out += ratio(r, r["without_limits"]);
+  out += figures("pelvis markers one level stronger (the default config's shape), with limits", two);
+  out += figures("the same, joints free", two["without_limits"]);
+  out += ratio(two, two["without_limits"]);
+  return out + gap_prediction(r["gap_prediction"]);
 }
 
 }  // namespace fabrik::bench

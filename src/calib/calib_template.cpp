@@ -329,8 +329,8 @@ struct Loader {
     if (fmt.as_string() != "fabrikd-template/1")
       fmt.fail("unsupported format '" + fmt.as_string() + "'",
                "use \"fabrikd-template/1\" (is this a template?)");
-    root.only_keys(
-        {"format", "name", "description", "units", "defaults", "segments", "coordinates"});
+    root.only_keys({"format", "name", "description", "units", "defaults", "segments",
+                    "coordinates", "sensors"});
     if (root.has("coordinates")) {
       root.at("coordinates").expect_object();
       t.coordinates = root.at("coordinates").value();
@@ -374,6 +374,11 @@ struct Loader {
     check_tree(segs);
     check_refs();
     check_cycles();
+    if (root.has("sensors")) {
+      std::vector<std::string> names;
+      for (const SegmentDef& sd : t.segments) names.push_back(sd.name);
+      t.sensors = read_sensor_section(root.at("sensors"), names, false);
+    }
     for (const MarkerDef& m : t.markers)
       if (!m.static_only) return;
     root.at("segments")

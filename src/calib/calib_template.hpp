@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "config/sensors_json.hpp"
+
 namespace fabrik::calib {
 
 // A position taken from the static trial: one name (a marker or a template
@@ -93,6 +95,10 @@ struct CalibTemplate {
   // Named coordinates, copied into the model as they are (fabrikd-model/1
   // "coordinates"); null if none.
   nlohmann::json coordinates;
+  // Orientation sensors ("sensors": which sensor sits on which segment, the
+  // sensors' world and its heading rule); their rotations come from
+  // `fabrik calibrate --static-orientations`. No entries if none.
+  SensorSection sensors;
 
   int find_point(const std::string& name) const;
   int find_marker(const std::string& name) const;

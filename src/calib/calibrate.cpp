@@ -1,4 +1,5 @@
 #include "calibrate.hpp"
+#include "static_window.hpp"
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -48,8 +49,9 @@ class Calibrator {
       : t_(t), trial_(trial), trial_name_(std::move(trial_name)) {}
 
   CalibrationResult run(const CalibrateOptions& o) {
-    choose_window(o);
     match_labels();
+    choose_window(o);
+    report_motion();
     average();
     resolved_.assign(t_.points.size(), std::nullopt);
     for (std::size_t i = 0; i < t_.points.size(); ++i)
@@ -69,6 +71,20 @@ class Calibrator {
     if (n == 0) fail("the trial has no frames", "record a static trial");
     const long long first_no = trial_.first_frame;
     const long long last_no = first_no + n - 1;
+    if (o.auto_window > 0) {
+      if (o.first_frame >= 0 || o.frames >= 0)
+        fail("--auto-window picks the window itself", "give --auto-window N, or --first-frame "
+             "and --frames, not both");
+      if (o.auto_window > n)
+        fail("--auto-window " + std::to_string(o.auto_window) + " is longer than the trial (" +
+                 std::to_string(n) + " frames)",
+             "use at most " + std::to_string(n) + " frames");
+      first_ = stillest_window(trial_, column_, static_cast<std::size_t>(o.auto_window));
+      count_ = static_cast<std::size_t>(o.auto_window);
+      r_.first_frame = first_no + static_cast<long long>(first_);
+      r_.frames = o.auto_window;
+      return;
+    }
     const long long start = o.first_frame < 0 ? first_no : o.first_frame;
     if (start < first_no || start > last_no)
       fail("--first-frame " + std::to_string(start) + " is outside the trial (frames " +
@@ -83,6 +99,20 @@ class Calibrator {
     count_ = static_cast<std::size_t>(count);
     r_.first_frame = start;
     r_.frames = count;
+  }
+
+  void report_motion() {
+    const WindowMotion w = window_motion(trial_, column_, first_, count_);
+    r_.window_motion_m = w.motion_m;
+    if (w.column >= 0) r_.window_motion_marker = trial_.labels[static_cast<std::size_t>(w.column)];
+    if (w.motion_m > kStillWindowWarn_m)
+      r_.notes.push_back("the subject moved in the static window: marker '" +
+                         r_.window_motion_marker + "' is up to " + fmt("%.1f", w.motion_m * 1e3) +
+                         " mm from its mean there (more than " +
+                         fmt("%.0f", kStillWindowWarn_m * 1e3) +
+                         " mm); the model averages a posture nobody held. Fix: choose a still "
+                         "window (--first-frame/--frames), or --auto-window N for the stillest N "
+                         "frames");
   }
 
   // A template name matches a label exactly, or a "Subject:name" label as
@@ -340,6 +370,12 @@ class Calibrator {
     c["solver"] = {{"tolerance_mm", 0.1},  {"stall_tolerance_mm", 0.1},
                    {"max_iterations", 50}, {"segment_fit", "rigid"},
                    {"root", "free"},       {"priorities", true}};
+    // Real subjects' markers are never exactly reachable by the model: there
+    // FABRIK's own fixed point with limited joints is far from the best
+    // fit, and the carry closes most of the gap (README "subtree carry").
+    bool limited = false;
+    for (const auto& sd : t_.segments) limited = limited || !sd.joint.is_null();
+    if (limited) c["solver"]["subtree_carry"] = 0.5;
     c["input"] = {{"endpoint", "tcp://127.0.0.1:5555"},
                   {"mode", "bind"},
                   {"units", "mm"},
@@ -450,7 +486,9 @@ CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& tr
 std::string calibration_report(const CalibrationResult& r) {
   std::ostringstream out;
   out << "Static window: frames " << r.first_frame << " to " << r.first_frame + r.frames - 1 << " ("
-      << r.frames << " frames)\n";
+      << r.frames << " frames); motion in it "
+      << fmt("%.2f", r.window_motion_m * 1e3) << " mm at most ("
+      << (r.window_motion_marker.empty() ? "-" : r.window_motion_marker) << ")\n";
   for (const std::string& n : r.notes) out << "note: " << n << "\n";
   out << "\nSegment lengths (base -> joint or end site):\n";
   for (const SegmentLength& l : r.lengths) {

@@ -29,6 +29,7 @@ class CalibrationError : public std::runtime_error {
 struct CalibrateOptions {
   long long first_frame = -1;  // the file's frame number (as in TRC Frame#); -1: the first
   long long frames = -1;       // frames to average; -1: to the end of the trial
+  long long auto_window = -1;  // > 0: average the stillest window of this many frames instead
 };
 
 struct SegmentLength {
@@ -49,6 +50,10 @@ struct CalibrationResult {
   nlohmann::ordered_json config;  // fabrikd-config/1 with the model inline
   long long first_frame = 0;      // the window, as file frame numbers
   long long frames = 0;
+  // How much the subject moved in the window: the largest distance of a marker's sample from
+  // its window mean, and that marker.
+  double window_motion_m = 0.0;
+  std::string window_motion_marker;
   std::vector<std::pair<std::string, Eigen::Vector3d>> points_world_m;  // every template point
   std::vector<SegmentLength> lengths;
   std::vector<MarkerFit> fits;

@@ -7,7 +7,9 @@
 #include "json_reader.hpp"
 #include "model_loader.hpp"
 #include "resources.hpp"
+#include "sensors_json.hpp"
 #include "solver_options_json.hpp"
+#include "tracking_options_json.hpp"
 
 namespace fabrik {
 
@@ -58,7 +60,8 @@ Endpoint read_endpoint(const JsonReader& r, Endpoint e) {
   return e;
 }
 
-void read_targets(const JsonReader& targets, const Model& model, std::vector<MarkerTarget>& out) {
+void read_targets(const JsonReader& targets, const Model& model, std::vector<MarkerTarget>& out,
+                  bool has_sensors) {
   targets.only_keys({"default", "markers"});
   MarkerTarget base;
   if (targets.has("default")) {
@@ -110,8 +113,9 @@ void read_targets(const JsonReader& targets, const Model& model, std::vector<Mar
     }
   }
   for (const std::string& name : order) out.push_back(by_name[name]);
-  if (out.empty())
-    targets.fail("no marker is tracked", "keep at least one model marker with \"track\": true");
+  if (out.empty() && !has_sensors)
+    targets.fail("no marker is tracked",
+                 "keep at least one model marker with \"track\": true, or add \"sensors\"");
 }
 
 // Gap filling from the recent past (PredictionSettings): on unless switched off, by default
@@ -140,8 +144,9 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   const nlohmann::json doc = JsonReader::parse(text, file);
   const JsonReader root(doc, file);
   root.expect_object();
-  root.only_keys({"format", "description", "model", "targets", "solver", "input", "output",
-                  "occlusion", "prediction", "stats_interval_s", "log_level"});
+  root.only_keys({"format", "description", "model", "targets", "sensors", "solver", "input",
+                  "output", "occlusion", "outliers", "quality", "cold_start", "prediction", "stats_interval_s",
+                  "log_level"});
   if (root.at("format").as_string() != kFormat)
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
                            std::string("use \"") + kFormat + "\"");
@@ -149,9 +154,16 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   c.file = file;
   c.description = root.get("description", std::string());
   auto model = std::make_shared<const Model>(read_model(root.at("model"), file));
+  if (root.has("sensors")) {
+    std::vector<std::string> segments;
+    for (const Segment& seg : model->segments) segments.push_back(seg.name);
+    c.sensors = read_sensor_section(root.at("sensors"), segments, true);
+    c.tracker.sensors = sensor_setup(c.sensors, *model);
+  }
+  const bool has_sensors = !c.tracker.sensors.sensors.empty();
   read_targets(root.has("targets") ? root.at("targets")
                                    : JsonReader(nlohmann::json::object(), file, "/targets"),
-               *model, c.tracker.markers);
+               *model, c.tracker.markers, has_sensors);
   c.tracker.model = model;
 
   SolverOptions solver;  // tracking defaults: a moving pelvis and rigid multi-marker segments
@@ -165,7 +177,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   if (root.has("input")) {
     const JsonReader in = root.at("input");
     in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames",
-                  "max_abs_coordinate_mm", "zero_is_missing"});
+                  "max_abs_coordinate_mm", "zero_is_missing", "quaternion_tolerance"});
     c.input = read_endpoint(in, c.input);
     if (in.has("units")) c.input_m_per_unit = metres_per_unit(in.at("units"));
     c.max_payload_bytes = static_cast<std::size_t>(
@@ -175,6 +187,8 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     c.max_abs_coordinate_m =
         in.get("max_abs_coordinate_mm", c.max_abs_coordinate_m * 1e3, 1.0, 1e9) * 1e-3;
     c.zero_is_missing = in.get("zero_is_missing", c.zero_is_missing);
+    c.quaternion_tolerance =
+        in.get("quaternion_tolerance", c.quaternion_tolerance, 1e-9, 0.5);
   }
   if (root.has("output")) {
     const JsonReader out = root.at("output");
@@ -193,8 +207,9 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
                            "give the pose output its own endpoint");
 
-  int weakest = c.tracker.markers.front().level;
+  int weakest = 1000;
   for (const MarkerTarget& t : c.tracker.markers) weakest = std::min(weakest, t.level);
+  for (const SensorTarget& t : c.tracker.sensors.sensors) weakest = std::min(weakest, t.level);
   c.tracker.occlusion.hold_level = weakest - 1;
   if (root.has("occlusion")) {
     const JsonReader o = root.at("occlusion");
@@ -203,6 +218,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     c.tracker.occlusion.hold_level = static_cast<int>(o.get(
         "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
   }
+  read_tracking_options(root, c.tracker);
   c.tracker.prediction = read_prediction(root, weakest);
   c.stats_interval_s = root.get("stats_interval_s", 1.0, 0.01, 1.0);
   if (root.has("log_level")) {

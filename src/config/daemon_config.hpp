@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "sensors_json.hpp"
 #include "tracking/tracker.hpp"
 
 namespace fabrik {
@@ -34,6 +35,10 @@ struct DaemonConfig {
   double max_abs_coordinate_m = 100.0;
   // An exact (0, 0, 0) is how several exporters write "not seen".
   bool zero_is_missing = true;
+  // A sensor quaternion whose length is not 1 within this is an occlusion.
+  double quaternion_tolerance = 0.01;
+  // The "sensors" section as written (tracker.sensors is made from it).
+  SensorSection sensors;
   // Valid frames solved per wake-up at most; older queued ones are dropped.
   int max_backlog_frames = 16;
   double stats_interval_s = 1.0;

@@ -10,6 +10,7 @@
 
 #include "angles.hpp"
 #include "gaps.hpp"
+#include "imu.hpp"
 #include "reduction.hpp"
 #include "subject.hpp"
 #include "synthetic.hpp"

@@ -1,88 +1,8 @@
 #include "offline/marker_match.hpp"
 
-#include <algorithm>
-#include <cctype>
-#include <optional>
 #include <stdexcept>
 
-#include "common/edit_distance.hpp"
-
 namespace fabrik {
-
-namespace {
-
-std::string lower(const std::string& s) {
-  std::string out = s;
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
-}
-
-// Lower case, letters and digits only: "R.ASIS" and "r_asis" both become "rasis".
-std::string normalized(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    if (std::isalnum(static_cast<unsigned char>(c))) {
-      out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    }
-  }
-  return out;
-}
-
-// The label after a `Subject:` prefix (Vicon), or the label itself.
-std::string without_prefix(const std::string& label) {
-  const std::size_t colon = label.rfind(':');
-  return colon == std::string::npos ? label : label.substr(colon + 1);
-}
-
-std::string list(const std::vector<std::string>& names, std::size_t at_most) {
-  std::string out;
-  for (std::size_t i = 0; i < names.size() && i < at_most; ++i) {
-    out += (i > 0 ? ", " : "") + names[i];
-  }
-  if (names.size() > at_most) out += ", ... (" + std::to_string(names.size()) + " in all)";
-  return out;
-}
-
-}  // namespace
-
-std::vector<NameMatch> closest_labels(const std::vector<std::string>& config_names,
-                                      const std::vector<std::string>& trial_labels) {
-  struct Scored {
-    NameMatch match;
-    std::size_t score;  // lower is closer
-  };
-  std::vector<Scored> found;
-  for (const std::string& name : config_names) {
-    std::optional<Scored> best;
-    const auto offer = [&](const std::string& label, std::string how, std::size_t score) {
-      if (!best || score < best->score) best = Scored{{name, label, std::move(how)}, score};
-    };
-    for (const std::string& label : trial_labels) {
-      const std::string bare = without_prefix(label);
-      if (lower(label) == lower(name)) {
-        offer(label, "case", 0);
-      } else if (bare != label && lower(bare) == lower(name)) {
-        offer(label, "after '" + label.substr(0, label.size() - bare.size()) + "'", 1);
-      } else {
-        const std::string a = normalized(name), b = normalized(bare);
-        if (a.empty() || b.empty()) continue;
-        const std::size_t d = edit_distance(a, b);
-        // A few edits for names long enough that a few edits leave most of them.
-        if (d <= std::max<std::size_t>(1, std::min(a.size(), b.size()) / 3)) {
-          // Ties go to the label with the same first letter (the side, in most marker sets).
-          offer(label, d == 0 ? "punctuation" : std::to_string(d) + (d == 1 ? " edit" : " edits"),
-                2 + 2 * d + (a[0] == b[0] ? 0 : 1));
-        }
-      }
-    }
-    if (best) found.push_back(*best);
-  }
-  std::stable_sort(found.begin(), found.end(),
-                   [](const Scored& a, const Scored& b) { return a.score < b.score; });
-  std::vector<NameMatch> out;
-  for (Scored& s : found) out.push_back(std::move(s.match));
-  return out;
-}
 
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
                             const std::string& trial_path) {
@@ -94,17 +14,8 @@ void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& t
   std::string message = trial_path + ": shares none of the " + std::to_string(names.size()) +
                         " marker names of the config " + config.file + " (" +
                         std::to_string(trial.markers()) + " labels in the file);" +
-                        " tracking it would solve no frame.\n  config: " + list(names, 12) +
-                        "\n  file:   " + list(trial.labels, 12);
-  const std::vector<NameMatch> close = closest_labels(names, trial.labels);
-  if (!close.empty()) {
-    message += "\n  closest:";
-    for (std::size_t i = 0; i < close.size() && i < 8; ++i) {
-      message += (i > 0 ? ", " : " ") + close[i].config_name + " ~ " + close[i].trial_label +
-                 " (" + close[i].how + ")";
-    }
-    if (close.size() > 8) message += ", ... (" + std::to_string(close.size()) + " in all)";
-  }
+                        " tracking it would solve no frame." +
+                        names_beside(names, "file:  ", trial.labels);
   message +=
       "\nFix: use a config made for this marker set (fabrik calibrate --template T --static S "
       "writes one), or rename the config's target markers to the file's labels";

@@ -22,7 +22,8 @@ bool ends_with_ci(const std::string& s, const std::string& suffix) {
 }  // namespace
 
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
-                          const std::function<void(std::size_t, std::size_t)>& progress) {
+                          const std::function<void(std::size_t, std::size_t)>& progress,
+                          const io::OrientationTable* orientations) {
   Tracker tracker(config.tracker);
   const Model& model = tracker.model();
   const int n = tracker.marker_count();
@@ -37,11 +38,33 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
                                      [&](const MarkerTarget& m) { return m.marker == label; });
     if (!tracked) s.ignored_in_trial.push_back(label);
   }
-  const std::size_t frames = trial.frames();
-  for (auto* out : {&s.joints, &s.markers}) {
-    out->rate_hz = trial.rate_hz;
-    out->first_frame = trial.first_frame;
+  // Orientation columns of the config's sensors (-1: not in the table).
+  const std::vector<SensorTarget>& sensors = config.tracker.sensors.sensors;
+  const int sensor_count = static_cast<int>(sensors.size());
+  std::vector<int> sensor_column(sensor_count, -1);
+  if (orientations) {
+    for (int k = 0; k < sensor_count; ++k) {
+      sensor_column[k] = orientations->find(sensors[k].sensor);
+      if (sensor_column[k] < 0) s.sensors_missing_in_table.push_back(sensors[k].sensor);
+    }
+    for (const std::string& name : orientations->sensors)
+      if (std::none_of(sensors.begin(), sensors.end(),
+                       [&](const SensorTarget& t) { return t.sensor == name; }))
+        s.ignored_in_table.push_back(name);
   }
+  // Without markers the table's rows are the frames.
+  const bool table_frames = orientations && trial.labels.empty();
+  const std::size_t frames = table_frames ? orientations->rows() : trial.frames();
+  for (auto* out : {&s.joints, &s.markers}) {
+    out->rate_hz = table_frames ? orientations->rate_hz : trial.rate_hz;
+    out->first_frame =
+        table_frames ? 1 + static_cast<int>(std::lround(orientations->time_s.front() *
+                                                        orientations->rate_hz))
+                     : trial.first_frame;
+  }
+  std::vector<Eigen::Quaterniond> q_table(orientations ? orientations->sensors.size() : 0);
+  std::vector<Eigen::Quaterniond> q_sensor(sensor_count, Eigen::Quaterniond::Identity());
+  std::vector<std::uint8_t> sensor_visible(sensor_count, 0);
   for (const Joint& j : model.joints) s.joints.labels.push_back(j.name);
   for (const MarkerTarget& m : config.tracker.markers) s.markers.labels.push_back(m.marker);
   s.joints.positions_m.reserve(frames * s.joints.labels.size());
@@ -58,17 +81,37 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   for (std::size_t f = 0; f < frames; ++f) {
     int seen = 0;
     for (int i = 0; i < n; ++i) {
-      measured[i] = column[i] >= 0 ? trial.at(f, column[i]) : Eigen::Vector3d::Constant(NAN);
+      measured[i] = column[i] >= 0 && !table_frames ? trial.at(f, column[i])
+                                                    : Eigen::Vector3d::Constant(NAN);
       visible[i] = measured[i].allFinite() ? 1 : 0;
       seen += visible[i];
       if (column[i] >= 0 && !visible[i]) ++missing_frames[i];
     }
     s.measured.push_back(seen);
-    const TrackResult& r = tracker.track(trial.time_s(f), measured, visible);
+    double time_s = table_frames ? orientations->time_s[f] - orientations->time_s.front()
+                                 : trial.time_s(f);
+    if (orientations) {
+      if (table_frames) {
+        for (std::size_t k = 0; k < q_table.size(); ++k) q_table[k] = orientations->at(f, k);
+      } else {
+        orientations->sample(file_time_s(trial, f), q_table);
+      }
+      for (int k = 0; k < sensor_count; ++k) {
+        const int c = sensor_column[k];
+        sensor_visible[k] = c >= 0 && q_table[c].coeffs().allFinite() ? 1 : 0;
+        if (sensor_visible[k]) q_sensor[k] = q_table[c];
+      }
+    }
+    const TrackResult& r = tracker.track(time_s, measured, visible, q_sensor, sensor_visible);
+    s.sensor_rms_rad.push_back(r.sensor_occluded_count < sensor_count ? r.sensor_rms_rad : NAN);
+    s.sensors_measured.push_back(sensor_count - r.sensor_occluded_count);
     s.joints.positions_m.insert(s.joints.positions_m.end(), r.joints_world_m.begin(),
                                 r.joints_world_m.end());
     s.markers.positions_m.insert(s.markers.positions_m.end(), r.markers_world_m.begin(),
                                  r.markers_world_m.end());
+    s.outlier.insert(s.outlier.end(), r.outliers.begin(), r.outliers.end());
+    s.outlier_count.push_back(r.outlier_count);
+    s.quality.push_back(r.quality);
     s.rms_m.push_back(r.residual_rms_m);
     s.max_m.push_back(r.residual_max_m);
     s.worst.push_back(r.worst_marker);
@@ -110,10 +153,20 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
 nlohmann::json solution_summary(const TrialSolution& s) {
   const std::size_t frames = s.rms_m.size();
   double rms_sum = 0.0, rms_max = 0.0, max_m = 0.0;
-  std::size_t max_frame = 0, with_markers = 0;
-  std::map<std::string, int> worst_count, status_count;
+  std::size_t max_frame = 0, with_markers = 0, outlier_samples = 0, outlier_frames = 0;
+  std::size_t measured_samples = 0;
+  std::map<std::string, int> worst_count, status_count, quality_count, outlier_markers;
   for (std::size_t f = 0; f < frames; ++f) {
     ++status_count[s.status[f]];
+    if (f < s.quality.size()) ++quality_count[std::string(to_string(s.quality[f]))];
+    if (f < s.outlier_count.size()) {
+      outlier_samples += static_cast<std::size_t>(s.outlier_count[f]);
+      outlier_frames += s.outlier_count[f] > 0 ? 1 : 0;
+      const std::size_t n = s.markers.labels.size();
+      for (std::size_t i = 0; i < n; ++i)
+        if (s.outlier[f * n + i]) ++outlier_markers[s.markers.labels[i]];
+    }
+    if (f < s.measured.size()) measured_samples += static_cast<std::size_t>(s.measured[f]);
     if (f < s.measured.size() && s.measured[f] == 0) continue;  // no residual to speak of
     ++with_markers;
     rms_sum += s.rms_m[f];
@@ -141,7 +194,12 @@ nlohmann::json solution_summary(const TrialSolution& s) {
   for (const FilledRun& r : s.filled)
     filled[r.marker].push_back({s.markers.first_frame + static_cast<long long>(r.first),
                                 s.markers.first_frame + static_cast<long long>(r.end) - 1});
-  return {{"frames", frames},
+  double sensor_sum = 0.0, sensor_max = 0.0;
+  std::size_t with_sensors = 0;
+  for (double e : s.sensor_rms_rad)
+    if (std::isfinite(e)) sensor_sum += e, sensor_max = std::max(sensor_max, e), ++with_sensors;
+  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
+  nlohmann::json summary = {{"frames", frames},
           {"frames_without_markers", frames - with_markers},
           {"residual_mm",
            {{"rms_mean", with_markers ? rms_sum / static_cast<double>(with_markers) * 1e3 : 0.0},
@@ -156,10 +214,31 @@ nlohmann::json solution_summary(const TrialSolution& s) {
             {"max", quantile(s.solve_us, 1.0)}}},
           {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
           {"status", status_count},
+          {"quality", quality_count},
+          {"outliers",
+           {{"samples", outlier_samples},
+            {"frames", outlier_frames},
+            {"percent_of_measured",
+             measured_samples ? 100.0 * static_cast<double>(outlier_samples) /
+                                    static_cast<double>(measured_samples)
+                              : 0.0},
+            {"markers", outlier_markers}}},
           {"markers_missing_in_trial", s.missing_in_trial},
           {"filled", filled},
           {"markers_mostly_missing", mostly_missing},
           {"trial_labels_not_tracked", s.ignored_in_trial}};
+  if (!s.sensor_rms_rad.empty() && with_sensors + s.sensors_missing_in_table.size() +
+                                           s.ignored_in_table.size() > 0) {
+    summary["orientations"] = {
+        {"frames_with_sensors", with_sensors},
+        {"sensor_error_deg",
+         {{"rms_mean", with_sensors ? sensor_sum / static_cast<double>(with_sensors) * kDegPerRad
+                                    : 0.0},
+          {"rms_max", sensor_max * kDegPerRad}}},
+        {"sensors_missing_in_table", s.sensors_missing_in_table},
+        {"table_columns_not_used", s.ignored_in_table}};
+  }
+  return summary;
 }
 
 double file_time_s(const io::MarkerTrial& trial, std::size_t f) {

@@ -11,6 +11,7 @@
 #include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
 #include "io/opensim_table.hpp"
+#include "io/orientation_table.hpp"
 
 namespace fabrik {
 
@@ -40,6 +41,11 @@ struct TrialSolution {
   std::vector<int> iterations;                // per frame
   std::vector<std::string> status;            // per frame, the solver's stop reason
   std::vector<int> measured;                  // per frame: tracked markers with a measurement
+  // Per frame and marker [frame * markers + i]: left out of the solve as an outlier (or
+  // relabelled as a swap: outlier_filter.hpp).
+  std::vector<std::uint8_t> outlier;
+  std::vector<int> outlier_count;  // per frame
+  std::vector<FitQuality> quality;  // per frame: residual.quality against config.quality
   // Tracked markers the trial lacks entirely: not among its labels, or never measured.
   std::vector<std::string> missing_in_trial;
   // Tracked markers missing in more than half of the frames (those never measured included).
@@ -51,11 +57,24 @@ struct TrialSolution {
   std::vector<std::string> coordinate_names;
   std::vector<std::uint8_t> coordinate_is_rotation;
   std::vector<double> coordinates;
+  // Orientation sensors: per frame, the RMS angle between the measured
+  // sensors' segment rotations and the tracked ones (radians; NaN when none
+  // was measured) and the sensors measured; the config's sensors the table
+  // lacks; table columns that are no sensor of the config.
+  std::vector<double> sensor_rms_rad;
+  std::vector<int> sensors_measured;
+  std::vector<std::string> sensors_missing_in_table;
+  std::vector<std::string> ignored_in_table;
 };
 
 // `progress(frame, frames)` is called now and then (may be empty).
+// `orientations` (may be null) feeds the config's sensors, joined on time:
+// each marker frame takes the table's orientations at its file time
+// (file_time_s, interpolated). A trial without markers (no labels) is tracked
+// on the table's rows instead, at the table's times and rate.
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
-                          const std::function<void(std::size_t, std::size_t)>& progress = {});
+                          const std::function<void(std::size_t, std::size_t)>& progress = {},
+                          const io::OrientationTable* orientations = nullptr);
 
 // Frames, residual RMS mean and max, worst marker, solve time quantiles. Frames without any
 // measured marker have no residual: they are left out of the residual figures and counted

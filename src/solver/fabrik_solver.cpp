@@ -69,6 +69,8 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
     }
   }
   slot_first_[n_seg_] = static_cast<int>(slots_.size());
+  carried_.resize(slots_.size());
+  drivers_.resize(drivers_.size() + slots_.size());
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
   marked_visible_.assign(targets_.targets().size(), 0);
@@ -411,11 +413,18 @@ void FabrikSolver::hinge_fit(int n, int s, Posture& posture) {
   double c = 0.0, sn = 0.0;
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
-    const std::size_t slot = static_cast<std::size_t>(d.slot - slots_.data());
+    const std::ptrdiff_t slot = d.slot - slots_.data();
     const Eigen::Vector3d b_local =
         parent.r_world.transpose() * (d.weight * (d.d_world() - pose.base_world_m));
-    c += b_local.dot(hinge_across_[slot]);
-    sn += b_local.dot(hinge_cross_[slot]);
+    if (slot >= 0 && slot < static_cast<std::ptrdiff_t>(slots_.size())) {
+      c += b_local.dot(hinge_across_[slot]);
+      sn += b_local.dot(hinge_cross_[slot]);
+    } else {  // a carried slot
+      const Eigen::Vector3d& u = hinge_axis_local_[s];
+      const Eigen::Vector3d& a = d.a_local();
+      c += b_local.dot(a - u * u.dot(a));
+      sn += b_local.dot(u.cross(a));
+    }
   }
   const Eigen::Vector3d& u = hinge_axis_local_[s];
   if (orient_on_) {
@@ -523,13 +532,15 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
       // Nothing below pulls on this segment: it rides rigidly on its parent.
       const SegmentPose& parent_now = posture.segments[seg.parent];
       const SegmentPose& parent_then = start_[seg.parent];
-      const Eigen::Quaterniond previous = pose.q_world;
       pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
       pose.base_world_m = base_m;
-      if (limited_[s]) enforce_joint_limits(model_, s, previous, posture);
+      // Its rotation relative to the parent is the one it had when the pass
+      // began, which solve() brought within range: no limit to enforce.
       continue;
     }
-    const int n = gather(pass, s, target_world_m, visible, posture);
+    int n = gather(pass, s, target_world_m, visible, posture);
+    if (parent_of_limited_[s] && options_.subtree_carry > 0.0)
+      n = carry_limited(pass, s, n, target_world_m, posture);
     if (limited_[s]) {
       limited_fit(n, s, base_m, posture);
     } else {
@@ -538,6 +549,55 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
   }
 }
 
+
+// SolverOptions::subtree_carry: the drivers of limited descendants (through
+// limited joints only), carried rigidly at their joints' latest angles into
+// segment s's backward fit, with their weight times subtree_carry. A limited
+// child cannot turn freely to meet its targets, so their pull must turn its
+// parent too; the child's joint point alone cannot, e.g., turn a thigh about
+// its long axis to aim a knee hinge. At the child's best angles this is the
+// exact direction for the parent (the child's own angle change is second
+// order), so the loop approaches the constrained least-squares fit.
+int FabrikSolver::carry_limited(int pass, int s, int n,
+                                std::span<const Eigen::Vector3d> target_world_m,
+                                const Posture& posture) {
+  n_carried_ = 0;
+  const Segment& seg = model_.segments[s];
+  for (int i = 0; i < seg.child_count; ++i) {
+    const int c = model_.child_ids[seg.first_child + i];
+    if (!limited_[c] || !active(pass, c)) continue;
+    carry_from(pass, c, rel_q_[c].toRotationMatrix(),
+               model_.points[model_.segments[c].parent_point].p_local_m, n, target_world_m,
+               posture);
+  }
+  return n;
+}
+
+void FabrikSolver::carry_from(int pass, int c, const Eigen::Matrix3d& r_m,
+                              const Eigen::Vector3d& o_m, int& n,
+                              std::span<const Eigen::Vector3d> target_world_m,
+                              const Posture& posture) {
+  const double* weight =
+      slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * static_cast<int>(slots_.size());
+  for (int k = slot_first_[c]; k < slot_first_[c + 1]; ++k) {
+    if (weight[k] <= 0.0) continue;
+    const int source = slots_[k].source;
+    if (source < 0 && limited_[~source]) continue;  // carried below instead
+    Slot& e = carried_[n_carried_++];
+    e.a_local = o_m + r_m * slots_[k].a_local;
+    e.a_norm_m = e.a_local.norm();
+    e.source = source;
+    drivers_[n++] = {&e, &desired_m(slots_[k], target_world_m, posture), weight[k] * options_.subtree_carry};
+  }
+  const Segment& seg = model_.segments[c];
+  for (int i = 0; i < seg.child_count; ++i) {
+    const int g = model_.child_ids[seg.first_child + i];
+    if (!limited_[g] || !active(pass, g)) continue;
+    carry_from(pass, g, r_m * rel_q_[g].toRotationMatrix(),
+               o_m + r_m * model_.points[model_.segments[g].parent_point].p_local_m, n,
+               target_world_m, posture);
+  }
+}
 
 // A limited segment turns through its joint angles alone: its rotation is
 // R_parent J_parent E(angles) J_child^T (J: the anatomical frames, E the
@@ -578,8 +638,11 @@ void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m, Post
   if (orient_on_) w.noalias() = orient_m_ * joint_child_[s];  // virtual points, see gather
   for (int k = 0; k < n; ++k) {
     const Driver& d = drivers_[k];
-    const std::size_t slot = static_cast<std::size_t>(d.slot - slots_.data());
-    w.noalias() += (d.weight * (d.d_world() - base_m)) * joint_vector_[slot].transpose();
+    const std::ptrdiff_t slot = d.slot - slots_.data();
+    const Eigen::Vector3d v = slot >= 0 && slot < static_cast<std::ptrdiff_t>(slots_.size())
+                                  ? joint_vector_[slot]
+                                  : Eigen::Vector3d(joint_child_[s].transpose() * d.a_local());
+    w.noalias() += (d.weight * (d.d_world() - base_m)) * v.transpose();
   }
   const Eigen::Matrix3d b = (parent.r_world * joint_parent_[s]).transpose() * w;
   // Warm start from the joint's angles at its last fit (or at the start of the solve).
@@ -669,6 +732,10 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
   mark_active(visible);
   for (int s = 1; s < n_seg_; ++s) {
     if (!limited_[s]) continue;
+    // Every fit keeps a joint within range and a segment that rides on its
+    // parent keeps its relative rotation, so one check here keeps every
+    // joint of the solve within range, even from a start that was not.
+    enforce_joint_limits(model_, s, posture.segments[s].q_world, posture);
     const Eigen::Quaterniond& q_parent = posture.segments[model_.segments[s].parent].q_world;
     rel_q_[s] = q_parent.conjugate() * posture.segments[s].q_world;
     if (hinge_[s])  // the turn about the axis: the twist of the relative rotation

@@ -119,6 +119,12 @@ class FabrikSolver {
   // best aims its drivers, about a given base.
   void limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture);
   void hinge_fit(int n, int s, Posture& posture);
+  int carry_limited(int pass, int s, int n, std::span<const Eigen::Vector3d> target_world_m,
+                    const Posture& posture);
+  void carry_from(int pass, int c, const Eigen::Matrix3d& r_m, const Eigen::Vector3d& o_m, int& n,
+                  std::span<const Eigen::Vector3d> target_world_m, const Posture& posture);
+  std::vector<Slot> carried_;  // scratch: carried descendants' slots, in the fitted segment's frame
+  int n_carried_ = 0;
   void forward_limited(int n, int s, Posture& posture) const;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 

@@ -53,6 +53,13 @@ struct SolverOptions {
   // 0 disables it (the paper's literal loop, where each level pulls alone):
   // then a weak level can cost the strongest one accuracy in a conflict.
   double anchor_weight = 1000.0;
+  // With joint limits: the targets below a limited joint also pull, with
+  // their weight times this factor, on the segments above it (through
+  // limited joints), held at the joints' current angles. 0 is FABRIK's own
+  // rule (a segment feels its children only through their joint points),
+  // whose fixed point can sit far from the constrained least-squares fit on
+  // real data; > 0 costs iterations (see README "subtree carry").
+  double subtree_carry = 0.0;
   // The lever of orientation targets (see OrientationTarget), metres.
   double orientation_lever_m = 0.1;
 };

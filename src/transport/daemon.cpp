@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "wire_writer.hpp"
 
@@ -132,7 +133,7 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  w.begin_map(19);  // MessagePack needs the exact count of the keys below
+  w.begin_map(25);  // MessagePack needs the exact count of the keys below
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -161,6 +162,13 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("internal_errors", s.c.internal_errors);
   count("input_disconnects", s.c.input_disconnects);
   count("accept_failures", s.c.accept_failures);
+  count("rejected_orientations", s.c.rejected_orientations);
+  count("unknown_sensors", s.c.unknown_sensors);
+  count("unmatched_frames", s.c.unmatched_frames);
+  w.key("config_mismatch");
+  w.boolean(s.c.config_mismatch);
+  count("outliers", s.c.outliers);
+  count("poor_frames", s.c.poor_frames);
   w.end_map();
 }
 
@@ -173,6 +181,7 @@ struct Daemon::State {
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
   MarkerFrame frame;  // decoded into, one at a time
+  NameMismatchWatch names;  // does the stream use the config's marker names?
   // Messages waiting to be served, oldest first: [first, first + count) of a
   // ring of max_backlog_frames payloads, holding `bytes` at most kInputQueueBytes.
   std::vector<zmq::message_t> waiting;
@@ -196,11 +205,14 @@ struct Daemon::ReloadJob {
 std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   auto s = std::make_unique<State>();
   s->tracker = std::make_unique<Tracker>(config.tracker);
-  std::vector<std::string> names;
+  std::vector<std::string> names, sensor_names;
   for (const MarkerTarget& m : config.tracker.markers) names.push_back(m.marker);
+  for (const SensorTarget& t : config.tracker.sensors.sensors) sensor_names.push_back(t.sensor);
   s->decoder = std::make_unique<MarkerDecoder>(
       names, config.input_m_per_unit, config.max_payload_bytes,
-      PlausibleMarkers{config.max_abs_coordinate_m, config.zero_is_missing});
+      PlausibleMarkers{config.max_abs_coordinate_m, config.zero_is_missing,
+                       config.quaternion_tolerance},
+      sensor_names);
   s->encoder = std::make_unique<PoseEncoder>(*s->tracker, config.output_units,
                                              config.output_encoding == Encoding::msgpack
                                                  ? PayloadEncoding::msgpack
@@ -404,34 +416,61 @@ void Daemon::serve_frame(int slot) {
   counters_.rejected_coordinates += static_cast<std::uint64_t>(f.rejected_count);
   counters_.zero_markers += static_cast<std::uint64_t>(f.zero_count);
   counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
+  counters_.rejected_orientations += static_cast<std::uint64_t>(f.rejected_orientations);
+  counters_.unknown_sensors += static_cast<std::uint64_t>(f.unknown_sensor_count);
+  if (f.known_count == 0 && f.unknown_count > 0) ++counters_.unmatched_frames;
+  const bool warn_mismatch = s.names.observe(f.known_count, f.unknown_count);
+  counters_.config_mismatch = s.names.mismatched();
   publish_pose(f, s.received_at[slot]);
   try {
-    for (int k = 0; k < f.unknown_listed; ++k) {
-      const std::string& name = f.unknown_names[k];
-      // Look up first: only a name not seen before costs an allocation.
+    // Look up first: only a name not seen before costs an allocation.
+    const auto report_once = [&](const std::string& name, const char* what) {
       if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(name)) {
         unknown_seen_.insert(name);
-        spdlog::warn("marker '{}' is not in the model: ignored (reported once)",
-                     safe_text(name, 128));
+        spdlog::warn("{} '{}' is not in the {}: ignored (reported once)", what,
+                     safe_text(name, 128), *what == 'm' ? "model" : "config");
       }
-    }
+    };
+    for (int k = 0; k < f.unknown_listed; ++k) report_once(f.unknown_names[k], "marker");
+    for (int k = 0; k < f.unknown_sensors_listed; ++k)
+      report_once(f.unknown_sensor_names[k], "orientation sensor");
+    if (warn_mismatch) warn_config_mismatch(f);
   } catch (const std::exception&) {  // a log line lost when memory is short, nothing more
   }
+}
+
+void Daemon::warn_config_mismatch(const MarkerFrame& f) {
+  std::vector<std::string> config_names, stream_names;
+  for (const MarkerTarget& m : state_->config.tracker.markers) config_names.push_back(m.marker);
+  for (int k = 0; k < f.unknown_listed; ++k) stream_names.push_back(safe_text(f.unknown_names[k], 64));
+  for (const std::string& name : unknown_seen_)
+    if (std::find(stream_names.begin(), stream_names.end(), name) == stream_names.end())
+      stream_names.push_back(safe_text(name, 64));
+  spdlog::error(
+      "the stream's marker names share none with the config {} ({} frames in a row): every "
+      "frame is solved without targets.{}\nFix: start fabrikd with a config made for this "
+      "marker set (fabrik calibrate), or rename the config's target markers "
+      "(stats: config_mismatch, unmatched_frames)",
+      state_->config_name, NameMismatchWatch::kFramesInARow,
+      names_beside(config_names, "stream:", stream_names));
 }
 
 void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
   State& s = *state_;
   const double time_s = f.has_time ? f.time_s
                                    : std::chrono::duration<double>(received - started_).count();
-  const TrackResult* r = &s.tracker->track(time_s, f.p_world_m, f.visible);
+  const TrackResult* r =
+      &s.tracker->track(time_s, f.p_world_m, f.visible, f.q_sensor, f.sensor_visible);
   if (!all_finite(*r)) {
     // A degenerate solve must not poison the warm start of every later frame.
     internal_error("solve gave a non-finite pose: ", "restarted from the rest posture");
     s.tracker->reset();
-    r = &s.tracker->track(time_s, f.p_world_m, f.visible);
+    r = &s.tracker->track(time_s, f.p_world_m, f.visible, f.q_sensor, f.sensor_visible);
     if (!all_finite(*r)) return;
   }
   s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_);
+  counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
+  counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
   ++interval_frames_out_;
   update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it

@@ -27,6 +27,7 @@
 #include "config/daemon_config.hpp"
 #include "interval_stats.hpp"
 #include "marker_codec.hpp"
+#include "name_mismatch.hpp"
 #include "pose_codec.hpp"
 #include "rate_limited_log.hpp"
 #include "safe_text.hpp"
@@ -45,6 +46,12 @@ struct DaemonCounters {
   std::uint64_t internal_errors = 0;       // exceptions caught in the loop (frame, stats)
   std::uint64_t input_disconnects = 0;     // input peers gone (quit, or dropped by ZeroMQ)
   std::uint64_t accept_failures = 0;       // input connections ZeroMQ could not accept
+  std::uint64_t rejected_orientations = 0;  // sensor quaternions not usable (length, NaN, not unit)
+  std::uint64_t unknown_sensors = 0;        // orientation entries whose sensor is not in the config
+  std::uint64_t unmatched_frames = 0;  // frames whose marker names are all unknown to the config
+  bool config_mismatch = false;        // the latest such frames share no name with the config
+  std::uint64_t outliers = 0;          // measured markers left out of a solve as outliers
+  std::uint64_t poor_frames = 0;       // poses whose residual.quality was poor
 };
 
 // Signals to the loop, set from another thread or a signal handler (the
@@ -125,6 +132,8 @@ class Daemon {
                  std::string_view after = {}) noexcept;
   void internal_error(std::string_view where, std::string_view what) noexcept;
   void update_snapshot();
+  // Logs, once, that the stream's names share none with the config, beside the closest ones.
+  void warn_config_mismatch(const MarkerFrame& f);
 
   zmq::context_t& context_;
   std::unique_ptr<State> state_;

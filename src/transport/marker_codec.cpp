@@ -21,15 +21,21 @@ constexpr std::size_t kMaxUnknownNameBytes = 64;  // longer names are cut in lis
 // SAX handler: a small state machine over the token stream.
 class FrameSax : public nlohmann::json_sax<json> {
  public:
-  FrameSax(const std::unordered_map<std::string, int>& index, MarkerFrame& out, std::string& error,
-           std::string& name_scratch)
-      : index_(index), out_(out), error_(error), marker_name_(name_scratch) {}
+  FrameSax(const std::unordered_map<std::string, int>& index,
+           const std::unordered_map<std::string, int>& sensor_index, MarkerFrame& out,
+           std::string& error, std::string& name_scratch)
+      : index_(index),
+        sensor_index_(sensor_index),
+        out_(out),
+        error_(error),
+        marker_name_(name_scratch) {}
 
   bool has_frame = false;
   double m_per_unit = 0.0;  // 0: not given
 
   bool null() override {
     if (state_ == State::marker_value) return end_marker_value();
+    if (state_ == State::sensor_value) return to(State::sensor_key);  // occluded
     return scalar("null");
   }
   bool boolean(bool) override { return scalar("a boolean"); }
@@ -68,12 +74,13 @@ class FrameSax : public nlohmann::json_sax<json> {
     if (!enter()) return false;
     if (state_ == State::start) return to(State::top_key);
     if (state_ == State::markers) return to(State::marker_key);
+    if (state_ == State::orientations) return to(State::sensor_key);
     return skipping() || scalar("an object");
   }
   bool end_object() override {
     --depth_;
     if (state_ == State::skip) return end_skip();
-    if (state_ == State::marker_key) {
+    if (state_ == State::marker_key || state_ == State::sensor_key) {
       state_ = State::top_key;
       return true;
     }
@@ -88,6 +95,10 @@ class FrameSax : public nlohmann::json_sax<json> {
     if (state_ == State::marker_value) {
       coord_ = 0;
       return to(State::coords);
+    }
+    if (state_ == State::sensor_value) {
+      coord_ = 0;
+      return to(State::quat);
     }
     return skipping() || scalar("an array");
   }
@@ -104,6 +115,10 @@ class FrameSax : public nlohmann::json_sax<json> {
       }
       state_ = State::marker_key;
     }
+    if (state_ == State::quat) {
+      if (sensor_ >= 0) end_quaternion();
+      state_ = State::sensor_key;
+    }
     return true;
   }
   bool key(string_t& k) override {
@@ -118,6 +133,8 @@ class FrameSax : public nlohmann::json_sax<json> {
         state_ = State::stamp;
       else if (k == "markers")
         state_ = State::markers;
+      else if (k == "orientations")
+        state_ = State::orientations;
       else
         state_ = State::top_skip_value;  // additions to the contract are allowed
       return true;
@@ -125,6 +142,7 @@ class FrameSax : public nlohmann::json_sax<json> {
     if (state_ == State::marker_key) {
       const auto it = index_.find(k);
       marker_ = it == index_.end() ? -1 : it->second;
+      if (marker_ >= 0) ++out_.known_count;
       if (marker_ < 0) {
         ++out_.unknown_count;
         if (out_.unknown_listed < static_cast<int>(out_.unknown_names.size())) {
@@ -138,6 +156,22 @@ class FrameSax : public nlohmann::json_sax<json> {
       state_ = State::marker_value;
       return true;
     }
+    if (state_ == State::sensor_key) {
+      const auto it = sensor_index_.find(k);
+      sensor_ = it == sensor_index_.end() ? -1 : it->second;
+      if (sensor_ < 0) {
+        ++out_.unknown_sensor_count;
+        if (out_.unknown_sensors_listed < static_cast<int>(out_.unknown_sensor_names.size())) {
+          std::string& listed = out_.unknown_sensor_names[out_.unknown_sensors_listed++];
+          listed.assign(k, 0, std::min(k.size(), listed.capacity()));
+        }
+      } else {
+        out_.sensor_visible[sensor_] = 0;  // until a usable quaternion arrives
+      }
+      marker_name_.assign(k, 0, std::min(k.size(), marker_name_.capacity()));
+      state_ = State::sensor_value;
+      return true;
+    }
     return true;  // keys inside skipped values
   }
   bool parse_error(std::size_t position, const std::string&,
@@ -148,6 +182,7 @@ class FrameSax : public nlohmann::json_sax<json> {
     return false;
   }
   const char* format_ = "JSON";
+  double quaternion_tolerance_ = 0.01;
 
  private:
   enum class State {
@@ -161,6 +196,10 @@ class FrameSax : public nlohmann::json_sax<json> {
     marker_key,
     marker_value,
     coords,
+    orientations,
+    sensor_key,
+    sensor_value,
+    quat,
     top_skip_value,
     skip,
     done
@@ -197,12 +236,28 @@ class FrameSax : public nlohmann::json_sax<json> {
         if (coord_ >= 3) return fail("marker \"" + marker_name_ + "\": more than 3 coordinates");
         p_[coord_++] = v;
         return true;
+      case State::quat:  // a wrong length is an occlusion (end_quaternion), not an error
+        if (coord_ < 4) q_[coord_] = v;
+        ++coord_;
+        return true;
       case State::skip:
         return true;
       case State::top_skip_value:
         return top_value_done();
       default:
         return scalar("a number");
+    }
+  }
+  // A known sensor's [w, x, y, z]: usable (four finite numbers, unit within
+  // the tolerance) or an occlusion, counted.
+  void end_quaternion() {
+    const Eigen::Quaterniond q(q_[0], q_[1], q_[2], q_[3]);
+    if (coord_ == 4 && q.coeffs().allFinite() &&
+        std::abs(q.norm() - 1.0) <= quaternion_tolerance_) {
+      out_.q_sensor[sensor_] = q.normalized();
+      out_.sensor_visible[sensor_] = 1;
+    } else {
+      ++out_.rejected_orientations;
     }
   }
   bool end_marker_value() {  // null: occluded
@@ -235,6 +290,14 @@ class FrameSax : public nlohmann::json_sax<json> {
         return fail(std::string("\"units\" must be \"mm\" or \"m\", got ") + what);
       case State::markers:
         return fail(std::string("\"markers\" must be an object, got ") + what);
+      case State::orientations:
+        return fail(std::string("\"orientations\" must be an object, got ") + what);
+      case State::sensor_value:
+        return fail("orientation \"" + marker_name_ + "\" must be [w, x, y, z] or null, got " +
+                    what);
+      case State::quat:
+        return fail("orientation \"" + marker_name_ + "\": components must be numbers, got " +
+                    what);
       case State::marker_value:
         return fail("marker \"" + marker_name_ + "\" must be [x, y, z] or null, got " + what);
       case State::coords:
@@ -249,14 +312,16 @@ class FrameSax : public nlohmann::json_sax<json> {
   }
 
   const std::unordered_map<std::string, int>& index_;
+  const std::unordered_map<std::string, int>& sensor_index_;
   MarkerFrame& out_;
   std::string& error_;
   State state_ = State::start;
   int depth_ = 0, skip_depth_ = 0;
-  int marker_ = -1;
-  std::string& marker_name_;  // the decoder's, so its buffer is reused
+  int marker_ = -1, sensor_ = -1;
+  std::string& marker_name_;  // the decoder's, so its buffer is reused (also sensor names)
   int coord_ = 0;
   Eigen::Vector3d p_{0, 0, 0};
+  double q_[4] = {0, 0, 0, 0};
 };
 
 }  // namespace
@@ -269,12 +334,15 @@ PayloadEncoding detect_encoding(std::span<const std::uint8_t> payload) {
 }
 
 MarkerDecoder::MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
-                             std::size_t max_payload_bytes, PlausibleMarkers plausible)
+                             std::size_t max_payload_bytes, PlausibleMarkers plausible,
+                             std::span<const std::string> sensor_names)
     : count_(static_cast<int>(names.size())),
+      sensor_count_(static_cast<int>(sensor_names.size())),
       default_m_per_unit_(default_m_per_unit),
       max_payload_bytes_(max_payload_bytes),
       plausible_(plausible) {
   for (int i = 0; i < count_; ++i) index_.emplace(names[i], i);
+  for (int i = 0; i < sensor_count_; ++i) sensor_index_.emplace(sensor_names[i], i);
   marker_name_.reserve(kMaxUnknownNameBytes);
 }
 
@@ -284,6 +352,10 @@ MarkerFrame MarkerDecoder::make_frame() const {
   f.visible.assign(count_, 0);
   f.unknown_names.resize(kMaxUnknownNames);
   for (std::string& name : f.unknown_names) name.reserve(kMaxUnknownNameBytes);
+  f.q_sensor.assign(sensor_count_, Eigen::Quaterniond::Identity());
+  f.sensor_visible.assign(sensor_count_, 0);
+  f.unknown_sensor_names.resize(kMaxUnknownNames);
+  for (std::string& name : f.unknown_sensor_names) name.reserve(kMaxUnknownNameBytes);
   return f;
 }
 
@@ -308,12 +380,18 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   out.has_time = false;
   out.time_s = 0.0;
   out.has_stamp = false;
+  out.known_count = 0;
   out.unknown_count = 0;
   out.unknown_listed = 0;
   out.rejected_count = 0;
   out.zero_count = 0;
+  out.rejected_orientations = 0;
+  out.unknown_sensor_count = 0;
+  out.unknown_sensors_listed = 0;
   std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
-  FrameSax sax(index_, out, error, marker_name_);
+  std::fill(out.sensor_visible.begin(), out.sensor_visible.end(), 0);
+  FrameSax sax(index_, sensor_index_, out, error, marker_name_);
+  sax.quaternion_tolerance_ = plausible_.quaternion_tolerance;
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
   sax.format_ = msgpack ? "MessagePack" : "JSON";
   bool ok;
@@ -352,9 +430,10 @@ template <class Writer>
 void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
                         const double* stamp_us, std::span<const std::string> names,
                         std::span<const Eigen::Vector3d> p_world_m,
-                        std::span<const std::uint8_t> visible, std::string_view units) {
+                        std::span<const std::uint8_t> visible, std::string_view units,
+                        const SensorSamples* sensors) {
   const double scale = units == "mm" ? 1e3 : 1.0;
-  w.begin_map(3 + (time_s ? 1 : 0) + (stamp_us ? 1 : 0));
+  w.begin_map(3 + (time_s ? 1 : 0) + (stamp_us ? 1 : 0) + (sensors ? 1 : 0));
   w.key("frame");
   w.uint(frame);
   if (time_s) {
@@ -380,6 +459,22 @@ void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
     w.end_array();
   }
   w.end_map();
+  if (sensors) {
+    w.key("orientations");
+    w.begin_map(sensors->names.size());
+    for (std::size_t k = 0; k < sensors->names.size(); ++k) {
+      w.key(sensors->names[k]);
+      const Eigen::Quaterniond& q = sensors->q[k];
+      if (!sensors->visible[k] || !q.coeffs().allFinite()) {
+        w.null();
+        continue;
+      }
+      w.begin_array(4);
+      for (const double v : {q.w(), q.x(), q.y(), q.z()}) w.number(v, 9);
+      w.end_array();
+    }
+    w.end_map();
+  }
   w.end_map();
 }
 }  // namespace
@@ -388,13 +483,14 @@ void encode_marker_frame(std::uint64_t frame, const double* time_s,
                          std::span<const std::string> names,
                          std::span<const Eigen::Vector3d> p_world_m,
                          std::span<const std::uint8_t> visible, std::string_view units,
-                         PayloadEncoding encoding, std::string& out, const double* stamp_us) {
+                         PayloadEncoding encoding, std::string& out, const double* stamp_us,
+                         const SensorSamples* sensors) {
   if (encoding == PayloadEncoding::json) {
     JsonWriter w(out, units == "mm" ? 4 : 7);
-    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units);
+    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units, sensors);
   } else {
     MsgpackWriter w(out);
-    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units);
+    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units, sensors);
   }
 }
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -34,9 +35,20 @@ struct MarkerFrame {
   std::vector<std::uint8_t> visible;       // per known marker
   int rejected_count = 0;  // known markers beyond the plausible range: taken as occluded
   int zero_count = 0;      // known markers at exactly (0, 0, 0): taken as occluded
+  int known_count = 0;                     // marker names of the config (null ones included)
   int unknown_count = 0;                   // marker names not in the model
   std::vector<std::string> unknown_names;  // the first unknown_listed of them (cut), for the log
   int unknown_listed = 0;
+  // Addition to the contract, "orientations": per known sensor, its frame's
+  // rotation in the sensors' world (normalised) and whether it was measured.
+  std::vector<Eigen::Quaterniond> q_sensor;
+  std::vector<std::uint8_t> sensor_visible;
+  // Known sensors whose value was not a usable quaternion (wrong length, not
+  // finite, not unit within the tolerance): taken as occluded.
+  int rejected_orientations = 0;
+  int unknown_sensor_count = 0;                   // sensor names not in the config
+  std::vector<std::string> unknown_sensor_names;  // the first unknown_sensors_listed (cut)
+  int unknown_sensors_listed = 0;
 };
 
 // What a measured position must be to count as seen.
@@ -46,14 +58,19 @@ struct PlausibleMarkers {
   double max_abs_coordinate_m = 100.0;
   // An exact (0, 0, 0) is an occlusion (exporters write it for "not seen").
   bool zero_is_missing = true;
+  // An orientation whose quaternion's length differs from 1 by more than
+  // this is an occlusion (a zero or garbage quaternion, not a rounded one).
+  double quaternion_tolerance = 0.01;
 };
 
 class MarkerDecoder {
  public:
-  // `names`: the marker names in tracker order. Frames without "units" are in
+  // `names`: the marker names in tracker order, `sensor_names` the orientation
+  // sensors' names in tracker order. Frames without "units" are in
   // `default_m_per_unit`. Larger payloads than `max_payload_bytes` are errors.
   MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
-                std::size_t max_payload_bytes, PlausibleMarkers plausible = {});
+                std::size_t max_payload_bytes, PlausibleMarkers plausible = {},
+                std::span<const std::string> sensor_names = {});
 
   // A frame sized for this decoder's markers.
   MarkerFrame make_frame() const;
@@ -63,8 +80,8 @@ class MarkerDecoder {
   int index_of(const std::string& name) const;
 
  private:
-  std::unordered_map<std::string, int> index_;
-  int count_;
+  std::unordered_map<std::string, int> index_, sensor_index_;
+  int count_, sensor_count_;
   double default_m_per_unit_;
   std::size_t max_payload_bytes_;
   PlausibleMarkers plausible_;
@@ -76,12 +93,21 @@ class MarkerDecoder {
 // A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are
 // given in metres and converted here), null where visible[i] is 0 or the
 // position is not finite.
-// `stamp_us`, if given, is written as the frame's stamp_us.
+// Orientation sensors for a frame: names[k] at q[k] ([w, x, y, z]), null
+// where visible[k] is 0 or the quaternion is not finite.
+struct SensorSamples {
+  std::span<const std::string> names;
+  std::span<const Eigen::Quaterniond> q;
+  std::span<const std::uint8_t> visible;
+};
+
+// `stamp_us`, if given, is written as the frame's stamp_us; `sensors`, if
+// given, as its "orientations".
 void encode_marker_frame(std::uint64_t frame, const double* time_s,
                          std::span<const std::string> names,
                          std::span<const Eigen::Vector3d> p_world_m,
                          std::span<const std::uint8_t> visible, std::string_view units,
                          PayloadEncoding encoding, std::string& out,
-                         const double* stamp_us = nullptr);
+                         const double* stamp_us = nullptr, const SensorSamples* sensors = nullptr);
 
 }  // namespace fabrik::wire

@@ -35,7 +35,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
     w.end_array();
   };
-  w.begin_map(12 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
+  w.begin_map(14 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
   if (header.has_time) {
@@ -82,8 +82,23 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.number(r.gap_s[i], 4);
   }
   w.end_map();
+  w.key("outliers");  // addition: measured markers left out of this frame's solve
+  w.begin_array(static_cast<std::size_t>(r.outlier_count));
+  for (std::size_t i = 0; i < markers_.size(); ++i)
+    if (r.outliers[i]) w.string(markers_[i].plain);
+  w.end_array();
+  std::size_t relabelled = 0;
+  for (std::size_t i = 0; i < markers_.size(); ++i) relabelled += r.relabelled_from[i] >= 0;
+  w.key("relabelled");  // addition: swapped labels, solved with the other one's measurement
+  w.begin_map(relabelled);
+  for (std::size_t i = 0; i < markers_.size(); ++i)
+    if (r.relabelled_from[i] >= 0) {
+      w.named_key(markers_[i].plain, markers_[i].json_key);
+      w.string(markers_[r.relabelled_from[i]].plain);
+    }
+  w.end_map();
   w.key("residual");
-  w.begin_map(4);
+  w.begin_map(6);
   w.key("rms");
   w.number(r.residual_rms_m * scale_);
   w.key("max");
@@ -95,6 +110,13 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.null();
   w.key("count");
   w.uint(static_cast<std::uint64_t>(r.residual_count));
+  w.key("quality");  // addition: the verdict against the config's quality thresholds
+  w.string(to_string(r.quality));
+  w.key("beyond");  // addition: markers solved with whose residual exceeds quality.max_mm
+  w.begin_array(static_cast<std::size_t>(r.beyond_count));
+  for (std::size_t i = 0; i < markers_.size(); ++i)
+    if (r.beyond[i]) w.string(markers_[i].plain);
+  w.end_array();
   w.end_map();
   constexpr double kDegPerRad = 180.0 / 3.141592653589793;
   w.key("angles");  // addition: rotational coordinates, degrees

@@ -1,0 +1,99 @@
+#include "io/orientation_table.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "io/marker_trial.hpp"
+#include "io/opensim_table.hpp"
+
+namespace fabrik::io {
+
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}  // namespace
+
+bool is_sto_file(const std::string& path) {
+  if (path.size() < 4) return false;
+  std::string ext = path.substr(path.size() - 4);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".sto";
+}
+
+int OrientationTable::find(const std::string& sensor) const {
+  const auto it = std::find(sensors.begin(), sensors.end(), sensor);
+  return it == sensors.end() ? -1 : static_cast<int>(it - sensors.begin());
+}
+
+void OrientationTable::sample(double t_s, std::span<Eigen::Quaterniond> out) const {
+  const std::size_t n = sensors.size();
+  const Eigen::Quaterniond missing(kNaN, kNaN, kNaN, kNaN);
+  std::fill(out.begin(), out.end(), missing);
+  if (rows() == 0 || !std::isfinite(t_s)) return;
+  const double half_period_s = rate_hz > 0.0 ? 0.5 / rate_hz : 0.0;
+  constexpr double kSameTime_s = 1e-6;
+  const auto row_values = [&](std::size_t row) {
+    for (std::size_t k = 0; k < n && k < out.size(); ++k) out[k] = at(row, k);
+  };
+  if (t_s <= time_s.front() + kSameTime_s) {
+    if (time_s.front() - t_s <= std::max(half_period_s, kSameTime_s)) row_values(0);
+    return;
+  }
+  if (t_s >= time_s.back() - kSameTime_s) {
+    if (t_s - time_s.back() <= std::max(half_period_s, kSameTime_s)) row_values(rows() - 1);
+    return;
+  }
+  const std::size_t hi = static_cast<std::size_t>(
+      std::upper_bound(time_s.begin(), time_s.end(), t_s) - time_s.begin());
+  const std::size_t lo = hi - 1;
+  if (t_s - time_s[lo] <= kSameTime_s) return row_values(lo);
+  if (time_s[hi] - t_s <= kSameTime_s) return row_values(hi);
+  const double f = (t_s - time_s[lo]) / (time_s[hi] - time_s[lo]);
+  for (std::size_t k = 0; k < n && k < out.size(); ++k) {
+    const Eigen::Quaterniond& a = at(lo, k);
+    const Eigen::Quaterniond& b = at(hi, k);
+    if (!a.coeffs().allFinite() || !b.coeffs().allFinite() || a.norm() < 0.5 || b.norm() < 0.5)
+      continue;
+    out[k] = a.normalized().slerp(f, b.normalized());
+  }
+}
+
+OrientationTable read_orientation_table(const std::string& path) {
+  const OpenSimTable src = read_opensim_table(path);
+  const std::string data_type = src.header_value("DataType");
+  if (!data_type.empty() && data_type != "Quaternion")
+    throw FormatError(path, "DataType=" + data_type +
+                                ": not orientations. Fix: give a quaternion table "
+                                "(DataType=Quaternion, cells w,x,y,z), as OpenSense writes");
+  if (src.cell_width != 4 || src.columns.size() < 2 || src.rows == 0)
+    throw FormatError(path, "holds " + src.cell_kind + " in " +
+                                std::to_string(src.columns.size()) + " columns and " +
+                                std::to_string(src.rows) +
+                                " rows, not quaternions. Fix: give a table whose cells are "
+                                "w,x,y,z (DataType=Quaternion), as OpenSense writes");
+  OrientationTable t;
+  t.sensors.assign(src.columns.begin() + 1, src.columns.end());
+  t.time_s = src.time_s;
+  t.rate_hz = src.rate_hz;
+  t.rate_source = src.rate_source;
+  t.warnings = src.warnings;
+  std::size_t not_unit = 0;
+  t.q.reserve(src.rows * t.sensors.size());
+  for (std::size_t r = 0; r < src.rows; ++r)
+    for (std::size_t c = 1; c < src.columns.size(); ++c) {
+      const Eigen::Quaterniond q = src.quaternion(r, c);
+      if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 0.01) {
+        ++not_unit;
+        t.q.emplace_back(kNaN, kNaN, kNaN, kNaN);
+      } else {
+        t.q.push_back(q);
+      }
+    }
+  if (not_unit > 0)
+    t.warnings.push_back(std::to_string(not_unit) +
+                         " quaternions are not finite or not of unit length (within 0.01): "
+                         "tracked as missing");
+  return t;
+}
+
+}  // namespace fabrik::io

@@ -1,0 +1,92 @@
+#include "outlier_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fabrik {
+
+OutlierFilter::OutlierFilter(OutlierSettings settings, std::vector<int> marker_points)
+    : settings_(settings),
+      marker_points_(std::move(marker_points)),
+      markers_(static_cast<int>(marker_points_.size())),
+      scratch_m_(marker_points_.size()) {
+  found_.reserve(static_cast<std::size_t>(std::max(settings_.max_per_frame, 0)));
+}
+
+int OutlierFilter::worst_outlier(std::span<const double> distances_m,
+                                 std::span<const std::uint8_t> target_visible) {
+  int worst = -1, measured = 0;
+  bar_m_ = settings_.floor_m;
+  for (int i = 0; i < markers_; ++i) {
+    if (!target_visible[i] || !std::isfinite(distances_m[i])) continue;
+    ++measured;
+    if (worst < 0 || distances_m[i] > distances_m[worst]) worst = i;
+  }
+  if (measured < settings_.min_markers) return -1;
+  std::size_t n = 0;
+  for (int i = 0; i < markers_; ++i)
+    if (i != worst && target_visible[i] && std::isfinite(distances_m[i]))
+      scratch_m_[n++] = distances_m[i];
+  const auto mid = scratch_m_.begin() + static_cast<std::ptrdiff_t>(n / 2);
+  std::nth_element(scratch_m_.begin(), mid, scratch_m_.begin() + static_cast<std::ptrdiff_t>(n));
+  bar_m_ = std::max(settings_.floor_m, settings_.median_factor * *mid);  // upper median
+  return distances_m[worst] > bar_m_ ? worst : -1;
+}
+
+bool OutlierFilter::relabel_swaps(const Model& model, const Posture& posture,
+                                  std::span<Eigen::Vector3d> target_world_m,
+                                  std::span<std::uint8_t> target_visible,
+                                  std::span<const std::uint8_t> outlier,
+                                  std::span<int> relabelled_from) const {
+  bool any = false;
+  for (std::size_t x = 0; x < found_.size(); ++x) {
+    const int a = found_[x];
+    if (relabelled_from[a] >= 0) continue;
+    for (std::size_t y = x + 1; y < found_.size(); ++y) {
+      const int b = found_[y];
+      if (relabelled_from[b] >= 0 || !outlier[b]) continue;
+      const Eigen::Vector3d model_a = posture.point_world_m(model, marker_points_[a]);
+      const Eigen::Vector3d model_b = posture.point_world_m(model, marker_points_[b]);
+      if ((target_world_m[a] - model_b).norm() > bar_m_ ||
+          (target_world_m[b] - model_a).norm() > bar_m_)
+        continue;
+      std::swap(target_world_m[a], target_world_m[b]);
+      target_visible[a] = target_visible[b] = 1;
+      relabelled_from[a] = b;
+      relabelled_from[b] = a;
+      any = true;
+      break;
+    }
+  }
+  return any;
+}
+
+SolveResult OutlierFilter::solve(FabrikSolver& solver, const Model& model,
+                                 std::span<Eigen::Vector3d> target_world_m,
+                                 std::span<std::uint8_t> target_visible,
+                                 std::span<const Eigen::Quaterniond> q_world,
+                                 std::span<const std::uint8_t> orientation_visible,
+                                 const Posture& start, Posture& posture, std::span<std::uint8_t> outlier,
+                                 std::span<int> relabelled_from) {
+  posture = start;  // same size: copies without allocating
+  SolveResult r = solver.solve(target_world_m, target_visible, q_world, orientation_visible, posture);
+  if (!settings_.enabled) return r;
+  found_.clear();
+  for (int k = 0; k < settings_.max_per_frame; ++k) {
+    const int i = worst_outlier(solver.target_distances_m(), target_visible);
+    if (i < 0) break;
+    outlier[i] = 1;
+    target_visible[i] = 0;
+    found_.push_back(i);
+    posture = start;
+    r = solver.solve(target_world_m, target_visible, q_world, orientation_visible, posture);
+  }
+  if (settings_.relabel_swaps && found_.size() >= 2 &&
+      relabel_swaps(model, posture, target_world_m, target_visible, outlier, relabelled_from)) {
+    posture = start;
+    r = solver.solve(target_world_m, target_visible, q_world, orientation_visible, posture);
+  }
+  return r;
+}
+
+}  // namespace fabrik

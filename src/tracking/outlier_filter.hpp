@@ -1,0 +1,84 @@
+// Outlier markers: a measurement that disagrees with the model far beyond the other markers
+// (a label swapped with another marker's, a ghost or reflection, a stray zero) is left out of
+// the frame's solve, so one bad marker cannot drag the skeleton.
+//
+// The rule, after the frame's solve: the marker with the largest residual is an outlier when
+// its residual exceeds both an absolute floor and a multiple of the median residual of the
+// other measured markers. It is left out and the frame solved again from the same start
+// posture; then the next worst is judged the same way, up to `max_per_frame` markers.
+// Two outliers whose measurements each fit the other's model position (within the same bar)
+// are a label swap: they are solved with each other's measurement (relabelled), since
+// leaving a marker out loses what it alone measures (an elbow marker that places the joint).
+//
+// A frame that looks normal costs one pass over the residuals (no extra solve); a suspicious
+// one costs one extra solve per marker left out, and one more for a swap. Nothing is
+// allocated per frame.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "solver/fabrik_solver.hpp"
+#include "solver/model.hpp"
+#include "solver/posture.hpp"
+
+namespace fabrik {
+
+struct OutlierSettings {
+  bool enabled = true;
+  // A residual at or below this is never an outlier (metres): well beyond the soft-tissue
+  // artefact of a good fit (OpenSim's guidance: max under 2-4 cm).
+  double floor_m = 0.060;
+  // Nor one at or below this multiple of the median residual of the other measured markers:
+  // when every marker fits worse (fast motion, a poor calibration), the bar rises with them.
+  double median_factor = 8.0;
+  int max_per_frame = 3;  // markers left out per frame at most (one extra solve each)
+  int min_markers = 6;    // measured markers a frame needs before any is judged
+  bool relabel_swaps = true;
+};
+
+class OutlierFilter {
+ public:
+  // `marker_points[i]`: the model point of the solver's target i (the first targets are the
+  // markers judged).
+  OutlierFilter(OutlierSettings settings, std::vector<int> marker_points);
+  const OutlierSettings& settings() const { return settings_; }
+
+  // Solves the frame from `start` into `posture` (with the solver's orientation
+  // targets, q_world and orientation_visible: empty when it has none); then, while the worst marker is an outlier,
+  // marks it (outlier[i] = 1, target_visible[i] = 0) and solves again from `start`. Swapped
+  // outliers a, b get each other's measurement in target_world_m, are visible again and
+  // relabelled_from[a] = b, relabelled_from[b] = a. Returns the last solve's result.
+  // `outlier` must be all 0 and `relabelled_from` all -1 on entry.
+  SolveResult solve(FabrikSolver& solver, const Model& model,
+                    std::span<Eigen::Vector3d> target_world_m,
+                    std::span<std::uint8_t> target_visible,
+                    std::span<const Eigen::Quaterniond> q_world,
+                    std::span<const std::uint8_t> orientation_visible, const Posture& start,
+                    Posture& posture, std::span<std::uint8_t> outlier,
+                    std::span<int> relabelled_from);
+
+  // The worst marker of the last solve if it is an outlier, else -1; sets bar_m() either way
+  // (when enough markers were measured).
+  int worst_outlier(std::span<const double> distances_m,
+                    std::span<const std::uint8_t> target_visible);
+  // The residual above which a marker was an outlier in the last judgement (metres).
+  double bar_m() const { return bar_m_; }
+
+ private:
+  // Relabels swapped pairs among the outliers; returns whether any was.
+  bool relabel_swaps(const Model& model, const Posture& posture,
+                     std::span<Eigen::Vector3d> target_world_m,
+                     std::span<std::uint8_t> target_visible, std::span<const std::uint8_t> outlier,
+                     std::span<int> relabelled_from) const;
+
+  OutlierSettings settings_;
+  std::vector<int> marker_points_;
+  int markers_;
+  std::vector<double> scratch_m_;  // the other markers' residuals, for their median
+  std::vector<int> found_;         // the outliers of a frame, in the order found
+  double bar_m_ = 0.0;
+};
+
+}  // namespace fabrik

@@ -1,0 +1,335 @@
+// Outlier markers (swapped labels, ghosts, stray zeros) left out of the solve, no false
+// alarms on real walking and fast synthetic motion, cold starts that converge, and the fit
+// verdict (residual.quality). Real-data cases skip without ../shared/data.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+
+#include "config/daemon_config.hpp"
+#include "eval/subject.hpp"
+#include "io/marker_trial.hpp"
+#include "offline/solve_trial.hpp"
+#include "synth/synthetic_motion.hpp"
+#include "tracking/tracker.hpp"
+
+using namespace fabrik;
+using fabrik::io::MarkerTrial;
+
+namespace {
+
+const std::string kDataDir = FABRIK_SOURCE_DIR "/../shared/data";
+const std::string kSourceDir = FABRIK_SOURCE_DIR;
+
+bool have_walk() {
+  if (std::filesystem::exists(kDataDir + "/subject01_walk1.trc")) return true;
+  WARN("skipped: " << kDataDir << "/subject01_walk1.trc not found");
+  return false;
+}
+
+const DaemonConfig& walk_config() {
+  static const DaemonConfig c = eval::calibrate_config(
+      kSourceDir + "/config/templates/gait2354.json", kDataDir + "/subject01_static.trc");
+  return c;
+}
+
+const MarkerTrial& walk() {
+  static const MarkerTrial t = io::read_trial(kDataDir + "/subject01_walk1.trc");
+  return t;
+}
+
+double joint_distance_m(const TrialSolution& a, const TrialSolution& b, std::size_t f,
+                        std::size_t j) {
+  const std::size_t n = a.joints.labels.size();
+  return (a.joints.positions_m[f * n + j] - b.joints.positions_m[f * n + j]).norm();
+}
+
+std::vector<int> marker_points(const DaemonConfig& config) {
+  std::vector<int> points;
+  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  return points;
+}
+
+double outlier_percent(const TrialSolution& s) {
+  std::size_t flagged = 0, measured = 0;
+  for (std::uint8_t o : s.outlier) flagged += o;
+  for (int m : s.measured) measured += static_cast<std::size_t>(m);
+  return 100.0 * static_cast<double>(flagged) / static_cast<double>(measured);
+}
+
+// Swaps two labels' samples in frames [first, first + count) and checks the issue's bar:
+// both flagged in >= 90 % of those frames, every joint centre within 10 mm of the unswapped
+// solve in every frame.
+void check_swap(const std::string& a, const std::string& b, std::size_t first, std::size_t count,
+                const DaemonConfig& config) {
+  MarkerTrial swapped = walk();
+  const int ca = swapped.find(a), cb = swapped.find(b);
+  REQUIRE(ca >= 0);
+  REQUIRE(cb >= 0);
+  for (std::size_t f = first; f < first + count; ++f)
+    std::swap(swapped.at(f, std::size_t(ca)), swapped.at(f, std::size_t(cb)));
+  const TrialSolution reference = solve_trial(config, walk());
+  const TrialSolution s = solve_trial(config, swapped);
+  const std::size_t n = s.markers.labels.size();
+  int ia = -1, ib = -1;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (s.markers.labels[i] == a) ia = static_cast<int>(i);
+    if (s.markers.labels[i] == b) ib = static_cast<int>(i);
+  }
+  REQUIRE(ia >= 0);
+  REQUIRE(ib >= 0);
+  std::size_t flagged = 0;
+  for (std::size_t f = first; f < first + count; ++f)
+    flagged += s.outlier[f * n + ia] + s.outlier[f * n + ib];
+  INFO(a << " <-> " << b);
+  CHECK(static_cast<double>(flagged) >= 0.9 * 2.0 * static_cast<double>(count));
+  double worst_m = 0.0;
+  for (std::size_t f = 0; f < s.rms_m.size(); ++f)
+    for (std::size_t j = 0; j < s.joints.labels.size(); ++j)
+      worst_m = std::max(worst_m, joint_distance_m(s, reference, f, j));
+  WARN(a << " <-> " << b << ": " << flagged << " of " << 2 * count
+         << " swapped samples flagged; joint centres at most " << worst_m * 1e3
+         << " mm from the unswapped solve");
+  CHECK(worst_m <= 10e-3);
+}
+
+}  // namespace
+
+TEST_CASE("walk1 with two labels swapped for 20 frames: flagged, joints stay", "[outliers]") {
+  if (!have_walk()) return;
+  check_swap("R.Thigh.Front", "R.Shank.Front", 60, 20, walk_config());
+  check_swap("L.Wrist.Lat", "L.Elbow", 60, 20, walk_config());
+  check_swap("R.Thigh.Front", "R.Shank.Front", 0, 20, walk_config());  // from the first frame
+}
+
+TEST_CASE("walk1 with a label swap and the outlier rule off: the skeleton is dragged",
+          "[outliers]") {
+  if (!have_walk()) return;
+  DaemonConfig off = walk_config();
+  off.tracker.outliers.enabled = false;
+  MarkerTrial swapped = walk();
+  const int ca = swapped.find("L.Wrist.Lat"), cb = swapped.find("L.Elbow");
+  for (std::size_t f = 60; f < 80; ++f)
+    std::swap(swapped.at(f, std::size_t(ca)), swapped.at(f, std::size_t(cb)));
+  const TrialSolution reference = solve_trial(off, walk());
+  const TrialSolution s = solve_trial(off, swapped);
+  double worst_m = 0.0;
+  for (std::size_t f = 60; f < 80; ++f)
+    for (std::size_t j = 0; j < s.joints.labels.size(); ++j)
+      worst_m = std::max(worst_m, joint_distance_m(s, reference, f, j));
+  CHECK(worst_m > 30e-3);  // what the rule prevents
+}
+
+TEST_CASE("walk1 unswapped: outliers in under 0.5 % of marker samples", "[outliers]") {
+  if (!have_walk()) return;
+  const TrialSolution s = solve_trial(walk_config(), walk());
+  WARN("walk1: outliers in " << outlier_percent(s) << " % of marker samples");
+  CHECK(outlier_percent(s) < 0.5);
+}
+
+TEST_CASE("fast synthetic motion (running pace): outliers in under 0.5 % of marker samples",
+          "[outliers]") {
+  const DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  // About a running stride: 1.5 strides a second, wide swings, the root travelling 3 m.
+  SyntheticMotion motion(model, {.seed = 7,
+                                 .frequency_hz = 1.5,
+                                 .max_swing_rad = 1.2,
+                                 .root_travel_m = 3.0,
+                                 .root_turn_rad = 0.5});
+  const std::vector<int> points = marker_points(config);
+  Tracker tracker(config.tracker);
+  Posture truth = Posture::rest(model);
+  std::vector<Eigen::Vector3d> measured(points.size());
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  std::size_t flagged = 0, samples = 0;
+  double worst_rms_m = 0.0;
+  for (int f = 0; f < 1000; ++f) {  // 10 s at 100 Hz
+    const double t = f / 100.0;
+    motion.posture_at(t, truth);
+    motion.sample(truth, points, 0.001, measured);
+    const TrackResult& r = tracker.track(t, measured, visible);
+    flagged += static_cast<std::size_t>(r.outlier_count);
+    samples += points.size();
+    worst_rms_m = std::max(worst_rms_m, r.residual_rms_m);
+  }
+  const double percent = 100.0 * static_cast<double>(flagged) / static_cast<double>(samples);
+  WARN("fast synthetic: outliers in " << percent << " % of marker samples; worst frame RMS "
+                                      << worst_rms_m * 1e3 << " mm");
+  CHECK(percent < 0.5);
+}
+
+TEST_CASE("A ghost (a marker 30 cm off) and a stray zero are left out, live as offline",
+          "[outliers]") {
+  const DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  SyntheticMotion motion(model, {});
+  const std::vector<int> points = marker_points(config);
+  Tracker tracker(config.tracker), clean(config.tracker);
+  Posture truth = Posture::rest(model);
+  std::vector<Eigen::Vector3d> measured(points.size()), bad(points.size());
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  const int ghost = 12, zero = 30;
+  int ghost_flagged = 0, zero_flagged = 0, frames = 0;
+  double worst_m = 0.0;
+  for (int f = 0; f < 100; ++f) {
+    const double t = f / 100.0;
+    motion.posture_at(t, truth);
+    motion.sample(truth, points, 0.001, measured);
+    bad = measured;
+    const bool spoiled = f >= 40 && f < 60;
+    if (spoiled) {
+      bad[ghost] += Eigen::Vector3d(0.3, 0.0, 0.0);
+      bad[zero].setZero();  // as if zero_is_missing were off
+    }
+    const TrackResult& r = tracker.track(t, bad, visible);
+    if (spoiled) {
+      ++frames;
+      ghost_flagged += r.outliers[ghost];
+      zero_flagged += r.outliers[zero];
+      CHECK(r.relabelled_from[ghost] == -1);
+    }
+    const TrackResult& c = clean.track(t, measured, visible);
+    for (std::size_t j = 0; j < model.joints.size(); ++j)
+      worst_m = std::max(worst_m, (tracker.posture().point_world_m(model, model.joints[j].point) -
+                                   clean.posture().point_world_m(model, model.joints[j].point))
+                                      .norm());
+    (void)c;
+  }
+  CHECK(ghost_flagged == frames);
+  CHECK(zero_flagged == frames);
+  CHECK(worst_m < 5e-3);
+}
+
+TEST_CASE("walk1's first frame converges: max residual <= 25 mm, also from far away",
+          "[cold_start]") {
+  if (!have_walk()) return;
+  const DaemonConfig& config = walk_config();
+  const TrialSolution s = solve_trial(config, walk());
+  WARN("walk1 first frame: max " << s.max_m[0] * 1e3 << " mm, " << s.iterations[0]
+                                 << " iterations");
+  CHECK(s.max_m[0] <= 25e-3);
+  // The subject turned 90 deg about the vertical (Y) and 2 m away from the rest posture.
+  MarkerTrial moved = walk();
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).matrix();
+  for (Eigen::Vector3d& p : moved.positions_m)
+    if (p.allFinite()) p = turn * p + Eigen::Vector3d(2.0, 0.0, 0.0);
+  const TrialSolution m = solve_trial(config, moved);
+  WARN("walk1 turned 90 deg, 2 m away: first frame max " << m.max_m[0] * 1e3 << " mm, "
+                                                          << m.iterations[0] << " iterations");
+  CHECK(m.max_m[0] <= 25e-3);
+  double worst_diff_m = 0.0;
+  for (std::size_t f = 0; f < s.max_m.size(); ++f)
+    worst_diff_m = std::max(worst_diff_m, std::abs(m.max_m[f] - s.max_m[f]));
+  CHECK(worst_diff_m < 1e-3);  // every frame fits as well as the untouched trial's
+
+}
+
+TEST_CASE("A cold first frame of a bent posture, turned and far away, converges",
+          "[cold_start]") {
+  const DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  const std::vector<int> points = marker_points(config);
+  std::vector<Eigen::Vector3d> measured(points.size());
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  DaemonConfig warm_only = config;  // the warm frame's budget, from the rest posture as it is
+  warm_only.tracker.cold_start.max_iterations = 1;
+  warm_only.tracker.cold_start.align = false;
+  double worst_cold_m = 0.0, worst_warm_only_m = 0.0;
+  for (unsigned seed = 1; seed <= 8; ++seed) {
+    SyntheticMotion motion(model, {.seed = seed, .max_swing_rad = 1.2, .root_travel_m = 0.0,
+                                   .root_turn_rad = 0.0});
+    Posture truth = Posture::rest(model);
+    motion.posture_at(0.37 * seed, truth);
+    motion.sample(truth, points, 0.0, measured);
+    const double turn_rad = M_PI / 4 * seed;  // 45 deg to 360 deg
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(turn_rad, Eigen::Vector3d::UnitY()).matrix();
+    for (Eigen::Vector3d& p : measured) p = turn * p + Eigen::Vector3d(2.0, 0.0, 1.0);
+    Tracker cold(config.tracker), plain(warm_only.tracker);
+    worst_cold_m = std::max(worst_cold_m, cold.track(0.0, measured, visible).residual_max_m);
+    worst_warm_only_m =
+        std::max(worst_warm_only_m, plain.track(0.0, measured, visible).residual_max_m);
+  }
+  WARN("first frame, bent and turned 45-360 deg, 2.2 m away: max residual " << worst_cold_m * 1e3
+       << " mm cold-started, " << worst_warm_only_m * 1e3 << " mm with the warm budget alone");
+  CHECK(worst_cold_m < 5e-3);
+}
+
+TEST_CASE("A reset and a long gap start cold; a short gap does not", "[cold_start]") {
+  const DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  SyntheticMotion motion(model, {});
+  const std::vector<int> points = marker_points(config);
+  Tracker tracker(config.tracker);
+  Posture truth = Posture::rest(model);
+  std::vector<Eigen::Vector3d> measured(points.size());
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  const auto frame = [&](double t, double shift_m) {
+    motion.posture_at(t, truth);
+    motion.sample(truth, points, 0.0, measured);
+    for (Eigen::Vector3d& p : measured) p.x() += shift_m;
+    return tracker.track(t, measured, visible);
+  };
+  CHECK(frame(0.0, 0.0).cold_start);
+  CHECK_FALSE(frame(0.01, 0.0).cold_start);
+  CHECK_FALSE(frame(0.3, 0.0).cold_start);  // a short gap
+  // After a long gap the subject is elsewhere: a cold start finds it.
+  const TrackResult& far = frame(5.0, 3.0);
+  CHECK(far.cold_start);
+  CHECK(far.residual_max_m < 5e-3);
+  tracker.reset();
+  CHECK(frame(5.01, 3.0).cold_start);
+}
+
+TEST_CASE("residual.quality: good within the config's thresholds, poor beyond, none without "
+          "markers",
+          "[quality]") {
+  DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  SyntheticMotion motion(model, {});
+  const std::vector<int> points = marker_points(config);
+  Posture truth = Posture::rest(model);
+  motion.posture_at(0.3, truth);
+  std::vector<Eigen::Vector3d> measured(points.size());
+  motion.sample(truth, points, 0.0, measured);
+  measured[5] += Eigen::Vector3d(0.0, 0.025, 0.0);  // one marker 25 mm off: not an outlier
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  {
+    Tracker tracker(config.tracker);
+    const TrackResult& r = tracker.track(0.0, measured, visible);
+    CHECK(r.outlier_count == 0);
+    CHECK(r.quality == FitQuality::good);
+    CHECK(r.beyond_count == 0);
+  }
+  config.tracker.quality.max_m = 0.010;
+  {
+    Tracker tracker(config.tracker);
+    const TrackResult& r = tracker.track(0.0, measured, visible);
+    CHECK(r.quality == FitQuality::poor);
+    CHECK(r.beyond_count >= 1);
+    CHECK(r.beyond[5] == 1);
+    std::fill(visible.begin(), visible.end(), 0);
+    CHECK(tracker.track(0.01, measured, visible).quality == FitQuality::none);
+  }
+}
+
+TEST_CASE("Config: outliers, quality and cold_start are read in mm and checked", "[config]") {
+  const std::string base = R"({"format": "fabrikd-config/1", "model": "models/fullbody.json",)";
+  const DaemonConfig c = load_daemon_config(
+      base + R"("outliers": {"floor_mm": 80, "median_factor": 6, "max_per_frame": 2,
+                 "relabel_swaps": false}, "quality": {"rms_mm": 15, "max_mm": 30},
+                 "cold_start": {"max_iterations": 300, "after_gap_s": 1.5, "align": false}})",
+      "<embedded>/test.json");
+  CHECK(c.tracker.outliers.floor_m == Approx(0.080));
+  CHECK(c.tracker.outliers.median_factor == 6.0);
+  CHECK(c.tracker.outliers.max_per_frame == 2);
+  CHECK_FALSE(c.tracker.outliers.relabel_swaps);
+  CHECK(c.tracker.quality.rms_m == Approx(0.015));
+  CHECK(c.tracker.quality.max_m == Approx(0.030));
+  CHECK(c.tracker.cold_start.max_iterations == 300);
+  CHECK(c.tracker.cold_start.after_gap_s == 1.5);
+  CHECK_FALSE(c.tracker.cold_start.align);
+  CHECK_THROWS_WITH(
+      load_daemon_config(base + R"("outliers": {"floor": 80}})", "<embedded>/test.json"),
+      Catch::Contains("/outliers") && Catch::Contains("floor_mm"));
+}
