@@ -177,7 +177,7 @@ TEST_CASE("Unusable sensor quaternions are occluded and do not pull", "[sensors]
   std::vector<Eigen::Quaterniond> good(s.segments.size());
   sim.sample(truth, 0.4, good);
   const double nan = std::nan("");
-  for (const Eigen::Quaterniond bad :
+  for (const Eigen::Quaterniond& bad :
        {Eigen::Quaterniond(0, 0, 0, 0), Eigen::Quaterniond(nan, 0, 0, 1),
         Eigen::Quaterniond(1.5, 0, 0, 0), Eigen::Quaterniond(INFINITY, 0, 0, 0)}) {
     // The same frame with the right shank's sensor flagged occluded, and with garbage instead.
@@ -211,7 +211,10 @@ TEST_CASE("Calibration in the rest pose finds mountings and heading", "[sensors]
   std::vector<std::string> names;
   for (std::size_t k = 0; k < s.segments.size(); ++k) {
     names.push_back("imu" + std::to_string(k));
-    spec.entries.push_back({names.back(), m.segments[s.segments[k]].name});
+    SensorEntry entry;
+    entry.sensor = names.back();
+    entry.segment = m.segments[s.segments[k]].name;
+    spec.entries.push_back(entry);
   }
   const Posture rest = Posture::rest(m);
 

@@ -72,7 +72,10 @@ std::vector<ImuSyntheticRow> eval_imu_synthetic(const DaemonConfig& config,
       std::vector<std::string> names;
       for (int s : segments) {
         names.push_back(model.segments[s].name + "_imu");
-        spec.entries.push_back({names.back(), model.segments[s].name});
+        SensorEntry entry;
+        entry.sensor = names.back();
+        entry.segment = model.segments[s].name;
+        spec.entries.push_back(entry);
       }
       const Posture rest = Posture::rest(model);
       std::vector<std::vector<Eigen::Quaterniond>> samples(segments.size());
@@ -219,7 +222,7 @@ OpenSenseRun eval_imu_opensense(const std::string& template_path, const std::str
 
 std::string imu_synthetic_table(const std::vector<ImuSyntheticRow>& rows,
                                 const ImuSyntheticOptions& o) {
-  char line[256];
+  char line[512];
   std::snprintf(line, sizeof line,
                 "Synthetic truth: %g s at %g Hz; markers %g mm noise per axis; IMUs %g deg noise "
                 "per axis, heading drift within +-%g deg/s, calibrated standing still for %g s; solver stops at 0.01 mm, 200 iterations\n",

@@ -33,7 +33,8 @@ int OutlierFilter::worst_outlier(std::span<const double> distances_m,
   return distances_m[worst] > bar_m_ ? worst : -1;
 }
 
-bool OutlierFilter::relabel_swaps(const Model& model, const Posture& posture,
+bool OutlierFilter::relabel_swaps(const Model& model, const Posture& start,
+                                  const Posture& posture,
                                   std::span<Eigen::Vector3d> target_world_m,
                                   std::span<std::uint8_t> target_visible,
                                   std::span<const std::uint8_t> outlier,
@@ -45,11 +46,16 @@ bool OutlierFilter::relabel_swaps(const Model& model, const Posture& posture,
     for (std::size_t y = x + 1; y < found_.size(); ++y) {
       const int b = found_[y];
       if (relabelled_from[b] >= 0 || !outlier[b]) continue;
-      const Eigen::Vector3d model_a = posture.point_world_m(model, marker_points_[a]);
-      const Eigen::Vector3d model_b = posture.point_world_m(model, marker_points_[b]);
-      if ((target_world_m[a] - model_b).norm() > bar_m_ ||
-          (target_world_m[b] - model_a).norm() > bar_m_)
-        continue;
+      // Each measurement fits the other's model position, in the solve that
+      // left both out or in the start posture (the previous frame's): with
+      // both left out, what they alone placed (an elbow) may have drifted.
+      const auto fits_swapped = [&](const Posture& p) {
+        const Eigen::Vector3d model_a = p.point_world_m(model, marker_points_[a]);
+        const Eigen::Vector3d model_b = p.point_world_m(model, marker_points_[b]);
+        return (target_world_m[a] - model_b).norm() <= bar_m_ &&
+               (target_world_m[b] - model_a).norm() <= bar_m_;
+      };
+      if (!fits_swapped(posture) && !fits_swapped(start)) continue;
       std::swap(target_world_m[a], target_world_m[b]);
       target_visible[a] = target_visible[b] = 1;
       relabelled_from[a] = b;
@@ -82,7 +88,7 @@ SolveResult OutlierFilter::solve(FabrikSolver& solver, const Model& model,
     r = solver.solve(target_world_m, target_visible, q_world, orientation_visible, posture);
   }
   if (settings_.relabel_swaps && found_.size() >= 2 &&
-      relabel_swaps(model, posture, target_world_m, target_visible, outlier, relabelled_from)) {
+      relabel_swaps(model, start, posture, target_world_m, target_visible, outlier, relabelled_from)) {
     posture = start;
     r = solver.solve(target_world_m, target_visible, q_world, orientation_visible, posture);
   }

@@ -68,7 +68,7 @@ class OutlierFilter {
 
  private:
   // Relabels swapped pairs among the outliers; returns whether any was.
-  bool relabel_swaps(const Model& model, const Posture& posture,
+  bool relabel_swaps(const Model& model, const Posture& start, const Posture& posture,
                      std::span<Eigen::Vector3d> target_world_m,
                      std::span<std::uint8_t> target_visible, std::span<const std::uint8_t> outlier,
                      std::span<int> relabelled_from) const;
