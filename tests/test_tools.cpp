@@ -544,3 +544,60 @@ TEST_CASE("walk1 with a tracked marker at (0, 0, 0) throughout tracks as without
   no_outliers.tracker.outliers.enabled = false;
   CHECK(joints_rms_mm(fabrik::solve_trial(no_outliers, kept_zeros), reference) > 10.0);
 }
+
+TEST_CASE("replay sends an orientation table: joined on time with markers, or alone") {
+  fabrik::io::OrientationTable table;
+  table.sensors = {"pelvis_imu", "femur_imu"};
+  table.rate_hz = 50.0;
+  for (int r = 0; r < 30; ++r) {
+    table.time_s.push_back(r / 50.0);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(0.01 * r, Eigen::Vector3d::UnitZ()));
+    table.q.push_back(q);
+    table.q.push_back(r == 4 ? Eigen::Quaterniond(NAN, NAN, NAN, NAN) : q);
+  }
+  zmq::context_t context;
+  zmq::socket_t sub(context, zmq::socket_type::sub);
+  sub.set(zmq::sockopt::rcvhwm, 0);
+  sub.set(zmq::sockopt::subscribe, "markers");
+  sub.bind("inproc://replay-orientations");
+
+  SECTION("alone: the table's rows are the frames") {
+    ReplayOptions o = fast_options("inproc://replay-orientations");
+    o.orientations = &table;
+    const MarkerTrial no_markers;
+    ReplayThread replay(context, no_markers, o);
+    const auto msgs = receive(sub, 30);
+    const ReplaySummary s = replay.join();
+    CHECK(s.frames_sent == 30);
+    CHECK(s.orientations_nulled == 1);
+    for (std::size_t k = 0; k < msgs.size(); ++k) {
+      const auto& doc = msgs[k].second;
+      INFO("frame index " << k);
+      CHECK(doc["time"].get<double>() == Approx(k / 50.0));
+      CHECK(doc["orientations"]["pelvis_imu"][3].get<double>() ==
+            Approx(std::sin(0.005 * static_cast<double>(k))).margin(1e-12));
+      CHECK(doc["orientations"]["femur_imu"].is_null() == (k == 4));
+    }
+  }
+  SECTION("with markers at 100 Hz: interpolated at each marker frame's time") {
+    const MarkerTrial trial = small_trial();
+    REQUIRE(trial.rate_hz == 100.0);
+    ReplayOptions o = fast_options("inproc://replay-orientations");
+    o.orientations = &table;
+    ReplayThread replay(context, trial, o);
+    const auto msgs = receive(sub, 50);
+    replay.join();
+    for (std::size_t k = 0; k < msgs.size(); ++k) {
+      const auto& doc = msgs[k].second;
+      INFO("frame index " << k);
+      const double t_s = (trial.first_frame - 1 + static_cast<double>(k)) / 100.0;
+      if (t_s > 29.0 / 50.0 + 0.01) {  // beyond the table by more than half a sample
+        CHECK(doc["orientations"]["pelvis_imu"].is_null());
+        continue;
+      }
+      CHECK(doc["markers"].contains("A"));
+      CHECK(doc["orientations"]["pelvis_imu"][3].get<double>() ==
+            Approx(std::sin(0.5 * 0.01 * std::min(t_s * 50.0, 29.0))).margin(1e-9));
+    }
+  }
+}

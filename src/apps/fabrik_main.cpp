@@ -59,6 +59,9 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"tcp", "ipc"}));
   b_latency->add_option("--encoding", latency.encoding, "json or msgpack")
       ->check(CLI::IsMember({"json", "msgpack"}));
+  b_latency->add_option("--orientations", latency.orientations,
+                        "none; mixed: markers and a sensor on every segment; only: sensors alone")
+      ->check(CLI::IsMember({"none", "mixed", "only"}));
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
   fabrik::apps::add_solve_command(app);

@@ -81,7 +81,29 @@ json run_one(const LatencyOptions& o, const std::string& transport) {
       motion.sample(p, points, 0.5e-3, frames_m[i]);
     }
   }
+  // Orientation sensors: one per segment, mounted as the segment's frame, in
+  // a sensors' world that is the model's; they read the truth's rotations.
+  if (o.orientations != "none" && o.orientations != "mixed" && o.orientations != "only")
+    throw std::invalid_argument("unknown orientations mode '" + o.orientations +
+                                "' (use none, mixed or only)");
+  const bool with_sensors = o.orientations != "none";
+  std::vector<std::string> sensor_names;
+  std::vector<std::vector<Eigen::Quaterniond>> frames_q(cycle);
+  if (with_sensors) {
+    for (int s = 0; s < static_cast<int>(model.segments.size()); ++s) {
+      sensor_names.push_back(model.segments[s].name + "_imu");
+      config.tracker.sensors.sensors.push_back({sensor_names.back(), s, 0, 1.0});
+    }
+    SyntheticMotion motion(model, MotionSettings{});
+    Posture p = Posture::rest(model);
+    for (int i = 0; i < cycle; ++i) {
+      motion.posture_at(i / o.rate_hz, p);
+      for (const SegmentPose& pose : p.segments) frames_q[i].push_back(pose.q_world);
+    }
+  }
+  if (o.orientations == "only") names.clear();
   const std::vector<std::uint8_t> visible(names.size(), 1);
+  const std::vector<std::uint8_t> q_visible(sensor_names.size(), 1);
 
   zmq::context_t daemon_context(1), client_context(1);
   wire::Daemon daemon(daemon_context, config);
@@ -100,8 +122,11 @@ json run_one(const LatencyOptions& o, const std::string& transport) {
   std::string payload;
   auto send = [&](std::uint64_t frame, int i) {
     const double t_s = static_cast<double>(frame) / o.rate_hz;
-    wire::encode_marker_frame(frame, &t_s, names, frames_m[i % cycle], visible, "mm", in_encoding,
-                              payload);
+    const wire::SensorSamples sensors{sensor_names, frames_q[i % cycle], q_visible};
+    wire::encode_marker_frame(frame, &t_s, names,
+                              std::span<const Eigen::Vector3d>(frames_m[i % cycle]).first(names.size()),
+                              visible, "mm", in_encoding, payload, nullptr,
+                              with_sensors ? &sensors : nullptr);
     pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
     pub.send(zmq::buffer(payload));
   };
@@ -195,7 +220,8 @@ json run_latency(const LatencyOptions& o) {
               {"rate_hz", o.rate_hz},
               {"seconds", o.seconds},
               {"encoding", o.encoding},
-              {"model", "models/fullbody.json (45 markers)"},
+              {"orientations", o.orientations},
+              {"model", "models/fullbody.json (45 markers, 15 segments)"},
               {"measured",
                "marker frame sent by the source -> pose received by the subscriber, one process, "
                "steady clock"},
@@ -208,9 +234,12 @@ std::string latency_table(const json& r) {
   std::string s;
   char buf[512];
   std::snprintf(buf, sizeof buf,
-                "End-to-end latency: %g Hz for %g s, %s, full-body model (45 markers)\n",
+                "End-to-end latency: %g Hz for %g s, %s, full-body model (%s)\n",
                 r["rate_hz"].get<double>(), r["seconds"].get<double>(),
-                r["encoding"].get<std::string>().c_str());
+                r["encoding"].get<std::string>().c_str(),
+                r["orientations"] == "mixed"  ? "45 markers and 15 orientation sensors"
+                : r["orientations"] == "only" ? "15 orientation sensors, no markers"
+                                              : "45 markers");
   s += buf;
   s += "  transport     sent   received   lost  dropped   p50 us   p99 us   max us\n";
   for (const json& run : r["runs"]) {

@@ -15,6 +15,9 @@ struct LatencyOptions {
   double seconds = 10.0;
   std::vector<std::string> transports = {"tcp", "ipc"};
   std::string encoding = "json";  // of the marker frames and poses
+  // "none"; "mixed": markers plus an orientation sensor on every segment;
+  // "only": the sensors alone (the frames' `orientations`, wire contract addition).
+  std::string orientations = "none";
 };
 nlohmann::json run_latency(const LatencyOptions& options);
 std::string latency_table(const nlohmann::json& result);

@@ -47,8 +47,13 @@ DropSpec parse_drop_spec(const std::string& spec) {
 ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial,
                            const ReplayOptions& options) {
   using Clock = std::chrono::steady_clock;
-  if (trial.frames() == 0) throw std::invalid_argument("the recording has no frames");
-  if (!(trial.rate_hz > 0.0)) throw std::invalid_argument("the recording has no frame rate");
+  const io::OrientationTable* table = options.orientations;
+  // Without markers the orientation table's rows are the frames.
+  const bool table_frames = table && trial.labels.empty();
+  const std::size_t n = table_frames ? table->rows() : trial.frames();
+  const double rate_hz = table_frames ? table->rate_hz : trial.rate_hz;
+  if (n == 0) throw std::invalid_argument("the recording has no frames");
+  if (!(rate_hz > 0.0)) throw std::invalid_argument("the recording has no frame rate");
   if (!(options.speed >= 0.0) || !std::isfinite(options.speed))
     throw std::invalid_argument("--speed must be >= 0 (0: as fast as possible)");
   struct Drop {
@@ -95,8 +100,13 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
     }
   }
 
-  const std::size_t n = trial.frames();
-  const double duration_s = static_cast<double>(n) / trial.rate_hz;
+  const double duration_s = static_cast<double>(n) / rate_hz;
+  const std::size_t n_sensors = table ? table->sensors.size() : 0;
+  std::vector<Eigen::Quaterniond> q(n_sensors);
+  std::vector<std::uint8_t> q_visible(n_sensors, 0);
+  const wire::SensorSamples sensors{table ? std::span<const std::string>(table->sensors)
+                                          : std::span<const std::string>(),
+                                    q, q_visible};
   const std::uint64_t total = options.max_frames ? options.max_frames : options.loop ? 0 : n;
   std::vector<std::uint8_t> hidden(trial.markers(), 0), visible(trial.markers(), 0);
   std::vector<Eigen::Vector3d> p_m(trial.markers());
@@ -113,7 +123,8 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
     const std::size_t index = k % n;
     const std::uint64_t pass = k / n;
     if (pass > 0 && index == 0 && !options.loop) break;
-    const double t_trial_s = trial.time_s(index);
+    const double t_trial_s = table_frames ? table->time_s[index] - table->time_s.front()
+                                          : trial.time_s(index);
     const double t_stream_s = static_cast<double>(pass) * duration_s + t_trial_s;
     std::fill(hidden.begin(), hidden.end(), 0);
     for (const Drop& d : drops)
@@ -123,7 +134,7 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
     Clock::time_point deadline = start;
     if (options.speed > 0.0) {
       deadline += std::chrono::duration_cast<Clock::duration>(
-          std::chrono::duration<double>(static_cast<double>(k) / trial.rate_hz / options.speed));
+          std::chrono::duration<double>(static_cast<double>(k) / rate_hz / options.speed));
       std::this_thread::sleep_until(deadline);
     }
     for (std::size_t m = 0; m < trial.markers(); ++m) {
@@ -134,18 +145,35 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
       summary.markers_missing += recorded ? 0 : 1;
       summary.markers_dropped += recorded && hidden[m] ? 1 : 0;
     }
+    if (table) {
+      if (table_frames) {
+        for (std::size_t k_s = 0; k_s < n_sensors; ++k_s) q[k_s] = table->at(index, k_s);
+      } else {
+        table->sample((static_cast<double>(trial.first_frame - 1) + static_cast<double>(index)) /
+                          trial.rate_hz,
+                      q);
+      }
+      for (std::size_t k_s = 0; k_s < n_sensors; ++k_s) {
+        q_visible[k_s] = q[k_s].coeffs().allFinite() ? 1 : 0;
+        summary.orientations_nulled += q_visible[k_s] ? 0 : 1;
+      }
+    }
     // Wall clock at sending, echoed by fabrikd in the pose: watchers on this
     // machine measure end-to-end latency from it.
     const double stamp_us =
         static_cast<double>(std::chrono::duration_cast<std::chrono::microseconds>(
                                 std::chrono::system_clock::now().time_since_epoch())
                                 .count());
-    wire::encode_marker_frame(static_cast<std::uint64_t>(trial.first_frame) + k, &t_stream_s,
+    const std::uint64_t first_frame =
+        table_frames ? static_cast<std::uint64_t>(
+                           1 + std::llround(table->time_s.front() * table->rate_hz))
+                     : static_cast<std::uint64_t>(trial.first_frame);
+    wire::encode_marker_frame(first_frame + k, &t_stream_s,
                               trial.labels, p_m, visible, "mm",
                               options.encoding == WireEncoding::msgpack
                                   ? wire::PayloadEncoding::msgpack
                                   : wire::PayloadEncoding::json,
-                              payload, &stamp_us);
+                              payload, &stamp_us, table ? &sensors : nullptr);
     pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
     pub.send(zmq::buffer(payload), zmq::send_flags::none);
     while (pub.recv(discard, zmq::recv_flags::dontwait)) {

@@ -11,6 +11,7 @@
 #include <zmq.hpp>
 
 #include "io/marker_trial.hpp"
+#include "io/orientation_table.hpp"
 #include "wire.hpp"
 
 namespace fabrik::tools {
@@ -43,6 +44,12 @@ struct ReplayOptions {
   // Wait until a subscriber to `markers` shows up before the first frame (PUB/SUB drops what
   // is sent before the subscription arrives). Negative: do not wait.
   double wait_subscriber_s = -1.0;
+  // Sensor orientations sent with every frame (`orientations`), joined on
+  // time: each marker frame takes the table's orientations at its file time
+  // ((first_frame - 1 + index) / rate, interpolated), as `fabrik solve` does.
+  // With a trial without markers, the table's rows are the frames, at its
+  // times. Not owned; may be null.
+  const io::OrientationTable* orientations = nullptr;
   std::function<bool()> stop_requested;                 // polled between frames
   std::function<void(const ReplayProgress&)> progress;  // called at most once per interval
   std::chrono::milliseconds progress_interval{500};
@@ -54,6 +61,7 @@ struct ReplaySummary {
   std::uint64_t markers_nulled = 0;   // null entries sent: missing + dropped
   std::uint64_t markers_missing = 0;  // null because the recording has no sample there
   std::uint64_t markers_dropped = 0;  // null because of --drop (the recording has a sample)
+  std::uint64_t orientations_nulled = 0;  // null orientation entries sent (missing in the table)
   std::uint64_t late_frames = 0;     // left more than 1 ms after their deadline
   double max_behind_ms = 0.0;
   double elapsed_s = 0.0;

@@ -30,7 +30,7 @@ void catch_stop_signals() {
 
 void add_replay_command(CLI::App& app) {
   struct Args {
-    std::string file, to, encoding = "json";
+    std::string file, to, encoding = "json", orientations;
     bool bind = false, loop = false, keep_zeros = false;
     double speed = 1.0, wait_subscriber_s = -1.0;
     std::vector<std::string> drops;
@@ -42,8 +42,12 @@ void add_replay_command(CLI::App& app) {
       "Stream a TRC/C3D recording to fabrikd's marker input (topic `markers`, mm, null for "
       "missing markers) at its own rate. PUB/SUB drops frames sent before the subscription "
       "arrives: start fabrikd first, or use --wait-subscriber.");
-  cmd->add_option("file", a->file, "Recording (.trc or .c3d)")
-      ->required()
+  cmd->add_option("file", a->file, "Recording (.trc or .c3d); optional with --orientations")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--orientations", a->orientations,
+                  "OpenSim quaternion table (.sto) sent as the frames' `orientations`, joined "
+                  "on time with the recording's frames (without a recording, its rows are the "
+                  "frames)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--to", a->to, "ZeroMQ endpoint, e.g. tcp://127.0.0.1:5555")->required();
   cmd->add_flag("--bind", a->bind, "Bind the endpoint instead of connecting to it");
@@ -63,10 +67,28 @@ void add_replay_command(CLI::App& app) {
     run_command("replay", [&] {
       ReplayOptions o;
       for (const std::string& d : a->drops) o.drops.push_back(parse_drop_spec(d));
-      const io::MarkerTrial trial = io::read_trial(a->file, {.zeros_are_missing = !a->keep_zeros});
-      for (const std::string& w : trial.warnings)
-        std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", a->file.c_str(), w.c_str());
-      io::require_marker_data(trial, a->file);
+      if (a->file.empty() && a->orientations.empty())
+        throw std::invalid_argument(
+            "give a recording (.trc/.c3d), an orientation table (--orientations FILE.sto), or "
+            "both");
+      io::MarkerTrial trial;
+      if (!a->file.empty()) {
+        trial = io::read_trial(a->file, {.zeros_are_missing = !a->keep_zeros});
+        for (const std::string& w : trial.warnings)
+          std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", a->file.c_str(), w.c_str());
+        io::require_marker_data(trial, a->file);
+      }
+      io::OrientationTable table;
+      if (!a->orientations.empty()) {
+        table = io::read_orientation_table(a->orientations);
+        for (const std::string& w : table.warnings)
+          std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", a->orientations.c_str(),
+                       w.c_str());
+        o.orientations = &table;
+        std::fprintf(stderr, "replay: %s: %zu rows x %zu sensors at %g Hz%s\n",
+                     a->orientations.c_str(), table.rows(), table.sensors.size(), table.rate_hz,
+                     a->file.empty() ? " (the frames)" : ", joined on time");
+      }
       o.endpoint = a->to;
       o.bind = a->bind;
       o.speed = a->speed;
@@ -85,9 +107,10 @@ void add_replay_command(CLI::App& app) {
           std::fprintf(stderr, "\rreplay: %llu frames, %.1f s, %.1f ms behind   ",
                        static_cast<unsigned long long>(p.frames_sent), p.elapsed_s, p.behind_ms);
       };
-      std::fprintf(stderr, "replay: %s: %zu frames x %zu markers at %g Hz -> %s (%s%s)\n",
-                   a->file.c_str(), trial.frames(), trial.markers(), trial.rate_hz, a->to.c_str(),
-                   a->encoding.c_str(), a->bind ? ", bound" : "");
+      if (!a->file.empty())
+        std::fprintf(stderr, "replay: %s: %zu frames x %zu markers at %g Hz -> %s (%s%s)\n",
+                     a->file.c_str(), trial.frames(), trial.markers(), trial.rate_hz,
+                     a->to.c_str(), a->encoding.c_str(), a->bind ? ", bound" : "");
       zmq::context_t context;
       const ReplaySummary s = replay_trial(context, trial, o);
       std::size_t zeros = 0;
@@ -100,14 +123,14 @@ void add_replay_command(CLI::App& app) {
       std::fprintf(stderr,
                    "\nreplay: sent %llu frames (%llu complete passes) in %.2f s, %llu null "
                    "markers (%llu missing in the recording%s; %llu dropped by --drop), %llu "
-                   "frames late by > 1 ms (worst %.2f ms)%s\n",
+                   "frames late by > 1 ms (worst %.2f ms), %llu null orientations%s\n",
                    static_cast<unsigned long long>(s.frames_sent),
                    static_cast<unsigned long long>(s.loops), s.elapsed_s,
                    static_cast<unsigned long long>(s.markers_nulled),
                    static_cast<unsigned long long>(s.markers_missing), zero_note.c_str(),
                    static_cast<unsigned long long>(s.markers_dropped),
                    static_cast<unsigned long long>(s.late_frames), s.max_behind_ms,
-                   s.stopped ? ", stopped by signal" : "");
+                   static_cast<unsigned long long>(s.orientations_nulled), s.stopped ? ", stopped by signal" : "");
     });
   });
 }
