@@ -221,7 +221,11 @@ OpenSimTable read_opensim_table(const std::string& path) {
                          "the previous row's");
   }
   t.cell_kind = cell_kind(t.cell_width);
-  for (const auto& [key, value] : t.header) {
+  for (const auto& entry : t.header) {
+    // Named references, not a structured binding: the lambda below captures
+    // them (clang before 16 cannot capture structured bindings).
+    const std::string& key = entry.first;
+    const std::string& value = entry.second;
     const std::optional<double> v = number(value);
     if (key == "DataRate" && v && *v > 0.0 && std::isfinite(*v)) {
       t.rate_hz = *v;
@@ -258,7 +262,11 @@ void write_opensim_table(const std::string& path, const OpenSimTable& t) {
                                   "' is empty or holds a space, tab, comma or line break");
   std::ofstream out = detail::open_output(path);
   if (!t.name.empty()) out << t.name << '\n';
-  for (const auto& [key, value] : t.header) {
+  for (const auto& entry : t.header) {
+    // Named references, not a structured binding: the lambda below captures
+    // them (clang before 16 cannot capture structured bindings).
+    const std::string& key = entry.first;
+    const std::string& value = entry.second;
     out << key << '=';
     if (key == "nRows")
       out << t.rows;
