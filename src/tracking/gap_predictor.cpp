@@ -180,13 +180,16 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
       continue;
     }
     if (!was_seen_[i] && last) {
-      // Where the prediction would have put it now: its segment moved on at its recent velocity.
+      // Where the model's point of it would be now (its segment moved on at
+      // its recent velocity): from there the target pulls nothing at first,
+      // so the pose does not jump. (The reported fill adds the marker's last
+      // offset from the model; the solve must not, or the offset at which it
+      // was lost would pull the segment at once.)
       Eigen::Vector3d omega, v;
       world_velocity(s, omega, v);
       const SegmentPose& pose = last->posture.segments[s];
       const Eigen::Quaterniond q = from_rotation_vector(omega * dt) * pose.q_world;
-      const Eigen::Vector3d local = marker_local_m_[i] + (has_offset_[i] ? offset_local_m_[i]
-                                                                        : Eigen::Vector3d::Zero());
+      const Eigen::Vector3d local = marker_local_m_[i];
       const Eigen::Vector3d predicted = pose.base_world_m + v * dt + q * local;
       handover_m_[i] = predicted - target_world_m[i];
       handing_over_[i] = handover_m_[i].allFinite() ? 1 : 0;
