@@ -37,7 +37,10 @@ Eigen::Quaterniond SyntheticMotion::limited_rotation(const Segment& seg, const S
   for (int k = 0; k < 3; ++k) {
     const double lo = j.min_rad[k], hi = j.max_rad[k];
     const double amp = std::min(amplitude_rad[xyz[k]], 0.5 * (hi - lo));
-    const double centre = std::clamp(j.rest_rad[k], lo + amp, hi - amp);
+    // lo + amp may exceed hi - amp by rounding when amp is half the range
+    // (std::clamp must not be called then); this keeps clamp's result.
+    const double a = lo + amp, b = hi - amp, rest = j.rest_rad[k];
+    const double centre = b < a ? (rest < a ? a : b) : std::clamp(rest, a, b);
     angles[k] = centre + amp * std::sin(wt + phase_rad[xyz[k]]);
   }
   // Relative local rotation: parent anatomical * joint * child anatomical^-1.

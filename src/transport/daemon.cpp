@@ -319,10 +319,10 @@ void Daemon::bad_input(std::string_view what, std::string_view detail,
   ++counters_.decode_errors;
   char text[256];
   std::size_t n = std::min(what.size(), sizeof text - 16);
-  std::memcpy(text, what.data(), n);
+  if (n > 0) std::memcpy(text, what.data(), n);
   n += safe_text(detail, text + n, sizeof text - 8 - n);
   const std::size_t tail = std::min(after.size(), sizeof text - n);
-  std::memcpy(text + n, after.data(), tail);
+  if (tail > 0) std::memcpy(text + n, after.data(), tail);  // an empty view may hold nullptr
   last_error_.assign_safe({text, n + tail});
   bad_input_log_.warn("bad input: {}", last_error_.view());
 }

@@ -12,7 +12,10 @@ inline void require_valid_trial(const io::MarkerTrial& trial) {
   require(trial.labels.empty() ? trial.positions_m.empty()
                                : trial.positions_m.size() % trial.labels.size() == 0,
           "positions are not frames x markers");
-  require(std::isfinite(trial.rate_hz) && trial.rate_hz > 0.0, "rate is not a positive number");
+  // A file without points (analog only) may have no point rate: it has no
+  // markers to time, and the commands refuse it (io::require_marker_data).
+  require(trial.labels.empty() || (std::isfinite(trial.rate_hz) && trial.rate_hz > 0.0),
+          "a trial with markers has a rate that is not a positive number");
 }
 
 }  // namespace fabrik::fuzz
