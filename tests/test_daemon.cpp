@@ -18,6 +18,14 @@
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
 
+#if defined(__SANITIZE_ADDRESS__)
+#define FABRIK_TEST_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define FABRIK_TEST_SANITIZED 1
+#endif
+#endif
+
 using namespace fabrik;
 using nlohmann::json;
 using namespace std::chrono_literals;
@@ -441,7 +449,12 @@ TEST_CASE("Under sustained overload the answered frame is the newest one, not on
   CHECK(dropped > 0);
   // One decode and solve (~25 us) and the hops, on a shared 2-core machine:
   // not the milliseconds that a queue of ZMQ_RCVHWM frames in front would add.
+  // A sanitizer build runs several times slower: it checks memory, not time.
+#if defined(FABRIK_TEST_SANITIZED)
+  WARN("sanitizer build: the 2 ms bound on the median age is not checked");
+#else
   CHECK(median <= 2000);
+#endif
 }
 
 TEST_CASE("Stats arrive every interval with values that match the traffic", "[daemon]") {

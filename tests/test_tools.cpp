@@ -573,7 +573,7 @@ TEST_CASE("replay sends an orientation table: joined on time with markers, or al
     for (std::size_t k = 0; k < msgs.size(); ++k) {
       const auto& doc = msgs[k].second;
       INFO("frame index " << k);
-      CHECK(doc["time"].get<double>() == Approx(k / 50.0));
+      CHECK(doc["time"].get<double>() == Approx(static_cast<double>(k) / 50.0));
       CHECK(doc["orientations"]["pelvis_imu"][3].get<double>() ==
             Approx(std::sin(0.005 * static_cast<double>(k))).margin(1e-12));
       CHECK(doc["orientations"]["femur_imu"].is_null() == (k == 4));
