@@ -599,11 +599,15 @@ def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):
 
 
 def main():
+    global ANSWER_TIMEOUT_S
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--fabrikd", required=True, help="path of the fabrikd executable")
     ap.add_argument("--frames", type=int, default=300, help="frames in the streaming check")
+    ap.add_argument("--answer-timeout", type=float, default=3.0,
+                    help="seconds a frame may take to be answered (sanitizer builds are slower)")
     args = ap.parse_args()
+    ANSWER_TIMEOUT_S = args.answer_timeout
     args.fabrikd = os.path.abspath(args.fabrikd)  # the daemon runs in a temporary directory
     check(os.access(args.fabrikd, os.X_OK), f"{args.fabrikd} is not an executable")
     markers, joints, root = rest_positions(ROOT / "config/models/fullbody.json")
