@@ -32,6 +32,7 @@ nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& mod
   std::vector<Eigen::Vector3d> measured(points.size());
   std::vector<std::uint8_t> visible(points.size(), 1);
   std::vector<double> without_us, with_us;
+  double iterations_without = 0.0, iterations_with = 0.0;
   const int hide_frames = std::max(1, static_cast<int>(0.5 * options.rate_hz));
   for (int f = 0; f < options.frames; ++f) {
     const double t_s = f / options.rate_hz;
@@ -45,12 +46,15 @@ nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& mod
     for (Tracker* t : order) {
       const TrackResult& r = t->track(t_s, measured, visible);
       if (f > 0) (t == &with ? with_us : without_us).push_back(r.solve_us);
+      (t == &with ? iterations_with : iterations_without) += r.solve.iterations;
     }
   }
   const double a = quantile(without_us, 0.5), b = quantile(with_us, 0.5);
   return {{"occlusion", "each segment's markers hidden in turn for 0.5 s"},
           {"solve_us_median_without", a},
           {"solve_us_median_with", b},
+          {"iterations_mean_without", iterations_without / options.frames},
+          {"iterations_mean_with", iterations_with / options.frames},
           {"ratio", a > 0.0 ? b / a : 0.0}};
 }
 

@@ -138,7 +138,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   for (std::size_t k = 0; k < fill.filled.size(); ++k)
     if (fill.filled[k]) s.markers.positions_m[k] = fill.markers_m[k];
   for (const FilledGap& g : fill.gaps)
-    s.filled.push_back({config.tracker.markers[g.marker].marker, g.first, g.end});
+    s.filled.push_back({config.tracker.markers[g.marker].marker, g.first, g.end, to_string(g.method)});
   for (int i = 0; i < n; ++i) {
     if (column[i] < 0 || frames == 0 || 2 * missing_frames[i] <= frames) continue;
     const std::vector<std::size_t>& zeros = trial.source.zero_samples;
@@ -190,10 +190,13 @@ nlohmann::json solution_summary(const TrialSolution& s) {
                               {"zero_frames", m.zero_frames}});
   }
   // Per marker, the filled runs as [first, last] frame numbers of the file.
-  nlohmann::json filled = nlohmann::json::object();
-  for (const FilledRun& r : s.filled)
+  // filled_method: per marker, how each of those runs was filled.
+  nlohmann::json filled = nlohmann::json::object(), filled_method = nlohmann::json::object();
+  for (const FilledRun& r : s.filled) {
     filled[r.marker].push_back({s.markers.first_frame + static_cast<long long>(r.first),
                                 s.markers.first_frame + static_cast<long long>(r.end) - 1});
+    filled_method[r.marker].push_back(r.method);
+  }
   double sensor_sum = 0.0, sensor_max = 0.0;
   std::size_t with_sensors = 0;
   for (double e : s.sensor_rms_rad)
@@ -225,6 +228,7 @@ nlohmann::json solution_summary(const TrialSolution& s) {
             {"markers", outlier_markers}}},
           {"markers_missing_in_trial", s.missing_in_trial},
           {"filled", filled},
+          {"filled_method", filled_method},
           {"markers_mostly_missing", mostly_missing},
           {"trial_labels_not_tracked", s.ignored_in_trial}};
   if (!s.sensor_rms_rad.empty() && with_sensors + s.sensors_missing_in_table.size() +
@@ -261,12 +265,12 @@ io::OpenSimTable angles_table(const TrialSolution& s) {
 void write_filled_csv(const std::string& path, const TrialSolution& s, const io::MarkerTrial& trial) {
   std::ofstream out(path);
   if (!out) throw io::FormatError(path, "cannot write the file");
-  out << "marker,first_frame,last_frame,first_time_s,last_time_s,samples\n";
+  out << "marker,first_frame,last_frame,first_time_s,last_time_s,samples,method\n";
   for (const FilledRun& r : s.filled)
     out << r.marker << ',' << trial.first_frame + static_cast<long long>(r.first) << ','
         << trial.first_frame + static_cast<long long>(r.end) - 1 << ','
         << file_time_s(trial, r.first) << ',' << file_time_s(trial, r.end - 1) << ','
-        << r.end - r.first << '\n';
+        << r.end - r.first << ',' << r.method << '\n';
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {

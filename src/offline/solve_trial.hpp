@@ -22,10 +22,12 @@ struct MostlyMissing {
   std::size_t zero_frames = 0;  // of them, exact (0, 0, 0) samples read as missing
 };
 
-// Samples of one marker filled by the two-sided fill: frames [first, end) (indices).
+// Samples of one marker filled by the two-sided fill: frames [first, end)
+// (indices), and how ("donors" or "skeleton", two_sided_fill.hpp).
 struct FilledRun {
   std::string marker;
   std::size_t first = 0, end = 0;
+  std::string method;
 };
 
 struct TrialSolution {

@@ -6,28 +6,56 @@ namespace fabrik {
 
 namespace {
 
-// The model's markers per frame, tracking the frames in the given order
-// (backward: times negated, so the tracker's clock still runs forward).
-std::vector<Eigen::Vector3d> track_pass(const TrackerSetup& setup, std::span<const double> times_s,
-                                        std::span<const Eigen::Vector3d> measured_m,
-                                        std::span<const std::uint8_t> visible, bool backward) {
+// One tracking pass over the trial in the given order (backward: times
+// negated, so the tracker's clock still runs forward): the model's markers,
+// and every segment's world frame, per frame.
+struct Pass {
+  std::vector<Eigen::Vector3d> markers_m;      // [frame * markers + i]
+  std::vector<Eigen::Quaterniond> segment_q;   // [frame * segments + s]
+  std::vector<Eigen::Vector3d> segment_origin_m;
+};
+
+Pass track_pass(const TrackerSetup& setup, std::span<const double> times_s,
+                std::span<const Eigen::Vector3d> measured_m, std::span<const std::uint8_t> visible,
+                bool backward) {
   Tracker tracker(setup);
   const std::size_t n = setup.markers.size(), frames = times_s.size();
-  std::vector<Eigen::Vector3d> out(frames * n);
+  const std::size_t segments = setup.model->segments.size();
+  Pass out;
+  out.markers_m.resize(frames * n);
+  out.segment_q.resize(frames * segments);
+  out.segment_origin_m.resize(frames * segments);
   for (std::size_t k = 0; k < frames; ++k) {
     const std::size_t f = backward ? frames - 1 - k : k;
     const TrackResult& r = tracker.track(backward ? -times_s[f] : times_s[f],
                                          measured_m.subspan(f * n, n), visible.subspan(f * n, n));
-    std::copy(r.markers_world_m.begin(), r.markers_world_m.end(), out.begin() + f * n);
+    std::copy(r.markers_world_m.begin(), r.markers_world_m.end(), out.markers_m.begin() + f * n);
+    std::copy(r.segment_q_world.begin(), r.segment_q_world.end(),
+              out.segment_q.begin() + f * segments);
+    std::copy(r.segment_origin_world_m.begin(), r.segment_origin_world_m.end(),
+              out.segment_origin_m.begin() + f * segments);
   }
   return out;
 }
 
 }  // namespace
 
+const char* to_string(FillMethod method) {
+  switch (method) {
+    case FillMethod::donors:
+      return "donors";
+    case FillMethod::both:
+      return "donors+skeleton";
+    case FillMethod::skeleton:
+      break;
+  }
+  return "skeleton";
+}
+
 TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> times_s,
                             std::span<const Eigen::Vector3d> measured_m,
-                            std::span<const std::uint8_t> visible) {
+                            std::span<const std::uint8_t> visible,
+                            const DonorFillSettings& donors, bool use_donors) {
   TwoSidedFill fill;
   fill.frames = times_s.size();
   fill.n = setup.markers.size();
@@ -40,9 +68,15 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
     else any_gap = true;
   }
   if (!any_gap) return fill;
-  const std::vector<Eigen::Vector3d> forward = track_pass(setup, times_s, measured_m, visible, false);
-  const std::vector<Eigen::Vector3d> backward = track_pass(setup, times_s, measured_m, visible, true);
+  const Pass forward = track_pass(setup, times_s, measured_m, visible, false);
+  const Pass backward = track_pass(setup, times_s, measured_m, visible, true);
+  const std::size_t segments = setup.model->segments.size();
+  std::vector<Eigen::Quaterniond> q(frames);
+  std::vector<Eigen::Vector3d> origin_m(frames), skeleton_m, out_m;
   for (std::size_t i = 0; i < n; ++i) {
+    const auto segment =
+        static_cast<std::size_t>(setup.model->points[setup.markers[i].point].segment);
+    bool frames_ready = false;
     std::size_t f = 0;
     while (f < frames) {
       if (visible[f * n + i]) {
@@ -53,18 +87,44 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
       while (f < frames && !visible[f * n + i]) ++f;
       const bool before = first > 0, after = f < frames;
       if (!before && !after) continue;  // never measured: nothing to fill from
+      // The skeleton's fill: the two predictions blended linearly, weight of
+      // the backward one 0 at the last sample before the gap, 1 at the first
+      // one after it.
+      skeleton_m.resize(f - first);
       for (std::size_t g = first; g < f; ++g) {
-        // Weight of the backward prediction: 0 at the last sample before the
-        // gap, 1 at the first one after it.
         const double w = !before ? 1.0
                          : !after ? 0.0
                                   : static_cast<double>(g - first + 1) /
                                         static_cast<double>(f - first + 1);
         const std::size_t k = g * n + i;
-        fill.markers_m[k] = (1.0 - w) * forward[k] + w * backward[k];
-        fill.filled[k] = 1;
+        skeleton_m[g - first] = (1.0 - w) * forward.markers_m[k] + w * backward.markers_m[k];
       }
-      fill.gaps.push_back({static_cast<int>(i), first, f});
+      FilledGap gap{static_cast<int>(i), first, f, FillMethod::skeleton};
+      out_m.resize(f - first);
+      double donor_share = 0.0;
+      if (use_donors) {
+        if (!frames_ready) {
+          for (std::size_t h = 0; h < frames; ++h) {
+            q[h] = forward.segment_q[h * segments + segment];
+            origin_m[h] = forward.segment_origin_m[h * segments + segment];
+          }
+          frames_ready = true;
+        }
+        const FrameCandidate skeleton{q, origin_m, skeleton_m};
+        if (!fill_from_donors(frames, n, times_s, fill.markers_m, visible, static_cast<int>(i),
+                              first, f, donors, out_m, &skeleton, &donor_share))
+          out_m = skeleton_m;
+      } else {
+        out_m = skeleton_m;
+      }
+      gap.method = donor_share >= 1.0 ? FillMethod::donors
+                   : donor_share > 0.0 ? FillMethod::both
+                                       : FillMethod::skeleton;
+      for (std::size_t g = first; g < f; ++g) {
+        fill.markers_m[g * n + i] = out_m[g - first];
+        fill.filled[g * n + i] = 1;
+      }
+      fill.gaps.push_back(gap);
     }
   }
   return fill;

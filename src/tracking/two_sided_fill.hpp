@@ -1,11 +1,13 @@
-// Offline gap filling, where both sides of a gap are known: the Tracker runs
-// forward in time and, separately, backward (time reversed), each predicting
-// the gap from its own side (GapPredictor); a gap's fill is the two
-// predictions blended linearly across it, so it starts at the forward one
-// (continuous with the last sample before the gap) and ends at the backward
-// one (continuous with the first sample after it). A gap at the start of the
-// trial takes the backward prediction alone, one at the end the forward one; a
-// marker never measured is not filled.
+// Offline gap filling, where both sides of a gap are known. The skeleton's
+// fill: the Tracker runs forward in time and, separately, backward (time
+// reversed), each predicting the gap from its own side (GapPredictor); the two
+// predictions are blended linearly across the gap, so the fill starts at the
+// forward one (continuous with the last sample before the gap) and ends at the
+// backward one (continuous with the first sample after it); a gap at the start
+// of the trial takes the backward prediction alone, one at the end the forward
+// one. That fill competes with fills from donor markers (donor_fill.hpp), each
+// scored on gaps simulated where the marker was measured; the best are
+// averaged by score. A marker never measured is not filled.
 #pragma once
 
 #include <Eigen/Core>
@@ -14,13 +16,19 @@
 #include <span>
 #include <vector>
 
+#include "donor_fill.hpp"
 #include "tracker.hpp"
 
 namespace fabrik {
 
+// How a gap was filled: from donor markers, from the skeleton, or a weighted mix.
+enum class FillMethod { donors, skeleton, both };
+const char* to_string(FillMethod method);
+
 struct FilledGap {
   int marker = 0;              // index into the setup's markers
   std::size_t first = 0, end = 0;  // frames [first, end)
+  FillMethod method = FillMethod::skeleton;
 };
 
 struct TwoSidedFill {
@@ -34,6 +42,7 @@ struct TwoSidedFill {
 // n = setup.markers.size().
 TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> times_s,
                             std::span<const Eigen::Vector3d> measured_m,
-                            std::span<const std::uint8_t> visible);
+                            std::span<const std::uint8_t> visible,
+                            const DonorFillSettings& donors = {}, bool use_donors = true);
 
 }  // namespace fabrik
