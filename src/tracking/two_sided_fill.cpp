@@ -110,9 +110,24 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
           }
           frames_ready = true;
         }
+        // The skeleton's frame is scored where the marker was measured and
+        // helped place its segment: a fair score only if two more markers of
+        // the segment hold it through the gap (a lone marker would score its
+        // own segment perfect).
+        int holders = 0;
+        for (std::size_t m = 0; m < n; ++m) {
+          if (m == i || setup.model->points[setup.markers[m].point].segment !=
+                            setup.model->points[setup.markers[i].point].segment)
+            continue;
+          bool held = true;
+          for (std::size_t g = before ? first - 1 : first; g < (after ? f + 1 : f) && held; ++g)
+            held = visible[g * n + m] != 0;
+          holders += held ? 1 : 0;
+        }
         const FrameCandidate skeleton{q, origin_m, skeleton_m};
         if (!fill_from_donors(frames, n, times_s, fill.markers_m, visible, static_cast<int>(i),
-                              first, f, donors, out_m, &skeleton, &donor_share))
+                              first, f, donors, out_m, holders >= 2 ? &skeleton : nullptr,
+                              &donor_share))
           out_m = skeleton_m;
       } else {
         out_m = skeleton_m;
