@@ -103,9 +103,16 @@ TEST_CASE("A lost marker's prediction starts where its last velocity carries it:
     if (f < 50) continue;
     for (std::size_t i = 0; i < r.n; ++i) {
       if (r.segment[i] != hand) continue;
+      // The skeleton's fill starts at the linear extrapolation; donors carry
+      // the marker on rigidly from its last measurement: both within a small
+      // part of the marker's own step per frame.
       const Eigen::Vector3d expected =
           2.0 * r.measured_m[49 * r.n + i] - r.measured_m[48 * r.n + i];
-      CHECK((t.markers_world_m[i] - expected).norm() < 1e-9);
+      const double step_m = (r.measured_m[49 * r.n + i] - r.measured_m[48 * r.n + i]).norm();
+      const double off_m = (t.markers_world_m[i] - expected).norm();
+      INFO("first fill " << off_m * 1e3 << " mm from the extrapolation; step " << step_m * 1e3
+                         << " mm");
+      CHECK(off_m < 0.1 * step_m);
     }
   }
 }
@@ -214,11 +221,12 @@ std::optional<eval::GapReport> walk1_gaps(const eval::GapOptions& options) {
 }
 }  // namespace
 
-// The issue's must-show. Known to fail today for several figures (README,
-// "Gap filling"); [!mayfail] reports them without failing the suite.
+// The issue's must-show on the one trial we have (README, "Gap filling").
+// Without donor markers (prediction.donors false) the live median is 9.2 mm
+// and the offline one 8.4 mm: both fail.
 TEST_CASE("walk1 must-show: 1 s gaps live median <= 8 mm and every marker <= 30 mm; offline "
           "<= 5 and 20 mm; 2 s live median <= 15 mm; return jumps <= 5 mm",
-          "[gaps][data][!mayfail]") {
+          "[gaps][data]") {
   eval::GapOptions options;
   options.windows_s = {1.0, 2.0};
   const std::optional<eval::GapReport> report = walk1_gaps(options);

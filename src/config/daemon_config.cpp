@@ -127,7 +127,7 @@ PredictionSettings read_prediction(const JsonReader& root, int default_level) {
   if (!root.has("prediction")) return p;
   const JsonReader r = root.at("prediction");
   r.only_keys({"enabled", "level", "weight", "velocity_decay_s", "velocity_window_s",
-               "return_speed_mm_per_s"});
+               "return_speed_mm_per_s", "donors", "donor_max_joints"});
   p.enabled = r.get("enabled", p.enabled);
   p.level = static_cast<int>(r.get("level", static_cast<long long>(p.level), -1001LL, 1000LL));
   p.weight = r.get("weight", p.weight, 1e-9, 1e9);
@@ -135,6 +135,9 @@ PredictionSettings read_prediction(const JsonReader& root, int default_level) {
   p.velocity_window_s = r.get("velocity_window_s", p.velocity_window_s, 0.0, 1.0);
   p.return_speed_m_per_s =
       r.get("return_speed_mm_per_s", p.return_speed_m_per_s * 1e3, 1.0, 1e6) * 1e-3;
+  p.donors = r.get("donors", p.donors);
+  p.donor_max_joints = static_cast<int>(
+      r.get("donor_max_joints", static_cast<long long>(p.donor_max_joints), 0LL, 100LL));
   return p;
 }
 

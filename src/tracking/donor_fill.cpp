@@ -1,5 +1,7 @@
 #include "donor_fill.hpp"
 
+#include "triad.hpp"
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -9,22 +11,6 @@
 namespace fabrik {
 
 namespace {
-
-// The frame spanned by three points: origin a, x towards b, z normal to the
-// triangle. False when the triangle is too flat to define it.
-bool triad(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-           double min_sine, Eigen::Matrix3d& r) {
-  const Eigen::Vector3d ab = b - a, ac = c - a;
-  const double lab = ab.norm(), lac = ac.norm();
-  if (!(lab > 1e-9) || !(lac > 1e-9)) return false;
-  const Eigen::Vector3d normal = ab.cross(ac);
-  const double sine = normal.norm() / (lab * lac);
-  if (!(sine >= min_sine)) return false;
-  r.col(0) = ab / lab;
-  r.col(2) = normal.normalized();
-  r.col(1) = r.col(2).cross(r.col(0));
-  return true;
-}
 
 struct Triple {
   int a, b, c;  // a < 0: the frame candidate
@@ -38,7 +24,7 @@ bool fill_from_donors(std::size_t frames, std::size_t n, std::span<const double>
                       std::span<const std::uint8_t> visible, int marker, std::size_t first,
                       std::size_t end, const DonorFillSettings& settings,
                       std::span<Eigen::Vector3d> out, const FrameCandidate* skeleton,
-                      double* donor_share) {
+                      double* donor_share, std::span<const std::uint8_t> allowed) {
   const auto i = static_cast<std::size_t>(marker);
   if (end <= first || end > frames || i >= n || out.size() != end - first) return false;
   const bool before = first > 0, after = end < frames;
@@ -65,7 +51,7 @@ bool fill_from_donors(std::size_t frames, std::size_t n, std::span<const double>
   };
   std::vector<Ranked> ranked;
   for (std::size_t m = 0; m < n; ++m) {
-    if (m == i) continue;
+    if (m == i || (!allowed.empty() && !allowed[m])) continue;
     bool ok = true;
     for (std::size_t f = lo; f <= hi && ok; ++f) ok = seen(f, m);
     if (!ok) continue;

@@ -49,11 +49,12 @@ struct FrameCandidate {
 // its measured sides, none can be scored, or the best scores beyond max_score_m.
 // With a skeleton candidate, it competes with the triples (and max_score_m
 // does not apply); donor_share gets the donors' share of the weights.
+// allowed (n entries, empty: all): the markers that may be donors.
 bool fill_from_donors(std::size_t frames, std::size_t n, std::span<const double> times_s,
                       std::span<const Eigen::Vector3d> markers_m,
                       std::span<const std::uint8_t> visible, int marker, std::size_t first,
                       std::size_t end, const DonorFillSettings& settings,
                       std::span<Eigen::Vector3d> out, const FrameCandidate* skeleton = nullptr,
-                      double* donor_share = nullptr);
+                      double* donor_share = nullptr, std::span<const std::uint8_t> allowed = {});
 
 }  // namespace fabrik

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "triad.hpp"
+
 namespace fabrik {
 
 namespace {
@@ -10,6 +12,9 @@ namespace {
 // Postures kept for velocities: at 60-100 Hz this spans well over the
 // velocity window; at higher rates the window shrinks to what it holds.
 constexpr int kRing = 32;
+// Measured frames kept for choosing donors: about a gait cycle at 100 Hz, two
+// at 60 Hz, so a donor that only looked stable for a moment is found out.
+constexpr int kHistory = 128;
 
 // Rotation vector (axis times angle, radians) of a unit quaternion, angle in [0, pi].
 Eigen::Vector3d rotation_vector(Eigen::Quaterniond q) {
@@ -29,6 +34,33 @@ Eigen::Quaterniond from_rotation_vector(const Eigen::Vector3d& v) {
 
 }  // namespace
 
+std::vector<std::uint8_t> nearby_markers(const Model& model, std::span<const int> marker_segments,
+                                         int max_joints) {
+  const std::size_t n_seg = model.segments.size(), n = marker_segments.size();
+  // Joints between segments: distances in the tree, by breadth-first search from each.
+  std::vector<int> distance(n_seg * n_seg, -1), queue;
+  for (std::size_t from = 0; from < n_seg; ++from) {
+    int* d = distance.data() + from * n_seg;
+    d[from] = 0;
+    queue.assign(1, static_cast<int>(from));
+    for (std::size_t q = 0; q < queue.size(); ++q) {
+      const int s = queue[q];
+      for (std::size_t t = 0; t < n_seg; ++t) {
+        const bool joined = model.segments[t].parent == s || model.segments[s].parent == static_cast<int>(t);
+        if (joined && d[t] < 0) d[t] = d[s] + 1, queue.push_back(static_cast<int>(t));
+      }
+    }
+  }
+  std::vector<std::uint8_t> nearby(n * n, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t m = 0; m < n; ++m) {
+      const int d = distance[static_cast<std::size_t>(marker_segments[i]) * n_seg +
+                             static_cast<std::size_t>(marker_segments[m])];
+      nearby[i * n + m] = m != i && d >= 0 && d <= max_joints ? 1 : 0;
+    }
+  return nearby;
+}
+
 GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_points,
                            const PredictionSettings& settings)
     : model_(model), settings_(settings), n_(static_cast<int>(marker_points.size())) {
@@ -45,6 +77,24 @@ GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_point
   }
   ring_.resize(kRing);
   for (Past& p : ring_) p.posture = Posture::rest(model);
+  history_.resize(kHistory);
+  for (Measured& h : history_) {
+    h.markers_m.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+    h.seen.assign(static_cast<std::size_t>(n_), 0);
+    h.segment_local_m.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+  }
+  nearby_ = nearby_markers(model, marker_segment_, settings_.donor_max_joints);
+  settings_.donor_candidates = std::max(0, settings_.donor_candidates);
+  settings_.donor_triples = std::max(0, settings_.donor_triples);
+  const auto k = static_cast<std::size_t>(settings_.donor_candidates);
+  donors_.assign(static_cast<std::size_t>(n_ * settings_.donor_triples), Donors{});
+  donor_count_.assign(static_cast<std::size_t>(n_), 0);
+  skeleton_score_m_.assign(static_cast<std::size_t>(n_), NAN);
+  candidates_.assign(k + 1, -1);
+  spread_m_.assign(k + 1, 0.0);
+  scored_.assign(k * (k - 1) * (k - 2) / 6 + 1, Donors{});
+  series_m_.assign(kHistory, Eigen::Vector3d::Zero());
+  series_ok_.assign(kHistory, 0);
   in_gap_.assign(static_cast<std::size_t>(n_seg), 0);
   gap_start_s_.assign(static_cast<std::size_t>(n_seg), 0.0);
   has_history_.assign(static_cast<std::size_t>(n_seg), 0);
@@ -69,6 +119,8 @@ GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_point
 void GapPredictor::reset() {
   newest_ = -1;
   kept_ = 0;
+  history_newest_ = -1;
+  history_kept_ = 0;
   started_ = false;
   std::fill(in_gap_.begin(), in_gap_.end(), std::uint8_t{0});
   std::fill(has_history_.begin(), has_history_.end(), std::uint8_t{0});
@@ -77,11 +129,17 @@ void GapPredictor::reset() {
   std::fill(was_seen_.begin(), was_seen_.end(), std::uint8_t{0});
   std::fill(ever_seen_.begin(), ever_seen_.end(), std::uint8_t{0});
   std::fill(handing_over_.begin(), handing_over_.end(), std::uint8_t{0});
+  std::fill(donor_count_.begin(), donor_count_.end(), 0);
 }
 
 const GapPredictor::Past* GapPredictor::past(int age) const {
   if (age >= kept_) return nullptr;
   return &ring_[static_cast<std::size_t>((newest_ - age + kRing) % kRing)];
+}
+
+const GapPredictor::Measured* GapPredictor::measured_past(int age) const {
+  if (age >= history_kept_) return nullptr;
+  return &history_[static_cast<std::size_t>((history_newest_ - age + kHistory) % kHistory)];
 }
 
 const GapPredictor::Past* GapPredictor::velocity_base() const {
@@ -210,6 +268,7 @@ void GapPredictor::after_solve(double time_s, const Posture& posture,
                                std::span<const Eigen::Vector3d> measured,
                                std::span<Eigen::Vector3d> markers_world_m, std::span<double> gap_s) {
   if (!started_) first_time_s_ = time_s;
+  choices_left_ = settings_.donor_choices_per_frame;
   for (int i = 0; i < n_; ++i) {
     if (seen[i]) {
       gap_s[i] = 0.0;
@@ -224,7 +283,17 @@ void GapPredictor::after_solve(double time_s, const Posture& posture,
     gap_s[i] = time_s - (ever_seen_[i] ? last_seen_s_[i] : first_time_s_);
     const bool gap_starts = was_seen_[i] != 0;
     was_seen_[i] = 0;
-    if (!settings_.enabled || !ever_seen_[i]) continue;
+    if (!settings_.enabled) continue;
+    if (!ever_seen_[i]) {
+      // Its segment's measured markers' mean misfit is the best guess of its own.
+      Eigen::Vector3d sum_m = Eigen::Vector3d::Zero();
+      int count = 0;
+      for (int m = 0; m < n_; ++m)
+        if (m != i && seen[m] && marker_segment_[m] == marker_segment_[i])
+          sum_m += measured[m] - markers_world_m[m], ++count;
+      if (count > 0 && sum_m.allFinite()) markers_world_m[i] += sum_m / count;
+      continue;
+    }
     const int s = marker_segment_[i];
     const SegmentPose& pose = posture.segments[s];
     // No marker of its own holds the segment: carry the marker on the
@@ -243,13 +312,169 @@ void GapPredictor::after_solve(double time_s, const Posture& posture,
       has_offset_[i] = offset_local_m_[i].allFinite() ? 1 : 0;
     }
     if (has_offset_[i]) markers_world_m[i] = pose.base_world_m + q * (marker_local_m_[i] + offset_local_m_[i]);
+    if (gap_starts) {
+      donor_count_[i] = 0;
+      if (settings_.donors && choices_left_ > 0) {
+        --choices_left_;
+        choose_donors(i, seen, measured);
+      }
+    }
+    // The kept triples whose donors are measured now, averaged by weight with
+    // the skeleton where it competes; a triple that strays from the skeleton
+    // far beyond both scores loses its weight smoothly.
+    const Eigen::Vector3d skeleton_m = markers_world_m[i];
+    const double floor_sq = settings_.donor_score_floor_m * settings_.donor_score_floor_m;
+    const double skeleton_sq = std::max(skeleton_score_m_[i] * skeleton_score_m_[i], floor_sq);
+    const bool with_skeleton = std::isfinite(skeleton_score_m_[i]);
+    Eigen::Vector3d sum_m = Eigen::Vector3d::Zero();
+    double weight_sum = 0.0;
+    if (with_skeleton && donor_count_[i] > 0) {
+      sum_m = skeleton_m / skeleton_sq;
+      weight_sum = 1.0 / skeleton_sq;
+    }
+    for (int t = 0; t < donor_count_[i]; ++t) {
+      const Donors& d = donors_[static_cast<std::size_t>(i * settings_.donor_triples + t)];
+      Eigen::Matrix3d r;
+      if (!seen[d.a] || !seen[d.b] || !seen[d.c] ||
+          !triad(measured[d.a], measured[d.b], measured[d.c], settings_.donor_min_sine, r))
+        continue;
+      const Eigen::Vector3d p_m = measured[d.a] + r * d.local_m;
+      double w = d.weight;
+      if (with_skeleton) {
+        const double k = settings_.donor_gate;
+        const double var = k * k * (1.0 / d.weight + skeleton_sq);
+        w *= std::exp(-0.5 * (p_m - skeleton_m).squaredNorm() / var);
+      }
+      sum_m += w * p_m;
+      weight_sum += w;
+    }
+    if (weight_sum > 0.0 && sum_m.allFinite()) markers_world_m[i] = sum_m / weight_sum;
   }
   newest_ = (newest_ + 1) % kRing;
   kept_ = std::min(kept_ + 1, kRing);
   Past& p = ring_[static_cast<std::size_t>(newest_)];
   p.time_s = time_s;
   std::copy(posture.segments.begin(), posture.segments.end(), p.posture.segments.begin());
+  history_newest_ = (history_newest_ + 1) % kHistory;
+  history_kept_ = std::min(history_kept_ + 1, kHistory);
+  Measured& h = history_[static_cast<std::size_t>(history_newest_)];
+  for (int i = 0; i < n_; ++i) {
+    h.seen[i] = seen[i];
+    if (!seen[i]) continue;
+    h.markers_m[i] = measured[i];
+    const SegmentPose& pose = posture.segments[marker_segment_[i]];
+    h.segment_local_m[i] = pose.q_world.conjugate() * (measured[i] - pose.base_world_m);
+  }
   started_ = true;
+}
+
+bool GapPredictor::local_in(const Measured& p, int i, const Donors& d, Eigen::Vector3d& local_m) const {
+  if (!p.seen[i]) return false;
+  if (d.a < 0) {
+    local_m = p.segment_local_m[i];
+    return local_m.allFinite();
+  }
+  Eigen::Matrix3d r;
+  if (!p.seen[d.a] || !p.seen[d.b] || !p.seen[d.c] ||
+      !triad(p.markers_m[d.a], p.markers_m[d.b], p.markers_m[d.c], settings_.donor_min_sine, r))
+    return false;
+  local_m = r.transpose() * (p.markers_m[i] - p.markers_m[d.a]);
+  return local_m.allFinite();
+}
+
+double GapPredictor::hold_score(int i, const Donors& d) {
+  // Oldest first.
+  const int kept = history_kept_;
+  for (int k = 0; k < kept; ++k)
+    series_ok_[k] = local_in(*measured_past(kept - 1 - k), i, d, series_m_[k]) ? 1 : 0;
+  // Holding from frame s - 1 over the next l frames, wherever all were usable,
+  // every quarter of l; l is half the history.
+  const int l = std::max(1, kept / 2);
+  const int stride = std::max(1, l / 4);
+  double sq = 0.0;
+  int samples = 0;
+  for (int s = 1; s + l <= kept;) {
+    bool ok = series_ok_[s - 1] != 0;
+    for (int k = s; k < s + l && ok; ++k) ok = series_ok_[k] != 0;
+    if (!ok) {
+      ++s;
+      continue;
+    }
+    for (int k = s; k < s + l; ++k) sq += (series_m_[k] - series_m_[s - 1]).squaredNorm();
+    samples += l;
+    s += stride;
+  }
+  return samples > 0 ? std::sqrt(sq / samples) : NAN;
+}
+
+void GapPredictor::choose_donors(int i, std::span<const std::uint8_t> seen,
+                                 std::span<const Eigen::Vector3d> measured) {
+  const Measured* last = measured_past(0);
+  if (!last || !last->seen[i] || history_kept_ < 3) return;
+  // Candidates: measured now and when the marker was last seen, ranked by the
+  // spread of their distance to it over the recent past.
+  const int k_max = settings_.donor_candidates;
+  int count = 0;
+  for (int m = 0; m < n_; ++m) {
+    if (!nearby_[static_cast<std::size_t>(i * n_ + m)] || !seen[m] || !last->seen[m]) continue;
+    double sum = 0.0, sum_sq = 0.0;
+    int frames = 0;
+    for (int age = 0; age < history_kept_; ++age) {
+      const Measured& p = *measured_past(age);
+      if (!p.seen[i] || !p.seen[m]) continue;
+      const double d = (p.markers_m[m] - p.markers_m[i]).norm();
+      sum += d;
+      sum_sq += d * d;
+      ++frames;
+    }
+    if (frames < 3) continue;
+    const double mean = sum / frames;
+    const double spread = std::sqrt(std::max(0.0, sum_sq / frames - mean * mean));
+    if (!std::isfinite(spread)) continue;
+    int at = count;  // insertion into the sorted top k_max
+    while (at > 0 && spread_m_[at - 1] > spread) {
+      if (at < k_max) candidates_[at] = candidates_[at - 1], spread_m_[at] = spread_m_[at - 1];
+      --at;
+    }
+    if (at < k_max) candidates_[at] = m, spread_m_[at] = spread;
+    count = std::min(count + 1, k_max);
+  }
+  int scored = 0;
+  const auto consider = [&](Donors d) {
+    if (!local_in(*last, i, d, d.local_m)) return;
+    const double score = hold_score(i, d);
+    if (!std::isfinite(score)) return;
+    d.weight = score;  // the score until the weights are set
+    scored_[scored++] = d;
+  };
+  // The skeleton competes where two more of the segment's markers are
+  // measured: with fewer, the marker itself placed its segment in the past
+  // and the score would flatter it.
+  int holders = 0;
+  for (int m = 0; m < n_; ++m)
+    holders += m != i && seen[m] && marker_segment_[m] == marker_segment_[i] ? 1 : 0;
+  skeleton_score_m_[i] = NAN;
+  if (holders >= 2) {
+    Donors d;
+    if (local_in(*last, i, d, d.local_m)) skeleton_score_m_[i] = hold_score(i, d);
+  }
+  for (int x = 0; x < count; ++x)
+    for (int y = x + 1; y < count; ++y)
+      for (int z = y + 1; z < count; ++z)
+        consider(Donors{candidates_[x], candidates_[y], candidates_[z], Eigen::Vector3d::Zero(), 0.0});
+  const int keep = std::min(scored, settings_.donor_triples);
+  std::partial_sort(scored_.begin(), scored_.begin() + keep, scored_.begin() + scored,
+                    [](const Donors& p, const Donors& q) { return p.weight < q.weight; });
+  int kept = 0;
+  for (int t = 0; t < keep; ++t) {
+    Donors d = scored_[t];
+    // Held where it was last measured: the donors carry it on from there.
+    Eigen::Matrix3d r;
+    if (!triad(measured[d.a], measured[d.b], measured[d.c], settings_.donor_min_sine, r)) continue;
+    d.weight = 1.0 / std::pow(std::max(d.weight, settings_.donor_score_floor_m), 2);
+    donors_[static_cast<std::size_t>(i * settings_.donor_triples + kept++)] = d;
+  }
+  donor_count_[i] = kept;
 }
 
 }  // namespace fabrik

@@ -1,9 +1,15 @@
 // Live gap filling: while some of a segment's markers are occluded, the
 // segment is pulled, weakly, towards the rotation relative to its parent that
 // the recent past predicts (constant angular velocity decaying to a hold), as
-// an orientation target of the solver at the prediction level; an occluded
+// an orientation target of the solver at the prediction level. An occluded
 // marker is reported at its model point plus the offset from it at which it
-// was last measured (in its segment's frame); a marker that returns is handed
+// was last measured (in its segment's frame), competing with donor markers
+// (as offline, donor_fill.hpp): at the start of a gap, triples of markers
+// measured now are scored on the recent past by how well holding the
+// marker's coordinates in their frame would have predicted it, the skeleton's
+// segment frame likewise, and the best are averaged by score. A marker never
+// measured takes its model point moved by the mean misfit of its segment's
+// measured markers. A marker that returns is handed
 // over from that prediction to its measurement at a bounded speed, so joint
 // centres do not jump. Causal, allocation-free per frame, and without work
 // beyond one posture copy while every marker is seen.
@@ -40,7 +46,29 @@ struct PredictionSettings {
   // A returning marker's target moves from where the prediction had it to
   // its measurement at most this fast, so the posture does not jump.
   double return_speed_m_per_s = 0.2;
+  // Donor markers for the reported fill (not the solve): candidates ranked by
+  // the spread of their distance to the marker, triples averaged, their
+  // triangles no flatter than min_sine, weights 1 / max(score, floor)^2; at
+  // most this many gaps start choosing per frame (the rest take the
+  // skeleton's fill), which bounds a frame's cost.
+  bool donors = true;
+  int donor_candidates = 8;
+  int donor_triples = 3;
+  double donor_min_sine = 0.2;
+  double donor_score_floor_m = 3e-4;
+  int donor_choices_per_frame = 4;
+  // Donors come from segments at most this many joints from the marker's (0:
+  // its own): a marker elsewhere that looked steady for a moment is not trusted.
+  int donor_max_joints = 2;
+  // Where the skeleton competes, a triple's weight falls as a Gaussian of its
+  // distance from the skeleton's fill, in this many of their combined scores.
+  double donor_gate = 3.0;
 };
+
+// Per pair of markers (row: the filled one, [i * n + m]): whether m is on a
+// segment at most max_joints joints from i's. marker_segments: each marker's segment.
+std::vector<std::uint8_t> nearby_markers(const Model& model, std::span<const int> marker_segments,
+                                         int max_joints);
 
 class GapPredictor {
  public:
@@ -76,6 +104,25 @@ class GapPredictor {
     double time_s = 0.0;
     Posture posture;
   };
+  struct Measured {  // one frame's markers, for choosing donors
+    std::vector<Eigen::Vector3d> markers_m;
+    std::vector<std::uint8_t> seen;
+    std::vector<Eigen::Vector3d> segment_local_m;  // each in its segment's solved frame
+  };
+  const Measured* measured_past(int age) const;  // 0: the newest
+  struct Donors {  // one triple (a < 0: the skeleton's segment frame)
+    int a = -1, b = -1, c = -1;
+    Eigen::Vector3d local_m = Eigen::Vector3d::Zero();  // the marker in their frame when lost
+    double weight = 0.0;
+  };
+  // At the start of marker i's gap: scores triples of the markers seen now
+  // (and the skeleton) on the recent past; keeps the best.
+  void choose_donors(int i, std::span<const std::uint8_t> seen,
+                     std::span<const Eigen::Vector3d> measured);
+  // The local coordinates of marker i in a candidate's frame over the ring,
+  // oldest first, and the RMS error of holding them (NaN if it cannot be scored).
+  double hold_score(int i, const Donors& d);
+  bool local_in(const Measured& p, int i, const Donors& d, Eigen::Vector3d& local_m) const;
   const Past* past(int age) const;  // 0: the newest, nullptr if not kept
   const Past* velocity_base() const;
   // World angular velocity (rad/s) and base velocity (m/s) of segment s over the recent past.
@@ -114,6 +161,19 @@ class GapPredictor {
   std::vector<std::uint8_t> has_previous_;
   std::vector<Eigen::Vector3d> handover_m_;  // target minus measurement, shrinking
   std::vector<std::uint8_t> handing_over_;
+  std::vector<Donors> donors_;  // [i * donor_triples + t]
+  std::vector<std::uint8_t> nearby_;  // nearby_markers()
+  int choices_left_ = 0;        // this frame
+  std::vector<Measured> history_;  // a ring, longer than the postures'
+  int history_newest_ = -1, history_kept_ = 0;
+  std::vector<int> donor_count_;
+  std::vector<double> skeleton_score_m_;  // NaN: the skeleton does not compete
+  // Scratch for choosing donors.
+  std::vector<int> candidates_;
+  std::vector<double> spread_m_;
+  std::vector<Donors> scored_;
+  std::vector<Eigen::Vector3d> series_m_;
+  std::vector<std::uint8_t> series_ok_;
 };
 
 }  // namespace fabrik

@@ -73,6 +73,11 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
   const std::size_t segments = setup.model->segments.size();
   std::vector<Eigen::Quaterniond> q(frames);
   std::vector<Eigen::Vector3d> origin_m(frames), skeleton_m, out_m;
+  std::vector<int> marker_segments;
+  for (const MarkerTarget& m : setup.markers)
+    marker_segments.push_back(setup.model->points[m.point].segment);
+  const std::vector<std::uint8_t> nearby =
+      nearby_markers(*setup.model, marker_segments, setup.prediction.donor_max_joints);
   for (std::size_t i = 0; i < n; ++i) {
     const auto segment =
         static_cast<std::size_t>(setup.model->points[setup.markers[i].point].segment);
@@ -102,7 +107,7 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
       FilledGap gap{static_cast<int>(i), first, f, FillMethod::skeleton};
       out_m.resize(f - first);
       double donor_share = 0.0;
-      if (use_donors) {
+      if (use_donors && setup.prediction.donors) {
         if (!frames_ready) {
           for (std::size_t h = 0; h < frames; ++h) {
             q[h] = forward.segment_q[h * segments + segment];
@@ -127,7 +132,7 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
         const FrameCandidate skeleton{q, origin_m, skeleton_m};
         if (!fill_from_donors(frames, n, times_s, fill.markers_m, visible, static_cast<int>(i),
                               first, f, donors, out_m, holders >= 2 ? &skeleton : nullptr,
-                              &donor_share))
+                              &donor_share, std::span(nearby).subspan(i * n, n)))
           out_m = skeleton_m;
       } else {
         out_m = skeleton_m;
