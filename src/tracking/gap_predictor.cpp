@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "solver/joint_angles.hpp"
 #include "triad.hpp"
 
 namespace fabrik {
@@ -102,6 +103,10 @@ GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_point
   omega_rel_.assign(static_cast<std::size_t>(n_seg), Eigen::Vector3d::Zero());
   q_rel_pred_.assign(static_cast<std::size_t>(n_seg), Eigen::Quaterniond::Identity());
   predicted_.assign(static_cast<std::size_t>(n_seg), 0);
+  placed_after_.assign(static_cast<std::size_t>(n_seg), 0);
+  leaf_.assign(static_cast<std::size_t>(n_seg), 1);
+  for (const Segment& seg : model.segments)
+    if (seg.parent >= 0) leaf_[static_cast<std::size_t>(seg.parent)] = 0;
   segment_seen_.assign(static_cast<std::size_t>(n_seg), 0);
   offset_local_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
   has_offset_.assign(static_cast<std::size_t>(n_), 0);
@@ -187,6 +192,7 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
   std::fill(q_visible.begin(), q_visible.end(), std::uint8_t{0});
   if (started_ && !(time_s >= past(0)->time_s)) reset();  // the clock restarted
   std::fill(predicted_.begin(), predicted_.end(), std::uint8_t{0});
+  std::fill(placed_after_.begin(), placed_after_.end(), std::uint8_t{0});
   std::fill(segment_seen_.begin(), segment_seen_.end(), std::uint8_t{0});
   for (int i = 0; i < n_; ++i)
     if (seen[i]) segment_seen_[marker_segment_[i]] = 1;
@@ -224,7 +230,11 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
     q_rel_pred_[s] = q_rel;
     predicted_[s] = parent >= 0 ? 1 : 0;
     q_world[k] = (q_parent * q_rel).normalized();
-    q_visible[k] = 1;
+    // A leaf without a measured marker: nothing but the prediction would pull
+    // it, so it rides on its parent in the solve and is turned once after
+    // (place_leaves), the optimum the solver would iterate towards.
+    placed_after_[s] = predicted_[s] && !segment_seen_[s] && leaf_[s] ? 1 : 0;
+    q_visible[k] = placed_after_[s] ? 0 : 1;
   }
   for (std::size_t s = 0; s < in_gap_.size(); ++s) in_gap_[s] = (in_gap_[s] & 2) ? 1 : 0;
 
@@ -260,6 +270,16 @@ void GapPredictor::before_solve(double time_s, std::span<const std::uint8_t> see
       }
     }
     if (handing_over_[i]) target_world_m[i] += handover_m_[i];
+  }
+}
+
+void GapPredictor::place_leaves(Posture& posture) const {
+  for (int s = 0; s < static_cast<int>(placed_after_.size()); ++s) {
+    if (!placed_after_[s]) continue;
+    SegmentPose& pose = posture.segments[s];
+    const Eigen::Quaterniond previous = pose.q_world;
+    pose.set_rotation(posture.segments[model_.segments[s].parent].q_world * q_rel_pred_[s]);
+    enforce_joint_limits(model_, s, previous, posture);
   }
 }
 

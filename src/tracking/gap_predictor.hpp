@@ -88,6 +88,11 @@ class GapPredictor {
                     std::span<Eigen::Vector3d> target_world_m,
                     std::span<Eigen::Quaterniond> q_world, std::span<std::uint8_t> q_visible);
 
+  // Right after the solve: turns each leaf segment without a measured marker
+  // (which rode on its parent in the solve) to its predicted rotation
+  // relative to the parent, within its joint's ranges.
+  void place_leaves(Posture& posture) const;
+
   // After the solve: occluded markers in `markers_world_m` (model positions)
   // move by their last measured offset; gap_s gets each marker's time since it
   // was last measured (0 when measured, the time since the first frame when
@@ -152,6 +157,8 @@ class GapPredictor {
   std::vector<Eigen::Vector3d> omega_rel_;       // its angular velocity then (segment frame)
   std::vector<Eigen::Quaterniond> q_rel_pred_;   // this frame's predicted relative rotation
   std::vector<std::uint8_t> predicted_, segment_seen_;  // per segment, this frame
+  std::vector<std::uint8_t> placed_after_;  // per segment, this frame: see place_leaves
+  std::vector<std::uint8_t> leaf_;          // per segment: no child segment
 
   // Per marker.
   std::vector<Eigen::Vector3d> offset_local_m_;  // measured minus model point, segment frame

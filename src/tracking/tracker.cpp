@@ -181,6 +181,7 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   result_.solve = outliers_.solve(solver_, model(), target_world_m_, target_visible_,
                                   orient_q_world_, orient_visible_, start_, posture_,
                                   outlier_, relabelled_from_);
+  predictor_.place_leaves(posture_);
   if (cold) solver_.set_options(setup_.solver);
   const auto t1 = std::chrono::steady_clock::now();
   result_.solve_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
