@@ -4,7 +4,6 @@
 // interleaved frame by frame (in alternating order) so both see the same
 // machine load.
 #include <chrono>
-#include <cstdlib>
 
 #include "bench.hpp"
 #include "stats.hpp"
@@ -32,7 +31,7 @@ nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& mod
   Posture truth = Posture::rest(m);
   std::vector<Eigen::Vector3d> measured(points.size());
   std::vector<std::uint8_t> visible(points.size(), 1);
-  std::vector<double> without_us, with_us;
+  std::vector<double> without_us, with_us, track_without_us, track_with_us;
   double iterations_without = 0.0, iterations_with = 0.0;
   const int hide_frames = std::max(1, static_cast<int>(0.5 * options.rate_hz));
   for (int f = 0; f < options.frames; ++f) {
@@ -41,12 +40,18 @@ nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& mod
     motion.sample(truth, points, options.noise_mm * 1e-3, measured);
     const int hidden = (f / hide_frames) % static_cast<int>(m.segments.size());
     for (std::size_t i = 0; i < points.size(); ++i)
-      visible[i] = (std::getenv("NOHIDE") ? -1 : m.points[points[i]].segment) == hidden ? 0 : 1;
+      visible[i] = m.points[points[i]].segment == hidden ? 0 : 1;
     Tracker* order[2] = {&without, &with};
     if (f % 2) std::swap(order[0], order[1]);
     for (Tracker* t : order) {
+      const auto t0 = std::chrono::steady_clock::now();
       const TrackResult& r = t->track(t_s, measured, visible);
-      if (f > 0) (t == &with ? with_us : without_us).push_back(r.solve_us);
+      const double track_us =
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+      if (f > 0) {
+        (t == &with ? with_us : without_us).push_back(r.solve_us);
+        (t == &with ? track_with_us : track_without_us).push_back(track_us);
+      }
       (t == &with ? iterations_with : iterations_without) += r.solve.iterations;
     }
   }
@@ -56,7 +61,14 @@ nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& mod
           {"solve_us_median_with", b},
           {"iterations_mean_without", iterations_without / options.frames},
           {"iterations_mean_with", iterations_with / options.frames},
-          {"ratio", a > 0.0 ? b / a : 0.0}};
+          {"ratio", a > 0.0 ? b / a : 0.0},
+          // The whole Tracker::track call, the donor choice included.
+          {"track_us_median_without", quantile(track_without_us, 0.5)},
+          {"track_us_median_with", quantile(track_with_us, 0.5)},
+          {"track_us_p99_without", quantile(track_without_us, 0.99)},
+          {"track_us_p99_with", quantile(track_with_us, 0.99)},
+          {"track_us_max_without", quantile(track_without_us, 1.0)},
+          {"track_us_max_with", quantile(track_with_us, 1.0)}};
 }
 
 }  // namespace fabrik::bench

@@ -16,6 +16,8 @@ constexpr int kRing = 32;
 // Measured frames kept for choosing donors: about a gait cycle at 100 Hz, two
 // at 60 Hz, so a donor that only looked stable for a moment is found out.
 constexpr int kHistory = 128;
+// Of which at most this many, evenly spaced, score a candidate.
+constexpr int kScored = 64;
 
 // Rotation vector (axis times angle, radians) of a unit quaternion, angle in [0, pi].
 Eigen::Vector3d rotation_vector(Eigen::Quaterniond q) {
@@ -403,10 +405,13 @@ bool GapPredictor::local_in(const Measured& p, int i, const Donors& d, Eigen::Ve
 }
 
 double GapPredictor::hold_score(int i, const Donors& d) {
-  // Oldest first.
-  const int kept = history_kept_;
+  // Oldest first, ending with the newest frame; at most kScored frames, evenly
+  // spaced (the cost of a choice is this times the triples).
+  const int step = (history_kept_ + kScored - 1) / kScored;
+  const int kept = (history_kept_ + step - 1) / step;
   for (int k = 0; k < kept; ++k)
-    series_ok_[k] = local_in(*measured_past(kept - 1 - k), i, d, series_m_[k]) ? 1 : 0;
+    series_ok_[k] =
+        local_in(*measured_past((kept - 1 - k) * step), i, d, series_m_[k]) ? 1 : 0;
   // Holding from frame s - 1 over the next l frames, wherever all were usable,
   // every quarter of l; l is half the history.
   const int l = std::max(1, kept / 2);
