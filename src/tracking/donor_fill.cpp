@@ -1,12 +1,11 @@
 #include "donor_fill.hpp"
 
-#include "triad.hpp"
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <vector>
+
+#include "triad.hpp"
 
 namespace fabrik {
 
@@ -55,18 +54,11 @@ bool fill_from_donors(std::size_t frames, std::size_t n, std::span<const double>
     bool ok = true;
     for (std::size_t f = lo; f <= hi && ok; ++f) ok = seen(f, m);
     if (!ok) continue;
-    double sum = 0.0, sum_sq = 0.0;
-    int count = 0;
-    for (std::size_t f = c_lo; f <= c_hi; ++f) {
-      if (!seen(f, i) || !seen(f, m)) continue;
-      const double d = (at(f, m) - at(f, i)).norm();
-      sum += d;
-      sum_sq += d * d;
-      ++count;
-    }
-    if (count < 3) continue;
-    const double mean = sum / count;
-    ranked.push_back({static_cast<int>(m), std::sqrt(std::max(0.0, sum_sq / count - mean * mean))});
+    DistanceSpread spread;
+    for (std::size_t f = c_lo; f <= c_hi; ++f)
+      if (seen(f, i) && seen(f, m)) spread.add((at(f, m) - at(f, i)).norm());
+    if (spread.frames < 3) continue;
+    ranked.push_back({static_cast<int>(m), spread.spread_m()});
   }
   std::sort(ranked.begin(), ranked.end(),
             [](const Ranked& x, const Ranked& y) { return x.spread_m < y.spread_m; });

@@ -93,9 +93,9 @@ GapPredictor::GapPredictor(const Model& model, std::span<const int> marker_point
   donors_.assign(static_cast<std::size_t>(n_ * settings_.donor_triples), Donors{});
   donor_count_.assign(static_cast<std::size_t>(n_), 0);
   skeleton_score_m_.assign(static_cast<std::size_t>(n_), NAN);
-  candidates_.assign(k + 1, -1);
-  spread_m_.assign(k + 1, 0.0);
-  scored_.assign(k * (k - 1) * (k - 2) / 6 + 1, Donors{});
+  candidates_.assign(k, -1);
+  spread_m_.assign(k, 0.0);
+  scored_.assign(k >= 3 ? k * (k - 1) * (k - 2) / 6 : 0, Donors{});  // every triple
   series_m_.assign(kHistory, Eigen::Vector3d::Zero());
   series_ok_.assign(kHistory, 0);
   in_gap_.assign(static_cast<std::size_t>(n_seg), 0);
@@ -442,19 +442,13 @@ void GapPredictor::choose_donors(int i, std::span<const std::uint8_t> seen,
   int count = 0;
   for (int m = 0; m < n_; ++m) {
     if (!nearby_[static_cast<std::size_t>(i * n_ + m)] || !seen[m] || !last->seen[m]) continue;
-    double sum = 0.0, sum_sq = 0.0;
-    int frames = 0;
+    DistanceSpread distance;
     for (int age = 0; age < history_kept_; ++age) {
       const Measured& p = *measured_past(age);
-      if (!p.seen[i] || !p.seen[m]) continue;
-      const double d = (p.markers_m[m] - p.markers_m[i]).norm();
-      sum += d;
-      sum_sq += d * d;
-      ++frames;
+      if (p.seen[i] && p.seen[m]) distance.add((p.markers_m[m] - p.markers_m[i]).norm());
     }
-    if (frames < 3) continue;
-    const double mean = sum / frames;
-    const double spread = std::sqrt(std::max(0.0, sum_sq / frames - mean * mean));
+    if (distance.frames < 3) continue;
+    const double spread = distance.spread_m();
     if (!std::isfinite(spread)) continue;
     int at = count;  // insertion into the sorted top k_max
     while (at > 0 && spread_m_[at - 1] > spread) {
@@ -467,10 +461,8 @@ void GapPredictor::choose_donors(int i, std::span<const std::uint8_t> seen,
   int scored = 0;
   const auto consider = [&](Donors d) {
     if (!local_in(*last, i, d, d.local_m)) return;
-    const double score = hold_score(i, d);
-    if (!std::isfinite(score)) return;
-    d.weight = score;  // the score until the weights are set
-    scored_[scored++] = d;
+    d.score_m = hold_score(i, d);
+    if (std::isfinite(d.score_m)) scored_[scored++] = d;
   };
   // The skeleton competes where two more of the segment's markers are
   // measured: with fewer, the marker itself placed its segment in the past
@@ -486,17 +478,18 @@ void GapPredictor::choose_donors(int i, std::span<const std::uint8_t> seen,
   for (int x = 0; x < count; ++x)
     for (int y = x + 1; y < count; ++y)
       for (int z = y + 1; z < count; ++z)
-        consider(Donors{candidates_[x], candidates_[y], candidates_[z], Eigen::Vector3d::Zero(), 0.0});
+        consider(Donors{candidates_[x], candidates_[y], candidates_[z]});
   const int keep = std::min(scored, settings_.donor_triples);
   std::partial_sort(scored_.begin(), scored_.begin() + keep, scored_.begin() + scored,
-                    [](const Donors& p, const Donors& q) { return p.weight < q.weight; });
+                    [](const Donors& p, const Donors& q) { return p.score_m < q.score_m; });
   int kept = 0;
   for (int t = 0; t < keep; ++t) {
     Donors d = scored_[t];
-    // Held where it was last measured: the donors carry it on from there.
+    // Its coordinates are those at its last measurement (local_m); a triple
+    // whose triangle is flat now is not kept.
     Eigen::Matrix3d r;
     if (!triad(measured[d.a], measured[d.b], measured[d.c], settings_.donor_min_sine, r)) continue;
-    d.weight = 1.0 / std::pow(std::max(d.weight, settings_.donor_score_floor_m), 2);
+    d.weight = 1.0 / std::pow(std::max(d.score_m, settings_.donor_score_floor_m), 2);
     donors_[static_cast<std::size_t>(i * settings_.donor_triples + kept++)] = d;
   }
   donor_count_[i] = kept;

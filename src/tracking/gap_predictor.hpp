@@ -118,7 +118,8 @@ class GapPredictor {
   struct Donors {  // one triple (a < 0: the skeleton's segment frame)
     int a = -1, b = -1, c = -1;
     Eigen::Vector3d local_m = Eigen::Vector3d::Zero();  // the marker in their frame when lost
-    double weight = 0.0;
+    double score_m = 0.0;  // hold_score
+    double weight = 0.0;   // 1 / max(score, floor)^2
   };
   // At the start of marker i's gap: scores triples of the markers seen now
   // (and the skeleton) on the recent past; keeps the best.

@@ -1,9 +1,12 @@
-// The frame spanned by three marker positions: origin a, x towards b, z
-// normal to the triangle (the local frame of donor-marker fills).
+// Geometry shared by the offline and live donor-marker fills: the frame
+// spanned by three marker positions (origin a, x towards b, z normal to the
+// triangle), and the spread of a distance over frames, which ranks donors.
 #pragma once
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 
 namespace fabrik {
 
@@ -22,5 +25,20 @@ inline bool triad(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eige
   r.col(1) = r.col(2).cross(r.col(0));
   return true;
 }
+
+// Standard deviation of a distance over the frames added (metres).
+struct DistanceSpread {
+  double sum_m = 0.0, sum_sq_m2 = 0.0;
+  int frames = 0;
+  void add(double d_m) {
+    sum_m += d_m;
+    sum_sq_m2 += d_m * d_m;
+    ++frames;
+  }
+  double spread_m() const {
+    const double mean_m = sum_m / frames;
+    return std::sqrt(std::max(0.0, sum_sq_m2 / frames - mean_m * mean_m));
+  }
+};
 
 }  // namespace fabrik

@@ -79,8 +79,7 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
   const std::vector<std::uint8_t> nearby =
       nearby_markers(*setup.model, marker_segments, setup.prediction.donor_max_joints);
   for (std::size_t i = 0; i < n; ++i) {
-    const auto segment =
-        static_cast<std::size_t>(setup.model->points[setup.markers[i].point].segment);
+    const auto segment = static_cast<std::size_t>(marker_segments[i]);
     bool frames_ready = false;
     std::size_t f = 0;
     while (f < frames) {
@@ -121,9 +120,7 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
         // own segment perfect).
         int holders = 0;
         for (std::size_t m = 0; m < n; ++m) {
-          if (m == i || setup.model->points[setup.markers[m].point].segment !=
-                            setup.model->points[setup.markers[i].point].segment)
-            continue;
+          if (m == i || marker_segments[m] != marker_segments[i]) continue;
           bool held = true;
           for (std::size_t g = before ? first - 1 : first; g < (after ? f + 1 : f) && held; ++g)
             held = visible[g * n + m] != 0;
