@@ -18,13 +18,7 @@
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define FABRIK_TEST_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define FABRIK_TEST_SANITIZED 1
-#endif
-#endif
+#include "sanitized.hpp"
 
 using namespace fabrik;
 using nlohmann::json;

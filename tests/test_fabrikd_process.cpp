@@ -3,11 +3,13 @@
 // reload on SIGHUP that survives a bad file while frames are answered, and
 // the limits at its transport edge (message size, file descriptors).
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netinet/in.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
 
 #include <catch2/catch.hpp>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -16,6 +18,7 @@
 #include <sstream>
 
 #include "process.hpp"
+#include "sanitized.hpp"
 #include "socket_client.hpp"
 
 using namespace fabrik::test;
@@ -24,7 +27,10 @@ using namespace std::chrono_literals;
 
 namespace {
 
-const std::string kFabrikd = FABRIKD_PATH;
+// FABRIKD_UNDER_TEST runs these tests on another build (e.g. an older one,
+// for before-and-after figures).
+const std::string kFabrikd =
+    std::getenv("FABRIKD_UNDER_TEST") ? std::getenv("FABRIKD_UNDER_TEST") : FABRIKD_PATH;
 
 std::filesystem::path temp_dir() {
   auto dir = std::filesystem::temp_directory_path() / ("fabrikd-test-" + std::to_string(getpid()));
@@ -234,6 +240,104 @@ long peak_rss_kb(pid_t pid) {
     if (line.rfind("VmHWM:", 0) == 0) return std::stol(line.substr(6));
   return -1;
 }
+
+// Whether `pid` has installed a handler for `sig` (SigCgt in /proc/PID/status).
+bool catches_signal(pid_t pid, int sig) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("SigCgt:", 0) == 0)
+      return (std::stoull(line.substr(7), nullptr, 16) >> (sig - 1)) & 1U;
+  return false;
+}
+
+// Current resident memory (VmRSS), kB.
+long rss_kb(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+// A subscriber that speaks ZMTP 3.0 over a raw TCP socket, as a hostile
+// client would: unlike a ZeroMQ SUB socket it keeps no copy of what it
+// subscribes to, so the test's own memory stays small whatever it sends.
+class RawSubscriber {
+ public:
+  explicit RawSubscriber(int port) {
+    fd_ = socket(AF_INET, SOCK_STREAM, 0);
+    if (fd_ < 0) throw std::runtime_error("socket failed");
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    if (connect(fd_, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0)
+      throw std::runtime_error("cannot connect to the output");
+    // The handshake in turn, as ZeroMQ's own peers do it (libzmq 4.3 drops a
+    // peer whose greeting, READY and messages arrive in one read).
+    timeval timeout{5, 0};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    setsockopt(fd_, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof timeout);
+    std::string greeting(64, '\0');  // signature, version 3.0, mechanism NULL, as-server 0
+    greeting[0] = '\xff';
+    greeting[9] = '\x7f';
+    greeting[10] = 3;
+    greeting.replace(12, 4, "NULL");
+    send_all(greeting);
+    std::string theirs;  // the daemon's greeting, then its READY command
+    while (theirs.size() < 66 || theirs.size() < 66 + std::size_t{static_cast<std::uint8_t>(theirs[65])}) {
+      char buffer[256];
+      const ssize_t n = recv(fd_, buffer, sizeof buffer, 0);
+      if (n <= 0) throw std::runtime_error("no ZMTP handshake from the output");
+      theirs.append(buffer, static_cast<std::size_t>(n));
+    }
+    constexpr char kReady[] = "\x05READY\x0bSocket-Type\0\0\0\x03SUB";
+    const std::string ready(kReady, sizeof kReady - 1);
+    send_all(std::string{'\x04', static_cast<char>(ready.size())} + ready);
+    fcntl(fd_, F_SETFL, fcntl(fd_, F_GETFL) | O_NONBLOCK);
+  }
+  ~RawSubscriber() { close(fd_); }
+  RawSubscriber(const RawSubscriber&) = delete;
+  RawSubscriber& operator=(const RawSubscriber&) = delete;
+
+  void subscribe(std::string_view prefix, bool on = true) {
+    const std::uint64_t size = prefix.size() + 1;
+    if (size < 256) {
+      out_ += std::string{'\0', static_cast<char>(size)};
+    } else {
+      out_ += '\x02';
+      for (int shift = 56; shift >= 0; shift -= 8) out_ += static_cast<char>(size >> shift);
+    }
+    out_ += on ? '\x01' : '\0';
+    out_ += prefix;
+  }
+  void send_all(const std::string& bytes) {
+    if (send(fd_, bytes.data(), bytes.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(bytes.size()))
+      throw std::runtime_error("cannot send the ZMTP handshake");
+  }
+  // Writes what the socket takes without blocking; false once the daemon has closed it.
+  bool flush() {
+    while (sent_ < out_.size()) {
+      const ssize_t n = send(fd_, out_.data() + sent_, out_.size() - sent_, MSG_NOSIGNAL);
+      if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK;
+      sent_ += static_cast<std::size_t>(n);
+    }
+    return !closed();
+  }
+  // Whether the daemon closed the connection (what it sent is read and dropped).
+  bool closed() {
+    char buffer[4096];
+    for (;;) {
+      const ssize_t n = recv(fd_, buffer, sizeof buffer, MSG_DONTWAIT);
+      if (n == 0) return true;
+      if (n < 0) return errno != EAGAIN && errno != EWOULDBLOCK;
+    }
+  }
+
+ private:
+  int fd_ = -1;
+  std::string out_;
+  std::size_t sent_ = 0;
+};
 
 }  // namespace
 
@@ -546,4 +650,141 @@ TEST_CASE("1100 connected sources under a 1024 open-files limit neither spin the
   CHECK(answered > 100);
   p.signal(SIGTERM);
   CHECK(p.wait(1s) == 0);
+}
+
+TEST_CASE("A subscriber can neither stall the daemon nor grow its memory: subscriptions to no "
+          "topic it publishes are refused and their connections dropped",
+          "[fabrikd][limits]") {
+  // Unpatched, the loop was silent for 1.65 s; ZeroMQ's own work for what it
+  // reads from a subscriber before the loop can refuse it (a few ms per
+  // hostile connection) remains.
+  const auto answer_bound = time_bound(500ms, 2000ms);
+  json c = good_config("subs");
+  const int port = free_tcp_port();
+  c["output"]["endpoint"] = "tcp://127.0.0.1:" + std::to_string(port);
+  Running r(write_file("subs.json", c.dump()), c);
+  Process& p = r.process;
+  SocketClient& client = *r.client;
+  std::uint64_t frame = r.frame;
+  const long peak_before_kb = peak_rss_kb(p.pid());
+  // Unpatched, ZeroMQ stored each of these for its connection, on the pose
+  // loop's thread: about 700 MB for the long ones.
+  std::vector<std::unique_ptr<RawSubscriber>> hostile, busy;
+  for (int i = 0; i < 40; ++i) {
+    hostile.push_back(std::make_unique<RawSubscriber>(port));
+    hostile.back()->subscribe(std::string(512 << 10, static_cast<char>('a' + i % 26)));
+  }
+  for (int i = 0; i < 40; ++i) {
+    hostile.push_back(std::make_unique<RawSubscriber>(port));
+    for (int k = 0; k < 1000; ++k)
+      hostile.back()->subscribe("pose-" + std::to_string(i) + "-" + std::to_string(k) +
+                                std::string(40, 'x'));
+  }
+  // Subscribers that keep changing their mind about topics we do publish.
+  for (int i = 0; i < 10; ++i) {
+    busy.push_back(std::make_unique<RawSubscriber>(port));
+    for (int k = 0; k < 5000; ++k) busy.back()->subscribe(k % 2 ? "stats" : "pose", k % 4 < 2);
+  }
+  // A source at 100 Hz alongside, every frame answered promptly.
+  Clock::duration slowest{};
+  int answered = 0, sent = 0;
+  const Clock::time_point start = Clock::now();
+  std::size_t refused_closed = 0;
+  while (Clock::now() - start < 1500ms) {
+    for (auto& h : hostile) h->flush();
+    for (auto& b : busy) b->flush();
+    const Clock::time_point t0 = Clock::now();
+    client.send_frame(++frame);
+    ++sent;
+    for (auto pose = client.receive("pose", 2 * answer_bound); pose;
+         pose = client.receive("pose", 2 * answer_bound))
+      if ((*pose)["frame"] == frame) {
+        ++answered;
+        break;
+      }
+    slowest = std::max(slowest, Clock::now() - t0);
+    const Clock::time_point next = t0 + 10ms;
+    while (Clock::now() < next) (void)client.receive("pose", 1ms);  // paced without sleeping
+  }
+  const auto closed_deadline = Clock::now() + 5s;
+  do {
+    refused_closed = 0;
+    for (auto& h : hostile) refused_closed += h->closed() ? 1 : 0;
+  } while (refused_closed < hostile.size() && Clock::now() < closed_deadline);
+  const long peak_after_kb = peak_rss_kb(p.pid());
+  const auto ms = [](Clock::duration d) {
+    return std::chrono::duration<double, std::milli>(d).count();
+  };
+  WARN("subscription flood: slowest answer " << ms(slowest) << " ms, " << answered << "/" << sent
+                                             << " frames answered, peak RSS " << peak_before_kb
+                                             << " -> " << peak_after_kb << " kB (now "
+                                             << rss_kb(p.pid()) << " kB), " << refused_closed
+                                             << "/" << hostile.size()
+                                             << " hostile subscribers dropped");
+  CHECK(answered == sent);
+  CHECK(slowest < answer_bound);
+  CHECK(peak_after_kb - peak_before_kb < 64 * 1024);
+  CHECK(refused_closed == hostile.size());
+  json refused;
+  const auto stats = client.stats_until([&](const json& s) {
+    refused = s["subscriptions_refused"];
+    return refused >= 40;
+  });
+  CAPTURE(refused);
+  CHECK(stats);
+  // The client subscribed to everything ("") is served throughout.
+  client.send_frame(++frame);
+  const auto pose = client.receive("pose", 2s);
+  REQUIRE(pose);
+  CHECK((*pose)["frame"] == frame);
+  const Clock::time_point t0 = Clock::now();
+  p.signal(SIGTERM);
+  CHECK(p.wait(1s) == 0);
+  WARN("SIGTERM to exit: " << ms(Clock::now() - t0) << " ms");
+}
+
+TEST_CASE("SIGTERM ends fabrikd within 100 ms at any moment: while it reads a large config, "
+          "while it runs, and while it reads a reload",
+          "[fabrikd][signals]") {
+  const auto bound = time_bound(100ms, 500ms);
+  json c = good_config("stop");
+  const std::string path = write_file("stop.json", c.dump());
+  // A million keys: about 1.5 s to read in a release build (it is refused
+  // afterwards, as description must be a string: a stop comes first).
+  std::string big = c.dump();
+  big.pop_back();
+  big += R"(,"description":{)";
+  for (int k = 0; k < 1000000; ++k) big += (k ? ",\"k" : "\"k") + std::to_string(k) + "\":0";
+  big += "}}";
+  const std::string big_path = write_file("stop-big.json", big);
+  const auto time_to_stop = [&](Process& p) {
+    const Clock::time_point t0 = Clock::now();
+    p.signal(SIGTERM);
+    const std::optional<int> code = p.wait(5s);
+    const auto took = Clock::now() - t0;
+    CHECK(code == 0);
+    const double took_ms = std::chrono::duration<double, std::milli>(took).count();
+    WARN("SIGTERM to exit: " << took_ms << " ms");
+    return took;
+  };
+  SECTION("reading a large config at startup") {
+    Process p({kFabrikd, "--config", big_path});
+    const Clock::time_point deadline = Clock::now() + 5s;
+    while (!catches_signal(p.pid(), SIGTERM) && Clock::now() < deadline) {
+    }
+    REQUIRE(catches_signal(p.pid(), SIGTERM));
+    CHECK(time_to_stop(p) < bound);
+    CHECK_THAT(p.stderr_text(), Catch::Contains("stopped during startup"));
+  }
+  SECTION("running") {
+    Running r(path, c);
+    CHECK(time_to_stop(r.process) < bound);
+  }
+  SECTION("reading a reload") {
+    Running r(path, c);
+    std::filesystem::copy_file(big_path, path, std::filesystem::copy_options::overwrite_existing);
+    r.process.signal(SIGHUP);
+    REQUIRE(r.process.wait_for_output("reading the config again", 5s));
+    CHECK(time_to_stop(r.process) < bound);
+  }
 }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <optional>
+#include <random>
 #include <memory>
 
 #include "eval/eval.hpp"
@@ -247,5 +248,41 @@ TEST_CASE("walk1 must-show: 1 s gaps live median <= 8 mm and every marker <= 30 
       CHECK(s.median_rms_m <= 15e-3);
     }
     if (live) CHECK(s.return_jump_m <= 5e-3);
+  }
+}
+
+TEST_CASE("Donor candidates are the markers on segments at most donor_max_joints joints away",
+          "[gap][donors]") {
+  // Against the definition: joints between two segments of a tree are their
+  // depths' sum less twice their common ancestor's.
+  std::mt19937_64 rng(7);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Model model = fabrik::test::random_tree_model(rng, 2 + trial);
+    std::vector<int> segments;
+    for (const Point& p : model.points)
+      if (p.kind == PointKind::marker) segments.push_back(p.segment);
+    const auto depth = [&](int s) {
+      int d = 0;
+      for (; model.segments[s].parent >= 0; s = model.segments[s].parent) ++d;
+      return d;
+    };
+    const auto joints_between = [&](int a, int b) {
+      int da = depth(a), db = depth(b), steps = 0;
+      for (; da > db; --da, ++steps) a = model.segments[a].parent;
+      for (; db > da; --db, ++steps) b = model.segments[b].parent;
+      for (; a != b; steps += 2) a = model.segments[a].parent, b = model.segments[b].parent;
+      return steps;
+    };
+    const std::size_t n = segments.size();
+    for (int max_joints : {-1, 0, 1, 2, 3}) {
+      const std::vector<std::uint8_t> nearby = nearby_markers(model, segments, max_joints);
+      REQUIRE(nearby.size() == n * n);
+      for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t m = 0; m < n; ++m) {
+          CAPTURE(trial, max_joints, i, m);
+          const bool expected = i != m && joints_between(segments[i], segments[m]) <= max_joints;
+          CHECK(static_cast<bool>(nearby[i * n + m]) == expected);
+        }
+    }
   }
 }

@@ -1,5 +1,6 @@
 // The model loader: shipped models load; each kind of bad model is rejected
 // with its own message naming the file and JSON pointer.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <nlohmann/json.hpp>
 
@@ -159,4 +160,96 @@ TEST_CASE("JSON syntax errors name the line and column", "[loader]") {
 
 TEST_CASE("A missing model file is a clear error", "[loader]") {
   CHECK_THROWS_WITH(load_model_file("/nonexistent/model.json"), Catch::Contains("cannot open"));
+}
+
+namespace {
+// A model of `segments` segments, each with `markers` markers: a chain
+// (every segment on the previous one) or a star (every one on the first).
+json generated(int segments, int markers, bool chain) {
+  json segs = json::array();
+  for (int s = 0; s < segments; ++s) {
+    const std::string id = std::to_string(s);
+    json seg = {{"name", "s" + id}, {"base", "b" + id}};
+    if (chain || s > 0) seg["points"][chain ? "b" + std::to_string(s + 1) : "tip" + id] = {0, -10, 0};
+    if (!chain && s == 0) {
+      seg["points"]["end"] = {0, 50, 0};
+      for (int t = 1; t < segments; ++t) seg["points"]["b" + std::to_string(t)] = {t % 7 + 1, 0, 0};
+    }
+    for (int k = 0; k < markers; ++k) seg["markers"]["m" + id + "_" + std::to_string(k)] = {5 + k, -5, 0};
+    if (s > 0) seg["parent"] = chain ? "s" + std::to_string(s - 1) : "s0";
+    segs.push_back(seg);
+  }
+  return {{"format", "fabrikd-model/1"}, {"units", "mm"}, {"segments", segs}};
+}
+}  // namespace
+
+TEST_CASE("A model beyond what a body needs is refused with the limit, its pointer and a fix, "
+          "one at the limits loads",
+          "[loader][limits]") {
+  using L = ModelLimits;
+  SECTION("segments") {
+    const std::string e = error_of(generated(L::kSegments + 1, 0, false));
+    CHECK_THAT(e, Catch::Contains("at /segments/512:") && Catch::Contains("at most 512") &&
+                      Catch::Contains("Fix: merge segments"));
+  }
+  SECTION("depth") {
+    const std::string e = error_of(generated(L::kDepth + 1, 0, true));
+    CHECK_THAT(e, Catch::Contains("at /segments/64/parent:") &&
+                      Catch::Contains("more than 64 segments from the root"));
+    // Listed leaf first, the leaf is named.
+    json reversed = generated(L::kDepth + 1, 0, true);
+    std::reverse(reversed["segments"].begin(), reversed["segments"].end());
+    CHECK_THAT(error_of(reversed), Catch::Contains("at /segments/0/parent:") &&
+                                       Catch::Contains("segment 's64'"));
+  }
+  SECTION("points and markers on one segment") {
+    json m = generated(1, L::kPointsPerSegment, false);  // one point besides the markers
+    CHECK_THAT(error_of(m), Catch::Contains("at /segments/0/markers:") &&
+                                Catch::Contains("257 points and markers"));
+  }
+  SECTION("markers in the model") {
+    // 5 segments of 250 markers: the fifth goes over 1024.
+    CHECK_THAT(error_of(generated(5, 250, true)),
+               Catch::Contains("at /segments/4/markers:") && Catch::Contains("more than 1024"));
+  }
+  SECTION("coordinates") {
+    json m = good();
+    for (int c = 0; c <= L::kCoordinates; ++c)
+      m["coordinates"]["c" + std::to_string(c)] = {{"segment", "b"}, {"axis", "z"}};
+    CHECK_THAT(error_of(m), Catch::Contains("at /coordinates:") &&
+                                Catch::Contains("names 1025 coordinates"));
+  }
+  SECTION("a parent cycle is still named as one, not as depth") {
+    json m = generated(3, 0, true);
+    m["segments"][0]["parent"] = "s2";
+    m["segments"][0]["base"] = "b3";  // a point of s2
+    m["segments"].push_back({{"name", "r"}, {"base", "rb"}, {"points", {{"x", {0, 1, 0}}}}});
+    CHECK_THAT(error_of(m), Catch::Contains("cycle"));
+  }
+  SECTION("at every limit at once, it loads") {
+    json m = generated(L::kDepth, L::kMarkers / L::kDepth, true);  // 64 deep, 1024 markers
+    for (int t = L::kDepth; t < L::kSegments; ++t) {  // leaves along the chain, none deeper
+      const std::string id = std::to_string(t);
+      const int parent = t % (L::kDepth - 1);
+      m["segments"][parent]["points"]["q" + id] = {t % 7 + 1, 1, 0};
+      m["segments"].push_back({{"name", "t" + id}, {"parent", "s" + std::to_string(parent)},
+                               {"base", "q" + id}, {"points", {{"tip" + id, {0, -10, 0}}}}});
+    }
+    const Model model = load_model(m, "limits.json");
+    CHECK(model.segments.size() == L::kSegments);
+  }
+}
+
+TEST_CASE("A file with more JSON values than any model or config needs is refused while parsing",
+          "[loader][limits]") {
+  std::string text = "{\"description\": [";
+  for (std::size_t k = 0; k <= kMaxJsonValues; ++k) text += k ? ",0" : "0";
+  text += "]}";
+  try {
+    JsonReader::parse(text, "many.json");
+    FAIL("parsed");
+  } catch (const ConfigError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("many.json: at /description/") &&
+                             Catch::Contains("more than 1048576 values"));
+  }
 }

@@ -21,13 +21,7 @@
 #include "transport/marker_codec.hpp"
 #include "transport/pose_codec.hpp"
 
-#if defined(__SANITIZE_ADDRESS__)
-#define FABRIK_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define FABRIK_TEST_ASAN 1
-#endif
-#endif
+#include "sanitized.hpp"
 
 namespace {
 std::atomic<long> g_allocations{0};
@@ -36,7 +30,7 @@ void count_allocation() {
 }
 }  // namespace
 
-#ifdef FABRIK_TEST_ASAN
+#ifdef FABRIK_TEST_SANITIZED
 #include <sanitizer/allocator_interface.h>
 
 namespace {
@@ -129,7 +123,7 @@ T* escape(T* p) {
 
 TEST_CASE("The counter sees operator new, malloc and Eigen's heap (the test can fail)",
           "[alloc]") {
-#ifdef FABRIK_TEST_ASAN
+#ifdef FABRIK_TEST_SANITIZED
   REQUIRE(g_hooks_installed);
 #endif
   struct alignas(64) Line {

@@ -1,14 +1,17 @@
 // fabrikd: the real-time marker-tracking daemon. Setup errors (bad config,
 // busy port) exit with code 2 and a message that names the fix; once running,
-// no message can stop it: only SIGINT/SIGTERM (clean stop within a second,
-// also during a reload) and SIGHUP (reload the config off the frame loop,
+// no message can stop it: only SIGINT/SIGTERM (a stop within 100 ms at any
+// moment: during startup, while running and during a reload) and SIGHUP (reload the config off the frame loop,
 // keeping the old one if the new one is invalid).
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <sys/eventfd.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <csignal>
 #include <cstdlib>
 #include <cstdio>
@@ -26,12 +29,26 @@ namespace {
 // any time (before the daemon exists, after run() has thrown), and storing
 // to a lock-free atomic is async-signal-safe.
 fabrik::wire::DaemonControl g_control;
+// Until the loop runs there is nothing to stop cleanly (reading a large
+// config or setting up a model may take a while): a stop ends the process
+// at once, from the handler.
+std::atomic<bool> g_running{false};
 
 extern "C" void on_signal(int sig) {
-  if (sig == SIGHUP)
+  if (sig == SIGHUP) {
     g_control.reload.store(true);
-  else
+  } else {
     g_control.stop.store(true);
+    if (!g_running.load()) {
+      constexpr char kText[] = "fabrikd: stopped during startup\n";
+      (void)!write(STDERR_FILENO, kText, sizeof kText - 1);
+      _exit(0);
+    }
+  }
+  if (g_control.wake_fd >= 0) {
+    const std::uint64_t one = 1;
+    (void)!write(g_control.wake_fd, &one, sizeof one);
+  }
 }
 
 void install_signal_handlers() {
@@ -102,6 +119,7 @@ int main(int argc, char** argv) {
   }
   spdlog::set_default_logger(spdlog::stderr_color_mt("fabrikd"));  // stdout stays clean
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
+  g_control.wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);  // -1: the loop polls the flags
   install_signal_handlers();
   bool abandoned = false;
   try {
@@ -111,6 +129,8 @@ int main(int argc, char** argv) {
     raise_open_file_limit();
     zmq::context_t context(1);
     fabrik::wire::Daemon daemon(context, std::move(config));
+    g_running.store(true);
+    if (g_control.stop.load()) return 0;  // stopped just before the line above
     daemon.run(g_control, [o] { return load(o); });
     abandoned = daemon.reload_abandoned();
   } catch (const fabrik::ConfigError& e) {

@@ -118,6 +118,7 @@ class PointerTrackingSax {
   std::size_t error_position = 0;
   std::string error_message;
   bool depth_exceeded = false;
+  bool too_many_values = false;
 
  private:
   struct Level {
@@ -129,7 +130,10 @@ class PointerTrackingSax {
   // A value starts: in an array it is the next element.
   bool value() {
     if (!path_.empty() && !path_.back().object) ++path_.back().count;
-    return true;
+    if (++values_ <= kMaxJsonValues) return true;
+    error_message = "more than " + std::to_string(kMaxJsonValues) + " values in one file";
+    too_many_values = true;
+    return false;
   }
   bool enter() {
     if (static_cast<int>(path_.size()) < kMaxJsonDepth) return true;
@@ -140,6 +144,7 @@ class PointerTrackingSax {
 
   nlohmann::detail::json_sax_dom_parser<json> dom_;
   std::vector<Level> path_;
+  std::size_t values_ = 0;
 };
 
 }  // namespace
@@ -157,6 +162,9 @@ nlohmann::json JsonReader::parse(std::string_view text, const std::string& file)
   const std::string pointer = sax.pointer();
   if (sax.depth_exceeded)
     throw ConfigError(file, pointer, sax.error_message, "flatten the structure");
+  if (sax.too_many_values)
+    throw ConfigError(file, pointer, sax.error_message,
+                      "no model or config needs that many: check that this is the file you meant");
   // Turn the byte offset into line:column, which editors understand.
   std::size_t line = 1, col = 1;
   for (std::size_t i = 0; i + 1 < sax.error_position && i < text.size(); ++i) {

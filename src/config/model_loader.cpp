@@ -1,6 +1,8 @@
 #include "model_loader.hpp"
 
 #include <Eigen/SVD>
+#include <string_view>
+#include <unordered_map>
 
 #include "json_reader.hpp"
 #include "solver/model_builder.hpp"
@@ -134,11 +136,51 @@ std::vector<CoordinateSpec> read_coordinates(const JsonReader& c,
 
 void read_points(const JsonReader& obj, double scale, bool marker, std::vector<PointSpec>& out) {
   obj.expect_object();
+  if (out.size() + obj.value().size() > ModelLimits::kPointsPerSegment)
+    obj.fail("a segment has " + std::to_string(out.size() + obj.value().size()) +
+                 " points and markers; fabrikd takes at most " +
+                 std::to_string(ModelLimits::kPointsPerSegment),
+             "split the segment, or keep the markers the solve needs (a rigid segment is "
+             "tracked from 3 or 4)");
   for (auto it = obj.value().begin(); it != obj.value().end(); ++it) {
     const JsonReader p = obj.at(it.key());
     out.push_back(PointSpec{it.key(), p.as_vec3() * scale, marker});
   }
 }
+// Segments from the root, by parent name, without building the model: a
+// cycle or an unknown parent is left to build_model's own messages.
+void check_depth(const JsonReader& segs, const std::vector<SegmentSpec>& specs) {
+  std::unordered_map<std::string_view, int> index;
+  for (int s = 0; s < static_cast<int>(specs.size()); ++s) index.emplace(specs[s].name, s);
+  std::vector<int> depth(specs.size(), 0);  // 0: not known yet, -1: on the path being walked
+  std::vector<int> path;
+  for (int s = 0; s < static_cast<int>(specs.size()); ++s) {
+    path.clear();
+    int at = s;
+    while (at >= 0 && depth[at] == 0) {
+      depth[at] = -1;
+      path.push_back(at);
+      const auto parent = specs[at].parent.empty() ? index.end() : index.find(specs[at].parent);
+      at = parent == index.end() ? -1 : parent->second;
+    }
+    if (at >= 0 && depth[at] < 0) {  // a parent cycle: build_model names it
+      for (int p : path) depth[p] = 1;
+      continue;
+    }
+    int d = at >= 0 ? depth[at] : 0;
+    for (auto it = path.rbegin(); it != path.rend(); ++it) depth[*it] = ++d;
+    if (!path.empty() && d > ModelLimits::kDepth)
+      segs.at(static_cast<std::size_t>(path.front()))
+          .at("parent")
+          .fail("segment '" + specs[path.front()].name + "' is more than " +
+                    std::to_string(ModelLimits::kDepth) +
+                    " segments from the root; fabrikd takes at most " +
+                    std::to_string(ModelLimits::kDepth),
+                "attach long chains nearer the root, or merge segments that do not move "
+                "relative to each other");
+  }
+}
+
 }  // namespace
 
 Model load_model(const nlohmann::json& doc, const std::string& file) {
@@ -158,7 +200,14 @@ Model load_model(const JsonReader& root) {
                                      : Eigen::Vector3d::Zero();
   const JsonReader segs = root.at("segments");
   segs.expect_array();
+  if (segs.value().size() > ModelLimits::kSegments)
+    segs.at(std::size_t{ModelLimits::kSegments})
+        .fail("the model has " + std::to_string(segs.value().size()) +
+                  " segments; fabrikd takes at most " + std::to_string(ModelLimits::kSegments),
+              "merge segments that do not move relative to each other (a body with hands and a "
+              "segmented spine has about 150)");
   std::vector<SegmentSpec> specs;
+  std::size_t markers = 0;
   for (std::size_t i = 0; i < segs.value().size(); ++i) {
     const JsonReader s = segs.at(i);
     s.only_keys({"name", "parent", "base", "points", "markers", "frame", "joint", "description"});
@@ -168,11 +217,28 @@ Model load_model(const JsonReader& root) {
         s.has("parent") && !s.at("parent").value().is_null() ? s.at("parent").as_string() : "";
     spec.base = s.at("base").as_string();
     if (s.has("points")) read_points(s.at("points"), scale, false, spec.points);
-    if (s.has("markers")) read_points(s.at("markers"), scale, true, spec.points);
+    if (s.has("markers")) {
+      const std::size_t before = spec.points.size();
+      read_points(s.at("markers"), scale, true, spec.points);
+      markers += spec.points.size() - before;
+      if (markers > ModelLimits::kMarkers)
+        s.at("markers").fail("the model has more than " + std::to_string(ModelLimits::kMarkers) +
+                                 " markers with these; fabrikd takes at most " +
+                                 std::to_string(ModelLimits::kMarkers),
+                             "keep the markers the solve needs (3 or 4 per segment)");
+    }
     if (s.has("frame")) spec.anatomical = read_frame(s.at("frame"));
     if (s.has("joint")) spec.joint = read_joint(s.at("joint"));
     specs.push_back(std::move(spec));
   }
+  check_depth(segs, specs);
+  if (root.has("coordinates") && root.at("coordinates").value().is_object() &&
+      root.at("coordinates").value().size() > ModelLimits::kCoordinates)
+    root.at("coordinates")
+        .fail("the model names " + std::to_string(root.at("coordinates").value().size()) +
+                  " coordinates; fabrikd takes at most " +
+                  std::to_string(ModelLimits::kCoordinates),
+              "name only the angles you report (three per joint at most)");
   const std::vector<CoordinateSpec> coordinates =
       root.has("coordinates") ? read_coordinates(root.at("coordinates"), specs, scale)
                               : std::vector<CoordinateSpec>{};

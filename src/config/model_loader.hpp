@@ -9,6 +9,19 @@
 
 namespace fabrik {
 
+// What a model file may hold: a human body with hands, feet and a segmented
+// spine fits well within these (OpenSim's largest full-body models have about
+// 150 bodies and lab marker sets up to about 300 markers), while a larger file
+// would make setup and every frame cost what no real body needs. Each limit
+// is named in the error with its pointer and a fix (README, "Model files").
+struct ModelLimits {
+  static constexpr int kSegments = 512;
+  static constexpr int kPointsPerSegment = 256;  // points and markers of one segment
+  static constexpr int kMarkers = 1024;          // in the whole model
+  static constexpr int kDepth = 64;              // segments from the root to a leaf
+  static constexpr int kCoordinates = 1024;
+};
+
 // `file` is only used in messages. Throws ConfigError.
 Model load_model(const nlohmann::json& doc, const std::string& file);
 // A model object anywhere in a JSON document (e.g. inline in a daemon config).

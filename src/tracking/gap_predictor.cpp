@@ -39,28 +39,39 @@ Eigen::Quaterniond from_rotation_vector(const Eigen::Vector3d& v) {
 
 std::vector<std::uint8_t> nearby_markers(const Model& model, std::span<const int> marker_segments,
                                          int max_joints) {
+  // Each segment's neighbourhood: a breadth-first search over the tree's
+  // edges that stops max_joints joints out, so setup grows with the segments
+  // times their neighbourhoods, not with the cube of the segments.
   const std::size_t n_seg = model.segments.size(), n = marker_segments.size();
-  // Joints between segments: distances in the tree, by breadth-first search from each.
-  std::vector<int> distance(n_seg * n_seg, -1), queue;
+  std::vector<std::vector<int>> joined(n_seg);
+  for (std::size_t s = 0; s < n_seg; ++s)
+    if (const int parent = model.segments[s].parent; parent >= 0) {
+      joined[s].push_back(parent);
+      joined[static_cast<std::size_t>(parent)].push_back(static_cast<int>(s));
+    }
+  std::vector<std::vector<int>> markers_on(n_seg);
+  for (std::size_t i = 0; i < n; ++i)
+    markers_on[static_cast<std::size_t>(marker_segments[i])].push_back(static_cast<int>(i));
+  std::vector<std::uint8_t> nearby(n * n, 0);
+  if (max_joints < 0) return nearby;
+  std::vector<int> distance(n_seg, -1), queue;
   for (std::size_t from = 0; from < n_seg; ++from) {
-    int* d = distance.data() + from * n_seg;
-    d[from] = 0;
+    if (markers_on[from].empty()) continue;
     queue.assign(1, static_cast<int>(from));
+    distance[from] = 0;
     for (std::size_t q = 0; q < queue.size(); ++q) {
       const int s = queue[q];
-      for (std::size_t t = 0; t < n_seg; ++t) {
-        const bool joined = model.segments[t].parent == s || model.segments[s].parent == static_cast<int>(t);
-        if (joined && d[t] < 0) d[t] = d[s] + 1, queue.push_back(static_cast<int>(t));
-      }
+      if (distance[s] == max_joints) continue;
+      for (int t : joined[static_cast<std::size_t>(s)])
+        if (distance[t] < 0) distance[t] = distance[s] + 1, queue.push_back(t);
+    }
+    for (int s : queue) {
+      for (int i : markers_on[from])
+        for (int m : markers_on[static_cast<std::size_t>(s)])
+          if (m != i) nearby[static_cast<std::size_t>(i) * n + static_cast<std::size_t>(m)] = 1;
+      distance[s] = -1;
     }
   }
-  std::vector<std::uint8_t> nearby(n * n, 0);
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t m = 0; m < n; ++m) {
-      const int d = distance[static_cast<std::size_t>(marker_segments[i]) * n_seg +
-                             static_cast<std::size_t>(marker_segments[m])];
-      nearby[i * n + m] = m != i && d >= 0 && d <= max_joints ? 1 : 0;
-    }
   return nearby;
 }
 

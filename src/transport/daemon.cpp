@@ -6,8 +6,12 @@
 #include <cerrno>
 #include <condition_variable>
 #include <cstring>
+#include <iterator>
 #include <stdexcept>
 #include <thread>
+
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
@@ -23,8 +27,9 @@ using Clock = std::chrono::steady_clock;
 constexpr int kMaxBatch = 4096;
 constexpr auto kMaxServe = std::chrono::milliseconds(20);
 constexpr std::size_t kMaxUnknownLogged = 256;
-// How long a stop waits for a reload being read before leaving it behind.
-constexpr auto kReloadGraceAtStop = std::chrono::milliseconds(300);
+// How long a stop waits for a reload being read before leaving it behind:
+// short, so that a stop is honoured within 100 ms at any moment.
+constexpr auto kReloadGraceAtStop = std::chrono::milliseconds(20);
 
 double us_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
@@ -62,6 +67,12 @@ zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const 
   } else {
     s.set(zmq::sockopt::sndhwm, pose_queue_messages(c.max_backlog_frames));
     s.set(zmq::sockopt::sndbuf, kPoseSendBufferBytes);
+    // Subscriptions come to the loop (read_subscriptions) instead of going
+    // straight into ZeroMQ's matching tree.
+    s.set(zmq::sockopt::xpub_manual, true);
+    s.set(zmq::sockopt::maxmsgsize, kMaxSubscriptionBytes);
+    s.set(zmq::sockopt::rcvhwm, kSubscriptionQueueMessages);
+    s.set(zmq::sockopt::rcvbuf, kSubscriberReceiveBufferBytes);
   }
   try {
     if (e.mode == SocketMode::bind)
@@ -133,7 +144,7 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  w.begin_map(25);  // MessagePack needs the exact count of the keys below
+  w.begin_map(26);  // MessagePack needs the exact count of the keys below
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -169,10 +180,16 @@ void write_stats(Writer& w, const StatsFields& s) {
   w.boolean(s.c.config_mismatch);
   count("outliers", s.c.outliers);
   count("poor_frames", s.c.poor_frames);
+  count("subscriptions_refused", s.c.subscriptions_refused);
   w.end_map();
 }
 
 }  // namespace
+
+bool subscribes_to_our_topics(std::string_view prefix) {
+  return std::any_of(std::begin(kPublishedTopics), std::end(kPublishedTopics),
+                     [&](std::string_view topic) { return topic.starts_with(prefix); });
+}
 
 struct Daemon::State {
   DaemonConfig config;
@@ -245,7 +262,7 @@ void Daemon::attach_sockets(State& next, State* old) {
       next.monitor.connect(address);
     }
   }
-  if (!keep_pub) next.pub = open_socket(context_, zmq::socket_type::pub, next.config);
+  if (!keep_pub) next.pub = open_socket(context_, zmq::socket_type::xpub, next.config);
   if (keep_sub) {
     // New limits hold for connections made from now on; the decoder checks
     // the payload limit on every message anyway.
@@ -503,6 +520,41 @@ void Daemon::read_monitor() {
   update_snapshot();
 }
 
+// Subscriptions to a prefix of our topics are applied (XPUB_MANUAL: to the
+// connection that sent them); anything else is refused and, on a bound
+// socket, its connection shut down: ZeroMQ has already stored the
+// subscription for that connection and frees it only when the connection
+// goes. A connected output's peer is the operator's own (a proxy), so it is
+// only ignored there.
+void Daemon::read_subscriptions() {
+  State& s = *state_;
+  for (int n = 0; n < kMaxBatch; ++n) {
+    if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
+    const std::string_view m = view(subscription_);
+    const bool subscribe = !m.empty() && m[0] == 1, unsubscribe = !m.empty() && m[0] == 0;
+    if ((subscribe || unsubscribe) && subscribes_to_our_topics(m.substr(1))) {
+      if (subscribe)
+        s.pub.set(zmq::sockopt::subscribe, m.substr(1));
+      else
+        s.pub.set(zmq::sockopt::unsubscribe, m.substr(1));
+      continue;
+    }
+    if (unsubscribe) continue;  // of one refused, or a closed connection's: nothing to undo
+    ++counters_.subscriptions_refused;
+    // The deprecated ZMQ_SRCFD is the only way ZeroMQ names the connection.
+    const int fd = zmq_msg_get(subscription_.handle(), ZMQ_SRCFD);
+    const bool bound = s.config.output.mode == SocketMode::bind;
+    if (bound && fd >= 0) ::shutdown(fd, SHUT_RDWR);
+    char text[96];
+    const std::size_t n_text = safe_text(m.substr(std::min<std::size_t>(1, m.size())), text, 64);
+    subscriber_log_.warn(
+        "refused a subscription to '{}' on the output{}: fabrikd publishes only the topics pose "
+        "and stats (stats: subscriptions_refused)",
+        std::string_view(text, n_text), bound && fd >= 0 ? ", subscriber disconnected" : "");
+  }
+  update_snapshot();
+}
+
 void Daemon::publish_stats(double interval_s) {
   const State& s = *state_;
   const StatsFields fields{
@@ -605,6 +657,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
         spdlog::warn("reload requested, but there is no config to reload from");
       } else {
         try {
+          spdlog::info("SIGHUP: reading the config again");
           start_reload(load_config);
         } catch (const std::exception& e) {  // no thread to be had: try again on the next SIGHUP
           internal_error("cannot start a reload: ", e.what());
@@ -620,12 +673,24 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
         std::chrono::duration_cast<std::chrono::milliseconds>(next_stats - Clock::now()),
         std::chrono::milliseconds(0), std::chrono::milliseconds(reload_ ? 10 : 100));
     State& s = *state_;
-    zmq::pollitem_t items[] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
-                               {s.monitor.handle(), 0, ZMQ_POLLIN, 0}};
+    zmq::pollitem_t items[4] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
+                                {s.pub.handle(), 0, ZMQ_POLLIN, 0}};
+    int n_items = 2;
+    if (control.wake_fd >= 0) items[n_items++] = {nullptr, control.wake_fd, ZMQ_POLLIN, 0};
+    if (s.monitor) items[n_items++] = {s.monitor.handle(), 0, ZMQ_POLLIN, 0};
     try {
-      zmq::poll(items, s.monitor ? 2 : 1, wait);
+      zmq::poll(items, n_items, wait);
       if (items[0].revents & ZMQ_POLLIN) serve_input();
-      if (s.monitor && (items[1].revents & ZMQ_POLLIN)) read_monitor();
+      if (items[1].revents & ZMQ_POLLIN) read_subscriptions();
+      for (int k = 2; k < n_items; ++k) {
+        if (!(items[k].revents & ZMQ_POLLIN)) continue;
+        if (items[k].socket == nullptr) {
+          std::uint64_t count;
+          (void)!::read(control.wake_fd, &count, sizeof count);  // the flags say what happened
+        } else {
+          read_monitor();
+        }
+      }
     } catch (const zmq::error_t& e) {
       if (e.num() == ETERM) break;              // the context is going away
       if (e.num() != EINTR) internal_error("on the input: ", e.what());

@@ -52,6 +52,7 @@ struct DaemonCounters {
   bool config_mismatch = false;        // the latest such frames share no name with the config
   std::uint64_t outliers = 0;          // measured markers left out of a solve as outliers
   std::uint64_t poor_frames = 0;       // poses whose residual.quality was poor
+  std::uint64_t subscriptions_refused = 0;  // output subscriptions to no topic of ours (peer dropped)
 };
 
 // Signals to the loop, set from another thread or a signal handler (the
@@ -59,6 +60,10 @@ struct DaemonCounters {
 struct DaemonControl {
   std::atomic<bool> stop{false};
   std::atomic<bool> reload{false};
+  // Written to (8 bytes, as to an eventfd) by whoever sets a flag, so that
+  // the loop wakes at once whichever thread the signal landed on; -1: none,
+  // the loop then looks at the flags every 100 ms.
+  int wake_fd = -1;
 };
 static_assert(std::atomic<bool>::is_always_lock_free);
 
@@ -84,6 +89,24 @@ constexpr std::size_t kInputQueueBytes = std::size_t{64} << 20;
 // front of ZeroMQ's queue are bounded too (the source's own queue is its
 // business: README).
 constexpr int kInputReceiveBufferBytes = 256 * 1024;
+// What a subscriber may send to the output socket (README, "Under
+// overload"). fabrikd publishes only these topics, so a subscription that is
+// not a prefix of one of them can never match: it is refused and its
+// connection dropped. ZeroMQ keeps every subscription it is sent in a tree
+// (about 32 bytes per subscribed byte, never given back while connected), so
+// refusing them is what bounds a subscriber's memory.
+inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats"};
+bool subscribes_to_our_topics(std::string_view prefix);
+// Messages larger than this from a subscriber make ZeroMQ drop it before
+// buffering (a subscription to "stats" is 6 bytes).
+constexpr std::int64_t kMaxSubscriptionBytes = 64;
+// What ZeroMQ reads ahead of the loop from one subscriber: at most this many
+// messages in its queue (ZMQ_RCVHWM of the output socket) and this many
+// bytes in the kernel (ZMQ_RCVBUF; the kernel doubles it). ZeroMQ stores the
+// subscriptions it reads before the loop can refuse them, so these bound
+// what a hostile subscriber costs before it is dropped.
+constexpr int kSubscriptionQueueMessages = 4;
+constexpr int kSubscriberReceiveBufferBytes = 2048;
 // A connection that has not completed ZeroMQ's handshake by then is closed
 // (idle or foreign TCP connections do not hold file descriptors for long).
 constexpr int kHandshakeTimeoutMs = 5000;
@@ -126,6 +149,7 @@ class Daemon {
   void serve_frame(int slot);
   void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received);
   void read_monitor();
+  void read_subscriptions();
   void publish_stats(double interval_s);
   void send(const char* topic, const std::string& payload);
   void bad_input(std::string_view what, std::string_view detail,
@@ -147,9 +171,9 @@ class Daemon {
   std::uint64_t interval_frames_out_ = 0;
   FixedText<256> last_error_;  // never allocates: survives an out-of-memory error path
   std::unordered_set<std::string> unknown_seen_;
-  RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_;
+  RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_, subscriber_log_;
   bool overloaded_ = false;  // behind the input: answer only the newest frame
-  zmq::message_t topic_, payload_, extra_;
+  zmq::message_t topic_, payload_, extra_, subscription_;
   std::string out_, stats_out_, decode_error_;
 };
 
