@@ -183,6 +183,7 @@ struct LiveScene {
   static constexpr int cluster_a = 3, cluster_b = 6;
   Model model;
   std::vector<int> points;
+  std::vector<Eigen::Vector3d> rest_m;     // each marker where the rest posture has it
   std::vector<Eigen::Vector3d> markers_m;  // [frame * n + i]
   std::vector<std::uint8_t> seen;          // [frame * n + i]
 
@@ -190,17 +191,20 @@ struct LiveScene {
     const Posture rest = Posture::rest(model);
     for (const char* name : {"m", "h1", "h2", "a0", "a1", "a2", "b0", "b1", "b2"})
       points.push_back(model.find_point(name));
+    for (int p : points) rest_m.push_back(rest.point_world_m(model, p));
     for (int f = 0; f < frames; ++f)
-      for (int p : points) markers_m.push_back(rest.point_world_m(model, p));
+      markers_m.insert(markers_m.end(), rest_m.begin(), rest_m.end());
     seen.assign(static_cast<std::size_t>(frames * n), 1);
   }
   Eigen::Vector3d& at(int f, int i) { return markers_m[static_cast<std::size_t>(f * n + i)]; }
   std::uint8_t& seen_at(int f, int i) { return seen[static_cast<std::size_t>(f * n + i)]; }
-  Eigen::Vector3d rest_m(int i) const { return markers_m[static_cast<std::size_t>(i)]; }
 
   static Model build() {
     // Each cluster a right triangle: flat from no corner.
-    SegmentSpec trunk{"trunk", "", "root", {{"shoulder", {0.3, 0.0, 0.0}, false}}};
+    SegmentSpec trunk, arm;
+    trunk.name = "trunk";
+    trunk.base = "root";
+    trunk.points = {{"shoulder", {0.3, 0.0, 0.0}, false}};
     for (int k = 0; k < 2; ++k) {
       const Eigen::Vector3d corner_m(0.0, 0.0, 0.3 * k);
       const std::string c = k == 0 ? "a" : "b";
@@ -208,10 +212,12 @@ struct LiveScene {
       trunk.points.push_back({c + "1", corner_m + Eigen::Vector3d(0.2, 0.0, 0.0), true});
       trunk.points.push_back({c + "2", corner_m + Eigen::Vector3d(0.0, 0.2, 0.0), true});
     }
-    SegmentSpec arm{"arm", "trunk", "shoulder",
-                    {{"m", {0.2, 0.1, 0.0}, true},
-                     {"h1", {0.15, -0.05, 0.05}, true},
-                     {"h2", {0.25, 0.0, -0.08}, true}}};
+    arm.name = "arm";
+    arm.parent = "trunk";
+    arm.base = "shoulder";
+    arm.points = {{"m", {0.2, 0.1, 0.0}, true},
+                  {"h1", {0.15, -0.05, 0.05}, true},
+                  {"h2", {0.25, 0.0, -0.08}, true}};
     return build_model("live_donors", {trunk, arm}, Eigen::Vector3d::Zero());
   }
 
@@ -268,7 +274,7 @@ TEST_CASE("Live donor fill: triples are averaged with weights 1 / score^2", "[ga
   s.seen_at(LiveScene::gap, 0) = 0;
   // A puts the marker where it was; B, 2e further along z than at the
   // marker's last measurement (frame 7, odd).
-  const Eigen::Vector3d a_m = s.rest_m(0), b_m = a_m + Eigen::Vector3d(0.0, 0.0, 2.0 * e_m);
+  const Eigen::Vector3d a_m = s.rest_m[0], b_m = a_m + Eigen::Vector3d(0.0, 0.0, 2.0 * e_m);
   const Eigen::Vector3d expected_m = (a_m + 0.25 * b_m) / 1.25;
   const Eigen::Vector3d fill_m = s.fill(settings);
   INFO("fill " << (fill_m - a_m).transpose() * 1e3 << " mm from A's, expected "
@@ -289,10 +295,10 @@ TEST_CASE("Live donor fill: the skeleton competes where two more markers hold it
     for (int h : {1, 2}) s.at(f, h).x() += f % 2 == 0 ? 0.010 : 0.0;
   }
   s.seen_at(LiveScene::gap, 0) = 0;
-  const Eigen::Vector3d skeleton_m = s.rest_m(0);  // the arm has not moved
+  const Eigen::Vector3d skeleton_m = s.rest_m[0];  // the arm has not moved
   const auto fill_with_a_moved = [&](double distance_m) {
     for (int k = 0; k < 3; ++k)
-      s.at(LiveScene::gap, LiveScene::cluster_a + k) = s.rest_m(LiveScene::cluster_a + k) +
+      s.at(LiveScene::gap, LiveScene::cluster_a + k) = s.rest_m[LiveScene::cluster_a + k] +
                                                        Eigen::Vector3d(0.0, distance_m, 0.0);
     return s.fill(settings);
   };
