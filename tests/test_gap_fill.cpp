@@ -206,6 +206,35 @@ TEST_CASE("The offline fill blends both sides: continuous at both ends of the ga
   CHECK(fill.gaps.size() == hand_markers);  // a never-measured marker has no gap to fill
 }
 
+TEST_CASE("The offline fill lets the skeleton compete only where two more markers of the "
+          "segment hold it through the gap",
+          "[gaps][donors]") {
+  Recording r = recording(0.6, true);
+  const int head = segment_named(*r.model, "head");
+  std::vector<std::size_t> markers;  // the head's four
+  for (std::size_t i = 0; i < r.n; ++i)
+    if (r.segment[i] == head) markers.push_back(i);
+  REQUIRE(markers.size() == 4);
+  const std::size_t first = 20, end = 35;
+  // The first head marker is lost, and with it `lost_too` more of the head's.
+  const auto method = [&](std::size_t lost_too) {
+    std::vector<std::uint8_t> visible(r.frames * r.n, 1);
+    for (std::size_t f = first; f < end; ++f)
+      for (std::size_t k = 0; k <= lost_too; ++k) visible[f * r.n + markers[k]] = 0;
+    const TwoSidedFill fill = fill_two_sided(r.setup, r.times_s, r.measured_m, visible);
+    for (const FilledGap& g : fill.gaps)
+      if (g.marker == static_cast<int>(markers[0])) return g.method;
+    FAIL("no gap filled");
+    return FillMethod::skeleton;
+  };
+  // Three holders: the skeleton, on noise-free motion as steady as the
+  // head's other three markers (an exact triple), shares the fill with them.
+  CHECK(method(0) == FillMethod::both);
+  // One: the segment's frame is not scored (the lost marker placed it in the
+  // past, which would flatter it), so the donors fill alone.
+  CHECK(method(2) == FillMethod::donors);
+}
+
 namespace {
 // `fabrik eval gaps` on subject01_walk1 calibrated with the shipped gait2354;
 // nothing (and a warning) without ../shared/data.

@@ -15,6 +15,8 @@
 #include "config/daemon_config.hpp"
 #include "config/model_loader.hpp"
 #include "io/marker_trial.hpp"
+#include "solver/joint_angles.hpp"
+#include "solver/posture.hpp"
 
 using namespace fabrik;
 using nlohmann::json;
@@ -166,6 +168,44 @@ TEST_CASE("A model's frames, joints and coordinates load as written", "[loader][
   CHECK(ty.point == m.find_point("mid"));
   CHECK(ty.axis == 1);
   CHECK(ty.offset == Approx(0.005));  // model units (mm) to metres
+}
+
+TEST_CASE("A coordinate is sign * (angle + offset), each relative to its own reference",
+          "[joints][coordinates]") {
+  // The thigh's angles relative to the pelvis and, listed right after them,
+  // relative to the world: consecutive coordinates of one segment that must
+  // not share angles computed for another reference.
+  json d = model_doc();
+  d["coordinates"]["hip_flexion"] = {{"segment", "thigh"}, {"axis", "z"}};
+  d["coordinates"]["hip_world_z"] = {{"segment", "thigh"}, {"relative_to", "world"}, {"axis", "z"}};
+  const Model m = load_model(d, "leg.json");
+  const int flexion = m.find_coordinate("hip_flexion"), world_z = m.find_coordinate("hip_world_z");
+  REQUIRE(std::abs(flexion - world_z) == 1);
+
+  // Pelvis turned 20 deg about z, thigh 50 deg: the thigh is 30 deg about z
+  // from the pelvis. Its anatomical frame is its segment frame turned by
+  // -asin(0.6) about x (frame y = (0, 0.8, -0.6)), so relative to the pelvis
+  // the anatomical rotation is Rz(30 deg) Rx(-asin 0.6) Ry(0), and relative to
+  // the world Rz(50 deg) Rx(-asin 0.6) Ry(0).
+  const double pelvis_rad = 20 * kRad, thigh_rad = 50 * kRad;
+  Posture p = Posture::rest(m);
+  const int pelvis = m.find_segment("pelvis");
+  p.segments[pelvis].set_rotation(
+      Eigen::Quaterniond(Eigen::AngleAxisd(pelvis_rad, Eigen::Vector3d::UnitZ())));
+  p.segments[m.find_segment("thigh")].set_rotation(
+      Eigen::Quaterniond(Eigen::AngleAxisd(thigh_rad, Eigen::Vector3d::UnitZ())));
+  std::vector<double> values(m.coordinates.size());
+  coordinate_values(m, p, values);
+
+  const double adduction_raw_rad = -std::asin(0.6);
+  CHECK(values[flexion] == Approx(thigh_rad - pelvis_rad));
+  CHECK(values[world_z] == Approx(thigh_rad));
+  CHECK(values[m.find_coordinate("pelvis_tilt")] == Approx(pelvis_rad));
+  // hip_adduction: sign -1 and offset 10 deg, the offset added before the sign.
+  CHECK(values[m.find_coordinate("hip_adduction")] == Approx(-(adduction_raw_rad + 10 * kRad)));
+  // pelvis_ty: the world y of "mid" (10 mm up the turned pelvis) plus 5 mm.
+  const double mid_y_m = p.segments[pelvis].base_world_m.y() + 0.010 * std::cos(pelvis_rad);
+  CHECK(values[m.find_coordinate("pelvis_ty")] == Approx(mid_y_m + 0.005));
 }
 
 TEST_CASE("Each mistake in a model's frames, joints or coordinates has its own message",

@@ -11,6 +11,7 @@
 #include "io/marker_trial.hpp"
 #include "offline/solve_trial.hpp"
 #include "synth/synthetic_motion.hpp"
+#include "tracking/outlier_filter.hpp"
 #include "tracking/tracker.hpp"
 
 using namespace fabrik;
@@ -279,6 +280,44 @@ TEST_CASE("A reset and a long gap start cold; a short gap does not", "[cold_star
   CHECK(far.residual_max_m < 5e-3);
   tracker.reset();
   CHECK(frame(5.01, 3.0).cold_start);
+}
+
+TEST_CASE("The outlier bar is the larger of the floor and median_factor times the others' median",
+          "[outliers]") {
+  const OutlierSettings s;  // floor 60 mm, median factor 8
+  OutlierFilter filter(s, std::vector<int>(8, 0));
+  const std::vector<std::uint8_t> visible(8, 1);
+  // The seven others' median is 10 mm (their mean 12.3 mm, their largest 30 mm):
+  // the bar is 8 x 10 = 80 mm, above the floor.
+  std::vector<double> residual_m = {0.002, 0.004, 0.006, 0.0, 0.010, 0.014, 0.020, 0.030};
+  const double bar_m = s.median_factor * 0.010;
+  REQUIRE(bar_m > s.floor_m);
+  residual_m[3] = bar_m - 0.005;  // beyond the floor, within the bar
+  CHECK(filter.worst_outlier(residual_m, visible) == -1);
+  CHECK(filter.bar_m() == Approx(bar_m));
+  residual_m[3] = bar_m + 0.005;
+  CHECK(filter.worst_outlier(residual_m, visible) == 3);
+
+  // Others fitting to a few millimetres: the floor is the bar.
+  for (double& r : residual_m) r *= 0.5;
+  REQUIRE(s.median_factor * 0.005 < s.floor_m);
+  residual_m[3] = s.floor_m + 0.005;
+  CHECK(filter.worst_outlier(residual_m, visible) == 3);
+  CHECK(filter.bar_m() == Approx(s.floor_m));
+  residual_m[3] = s.floor_m - 0.005;
+  CHECK(filter.worst_outlier(residual_m, visible) == -1);
+}
+
+TEST_CASE("No marker is judged an outlier with fewer than six measured (the default min_markers)",
+          "[outliers]") {
+  OutlierFilter filter(OutlierSettings{}, std::vector<int>(7, 0));
+  // Six fit to 5 mm and one is a metre off: far beyond any bar.
+  const std::vector<double> residual_m = {1.0, 0.005, 0.005, 0.005, 0.005, 0.005, 0.005};
+  std::vector<std::uint8_t> visible(7, 1);
+  visible[6] = 0;  // six measured: judged
+  CHECK(filter.worst_outlier(residual_m, visible) == 0);
+  visible[5] = 0;  // five: too few to tell which one is wrong
+  CHECK(filter.worst_outlier(residual_m, visible) == -1);
 }
 
 TEST_CASE("residual.quality: good within the config's thresholds, poor beyond, none without "
