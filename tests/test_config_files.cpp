@@ -8,11 +8,11 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/safe_text.hpp"
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
 #include "config/endpoint_check.hpp"
 #include "config/json_reader.hpp"
-#include "common/safe_text.hpp"
 #include "temp_file.hpp"
 
 using namespace fabrik;
@@ -133,9 +133,10 @@ TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {
              Catch::Contains("at /input/zero_is_missing: expected true or false"));
 }
 
-TEST_CASE("Endpoints: tcp ports 1-65535 in digits or * to bind, refused with the pointer and the "
-          "fix otherwise; ipc and inproc as given",
-          "[config][endpoint]") {
+TEST_CASE(
+    "Endpoints: tcp ports 1-65535 in digits or * to bind, refused with the pointer and the "
+    "fix otherwise; ipc and inproc as given",
+    "[config][endpoint]") {
   const auto config = [](const std::string& endpoint, const std::string& mode) {
     return json{{"format", "fabrikd-config/1"},
                 {"model", "models/fullbody.json"},
@@ -148,7 +149,8 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or * to bind, refused with the
   const std::vector<Case> cases = {
       // ZeroMQ would open these modulo 65536: 4464, 34463, 65535.
       {"tcp://127.0.0.1:70000", "bind", "port '70000' of 'tcp://127.0.0.1:70000' is out of range"},
-      {"tcp://127.0.0.1:99999", "connect", "port '99999' of 'tcp://127.0.0.1:99999' is out of range"},
+      {"tcp://127.0.0.1:99999", "connect",
+       "port '99999' of 'tcp://127.0.0.1:99999' is out of range"},
       {"tcp://127.0.0.1:-1", "bind", "port '-1' of 'tcp://127.0.0.1:-1' is not a port number"},
       {"tcp://127.0.0.1:0", "bind", "port 0 of 'tcp://127.0.0.1:0' is not a port"},
       {"tcp://127.0.0.1:abc", "bind", "port 'abc' of 'tcp://127.0.0.1:abc' is not a port number"},
@@ -173,11 +175,12 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or * to bind, refused with the
   };
   for (const Case& c : cases) {
     CAPTURE(c.endpoint, c.mode);
-    const std::string error = error_of([&] { load_daemon_config(config(c.endpoint, c.mode), "c.json"); });
+    const std::string error =
+        error_of([&] { load_daemon_config(config(c.endpoint, c.mode), "c.json"); });
     if (c.expected.empty()) {
       CHECK(error == "(no error)");
-      CHECK_FALSE(endpoint_problem(c.endpoint, c.mode == "bind" ? SocketMode::bind
-                                                                : SocketMode::connect));
+      CHECK_FALSE(
+          endpoint_problem(c.endpoint, c.mode == "bind" ? SocketMode::bind : SocketMode::connect));
     } else {
       CHECK_THAT(error, Catch::StartsWith("c.json: at /input/endpoint: ") &&
                             Catch::Contains(c.expected) && Catch::Contains(". Fix: "));
@@ -197,8 +200,7 @@ TEST_CASE("A config error quoting bytes that are not UTF-8 says them as \\xHH es
           "[config][safe_text]") {
   // nlohmann's parse error quotes what it last read: '"\xff'.
   const std::string bad_name = "bad\xfe\x1b[31m.json";
-  const std::string error =
-      error_of([&] { load_daemon_config("{\"format\": \"\xff", bad_name); });
+  const std::string error = error_of([&] { load_daemon_config("{\"format\": \"\xff", bad_name); });
   CAPTURE(error);
   CHECK_THAT(error, Catch::Contains("bad\\xfe\\x1b[31m.json: at /format: not valid JSON") &&
                         Catch::Contains("last read: '\"\\xff'"));

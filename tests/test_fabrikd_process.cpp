@@ -610,7 +610,8 @@ TEST_CASE("Bytes that are not UTF-8 in arguments and config files reach stderr a
   REQUIRE(running.wait_for_output("markers in on", 5s));
   REQUIRE(running.wait_for_output("markers tracked", 1s));
   CHECK_THAT(running.stderr_text(), Catch::Contains("in\\xff\\x1b[2J"));
-  for (const char raw : {'\xff', '\x1b'}) CHECK(running.stderr_text().find(raw) == std::string::npos);
+  for (const char raw : {'\xff', '\x1b'})
+    CHECK(running.stderr_text().find(raw) == std::string::npos);
   running.signal(SIGTERM);
   CHECK(running.wait(1s) == 0);
 }

@@ -17,6 +17,7 @@
 #include "io/marker_trial.hpp"
 #include "io/recording_info.hpp"
 #include "temp_file.hpp"
+#include "trc_text.hpp"
 
 using namespace fabrik::io;
 namespace fs = std::filesystem;
@@ -1033,22 +1034,7 @@ TEST_CASE("inspect_recording on every file of the shared data folder", "[io][inf
 
 // ---- What OpenSim refuses: a label on two markers, a Time column that goes back ----
 
-namespace {
-
-// A TRC of two markers named `a` and `b`, one row per time in `times` (frames from 1).
-std::string two_marker_trc(const std::string& a, const std::string& b,
-                           const std::vector<std::string>& times) {
-  std::string text = "PathFileType\t4\t(X/Y/Z)\tx.trc\n"
-                     "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\n"
-                     "100\t100\t" + std::to_string(times.size()) + "\t2\tmm\n"
-                     "Frame#\tTime\t" + a + "\t\t\t" + b + "\t\t\n"
-                     "\t\tX1\tY1\tZ1\tX2\tY2\tZ2\n";
-  for (std::size_t f = 0; f < times.size(); ++f)
-    text += std::to_string(f + 1) + "\t" + times[f] + "\t1\t2\t3\t4\t5\t6\n";
-  return text;
-}
-
-}  // namespace
+using fabrik::test::two_marker_trc;
 
 TEST_CASE("A TRC label on two markers is refused, naming both columns; info reads it",
           "[io][trc][opensim]") {

@@ -21,6 +21,7 @@
 #include "tools/synth.hpp"
 #include "tools/watch.hpp"
 #include "tools/wire.hpp"
+#include "trc_text.hpp"
 
 namespace fs = std::filesystem;
 using fabrik::io::MarkerTrial;
@@ -604,30 +605,16 @@ TEST_CASE("replay sends an orientation table: joined on time with markers, or al
 
 // ---- What OpenSim refuses, and ports ZeroMQ would wrap ----
 
-namespace {
+using fabrik::test::two_marker_trc;
 
-// A TRC of two markers named `a` and `b`, one row per time in `times` (frames from 1).
-std::string trc_text(const std::string& a, const std::string& b,
-                     const std::vector<std::string>& times) {
-  std::string text = "PathFileType\t4\t(X/Y/Z)\tx.trc\n"
-                     "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\n"
-                     "100\t100\t" + std::to_string(times.size()) + "\t2\tmm\n"
-                     "Frame#\tTime\t" + a + "\t\t\t" + b + "\t\t\n"
-                     "\t\tX1\tY1\tZ1\tX2\tY2\tZ2\n";
-  for (std::size_t f = 0; f < times.size(); ++f)
-    text += std::to_string(f + 1) + "\t" + times[f] + "\t1\t2\t3\t4\t5\t6\n";
-  return text;
-}
-
-}  // namespace
-
-TEST_CASE("fabrik solve and calibrate refuse a repeated label and time going back; info reports "
-          "them and time standing still") {
+TEST_CASE(
+    "fabrik solve and calibrate refuse a repeated label and time going back; info reports "
+    "them and time standing still") {
   TempFile repeated(".trc"), back(".trc"), still(".trc"), out(".trc"), json_out(".json"),
       text_out(".txt");
-  std::ofstream(repeated.path()) << trc_text("R.ASIS", "R.ASIS", {"0", "0.01", "0.02"});
-  std::ofstream(back.path()) << trc_text("R.ASIS", "L.ASIS", {"0", "0.01", "0.005", "0.02"});
-  std::ofstream(still.path()) << trc_text("R.ASIS", "L.ASIS", {"0", "0.01", "0.01", "0.02"});
+  std::ofstream(repeated.path()) << two_marker_trc("R.ASIS", "R.ASIS", {"0", "0.01", "0.02"});
+  std::ofstream(back.path()) << two_marker_trc("R.ASIS", "L.ASIS", {"0", "0.01", "0.005", "0.02"});
+  std::ofstream(still.path()) << two_marker_trc("R.ASIS", "L.ASIS", {"0", "0.01", "0.01", "0.02"});
 
   const auto solve = [&](const std::string& input) {
     return run_fabrik({"solve", "--input", input, "--output", out.path(), "--quiet"});
@@ -699,7 +686,8 @@ TEST_CASE("fabrik replay and watch refuse ports ZeroMQ would wrap, exit 2 naming
   CHECK(watch_code == 2);
   CHECK_THAT(watch_err, Catch::StartsWith("fabrik watch: --from: port '-1'"));
   // Bytes that are not UTF-8 in the endpoint come out escaped.
-  const auto [raw_code, raw_err] = run_fabrik({"watch", "--from", "tcp://\xff:1\xfe", "--seconds", "1"});
+  const auto [raw_code, raw_err] =
+      run_fabrik({"watch", "--from", "tcp://\xff:1\xfe", "--seconds", "1"});
   CHECK(raw_code == 2);
   CHECK_THAT(raw_err, Catch::Contains("'tcp://\\xff:1\\xfe'"));
   CHECK(raw_err.find('\xff') == std::string::npos);

@@ -10,15 +10,15 @@
 
 #include <CLI/CLI.hpp>
 #include <csignal>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <tuple>
 
-#include "config/config_error.hpp"
 #include "cli_exit.hpp"
 #include "common/safe_text.hpp"
+#include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
 #include "config/endpoint_check.hpp"
 #include "transport/daemon.hpp"
@@ -113,12 +113,12 @@ int main(int argc, char** argv) {
     return fabrik::apps::exit_safely(app, e);
   }
   const std::tuple<const CLI::Option*, const std::string*, const char*> empty_checks[] = {
-      {config_opt, &o.config_path, "give the path of a daemon config file, or leave out --config for the "
-                   "embedded default"},
-      {input_opt, &o.input, "give an endpoint, e.g. tcp://127.0.0.1:5555, or leave out --input for the "
-                  "config's"},
-      {output_opt, &o.output, "give an endpoint, e.g. tcp://127.0.0.1:5556, or leave out --output for the "
-                   "config's"}};
+      {config_opt, &o.config_path,
+       "give the path of a daemon config file, or leave out --config for the embedded default"},
+      {input_opt, &o.input,
+       "give an endpoint, e.g. tcp://127.0.0.1:5555, or leave out --input for the config's"},
+      {output_opt, &o.output,
+       "give an endpoint, e.g. tcp://127.0.0.1:5556, or leave out --output for the config's"}};
   for (const auto& [opt, value, fix] : empty_checks) {
     if (opt->count() > 0 && value->empty()) {
       std::fprintf(stderr, "fabrikd: %s is empty. Fix: %s\n", opt->get_name().c_str(), fix);

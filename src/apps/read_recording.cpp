@@ -12,8 +12,8 @@ void print_warnings(const std::string& command, const std::string& path,
                     const std::vector<std::string>& warnings) {
   for (const std::string& w : warnings) {
     // Paths are as the user gave them, warnings quote the file's own bytes.
-    std::fprintf(stderr, "fabrik %s: warning: %s: %s\n", command.c_str(),
-                 safe_lines(path).c_str(), safe_lines(w).c_str());
+    std::fprintf(stderr, "fabrik %s: warning: %s: %s\n", command.c_str(), safe_lines(path).c_str(),
+                 safe_lines(w).c_str());
   }
 }
 

@@ -47,7 +47,8 @@ void run(const SolveOptions& o) {
     table = read_orientations_or_explain("solve", config, o.orientations);
     if (!o.quiet)
       std::fprintf(stderr, "fabrik solve: %s (%zu rows at %g Hz, %zu sensors)%s\n",
-                   safe_lines(o.orientations).c_str(), table->rows(), table->rate_hz, table->sensors.size(),
+                   safe_lines(o.orientations).c_str(), table->rows(), table->rate_hz,
+                   table->sensors.size(),
                    o.input.empty() ? ", no markers: the root stays where the rest posture puts it"
                                    : ", joined on time with the markers");
   }

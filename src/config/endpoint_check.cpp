@@ -40,18 +40,19 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
   const std::string quoted_port = "'" + std::string(port) + "'";
   if (port == "*") {
     if (mode == SocketMode::bind) return std::nullopt;
-    return EndpointProblem{"port * of " + quoted + " means any free port, which only a bind can "
-                                                   "choose",
-                           "connect to the port the peer binds, e.g. tcp://127.0.0.1:5555"};
+    return EndpointProblem{
+        "port * of " + quoted + " means any free port, which only a bind can choose",
+        "connect to the port the peer binds, e.g. tcp://127.0.0.1:5555"};
   }
-  if (port.empty() || !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
+  if (port.empty() ||
+      !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
     return EndpointProblem{"port " + quoted_port + " of " + quoted + " is not a port number",
                            kPortFix};
   const std::string_view digits = port.substr(std::min(port.find_first_not_of('0'), port.size()));
   const unsigned long value = digits.size() > 5 ? 100000 : std::stoul("0" + std::string(digits));
   if (value == 0)
-    return EndpointProblem{"port 0 of " + quoted + " is not a port (ZeroMQ would bind any free port)",
-                           kPortFix};
+    return EndpointProblem{
+        "port 0 of " + quoted + " is not a port (ZeroMQ would bind any free port)", kPortFix};
   if (value > 65535)
     return EndpointProblem{"port " + quoted_port + " of " + quoted +
                                " is out of range (ZeroMQ would silently use it modulo 65536)",

@@ -131,10 +131,9 @@ std::optional<double> metres_per_unit(std::string_view units) {
   return std::nullopt;
 }
 
-void check_repeated_labels(MarkerTrial& trial, const std::string& path,
-                           const ReadOptions& options, const std::string& where,
-                           const std::string& numbering, std::size_t (*number)(std::size_t),
-                           const std::string& fix) {
+void check_repeated_labels(MarkerTrial& trial, const std::string& path, const ReadOptions& options,
+                           const std::string& where, const std::string& numbering,
+                           std::size_t (*number)(std::size_t), const std::string& fix) {
   std::unordered_map<std::string_view, std::size_t> first;
   std::vector<RepeatedLabel>& repeated = trial.source.repeated_labels;
   for (std::size_t m = 0; m < trial.labels.size(); ++m) {
@@ -148,15 +147,16 @@ void check_repeated_labels(MarkerTrial& trial, const std::string& path,
                              std::to_string(r.first) + " and " + std::to_string(r.second);
     if (options.refuse_ambiguous) {
       const std::size_t more = repeated.size() - 1;
-      throw FormatError(path, where + ": " + what +
-                                  ": which of them is the marker is ambiguous" +
+      throw FormatError(path, where + ": " + what + ": which of them is the marker is ambiguous" +
                                   (more ? " (and " + std::to_string(more) + " more repeated " +
                                               (more == 1 ? "label" : "labels") + ")"
                                         : std::string()) +
                                   ". Fix: " + fix + "; `fabrik info` lists every repetition");
     }
-    trial.warnings.push_back(where + ": " + what + ": ambiguous, `fabrik solve` refuses the file. "
-                             "Fix: " + fix);
+    trial.warnings.push_back(where + ": " + what +
+                             ": ambiguous, `fabrik solve` refuses the file. "
+                             "Fix: " +
+                             fix);
   }
 }
 

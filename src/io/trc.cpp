@@ -305,12 +305,14 @@ class TrcParser {
     const std::optional<double> t = parse_number(time_field);
     if (!t || !std::isfinite(*t)) return;
     if (previous_time_ && *t <= *previous_time_) {
-      TimeSteps& s = *t < *previous_time_ ? trial.source.time_backwards : trial.source.time_standing;
+      TimeSteps& s =
+          *t < *previous_time_ ? trial.source.time_backwards : trial.source.time_standing;
       if (s.rows++ == 0) {
         const std::optional<double> frame = parse_number(frame_field);
-        s.first_frame = frame && std::abs(*frame) < 1e15
-                            ? static_cast<long long>(*frame)
-                            : static_cast<long long>(trial.first_frame) + static_cast<long long>(row);
+        s.first_frame =
+            frame && std::abs(*frame) < 1e15
+                ? static_cast<long long>(*frame)
+                : static_cast<long long>(trial.first_frame) + static_cast<long long>(row);
         s.first_line = line_number_;
         s.time_s = *t;
         s.previous_s = *previous_time_;

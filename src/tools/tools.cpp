@@ -88,8 +88,8 @@ void add_replay_command(CLI::App& app) {
                        safe_lines(a->orientations).c_str(), safe_lines(w).c_str());
         o.orientations = &table;
         std::fprintf(stderr, "replay: %s: %zu rows x %zu sensors at %g Hz%s\n",
-                     safe_lines(a->orientations).c_str(), table.rows(), table.sensors.size(), table.rate_hz,
-                     a->file.empty() ? " (the frames)" : ", joined on time");
+                     safe_lines(a->orientations).c_str(), table.rows(), table.sensors.size(),
+                     table.rate_hz, a->file.empty() ? " (the frames)" : ", joined on time");
       }
       o.endpoint = a->to;
       o.bind = a->bind;
