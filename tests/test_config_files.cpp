@@ -133,10 +133,9 @@ TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {
              Catch::Contains("at /input/zero_is_missing: expected true or false"));
 }
 
-TEST_CASE(
-    "Endpoints: tcp ports 1-65535 in digits or * to bind, refused with the pointer and the "
-    "fix otherwise; ipc and inproc as given",
-    "[config][endpoint]") {
+TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else refused with "
+          "the pointer and the fix, ipc and inproc as given",
+          "[config][endpoint]") {
   const auto config = [](const std::string& endpoint, const std::string& mode) {
     return json{{"format", "fabrikd-config/1"},
                 {"model", "models/fullbody.json"},
@@ -196,7 +195,7 @@ TEST_CASE(
   }
 }
 
-TEST_CASE("A config error quoting bytes that are not UTF-8 says them as \\xHH escapes",
+TEST_CASE("A config error quoting bytes that are not UTF-8 says them as escapes",
           "[config][safe_text]") {
   // nlohmann's parse error quotes what it last read: '"\xff'.
   const std::string bad_name = "bad\xfe\x1b[31m.json";

@@ -582,7 +582,7 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
   }
 }
 
-TEST_CASE("Bytes that are not UTF-8 in arguments and config files reach stderr as \\xHH escapes",
+TEST_CASE("Bytes that are not UTF-8 in arguments and config files reach stderr as escapes",
           "[fabrikd][cli][robustness]") {
   const std::string bad_json = write_file("bad\xfe.json", "{\"format\": \"\xff");
   const std::vector<std::vector<std::string>> cases = {

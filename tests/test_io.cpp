@@ -1036,7 +1036,7 @@ TEST_CASE("inspect_recording on every file of the shared data folder", "[io][inf
 
 using fabrik::test::two_marker_trc;
 
-TEST_CASE("A TRC label on two markers is refused, naming both columns; info reads it",
+TEST_CASE("A TRC label on two markers is refused, naming both columns, and info reads it",
           "[io][trc][opensim]") {
   TempFile file(".trc");
   write_text(file.path(), two_marker_trc("R.ASIS", "R.ASIS", {"0", "0.01", "0.02"}));
@@ -1075,7 +1075,7 @@ TEST_CASE("A C3D label on two points is refused, naming both POINT:LABELS entrie
   CHECK(info.trial.source.repeated_labels[0].second == 3);
 }
 
-TEST_CASE("A TRC Time column that goes back is refused at its first row; standing still warns",
+TEST_CASE("A TRC Time column that goes back is refused at its first row, one standing still warns",
           "[io][trc][opensim]") {
   TempFile back(".trc"), still(".trc");
   // Rows start at line 6: frame 3 (0.005 after 0.01) is line 8.

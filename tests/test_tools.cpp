@@ -608,7 +608,7 @@ TEST_CASE("replay sends an orientation table: joined on time with markers, or al
 using fabrik::test::two_marker_trc;
 
 TEST_CASE(
-    "fabrik solve and calibrate refuse a repeated label and time going back; info reports "
+    "fabrik solve and calibrate refuse a repeated label and time going back, info reports "
     "them and time standing still") {
   TempFile repeated(".trc"), back(".trc"), still(".trc"), out(".trc"), json_out(".json"),
       text_out(".txt");
