@@ -8,8 +8,10 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/safe_text.hpp"
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
+#include "config/endpoint_check.hpp"
 #include "config/json_reader.hpp"
 #include "temp_file.hpp"
 
@@ -129,4 +131,89 @@ TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {
                load_daemon_config(with_input({{"zero_is_missing", "yes"}}), "c.json");
              }),
              Catch::Contains("at /input/zero_is_missing: expected true or false"));
+}
+
+TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else refused with "
+          "the pointer and the fix, ipc and inproc as given",
+          "[config][endpoint]") {
+  const auto config = [](const std::string& endpoint, const std::string& mode) {
+    return json{{"format", "fabrikd-config/1"},
+                {"model", "models/fullbody.json"},
+                {"input", {{"endpoint", endpoint}, {"mode", mode}}}}
+        .dump();
+  };
+  struct Case {
+    std::string endpoint, mode, expected;  // expected empty: accepted
+  };
+  const std::vector<Case> cases = {
+      // ZeroMQ would open these modulo 65536: 4464, 34463, 65535.
+      {"tcp://127.0.0.1:70000", "bind", "port '70000' of 'tcp://127.0.0.1:70000' is out of range"},
+      {"tcp://127.0.0.1:99999", "connect",
+       "port '99999' of 'tcp://127.0.0.1:99999' is out of range"},
+      {"tcp://127.0.0.1:-1", "bind", "port '-1' of 'tcp://127.0.0.1:-1' is not a port number"},
+      {"tcp://127.0.0.1:0", "bind", "port 0 of 'tcp://127.0.0.1:0' is not a port"},
+      {"tcp://127.0.0.1:abc", "bind", "port 'abc' of 'tcp://127.0.0.1:abc' is not a port number"},
+      {"tcp://127.0.0.1:", "bind", "port '' of 'tcp://127.0.0.1:' is not a port number"},
+      {"tcp://127.0.0.1:+80", "bind", "is not a port number"},
+      {"tcp://127.0.0.1:0000000000080", "bind", ""},  // digits, 80
+      {"tcp://127.0.0.1:123456789012345678901", "bind", "is out of range"},
+      {"tcp://127.0.0.1", "bind", "'tcp://127.0.0.1' has no port"},
+      {"tcp://[::1]", "bind", "'tcp://[::1]' has no port"},
+      {"tcp://127.0.0.1:*", "connect", "port * of 'tcp://127.0.0.1:*' means any free port"},
+      {"tcp://127.0.0.1:*", "bind", ""},
+      {"tcp://127.0.0.1:1", "bind", ""},
+      {"tcp://127.0.0.1:65535", "bind", ""},
+      {"tcp://[::1]:5555", "bind", ""},
+      {"tcp://127.0.0.1:6000;192.0.2.1:5555", "connect", ""},  // source;destination
+      {"tcp://127.0.0.1:6000;192.0.2.1:65536", "connect", "port '65536'"},
+      {"ws://127.0.0.1:8080/markers", "bind", ""},
+      {"ws://127.0.0.1:80800/markers", "bind", "port '80800'"},
+      {"127.0.0.1:5555", "bind", "'127.0.0.1:5555' is not a ZeroMQ endpoint"},
+      {"ipc:///tmp/fabrik:99999", "bind", ""},  // a path: ZeroMQ's business
+      {"inproc://markers:-1", "connect", ""},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.endpoint, c.mode);
+    const std::string error =
+        error_of([&] { load_daemon_config(config(c.endpoint, c.mode), "c.json"); });
+    if (c.expected.empty()) {
+      CHECK(error == "(no error)");
+      CHECK_FALSE(
+          endpoint_problem(c.endpoint, c.mode == "bind" ? SocketMode::bind : SocketMode::connect));
+    } else {
+      CHECK_THAT(error, Catch::StartsWith("c.json: at /input/endpoint: ") &&
+                            Catch::Contains(c.expected) && Catch::Contains(". Fix: "));
+    }
+  }
+  // The command-line form names the option instead of a pointer.
+  try {
+    require_usable_endpoint("tcp://127.0.0.1:99999", SocketMode::bind, "--input");
+    FAIL("no error");
+  } catch (const std::invalid_argument& e) {
+    CHECK_THAT(e.what(), Catch::StartsWith("--input: port '99999'") &&
+                             Catch::Contains("Fix: use a port from 1 to 65535"));
+  }
+}
+
+TEST_CASE("A config error quoting bytes that are not UTF-8 says them as escapes",
+          "[config][safe_text]") {
+  // nlohmann's parse error quotes what it last read: '"\xff'.
+  const std::string bad_name = "bad\xfe\x1b[31m.json";
+  const std::string error = error_of([&] { load_daemon_config("{\"format\": \"\xff", bad_name); });
+  CAPTURE(error);
+  CHECK_THAT(error, Catch::Contains("bad\\xfe\\x1b[31m.json: at /format: not valid JSON") &&
+                        Catch::Contains("last read: '\"\\xff'"));
+  CHECK(error.find('\xff') == std::string::npos);
+  CHECK(error.find('\xfe') == std::string::npos);
+  CHECK(error.find('\x1b') == std::string::npos);
+  CHECK(safe_lines(error) == error);  // valid UTF-8 without control characters already
+  // Values quoted from a parsed config too (an unknown socket mode).
+  const std::string mode_error = error_of([&] {
+    load_daemon_config(json{{"format", "fabrikd-config/1"},
+                            {"model", "models/fullbody.json"},
+                            {"input", {{"mode", "li\xc3\xa9\x07n"}}}}
+                           .dump(),
+                       "c.json");
+  });
+  CHECK_THAT(mode_error, Catch::Contains("unknown socket mode 'li\xc3\xa9\\x07n'"));
 }

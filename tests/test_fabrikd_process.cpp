@@ -788,3 +788,71 @@ TEST_CASE("SIGTERM ends fabrikd within 100 ms at any moment: while it reads a la
     CHECK(time_to_stop(r.process) < bound);
   }
 }
+
+TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 with the fix",
+          "[fabrikd][cli]") {
+  json wrapped = good_config("wrap");
+  wrapped["output"]["endpoint"] = "tcp://127.0.0.1:70000";  // ZeroMQ would bind 4464
+  const std::string wrapped_path = write_file("wrapped.json", wrapped.dump());
+  struct Case {
+    std::vector<std::string> args;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      // Before: the embedded default ran, or the config's endpoint was used.
+      {{"--config", ""}, "fabrikd: --config is empty. Fix: give the path of a daemon config"},
+      {{"--input", ""}, "fabrikd: --input is empty. Fix: give an endpoint"},
+      {{"--output", ""}, "fabrikd: --output is empty. Fix: give an endpoint"},
+      // Before: bound 34463, 65535, 4464.
+      {{"--input", "tcp://127.0.0.1:99999"},
+       "fabrikd: --input: port '99999' of 'tcp://127.0.0.1:99999' is out of range"},
+      {{"--input", "bind:tcp://127.0.0.1:-1"},
+       "fabrikd: --input: port '-1' of 'tcp://127.0.0.1:-1' is not a port number"},
+      {{"--output", "connect:tcp://127.0.0.1:*"}, "fabrikd: --output: port * of"},
+      {{"--config", wrapped_path},
+       wrapped_path + ": at /output/endpoint: port '70000' of 'tcp://127.0.0.1:70000' is out of "
+                      "range"},
+  };
+  for (const Case& c : cases) {
+    std::vector<std::string> args = {kFabrikd};
+    args.insert(args.end(), c.args.begin(), c.args.end());
+    Process p(args);
+    CAPTURE(c.args);
+    CHECK(p.wait(5s) == 2);
+    CHECK_THAT(p.stderr_text(), Catch::Contains(c.expected) && Catch::Contains("Fix: "));
+  }
+}
+
+TEST_CASE("Bytes that are not UTF-8 in arguments and config files reach stderr as escapes",
+          "[fabrikd][cli][robustness]") {
+  const std::string bad_json = write_file("bad\xfe.json", "{\"format\": \"\xff");
+  const std::vector<std::vector<std::string>> cases = {
+      {"--input", "tcp://127.0.0.1:\xff"},
+      {"--config", bad_json},
+      {"--config", "/nonexistent/\xff.json"},
+      {"--log-level", "\xff"},  // CLI11's own message quotes it
+  };
+  for (const std::vector<std::string>& c : cases) {
+    std::vector<std::string> args = {kFabrikd};
+    args.insert(args.end(), c.begin(), c.end());
+    Process p(args);
+    CAPTURE(c);
+    const std::optional<int> code = p.wait(5s);
+    CHECK(code.has_value());
+    if (!code) continue;
+    const std::string& err = p.stderr_text();
+    CAPTURE(err);
+    CHECK_THAT(err, Catch::Contains("\\xff"));
+    for (const char raw : {'\xff', '\xfe', '\x1b'}) CHECK(err.find(raw) == std::string::npos);
+  }
+  // An ipc path is ZeroMQ's business and binds: the log line that names it is escaped.
+  const std::string ipc = "ipc://" + (temp_dir() / "in\xff\x1b[2J").string();
+  Process running({kFabrikd, "--input", ipc, "--output", "ipc://" + (temp_dir() / "out").string()});
+  REQUIRE(running.wait_for_output("markers in on", 5s));
+  REQUIRE(running.wait_for_output("markers tracked", 1s));
+  CHECK_THAT(running.stderr_text(), Catch::Contains("in\\xff\\x1b[2J"));
+  for (const char raw : {'\xff', '\x1b'})
+    CHECK(running.stderr_text().find(raw) == std::string::npos);
+  running.signal(SIGTERM);
+  CHECK(running.wait(1s) == 0);
+}

@@ -17,6 +17,7 @@
 #include "io/marker_trial.hpp"
 #include "io/recording_info.hpp"
 #include "temp_file.hpp"
+#include "trc_text.hpp"
 
 using namespace fabrik::io;
 namespace fs = std::filesystem;
@@ -1029,4 +1030,79 @@ TEST_CASE("inspect_recording on every file of the shared data folder", "[io][inf
     }
   }
   CHECK(seen >= 8);
+}
+
+// ---- What OpenSim refuses: a label on two markers, a Time column that goes back ----
+
+using fabrik::test::two_marker_trc;
+
+TEST_CASE("A TRC label on two markers is refused, naming both columns, and info reads it",
+          "[io][trc][opensim]") {
+  TempFile file(".trc");
+  write_text(file.path(), two_marker_trc("R.ASIS", "R.ASIS", {"0", "0.01", "0.02"}));
+  const std::string message = error_of([&] { read_trc(file.path()); });
+  CHECK_THAT(message, Catch::StartsWith(file.path() + ": line 4: marker 'R.ASIS' labels columns "
+                                                      "3 and 6: which of them is the marker is "
+                                                      "ambiguous") &&
+                          Catch::Contains("Fix: rename one of them in line 4"));
+  const MarkerTrial t = read_trc(file.path(), {.refuse_ambiguous = false});
+  REQUIRE(t.source.repeated_labels.size() == 1);
+  CHECK(t.source.repeated_labels[0].label == "R.ASIS");
+  CHECK(t.source.repeated_labels[0].first == 3);
+  CHECK(t.source.repeated_labels[0].second == 6);
+  REQUIRE(t.warnings.size() == 1);
+  CHECK_THAT(t.warnings[0], Catch::Contains("`fabrik solve` refuses the file"));
+  const RecordingInfo info = inspect_recording(file.path());  // describes it all the same
+  CHECK(info.trial.source.repeated_labels.size() == 1);
+  CHECK(info.markers.size() == 2);
+}
+
+TEST_CASE("A C3D label on two points is refused, naming both POINT:LABELS entries",
+          "[io][c3d][opensim]") {
+  MarkerTrial trial;
+  trial.labels = {"A", "B", "A"};
+  trial.rate_hz = 100.0;
+  trial.positions_m.assign(3 * 4, Eigen::Vector3d(0.1, 0.2, 0.3));
+  TempFile file(".c3d");
+  write_c3d(file.path(), trial, C3dProcessor::intel, true);
+  CHECK_THAT(error_of([&] { read_c3d(file.path()); }),
+             Catch::StartsWith(file.path() + ": parameter section: POINT:LABELS: marker 'A' "
+                                             "labels entries 1 and 3") &&
+                 Catch::Contains("Fix: rename one of them in POINT:LABELS"));
+  const RecordingInfo info = inspect_recording(file.path());
+  REQUIRE(info.trial.source.repeated_labels.size() == 1);
+  CHECK(info.trial.source.repeated_labels[0].first == 1);
+  CHECK(info.trial.source.repeated_labels[0].second == 3);
+}
+
+TEST_CASE("A TRC Time column that goes back is refused at its first row, one standing still warns",
+          "[io][trc][opensim]") {
+  TempFile back(".trc"), still(".trc");
+  // Rows start at line 6: frame 3 (0.005 after 0.01) is line 8.
+  write_text(back.path(), two_marker_trc("A", "B", {"0", "0.01", "0.005", "0.03", "0.02"}));
+  CHECK_THAT(error_of([&] { read_trc(back.path()); }),
+             Catch::StartsWith(back.path() + ": the Time column goes back in time at 2 rows (the "
+                                             "first at line 8, frame 3: 0.005 s after 0.01 s)") &&
+                 Catch::Contains("Fix: put the rows in time order"));
+  const MarkerTrial b = read_trc(back.path(), {.refuse_ambiguous = false});
+  CHECK(b.source.time_backwards.rows == 2);
+  CHECK(b.source.time_backwards.first_frame == 3);
+  CHECK(b.source.time_backwards.first_line == 8);
+  CHECK(b.source.time_standing.rows == 0);
+  CHECK(b.frames() == 5);
+
+  // Times rounded to 2 decimals at a high rate repeat: read (time comes from the rate), warned.
+  write_text(still.path(), two_marker_trc("A", "B", {"0", "0.01", "0.01", "0.02", "0.02"}));
+  const MarkerTrial s = read_trc(still.path());
+  CHECK(s.frames() == 5);
+  CHECK(s.source.time_standing.rows == 2);
+  CHECK(s.source.time_standing.first_frame == 3);
+  CHECK(s.source.time_backwards.rows == 0);
+  REQUIRE(s.warnings.size() == 1);
+  CHECK_THAT(s.warnings[0], Catch::StartsWith("the Time column stands still at 2 rows (the first "
+                                              "at line 8, frame 3: 0.01 s as in the row before)"));
+  // Increasing times (the writer's own) say nothing.
+  TempFile good(".trc");
+  write_text(good.path(), two_marker_trc("A", "B", {"0", "0.01", "0.02"}));
+  CHECK(read_trc(good.path()).warnings.empty());
 }

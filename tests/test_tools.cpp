@@ -21,6 +21,7 @@
 #include "tools/synth.hpp"
 #include "tools/watch.hpp"
 #include "tools/wire.hpp"
+#include "trc_text.hpp"
 
 namespace fs = std::filesystem;
 using fabrik::io::MarkerTrial;
@@ -600,4 +601,94 @@ TEST_CASE("replay sends an orientation table: joined on time with markers, or al
             Approx(std::sin(0.5 * 0.01 * std::min(t_s * 50.0, 29.0))).margin(1e-9));
     }
   }
+}
+
+// ---- What OpenSim refuses, and ports ZeroMQ would wrap ----
+
+using fabrik::test::two_marker_trc;
+
+TEST_CASE(
+    "fabrik solve and calibrate refuse a repeated label and time going back, info reports "
+    "them and time standing still") {
+  TempFile repeated(".trc"), back(".trc"), still(".trc"), out(".trc"), json_out(".json"),
+      text_out(".txt");
+  std::ofstream(repeated.path()) << two_marker_trc("R.ASIS", "R.ASIS", {"0", "0.01", "0.02"});
+  std::ofstream(back.path()) << two_marker_trc("R.ASIS", "L.ASIS", {"0", "0.01", "0.005", "0.02"});
+  std::ofstream(still.path()) << two_marker_trc("R.ASIS", "L.ASIS", {"0", "0.01", "0.01", "0.02"});
+
+  const auto solve = [&](const std::string& input) {
+    return run_fabrik({"solve", "--input", input, "--output", out.path(), "--quiet"});
+  };
+  const auto [rep_code, rep_err] = solve(repeated.path());
+  CHECK(rep_code == 2);
+  CHECK_THAT(rep_err, Catch::StartsWith("fabrik solve: " + repeated.path() +
+                                        ": line 4: marker 'R.ASIS' labels columns 3 and 6") &&
+                          Catch::Contains("Fix: rename one of them"));
+  const auto [back_code, back_err] = solve(back.path());
+  CHECK(back_code == 2);
+  CHECK_THAT(back_err, Catch::StartsWith("fabrik solve: " + back.path() +
+                                         ": the Time column goes back in time at 1 row (the first "
+                                         "at line 8, frame 3") &&
+                           Catch::Contains("Fix: put the rows in time order"));
+  const auto [calib_code, calib_err] =
+      run_fabrik({"calibrate", "--template", kSourceDir + "/config/templates/gait2354.json",
+                  "--static", repeated.path(), "--output", out.path()});
+  CHECK(calib_code == 2);
+  CHECK_THAT(calib_err, Catch::StartsWith("fabrik calibrate: " + repeated.path() + ": line 4"));
+  // Standing still is read (time comes from the rate), with a warning; the solve goes on to
+  // the config, which knows neither marker name here.
+  const auto [still_code, still_err] = solve(still.path());
+  CHECK(still_code == 2);  // "shares none of the 45"
+  CHECK_THAT(still_err, Catch::Contains("fabrik solve: warning: " + still.path() +
+                                        ": the Time column stands still at 1 row (the first at "
+                                        "line 8, frame 3"));
+  CHECK_FALSE(fs::exists(out.path()));
+
+  // info describes all three, in text and in JSON (additions: repeated_labels, time_column).
+  const auto [info_code, info_err] =
+      run_fabrik({"info", repeated.path(), back.path(), still.path()}, text_out.path());
+  CHECK(info_code == 0);
+  const std::string text = slurp(text_out.path());
+  CHECK_THAT(text, Catch::Contains("warning     line 4: marker 'R.ASIS' labels columns 3 and 6: "
+                                   "ambiguous, `fabrik solve` refuses the file") &&
+                       Catch::Contains("warning     the Time column goes back in time at 1 row") &&
+                       Catch::Contains("warning     the Time column stands still at 1 row"));
+  const auto [json_code, json_err] =
+      run_fabrik({"info", "--json", repeated.path(), back.path(), still.path()}, json_out.path());
+  CHECK(json_code == 0);
+  const json j = json::parse(slurp(json_out.path()));
+  REQUIRE(j.size() == 3);
+  CHECK(j[0]["repeated_labels"] ==
+        json::array({{{"label", "R.ASIS"}, {"first", 3}, {"second", 6}}}));
+  CHECK(j[0]["markers"].size() == 2);
+  CHECK(j[1]["repeated_labels"].empty());
+  CHECK(j[1]["time_column"]["backwards"] == json({{"rows", 1},
+                                                  {"first_frame", 3},
+                                                  {"first_line", 8},
+                                                  {"time_s", 0.005},
+                                                  {"previous_s", 0.01}}));
+  CHECK(j[1]["time_column"]["standing"] == json({{"rows", 0}}));
+  CHECK(j[2]["time_column"]["standing"]["rows"] == 1);
+  CHECK(j[2]["time_column"]["backwards"]["rows"] == 0);
+}
+
+TEST_CASE("fabrik replay and watch refuse ports ZeroMQ would wrap, exit 2 naming the option") {
+  TempFile trc(".trc");
+  fabrik::io::write_trc(trc.path(), small_trial());
+  const auto [replay_code, replay_err] =
+      run_fabrik({"replay", trc.path(), "--to", "tcp://127.0.0.1:99999", "--bind"});
+  CHECK(replay_code == 2);
+  CHECK_THAT(replay_err, Catch::Contains("fabrik replay: --to: port '99999' of "
+                                         "'tcp://127.0.0.1:99999' is out of range") &&
+                             Catch::Contains("Fix: use a port from 1 to 65535"));
+  const auto [watch_code, watch_err] =
+      run_fabrik({"watch", "--from", "tcp://127.0.0.1:-1", "--bind", "--seconds", "1"});
+  CHECK(watch_code == 2);
+  CHECK_THAT(watch_err, Catch::StartsWith("fabrik watch: --from: port '-1'"));
+  // Bytes that are not UTF-8 in the endpoint come out escaped.
+  const auto [raw_code, raw_err] =
+      run_fabrik({"watch", "--from", "tcp://\xff:1\xfe", "--seconds", "1"});
+  CHECK(raw_code == 2);
+  CHECK_THAT(raw_err, Catch::Contains("'tcp://\\xff:1\\xfe'"));
+  CHECK(raw_err.find('\xff') == std::string::npos);
 }

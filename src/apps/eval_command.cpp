@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 
+#include "common/safe_text.hpp"
 #include "eval/eval.hpp"
 #include "offline/marker_match.hpp"
 #include "read_recording.hpp"
@@ -52,8 +53,8 @@ std::pair<DaemonConfig, io::MarkerTrial> subject(const EvalArgs& a) {
   }
   require_file(a.template_path, "--template");
   require_file(a.static_path, "--static");
-  std::fprintf(stderr, "calibrating %s with %s; tracking %s\n", a.static_path.c_str(),
-               a.template_path.c_str(), a.walk_path.c_str());
+  std::fprintf(stderr, "calibrating %s with %s; tracking %s\n", safe_lines(a.static_path).c_str(),
+               safe_lines(a.template_path).c_str(), safe_lines(a.walk_path).c_str());
   std::pair<DaemonConfig, io::MarkerTrial> s{eval::calibrate_config(a.template_path, a.static_path),
                                              read_trial_or_explain("eval", a.walk_path, false)};
   require_shared_markers(s.first, s.second, a.walk_path);
@@ -138,7 +139,8 @@ void run(const std::string& which, const EvalArgs& a) {
     require_file(a.reference_path, "--reference");
     const io::OpenSimTable reference = io::read_opensim_table(a.reference_path);
     for (const std::string& w : reference.warnings)
-      std::fprintf(stderr, "%s: warning: %s\n", a.reference_path.c_str(), w.c_str());
+      std::fprintf(stderr, "%s: warning: %s\n", safe_lines(a.reference_path).c_str(),
+                   safe_lines(w).c_str());
     const eval::AngleReport r = eval::eval_angles(config, trial, reference, a.reference_path);
     std::cout << eval::angles_table(r);
     write_json(a.json_path, eval::angles_json(r));

@@ -7,6 +7,7 @@
 #include "bench/bench.hpp"
 #include "bench/latency_bench.hpp"
 #include "calibrate_command.hpp"
+#include "cli_exit.hpp"
 #include "eval_command.hpp"
 #include "info_command.hpp"
 #include "solve_command.hpp"
@@ -83,9 +84,9 @@ int main(int argc, char** argv) {
       std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));
     }
   } catch (const CLI::Error& e) {  // parse errors, and RuntimeError(code) from commands
-    return app.exit(e);
+    return fabrik::apps::exit_safely(app, e);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "fabrik: %s\n", e.what());
+    std::fprintf(stderr, "fabrik: %s\n", fabrik::safe_lines(e.what()).c_str());
     return 2;
   }
   return 0;

@@ -13,13 +13,17 @@
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
-#include <cstdlib>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
+#include <tuple>
 
+#include "cli_exit.hpp"
+#include "common/safe_text.hpp"
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
+#include "config/endpoint_check.hpp"
 #include "transport/daemon.hpp"
 #include "version.hpp"
 
@@ -79,20 +83,25 @@ struct Overrides {
   std::string config_path, input, output, log_level;
 };
 
-fabrik::Endpoint endpoint_override(const std::string& spec, fabrik::Endpoint e) {
+// Checked as the config's endpoints are (endpoint_check.hpp); throws
+// std::invalid_argument naming the option.
+fabrik::Endpoint endpoint_override(const std::string& spec, fabrik::Endpoint e,
+                                   const char* option) {
   // "bind:tcp://..." or "connect:tcp://..." choose the mode; a bare endpoint keeps it.
+  fabrik::Endpoint out{spec, e.mode};
   for (auto [prefix, mode] : {std::pair{"bind:", fabrik::SocketMode::bind},
                               std::pair{"connect:", fabrik::SocketMode::connect}}) {
-    if (spec.rfind(prefix, 0) == 0) return {spec.substr(std::strlen(prefix)), mode};
+    if (spec.rfind(prefix, 0) == 0) out = {spec.substr(std::strlen(prefix)), mode};
   }
-  return {spec, e.mode};
+  fabrik::require_usable_endpoint(out.address, out.mode, option);
+  return out;
 }
 
 fabrik::DaemonConfig load(const Overrides& o) {
   fabrik::DaemonConfig c = o.config_path.empty() ? fabrik::default_daemon_config()
                                                  : fabrik::load_daemon_config_file(o.config_path);
-  if (!o.input.empty()) c.input = endpoint_override(o.input, c.input);
-  if (!o.output.empty()) c.output = endpoint_override(o.output, c.output);
+  if (!o.input.empty()) c.input = endpoint_override(o.input, c.input, "--input");
+  if (!o.output.empty()) c.output = endpoint_override(o.output, c.output, "--output");
   if (!o.log_level.empty()) c.log_level = o.log_level;
   return c;
 }
@@ -103,19 +112,35 @@ int main(int argc, char** argv) {
   CLI::App app{"fabrikd: real-time marker tracking with prioritized FABRIK, over ZeroMQ"};
   app.set_version_flag("--version", std::string(fabrik::kVersion));
   Overrides o;
-  app.add_option("--config", o.config_path,
-                 "Daemon config JSON (default: the embedded config/default.json)");
-  app.add_option("--input", o.input,
-                 "Marker input endpoint, e.g. tcp://127.0.0.1:5555; prefix bind: or connect: to "
-                 "set the mode");
-  app.add_option("--output", o.output,
-                 "Pose output endpoint, e.g. tcp://127.0.0.1:5556 (same prefixes)");
+  // An empty value (--config "", an unset shell variable) is refused below:
+  // it must not quietly mean "the default".
+  const CLI::Option* config_opt = app.add_option(
+      "--config", o.config_path, "Daemon config JSON (default: the embedded config/default.json)");
+  const CLI::Option* input_opt =
+      app.add_option("--input", o.input,
+                     "Marker input endpoint, e.g. tcp://127.0.0.1:5555; prefix bind: or connect: "
+                     "to set the mode");
+  const CLI::Option* output_opt = app.add_option(
+      "--output", o.output, "Pose output endpoint, e.g. tcp://127.0.0.1:5556 (same prefixes)");
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    return fabrik::apps::exit_safely(app, e);
+  }
+  const std::tuple<const CLI::Option*, const std::string*, const char*> empty_checks[] = {
+      {config_opt, &o.config_path,
+       "give the path of a daemon config file, or leave out --config for the embedded default"},
+      {input_opt, &o.input,
+       "give an endpoint, e.g. tcp://127.0.0.1:5555, or leave out --input for the config's"},
+      {output_opt, &o.output,
+       "give an endpoint, e.g. tcp://127.0.0.1:5556, or leave out --output for the config's"}};
+  for (const auto& [opt, value, fix] : empty_checks) {
+    if (opt->count() > 0 && value->empty()) {
+      std::fprintf(stderr, "fabrikd: %s is empty. Fix: %s\n", opt->get_name().c_str(), fix);
+      return 2;
+    }
   }
   spdlog::set_default_logger(spdlog::stderr_color_mt("fabrikd"));  // stdout stays clean
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
@@ -134,10 +159,10 @@ int main(int argc, char** argv) {
     daemon.run(g_control, [o] { return load(o); });
     abandoned = daemon.reload_abandoned();
   } catch (const fabrik::ConfigError& e) {
-    std::fprintf(stderr, "fabrikd: config error: %s\n", e.what());
+    std::fprintf(stderr, "fabrikd: config error: %s\n", e.what());  // already safe text
     return 2;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "fabrikd: %s\n", e.what());
+    std::fprintf(stderr, "fabrikd: %s\n", fabrik::safe_lines(e.what()).c_str());
     return 2;
   }
   if (abandoned) {

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "common/format_number.hpp"
+#include "common/safe_text.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -66,6 +67,23 @@ nlohmann::json info_json(const io::RecordingInfo& info) {
                  {"rate_hz", f.analog_rate_hz},
                  {"labels", f.analog_labels}};
   j["rotations"] = {{"count", f.rotations}, {"labels", f.rotation_labels}};
+  nlohmann::json repeated = nlohmann::json::array();
+  for (const io::RepeatedLabel& r : f.repeated_labels)
+    repeated.push_back({{"label", r.label}, {"first", r.first}, {"second", r.second}});
+  j["repeated_labels"] = repeated;
+  if (f.format == "TRC") {
+    const auto steps = [](const io::TimeSteps& s) {
+      nlohmann::json out = {{"rows", s.rows}};
+      if (s.rows > 0)
+        out.update({{"first_frame", s.first_frame},
+                    {"first_line", s.first_line},
+                    {"time_s", s.time_s},
+                    {"previous_s", s.previous_s}});
+      return out;
+    };
+    j["time_column"] = {{"backwards", steps(f.time_backwards)},
+                        {"standing", steps(f.time_standing)}};
+  }
   j["warnings"] = t.warnings;
   return j;
 }
@@ -176,7 +194,7 @@ void add_info_command(CLI::App& app) {
             std::cout << (&file == &a->files.front() ? "" : "\n") << info_text(info);
           }
         } catch (const std::exception& e) {
-          std::fprintf(stderr, "fabrik info: %s\n", e.what());
+          std::fprintf(stderr, "fabrik info: %s\n", safe_lines(e.what()).c_str());
           ++failed;
         }
       }

@@ -4,12 +4,16 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "common/safe_text.hpp"
+
 namespace fabrik::apps {
 
 void print_warnings(const std::string& command, const std::string& path,
                     const std::vector<std::string>& warnings) {
   for (const std::string& w : warnings) {
-    std::fprintf(stderr, "fabrik %s: warning: %s: %s\n", command.c_str(), path.c_str(), w.c_str());
+    // Paths are as the user gave them, warnings quote the file's own bytes.
+    std::fprintf(stderr, "fabrik %s: warning: %s: %s\n", command.c_str(), safe_lines(path).c_str(),
+                 safe_lines(w).c_str());
   }
 }
 

@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 
+#include "common/safe_text.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
 #include "read_recording.hpp"
@@ -46,20 +47,21 @@ void run(const SolveOptions& o) {
     table = read_orientations_or_explain("solve", config, o.orientations);
     if (!o.quiet)
       std::fprintf(stderr, "fabrik solve: %s (%zu rows at %g Hz, %zu sensors)%s\n",
-                   o.orientations.c_str(), table->rows(), table->rate_hz, table->sensors.size(),
+                   safe_lines(o.orientations).c_str(), table->rows(), table->rate_hz,
+                   table->sensors.size(),
                    o.input.empty() ? ", no markers: the root stays where the rest posture puts it"
                                    : ", joined on time with the markers");
   }
   if (!o.quiet && !o.input.empty())
     std::fprintf(stderr, "fabrik solve: %s (%zu frames at %g Hz, %zu markers) with %s\n",
-                 o.input.c_str(), trial.frames(), trial.rate_hz, trial.markers(),
-                 config.file.c_str());
+                 safe_lines(o.input).c_str(), trial.frames(), trial.rate_hz, trial.markers(),
+                 safe_lines(config.file).c_str());
   const TrialSolution s = solve_trial(config, trial, o.quiet ? nullptr : progress_bar,
                                       table ? &*table : nullptr);
   for (const MostlyMissing& m : s.mostly_missing) {
     std::fprintf(stderr,
                  "fabrik solve: warning: tracked marker %s is missing in %zu of %zu frames%s\n",
-                 m.marker.c_str(), m.missing_frames, trial.frames(),
+                 safe_lines(m.marker).c_str(), m.missing_frames, trial.frames(),
                  m.zero_frames > 0
                      ? (" (" + std::to_string(m.zero_frames) + " of them exact (0, 0, 0))").c_str()
                      : "");

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <map>
 
+#include "endpoint_check.hpp"
 #include "json_reader.hpp"
 #include "model_loader.hpp"
 #include "resources.hpp"
@@ -44,19 +45,14 @@ Model read_model(const JsonReader& model, const std::string& config_file) {
 }
 
 Endpoint read_endpoint(const JsonReader& r, Endpoint e) {
-  if (r.has("endpoint")) {
-    e.address = r.at("endpoint").as_string();
-    const auto scheme = e.address.find("://");
-    if (scheme == std::string::npos || scheme == 0)
-      r.at("endpoint")
-          .fail("'" + e.address + "' is not a ZeroMQ endpoint",
-                "write transport://address, e.g. \"tcp://127.0.0.1:5555\", "
-                "\"ipc:///tmp/fabrikd.sock\" or \"inproc://markers\"");
-  }
   if (r.has("mode"))
     e.mode =
         read_choice<SocketMode>(r.at("mode"), "socket mode",
                                 {{"bind", SocketMode::bind}, {"connect", SocketMode::connect}});
+  if (r.has("endpoint")) {
+    e.address = r.at("endpoint").as_string();
+    if (auto p = endpoint_problem(e.address, e.mode)) r.at("endpoint").fail(p->problem, p->fix);
+  }
   return e;
 }
 

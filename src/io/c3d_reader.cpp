@@ -395,6 +395,10 @@ class C3dReader {
       fail("parameter section: POINT:LABELS holds " + str(trial.labels.size()) + " labels for " +
            str(points) + " points");
     }
+    detail::check_repeated_labels(
+        trial, path_, options_, "parameter section: POINT:LABELS", "entries",
+        [](std::size_t m) { return m + 1; },
+        "rename one of them in POINT:LABELS (a C3D editor such as Mokka does it)");
 
     trial.positions_m.resize(frames * points);
     facts.zero_samples.assign(points, 0);

@@ -33,6 +33,13 @@ LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes);
 // Metres per file unit for "mm", "cm" or "m" in any case (and their long names); none otherwise.
 std::optional<double> metres_per_unit(std::string_view units);
 
+// Finds labels on more than one marker (trial.source.repeated_labels). With
+// options.refuse_ambiguous that is a FormatError: "<where>: marker 'X' labels <numbering> a
+// and b ..." ("columns", numbered as number(m) gives them); otherwise a warning each.
+void check_repeated_labels(MarkerTrial& trial, const std::string& path, const ReadOptions& options,
+                           const std::string& where, const std::string& numbering,
+                           std::size_t (*number)(std::size_t), const std::string& fix);
+
 // Adds one warning to `trial` when some of its samples were exactly (0, 0, 0)
 // (trial.source.zero_samples), saying which markers and how they were read.
 void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options);

@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <string_view>
 #include <system_error>
+#include <unordered_map>
 
 #include "io/io_detail.hpp"
 
@@ -127,6 +129,35 @@ std::optional<double> metres_per_unit(std::string_view units) {
   }
   if (u == "m" || u == "meter" || u == "meters" || u == "metre" || u == "metres") return 1.0;
   return std::nullopt;
+}
+
+void check_repeated_labels(MarkerTrial& trial, const std::string& path, const ReadOptions& options,
+                           const std::string& where, const std::string& numbering,
+                           std::size_t (*number)(std::size_t), const std::string& fix) {
+  std::unordered_map<std::string_view, std::size_t> first;
+  std::vector<RepeatedLabel>& repeated = trial.source.repeated_labels;
+  for (std::size_t m = 0; m < trial.labels.size(); ++m) {
+    const std::string& label = trial.labels[m];
+    if (label.empty()) continue;  // no model marker is named "": nothing is ambiguous
+    const auto [it, fresh] = first.emplace(label, m);
+    if (!fresh) repeated.push_back({label, number(it->second), number(m)});
+  }
+  for (const RepeatedLabel& r : repeated) {
+    const std::string what = "marker '" + r.label + "' labels " + numbering + " " +
+                             std::to_string(r.first) + " and " + std::to_string(r.second);
+    if (options.refuse_ambiguous) {
+      const std::size_t more = repeated.size() - 1;
+      throw FormatError(path, where + ": " + what + ": which of them is the marker is ambiguous" +
+                                  (more ? " (and " + std::to_string(more) + " more repeated " +
+                                              (more == 1 ? "label" : "labels") + ")"
+                                        : std::string()) +
+                                  ". Fix: " + fix + "; `fabrik info` lists every repetition");
+    }
+    trial.warnings.push_back(where + ": " + what +
+                             ": ambiguous, `fabrik solve` refuses the file. "
+                             "Fix: " +
+                             fix);
+  }
 }
 
 void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options) {

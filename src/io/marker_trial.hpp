@@ -13,6 +13,22 @@
 
 namespace fabrik::io {
 
+// A label written on two markers: which one a model marker of that name means is ambiguous.
+struct RepeatedLabel {
+  std::string label;
+  // As the file numbers them: TRC columns of the two X values (Frame# is column 1, so the first
+  // marker's X is 3); C3D entries of POINT:LABELS (from 1).
+  std::size_t first = 0, second = 0;
+};
+
+// TRC rows whose Time is not after the previous row's.
+struct TimeSteps {
+  std::size_t rows = 0;                   // how many
+  long long first_frame = 0;              // Frame# of the first of them
+  std::size_t first_line = 0;             // and its line in the file
+  double time_s = 0.0, previous_s = 0.0;  // its Time and the previous row's
+};
+
 // What a file says about itself beyond the markers' positions: for messages and `fabrik info`.
 struct RecordingFacts {
   std::string format;         // "TRC" or "C3D" (empty for trials made in memory)
@@ -28,6 +44,11 @@ struct RecordingFacts {
   std::vector<std::string> analog_labels;
   std::size_t rotations = 0;
   std::vector<std::string> rotation_labels;
+  // Labels on more than one marker (each repetition once), TRC or C3D.
+  std::vector<RepeatedLabel> repeated_labels;
+  // A TRC Time column that goes back (OpenSim refuses the file) or stands still (repeated
+  // values, e.g. times rounded at a high rate: harmless here, time comes from the rate).
+  TimeSteps time_backwards, time_standing;
 };
 
 // A marker recording in memory. Positions are in METRES (converted once, when read), NaN where a
@@ -78,6 +99,11 @@ struct ReadOptions {
   // An exact (0, 0, 0) sample is a marker that was not seen (several exporters write it so).
   // False keeps such samples as positions at the origin.
   bool zeros_are_missing = true;
+  // A label on two markers (TRC or C3D: which column is the marker?) and a TRC Time column that
+  // goes back (OpenSim's TimeSeriesTable refuses it) are FormatErrors naming the columns or the
+  // first such row and the fix. False (`fabrik info`) reads such a file, records them in
+  // `source` and says so in `warnings`. A Time column that stands still is a warning either way.
+  bool refuse_ambiguous = true;
 };
 using C3dReadOptions = ReadOptions;
 

@@ -24,7 +24,8 @@ RecordingInfo inspect_recording(const std::string& path) {
                                 std::string(kInfoFormats));
   }
   info.kind = "markers";
-  info.trial = read_trial(path, {.allow_truncated_data = true});
+  // Describe what solve would refuse (repeated labels, time going back): they are findings here.
+  info.trial = read_trial(path, {.allow_truncated_data = true, .refuse_ambiguous = false});
   const MarkerTrial& t = info.trial;
   for (std::size_t m = 0; m < t.markers(); ++m) {
     MarkerSamples s{.label = t.labels[m]};

@@ -25,7 +25,9 @@ struct RecordingInfo {
   std::string path;
   std::string kind;  // "markers" (TRC, C3D) or "table" (OpenSim .sto/.mot)
   // Marker files:
-  MarkerTrial trial;  // as `fabrik solve` reads it (zeros missing), truncated data allowed
+  // As `fabrik solve` reads it (zeros missing), truncated data allowed, and what solve refuses
+  // (repeated labels, a Time column going back) read and recorded in trial.source.
+  MarkerTrial trial;
   std::vector<MarkerSamples> markers;
   // OpenSim tables:
   std::optional<OpenSimTable> table;

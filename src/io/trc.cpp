@@ -14,6 +14,7 @@
 #include <system_error>
 #include <vector>
 
+#include "common/format_number.hpp"
 #include "io/io_detail.hpp"
 #include "io/marker_trial.hpp"
 
@@ -154,6 +155,9 @@ class TrcParser {
     while (const std::optional<std::string_view> name = names.next()) {
       if (!name->empty()) trial.labels.emplace_back(*name);
     }
+    detail::check_repeated_labels(
+        trial, path_, options_, "line 4", "columns", [](std::size_t m) { return 3 + 3 * m; },
+        "rename one of them in line 4 (names must be unique, as in OpenSim)");
     const std::size_t num_markers = trial.labels.size();
     const std::optional<std::size_t> declared_markers = header.count_of("NumMarkers", trial);
     if (declared_markers && *declared_markers != num_markers) {
@@ -182,7 +186,8 @@ class TrcParser {
       Fields fields(line);
       const std::string_view frame_field = fields.next().value_or("");
       if (rows == 0) trial.first_frame = frame_number(frame_field);
-      fields.next();  // Time: rounded in OpenSim's files; time comes from the rate
+      // Time: rounded in OpenSim's files, so time comes from the rate; only its order is checked.
+      check_time(trial, fields.next().value_or(""), frame_field, rows);
       for (std::size_t m = 0; m < num_markers; ++m) {
         Eigen::Vector3d p = missing;
         bool complete = true;
@@ -219,6 +224,7 @@ class TrcParser {
                                " but the file has " + std::to_string(rows) +
                                " data rows: read " + std::to_string(rows));
     }
+    report_time(trial);
     detail::warn_about_zeros(trial, options_);
     return trial;
   }
@@ -292,6 +298,59 @@ class TrcParser {
 
   [[noreturn]] void fail(const std::string& problem) const { throw FormatError(path_, problem); }
 
+  // Counts rows whose Time is before (backwards) or equal to (standing) the previous row's, and
+  // keeps the first of each; a Time that is not a number is not compared.
+  void check_time(MarkerTrial& trial, std::string_view time_field, std::string_view frame_field,
+                  std::size_t row) {
+    const std::optional<double> t = parse_number(time_field);
+    if (!t || !std::isfinite(*t)) return;
+    if (previous_time_ && *t <= *previous_time_) {
+      TimeSteps& s =
+          *t < *previous_time_ ? trial.source.time_backwards : trial.source.time_standing;
+      if (s.rows++ == 0) {
+        const std::optional<double> frame = parse_number(frame_field);
+        s.first_frame =
+            frame && std::abs(*frame) < 1e15
+                ? static_cast<long long>(*frame)
+                : static_cast<long long>(trial.first_frame) + static_cast<long long>(row);
+        s.first_line = line_number_;
+        s.time_s = *t;
+        s.previous_s = *previous_time_;
+      }
+    }
+    previous_time_ = t;
+  }
+
+  // Time going back is refused (or a warning, see ReadOptions::refuse_ambiguous); standing still
+  // is a warning: rows are read 1/rate apart whatever their Time says.
+  void report_time(MarkerTrial& trial) const {
+    const auto rows = [](const TimeSteps& s) {
+      return std::to_string(s.rows) + (s.rows == 1 ? " row" : " rows") + " (the first at line " +
+             std::to_string(s.first_line) + ", frame " + std::to_string(s.first_frame) + ": " +
+             format_number("%.9g", s.time_s) + " s " +
+             (s.time_s == s.previous_s ? std::string("as in the row before")
+                                       : "after " + format_number("%.9g", s.previous_s) + " s") +
+             ")";
+    };
+    const TimeSteps& back = trial.source.time_backwards;
+    if (back.rows > 0) {
+      const std::string what = "the Time column goes back in time at " + rows(back);
+      const std::string fix =
+          "Fix: put the rows in time order, or export the trial again: OpenSim refuses a Time "
+          "column that does not increase";
+      if (options_.refuse_ambiguous) fail(what + ". " + fix);
+      trial.warnings.push_back(what + ": `fabrik solve` refuses the file. " + fix);
+    }
+    const TimeSteps& still = trial.source.time_standing;
+    if (still.rows > 0) {
+      trial.warnings.push_back(
+          "the Time column stands still at " + rows(still) +
+          ": read as every row is, 1/DataRate after the previous one (OpenSim refuses a Time "
+          "column that repeats a value). Fix: if the times are rounded, write them with more "
+          "digits; otherwise check DataRate and the rows");
+    }
+  }
+
   // Rejects binary or other files before reading a possibly huge "line" from them.
   void check_magic() {
     constexpr std::string_view kBom = "\xEF\xBB\xBF", kMagic = "PathFileType";
@@ -343,6 +402,7 @@ class TrcParser {
   std::uint64_t file_bytes_;
   ReadOptions options_;
   std::size_t line_number_ = 0;
+  std::optional<double> previous_time_;
 };
 
 void append_number(std::string& out, double v, int decimals) {

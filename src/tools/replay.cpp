@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "transport/marker_codec.hpp"
+#include "wire.hpp"
 
 namespace fabrik::tools {
 
@@ -72,10 +73,7 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
   zmq::socket_t pub(context, zmq::socket_type::xpub);
   pub.set(zmq::sockopt::linger, 5000);  // let queued frames out when we close
   pub.set(zmq::sockopt::sndhwm, 100000);
-  if (options.bind)
-    pub.bind(options.endpoint);
-  else
-    pub.connect(options.endpoint);
+  open_endpoint(pub, options.endpoint, options.bind, "--to");
 
   if (options.wait_subscriber_s >= 0.0) {
     const auto deadline =

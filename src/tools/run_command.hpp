@@ -7,6 +7,8 @@
 #include <exception>
 #include <string>
 
+#include "common/safe_text.hpp"
+
 namespace fabrik::tools {
 
 template <class F>
@@ -14,7 +16,8 @@ void run_command(const std::string& name, F&& body) {
   try {
     body();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "fabrik %s: %s\n", name.c_str(), e.what());
+    // Messages quote file names, endpoints and labels as given: made safe text.
+    std::fprintf(stderr, "fabrik %s: %s\n", name.c_str(), safe_lines(e.what()).c_str());
     throw CLI::RuntimeError(2);
   }
 }

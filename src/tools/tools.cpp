@@ -6,6 +6,7 @@
 #include <iostream>
 #include <memory>
 
+#include "common/safe_text.hpp"
 #include "replay.hpp"
 #include "run_command.hpp"
 #include "synth.hpp"
@@ -75,19 +76,20 @@ void add_replay_command(CLI::App& app) {
       if (!a->file.empty()) {
         trial = io::read_trial(a->file, {.zeros_are_missing = !a->keep_zeros});
         for (const std::string& w : trial.warnings)
-          std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", a->file.c_str(), w.c_str());
+          std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", safe_lines(a->file).c_str(),
+                       safe_lines(w).c_str());
         io::require_marker_data(trial, a->file);
       }
       io::OrientationTable table;
       if (!a->orientations.empty()) {
         table = io::read_orientation_table(a->orientations);
         for (const std::string& w : table.warnings)
-          std::fprintf(stderr, "fabrik replay: warning: %s: %s\n", a->orientations.c_str(),
-                       w.c_str());
+          std::fprintf(stderr, "fabrik replay: warning: %s: %s\n",
+                       safe_lines(a->orientations).c_str(), safe_lines(w).c_str());
         o.orientations = &table;
         std::fprintf(stderr, "replay: %s: %zu rows x %zu sensors at %g Hz%s\n",
-                     a->orientations.c_str(), table.rows(), table.sensors.size(), table.rate_hz,
-                     a->file.empty() ? " (the frames)" : ", joined on time");
+                     safe_lines(a->orientations).c_str(), table.rows(), table.sensors.size(),
+                     table.rate_hz, a->file.empty() ? " (the frames)" : ", joined on time");
       }
       o.endpoint = a->to;
       o.bind = a->bind;
@@ -109,8 +111,8 @@ void add_replay_command(CLI::App& app) {
       };
       if (!a->file.empty())
         std::fprintf(stderr, "replay: %s: %zu frames x %zu markers at %g Hz -> %s (%s%s)\n",
-                     a->file.c_str(), trial.frames(), trial.markers(), trial.rate_hz,
-                     a->to.c_str(), a->encoding.c_str(), a->bind ? ", bound" : "");
+                     safe_lines(a->file).c_str(), trial.frames(), trial.markers(), trial.rate_hz,
+                     safe_lines(a->to).c_str(), a->encoding.c_str(), a->bind ? ", bound" : "");
       zmq::context_t context;
       const ReplaySummary s = replay_trial(context, trial, o);
       std::size_t zeros = 0;
@@ -202,8 +204,8 @@ void add_synth_command(CLI::App& app) {
       io::write_trc(a->output, t.markers, "mm");
       io::write_trc(joints, t.joints, "mm");
       std::fprintf(stderr, "synth: %s: %zu frames x %zu markers at %g Hz, %zu gaps; joints: %s\n",
-                   a->output.c_str(), t.markers.frames(), t.markers.markers(), t.markers.rate_hz,
-                   t.gaps.size(), joints.c_str());
+                   safe_lines(a->output).c_str(), t.markers.frames(), t.markers.markers(),
+                   t.markers.rate_hz, t.gaps.size(), safe_lines(joints).c_str());
     });
   });
 }

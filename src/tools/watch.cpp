@@ -197,10 +197,7 @@ json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tal
   sub.set(zmq::sockopt::rcvhwm, 100000);
   sub.set(zmq::sockopt::subscribe, "pose");
   sub.set(zmq::sockopt::subscribe, "stats");
-  if (options.bind)
-    sub.bind(options.endpoint);
-  else
-    sub.connect(options.endpoint);
+  open_endpoint(sub, options.endpoint, options.bind, "--from");
 
   const Clock::time_point start = Clock::now();
   const auto secs = [&](Clock::time_point t) {

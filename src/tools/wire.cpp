@@ -3,6 +3,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "config/endpoint_check.hpp"
+
 namespace fabrik::tools {
 
 WireEncoding parse_wire_encoding(const std::string& name) {
@@ -42,6 +44,15 @@ std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding) {
   std::string out;
   nlohmann::json::to_msgpack(doc, out);
   return out;
+}
+
+void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind,
+                   const char* option) {
+  require_usable_endpoint(endpoint, bind ? SocketMode::bind : SocketMode::connect, option);
+  if (bind)
+    socket.bind(endpoint);
+  else
+    socket.connect(endpoint);
 }
 
 }  // namespace fabrik::tools

@@ -9,6 +9,8 @@
 #include <string_view>
 #include <vector>
 
+#include <zmq.hpp>
+
 #include "io/marker_trial.hpp"
 
 namespace fabrik::tools {
@@ -27,5 +29,11 @@ WireEncoding detect_encoding(std::string_view payload);
 // reason when it is neither.
 nlohmann::json decode_payload(std::string_view payload);
 std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding);
+
+// Binds or connects `socket` to `endpoint` after the daemon's own endpoint check
+// (config/endpoint_check.hpp: no port ZeroMQ would wrap modulo 65536);
+// std::invalid_argument naming `option` (--to, --from) otherwise.
+void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind,
+                   const char* option);
 
 }  // namespace fabrik::tools

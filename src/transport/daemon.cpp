@@ -458,7 +458,8 @@ void Daemon::serve_frame(int slot) {
 
 void Daemon::warn_config_mismatch(const MarkerFrame& f) {
   std::vector<std::string> config_names, stream_names;
-  for (const MarkerTarget& m : state_->config.tracker.markers) config_names.push_back(m.marker);
+  for (const MarkerTarget& m : state_->config.tracker.markers)
+    config_names.push_back(safe_text(m.marker, 64));
   for (int k = 0; k < f.unknown_listed; ++k) stream_names.push_back(safe_text(f.unknown_names[k], 64));
   for (const std::string& name : unknown_seen_)
     if (std::find(stream_names.begin(), stream_names.end(), name) == stream_names.end())
@@ -645,8 +646,9 @@ void Daemon::wait_for_reload_at_stop() {
 
 void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& load_config) {
   spdlog::info("fabrikd: markers in on {} ({}), poses out on {} ({}), {} markers tracked",
-               input_endpoint(), state_->config.input.mode == SocketMode::bind ? "bind" : "connect",
-               output_endpoint(),
+               safe_text(input_endpoint()),
+               state_->config.input.mode == SocketMode::bind ? "bind" : "connect",
+               safe_text(output_endpoint()),
                state_->config.output.mode == SocketMode::bind ? "bind" : "connect",
                state_->tracker->marker_count());
   Clock::time_point last_stats = Clock::now();

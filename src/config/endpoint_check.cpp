@@ -1,0 +1,69 @@
+#include "endpoint_check.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "common/safe_text.hpp"
+
+namespace fabrik {
+
+namespace {
+
+constexpr const char* kPortFix =
+    "use a port from 1 to 65535, e.g. tcp://127.0.0.1:5555, or * to bind any free port "
+    "(tcp://127.0.0.1:*)";
+
+}  // namespace
+
+std::optional<EndpointProblem> endpoint_problem(std::string_view address, SocketMode mode) {
+  const std::string quoted = "'" + std::string(address) + "'";
+  const auto scheme_end = address.find("://");
+  if (scheme_end == std::string_view::npos || scheme_end == 0)
+    return EndpointProblem{quoted + " is not a ZeroMQ endpoint",
+                           "write transport://address, e.g. \"tcp://127.0.0.1:5555\", "
+                           "\"ipc:///tmp/fabrikd.sock\" or \"inproc://markers\""};
+  const std::string_view scheme = address.substr(0, scheme_end);
+  const bool ws = scheme == "ws" || scheme == "wss";
+  if (!ws && scheme != "tcp" && scheme != "udp" && scheme != "pgm" && scheme != "epgm")
+    return std::nullopt;
+  std::string_view rest = address.substr(scheme_end + 3);
+  // tcp source;destination and pgm interface;group: the port is the destination's.
+  if (const auto semicolon = rest.rfind(';'); semicolon != std::string_view::npos)
+    rest.remove_prefix(semicolon + 1);
+  if (ws) rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
+  const auto colon = rest.rfind(':');
+  // A colon inside [IPv6] brackets is not the port's.
+  if (colon == std::string_view::npos ||
+      (rest.find(']') != std::string_view::npos && colon < rest.rfind(']')))
+    return EndpointProblem{quoted + " has no port", "add one: " + std::string(kPortFix)};
+  const std::string_view port = rest.substr(colon + 1);
+  const std::string quoted_port = "'" + std::string(port) + "'";
+  if (port == "*") {
+    if (mode == SocketMode::bind) return std::nullopt;
+    return EndpointProblem{
+        "port * of " + quoted + " means any free port, which only a bind can choose",
+        "connect to the port the peer binds, e.g. tcp://127.0.0.1:5555"};
+  }
+  if (port.empty() ||
+      !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return EndpointProblem{"port " + quoted_port + " of " + quoted + " is not a port number",
+                           kPortFix};
+  const std::string_view digits = port.substr(std::min(port.find_first_not_of('0'), port.size()));
+  const unsigned long value = digits.size() > 5 ? 100000 : std::stoul("0" + std::string(digits));
+  if (value == 0)
+    return EndpointProblem{
+        "port 0 of " + quoted + " is not a port (ZeroMQ would bind any free port)", kPortFix};
+  if (value > 65535)
+    return EndpointProblem{"port " + quoted_port + " of " + quoted +
+                               " is out of range (ZeroMQ would silently use it modulo 65536)",
+                           kPortFix};
+  return std::nullopt;
+}
+
+void require_usable_endpoint(std::string_view address, SocketMode mode, std::string_view option) {
+  if (auto p = endpoint_problem(address, mode))
+    throw std::invalid_argument(
+        safe_text(std::string(option) + ": " + p->problem + ". Fix: " + p->fix, 1024));
+}
+
+}  // namespace fabrik
