@@ -196,7 +196,7 @@ TEST_CASE("OpenSim tables: a Coordinates file and a quaternion table survive a r
   CHECK_THROWS_AS(io::write_opensim_table(mot.path(), bad), std::invalid_argument);
 }
 
-TEST_CASE("OpenSim tables: unusable rows are left out and said; a cell that is not a number too",
+TEST_CASE("OpenSim tables: unusable rows are left out and said, a cell that is not a number too",
           "[angles][io]") {
   test::TempFile mot(".mot");
   {
@@ -401,7 +401,7 @@ TEST_CASE("walk1 with gait2354 vs OpenSim's IK: hip flexion and the knee follow 
 // over, and the per-frame maximum residual is 48 mm where the constrained
 // least-squares optimum of the same model is 28 mm. [!mayfail] reports the
 // failures without failing the suite; remove it once they pass.
-TEST_CASE("walk1 must-show: hip, knee and ankle r >= 0.98 and <= 3 deg after the offset; residual "
+TEST_CASE("walk1 must-show: hip, knee and ankle r >= 0.98 and <= 3 deg after the offset, residual "
           "<= 10 mm mean, <= 30 mm max (skipped without ../shared/data)",
           "[angles][data][!mayfail]") {
   const Walk1 data;

@@ -180,7 +180,7 @@ TEST_CASE("Calibration recovers joint centres from a synthetic static trial", "[
   CHECK(d.tracker.markers.size() == 7);
 }
 
-TEST_CASE("A window of the trial is averaged; frame numbers are the file's", "[calib]") {
+TEST_CASE("A window of the trial is averaged, frame numbers are the file's", "[calib]") {
   const Subject s;
   io::MarkerTrial trial = s.trial();
   trial.first_frame = 101;
@@ -325,7 +325,7 @@ TEST_CASE("gait2354 calibrated on subject01_static.trc is anatomically plausible
   CHECK(m.marker_points().size() == 41);
 }
 
-TEST_CASE("calibrate reports how much the subject moved in the window; --auto-window picks the "
+TEST_CASE("calibrate reports how much the subject moved in the window, --auto-window picks the "
           "stillest",
           "[calib]") {
   const std::string path = FABRIK_SHARED_DATA_DIR "/subject01_static.trc";

@@ -397,7 +397,7 @@ TEST_CASE("Unusable config and model files, numbers and addresses exit 2 within 
 }
 
 TEST_CASE("A SIGHUP with an unusable config keeps answering frames throughout and keeps the old "
-          "config; SIGTERM ends a reload in progress",
+          "config, SIGTERM ends a reload in progress",
           "[fabrikd][files][reload]") {
   json c = good_config("hup2");
   c["output"]["units"] = "m";  // the running config: poses in metres
@@ -548,7 +548,7 @@ TEST_CASE("A 64 MiB message is refused by ZeroMQ before it is buffered", "[fabri
 }
 
 TEST_CASE("1100 connected sources under a 1024 open-files limit neither spin the daemon nor "
-          "lock clients out; idle TCP connections are closed",
+          "lock clients out, idle TCP connections are closed",
           "[fabrikd][limits]") {
   rlimit limit{};
   getrlimit(RLIMIT_NOFILE, &limit);

@@ -256,8 +256,8 @@ std::optional<eval::GapReport> walk1_gaps(const eval::GapOptions& options) {
 // and the offline one 8.4 mm: both fail. A returning marker's hand-over
 // started at the model point plus the marker's old offset fails the return
 // jump (11.4 mm): it must start at the model's own point of the marker.
-TEST_CASE("walk1 must-show: 1 s gaps live median <= 8 mm and every marker <= 30 mm; offline "
-          "<= 5 and 20 mm; 2 s live median <= 15 mm; return jumps <= 5 mm",
+TEST_CASE("walk1 must-show: 1 s gaps live median <= 8 mm and every marker <= 30 mm, offline "
+          "<= 5 and 20 mm, 2 s live median <= 15 mm, return jumps <= 5 mm",
           "[gaps][data]") {
   eval::GapOptions options;
   options.windows_s = {1.0, 2.0};

@@ -807,7 +807,7 @@ TEST_CASE("C3D frame counts: the header's wrapped 16-bit numbers, POINT:FRAMES, 
   }
 }
 
-TEST_CASE("C3D analog channels and rotations are counted and skipped; the points read right",
+TEST_CASE("C3D analog channels and rotations are counted and skipped, the points read right",
           "[io][c3d]") {
   const MarkerTrial original = make_trial(4, 30, true);
   for (const bool float_data : {false, true}) {

@@ -170,7 +170,7 @@ TEST_CASE("A model's frames, joints and coordinates load as written", "[loader][
   CHECK(ty.offset == Approx(0.005));  // model units (mm) to metres
 }
 
-TEST_CASE("A coordinate is sign * (angle + offset), each relative to its own reference",
+TEST_CASE("A coordinate is sign times (angle + offset), each relative to its own reference",
           "[joints][coordinates]") {
   // The thigh's angles relative to the pelvis and, listed right after them,
   // relative to the world: consecutive coordinates of one segment that must
@@ -264,7 +264,7 @@ TEST_CASE("Each mistake in a model's frames, joints or coordinates has its own m
   }
 }
 
-TEST_CASE("A template's frames go into the calibrated model; joints and coordinates are copied",
+TEST_CASE("A template's frames go into the calibrated model, joints and coordinates are copied",
           "[calib][joints]") {
   const calib::CalibrationResult r = calibrate_template(template_doc());
   const auto& segs = r.model["segments"];

@@ -256,7 +256,7 @@ TEST_CASE("A cold first frame of a bent posture, turned and far away, converges"
   CHECK(worst_cold_m < 5e-3);
 }
 
-TEST_CASE("A reset and a long gap start cold; a short gap does not", "[cold_start]") {
+TEST_CASE("A reset and a long gap start cold, a short gap does not", "[cold_start]") {
   const DaemonConfig config = default_daemon_config();
   const Model& model = *config.tracker.model;
   SyntheticMotion motion(model, {});
