@@ -982,3 +982,45 @@ TEST_CASE("A stream that shares no marker name with the config is logged once, w
       client.stats_until([](const json& s) { return s["config_mismatch"] == false; });
   CHECK(matched);
 }
+
+TEST_CASE("Subscriptions: a prefix of pose or stats is applied to the subscriber that sent it, "
+          "any other is refused",
+          "[daemon][limits]") {
+  for (const char* ok : {"", "p", "pose", "s", "sta", "stats"})
+    CHECK(wire::subscribes_to_our_topics(ok));
+  for (const char* no : {"posex", "pose ", "x", "statsx", "markers", "Pose"})
+    CHECK_FALSE(wire::subscribes_to_our_topics(no));
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
+  const auto subscriber = [&](const char* prefix) {
+    zmq::socket_t s(context, zmq::socket_type::sub);
+    s.set(zmq::sockopt::linger, 0);
+    s.set(zmq::sockopt::subscribe, prefix);
+    s.connect(d.daemon.output_endpoint());
+    return s;
+  };
+  zmq::socket_t stats_only = subscriber("stats"), refused = subscriber("posex");
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  // Until the stats subscriber has had a stats message and the refusal is counted.
+  int stats_seen = 0, poses_seen = 0;
+  const auto read_stats_only = [&] {
+    zmq::message_t topic, payload;
+    while (stats_only.recv(topic, zmq::recv_flags::dontwait)) {
+      (void)stats_only.recv(payload, zmq::recv_flags::dontwait);
+      (topic.to_string_view() == "stats" ? stats_seen : poses_seen) += 1;
+    }
+  };
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while ((stats_seen == 0 || d.daemon.counters().subscriptions_refused == 0) &&
+         std::chrono::steady_clock::now() < deadline) {
+    client.send_frame(++frame);
+    REQUIRE(client.receive("pose"));
+    read_stats_only();
+  }
+  CHECK(stats_seen > 0);
+  CHECK(poses_seen == 0);  // "stats" was applied to its own subscriber only
+  CHECK(d.daemon.counters().subscriptions_refused > 0);
+  zmq::message_t any;
+  CHECK_FALSE(refused.recv(any, zmq::recv_flags::dontwait));
+}
