@@ -20,15 +20,14 @@ def main():
     for exe in sys.argv[1:]:
         out = subprocess.run([exe, "--list-test-names-only"], capture_output=True, text=True,
                              timeout=60).stdout  # Catch exits with the count
+        if not out.strip():
+            bad.append(f"{exe}: lists no test case")
         for name in out.splitlines():
             if not name.strip():
                 continue
             listed += 1
             if any(c in name for c in FORBIDDEN) or name != name.strip():
                 bad.append(f"{exe}: {name!r}")
-    if listed == 0:
-        print("no test cases listed: wrong executables?")
-        return 1
     for b in bad:
         print("cannot run under ctest (avoid ; * \\ and edge spaces in names):", b)
     print(f"{listed} test case names checked, {len(bad)} unusable")

@@ -361,3 +361,41 @@ TEST_CASE("calibrate reports how much the subject moved in the window, --auto-wi
   CHECK_THROWS_WITH(calib::calibrate(tmpl, trial, "s.trc", {.frames = 20, .auto_window = 20}),
                     Catch::Contains("--auto-window"));
 }
+
+TEST_CASE("A template beyond the model's limits is refused as it is read, with the pointer",
+          "[calib][limits]") {
+  SECTION("segments") {
+    json t = leg_template();
+    for (int s = 0; s < ModelLimits::kSegments; ++s)
+      t["segments"].push_back({{"name", "x" + std::to_string(s)}, {"parent", "pelvis"},
+                               {"base", "lumbar"}});
+    CHECK_THAT(template_error(t), Catch::Contains("at /segments/512:") &&
+                                      Catch::Contains("fabrikd takes at most 512"));
+  }
+  SECTION("depth") {
+    json t = leg_template();
+    std::string parent = "r_shank";  // 3 deep
+    for (int s = 0; s < ModelLimits::kDepth; ++s) {
+      const std::string name = "c" + std::to_string(s);
+      t["segments"].push_back({{"name", name}, {"parent", parent}, {"base", "r_ankle"}});
+      parent = name;
+    }
+    CHECK_THAT(template_error(t), Catch::Contains("at /segments/64/parent:") &&
+                                      Catch::Contains("more than 64 segments from the root"));
+  }
+  SECTION("markers on one segment, and in the template") {
+    json t = leg_template();
+    for (int k = 0; k < ModelLimits::kPointsPerSegment; ++k)
+      t["segments"][2]["markers"]["M" + std::to_string(k)] = json::object();
+    CHECK_THAT(template_error(t), Catch::Contains("at /segments/2:") &&
+                                      Catch::Contains("fabrikd takes at most 256"));
+    json u = leg_template();
+    for (int s = 0; s < 5; ++s) {
+      json seg = {{"name", "x" + std::to_string(s)}, {"parent", "pelvis"}, {"base", "lumbar"}};
+      for (int k = 0; k < 250; ++k)
+        seg["markers"]["M" + std::to_string(s) + "_" + std::to_string(k)] = json::object();
+      u["segments"].push_back(seg);
+    }
+    CHECK_THAT(template_error(u), Catch::Contains("more than 1024 markers"));
+  }
+}

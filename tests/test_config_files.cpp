@@ -13,6 +13,7 @@
 #include "config/daemon_config.hpp"
 #include "config/endpoint_check.hpp"
 #include "config/json_reader.hpp"
+#include "config/model_loader.hpp"
 #include "temp_file.hpp"
 
 using namespace fabrik;
@@ -216,4 +217,19 @@ TEST_CASE("A config error quoting bytes that are not UTF-8 says them as escapes"
                        "c.json");
   });
   CHECK_THAT(mode_error, Catch::Contains("unknown socket mode 'li\xc3\xa9\\x07n'"));
+}
+
+TEST_CASE("A config tracks at most as many markers as a model may have", "[config][limits]") {
+  std::ifstream in(std::string(FABRIK_SOURCE_DIR) + "/config/default.json");
+  json c = json::parse(in);
+  for (int k = 0; k <= ModelLimits::kMarkers; ++k)
+    c["targets"]["markers"]["S" + std::to_string(k)] = {{"point", "RASI"}};
+  const std::string listed = std::to_string(c["targets"]["markers"].size());
+  try {
+    load_daemon_config(c.dump(), std::string(FABRIK_SOURCE_DIR) + "/config/many.json");
+    FAIL("loaded");
+  } catch (const ConfigError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("at /targets/markers:") &&
+                             Catch::Contains(listed + " marker targets"));
+  }
 }

@@ -1021,6 +1021,4 @@ TEST_CASE("Subscriptions: a prefix of pose or stats is applied to the subscriber
   CHECK(stats_seen > 0);
   CHECK(poses_seen == 0);  // "stats" was applied to its own subscriber only
   CHECK(d.daemon.counters().subscriptions_refused > 0);
-  zmq::message_t any;
-  CHECK_FALSE(refused.recv(any, zmq::recv_flags::dontwait));
 }

@@ -12,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <cerrno>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -39,6 +40,7 @@ fabrik::wire::DaemonControl g_control;
 std::atomic<bool> g_running{false};
 
 extern "C" void on_signal(int sig) {
+  const int saved_errno = errno;  // the interrupted code may be about to read it
   if (sig == SIGHUP) {
     g_control.reload.store(true);
   } else {
@@ -53,6 +55,7 @@ extern "C" void on_signal(int sig) {
     const std::uint64_t one = 1;
     (void)!write(g_control.wake_fd, &one, sizeof one);
   }
+  errno = saved_errno;
 }
 
 void install_signal_handlers() {
@@ -144,12 +147,16 @@ int main(int argc, char** argv) {
   }
   spdlog::set_default_logger(spdlog::stderr_color_mt("fabrikd"));  // stdout stays clean
   spdlog::set_pattern("%Y-%m-%d %H:%M:%S.%e %^%l%$ %v");
-  g_control.wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);  // -1: the loop polls the flags
+  g_control.wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+  const int eventfd_errno = errno;
   install_signal_handlers();
   bool abandoned = false;
   try {
     fabrik::DaemonConfig config = load(o);
     spdlog::set_level(spdlog::level::from_str(config.log_level));
+    if (g_control.wake_fd < 0)
+      spdlog::warn("no eventfd ({}): a stop is seen within the loop's 100 ms poll instead of at once",
+                   std::strerror(eventfd_errno));
     spdlog::info("fabrikd {}: config {}", fabrik::kVersion, fabrik::wire::safe_text(config.file));
     raise_open_file_limit();
     zmq::context_t context(1);

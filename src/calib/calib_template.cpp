@@ -97,6 +97,9 @@ struct Loader {
   std::vector<std::pair<int, JsonReader>> named_segment_frames;
   // Every reference, checked once all names are known.
   std::vector<std::pair<std::string, std::string>> refs;  // name, pointer
+  // The model's limits hold for a template too, checked as it is read (its
+  // names are looked up one by one, so a larger one would cost minutes).
+  std::vector<int> depth;  // per segment, from the root
 
   void note_ref(const PointRef& ref, const JsonReader& where) { note_ref(ref, where.pointer()); }
   void note_ref(const PointRef& ref, const std::string& pointer) {
@@ -214,6 +217,10 @@ struct Loader {
     }
     seg.base = s.at("base").as_string();
     const int idx = static_cast<int>(t.segments.size());
+    depth.push_back(seg.parent < 0 ? 1 : depth[seg.parent] + 1);
+    if (seg.parent >= 0) ModelLimits::check_depth(s.at("parent"), seg.name, depth.back());
+    ModelLimits::check_points(s, (s.has("points") ? s.at("points").value().size() : 0) +
+                                     (s.has("markers") ? s.at("markers").value().size() : 0));
     if (s.has("frame")) {
       if (s.at("frame").value().is_string()) {
         named_segment_frames.emplace_back(idx, s.at("frame"));
@@ -256,6 +263,7 @@ struct Loader {
         d.static_only = m.get("static_only", false);
         d.pointer = m.pointer();
         t.markers.push_back(std::move(d));
+        ModelLimits::check_markers(m, t.markers.size());
       }
     }
   }
@@ -347,6 +355,7 @@ struct Loader {
     const JsonReader segs = root.at("segments");
     segs.expect_array();
     if (segs.value().empty()) segs.fail("no segments", "add at least one segment");
+    ModelLimits::check_segments(segs);
     for (std::size_t i = 0; i < segs.value().size(); ++i) read_segment(segs.at(i));
     // A segment's frame may be another segment's (a clavicle's the torso's).
     for (const auto& [seg, f] : named_segment_frames) {

@@ -79,6 +79,12 @@ void read_targets(const JsonReader& targets, const Model& model, std::vector<Mar
   if (targets.has("markers")) {
     const JsonReader markers = targets.at("markers");
     markers.expect_object();
+    // Each target costs the gap predictor per pair of targets: the model's limit holds here too.
+    if (markers.value().size() > ModelLimits::kMarkers)
+      markers.fail("the config lists " + std::to_string(markers.value().size()) +
+                       " marker targets; fabrikd takes at most " +
+                       std::to_string(ModelLimits::kMarkers),
+                   "list only the markers the stream sends");
     std::vector<std::string> dropped;
     for (auto it = markers.value().begin(); it != markers.value().end(); ++it) {
       const JsonReader e = markers.at(it.key());
@@ -108,6 +114,10 @@ void read_targets(const JsonReader& targets, const Model& model, std::vector<Mar
       order.erase(std::remove(order.begin(), order.end(), name), order.end());
     }
   }
+  if (order.size() > ModelLimits::kMarkers)
+    targets.fail("the config tracks " + std::to_string(order.size()) +
+                     " markers; fabrikd takes at most " + std::to_string(ModelLimits::kMarkers),
+                 "track fewer markers (\"track\": false)");
   for (const std::string& name : order) out.push_back(by_name[name]);
   if (out.empty() && !has_sensors)
     targets.fail("no marker is tracked",

@@ -136,12 +136,7 @@ std::vector<CoordinateSpec> read_coordinates(const JsonReader& c,
 
 void read_points(const JsonReader& obj, double scale, bool marker, std::vector<PointSpec>& out) {
   obj.expect_object();
-  if (out.size() + obj.value().size() > ModelLimits::kPointsPerSegment)
-    obj.fail("a segment has " + std::to_string(out.size() + obj.value().size()) +
-                 " points and markers; fabrikd takes at most " +
-                 std::to_string(ModelLimits::kPointsPerSegment),
-             "split the segment, or keep the markers the solve needs (a rigid segment is "
-             "tracked from 3 or 4)");
+  ModelLimits::check_points(obj, out.size() + obj.value().size());
   for (auto it = obj.value().begin(); it != obj.value().end(); ++it) {
     const JsonReader p = obj.at(it.key());
     out.push_back(PointSpec{it.key(), p.as_vec3() * scale, marker});
@@ -169,19 +164,45 @@ void check_depth(const JsonReader& segs, const std::vector<SegmentSpec>& specs) 
     }
     int d = at >= 0 ? depth[at] : 0;
     for (auto it = path.rbegin(); it != path.rend(); ++it) depth[*it] = ++d;
-    if (!path.empty() && d > ModelLimits::kDepth)
-      segs.at(static_cast<std::size_t>(path.front()))
-          .at("parent")
-          .fail("segment '" + specs[path.front()].name + "' is more than " +
-                    std::to_string(ModelLimits::kDepth) +
-                    " segments from the root; fabrikd takes at most " +
-                    std::to_string(ModelLimits::kDepth),
-                "attach long chains nearer the root, or merge segments that do not move "
-                "relative to each other");
+    if (!path.empty() && d > ModelLimits::kDepth)  // the root has no "parent" to point at
+      ModelLimits::check_depth(segs.at(static_cast<std::size_t>(path.front())).at("parent"),
+                               specs[path.front()].name, d);
   }
 }
 
 }  // namespace
+
+void ModelLimits::check_segments(const JsonReader& segs) {
+  if (segs.value().size() > kSegments)
+    segs.at(std::size_t{kSegments})
+        .fail("there are " + std::to_string(segs.value().size()) +
+                  " segments; fabrikd takes at most " + std::to_string(kSegments),
+              "merge segments that do not move relative to each other (a body with hands and a "
+              "segmented spine has about 150)");
+}
+
+void ModelLimits::check_points(const JsonReader& where, std::size_t n) {
+  if (n > kPointsPerSegment)
+    where.fail("a segment has " + std::to_string(n) + " points and markers; fabrikd takes at most " +
+                   std::to_string(kPointsPerSegment),
+               "split the segment, or keep the markers the solve needs (a rigid segment is "
+               "tracked from 3 or 4)");
+}
+
+void ModelLimits::check_markers(const JsonReader& where, std::size_t n) {
+  if (n > kMarkers)
+    where.fail("there are more than " + std::to_string(kMarkers) +
+                   " markers with these; fabrikd takes at most " + std::to_string(kMarkers),
+               "keep the markers the solve needs (3 or 4 per segment)");
+}
+
+void ModelLimits::check_depth(const JsonReader& parent, const std::string& segment, int depth) {
+  if (depth > kDepth)
+    parent.fail("segment '" + segment + "' is more than " + std::to_string(kDepth) +
+                    " segments from the root; fabrikd takes at most " + std::to_string(kDepth),
+                "attach long chains nearer the root, or merge segments that do not move "
+                "relative to each other");
+}
 
 Model load_model(const nlohmann::json& doc, const std::string& file) {
   return load_model(JsonReader(doc, file));
@@ -200,12 +221,7 @@ Model load_model(const JsonReader& root) {
                                      : Eigen::Vector3d::Zero();
   const JsonReader segs = root.at("segments");
   segs.expect_array();
-  if (segs.value().size() > ModelLimits::kSegments)
-    segs.at(std::size_t{ModelLimits::kSegments})
-        .fail("the model has " + std::to_string(segs.value().size()) +
-                  " segments; fabrikd takes at most " + std::to_string(ModelLimits::kSegments),
-              "merge segments that do not move relative to each other (a body with hands and a "
-              "segmented spine has about 150)");
+  ModelLimits::check_segments(segs);
   std::vector<SegmentSpec> specs;
   std::size_t markers = 0;
   for (std::size_t i = 0; i < segs.value().size(); ++i) {
@@ -221,11 +237,7 @@ Model load_model(const JsonReader& root) {
       const std::size_t before = spec.points.size();
       read_points(s.at("markers"), scale, true, spec.points);
       markers += spec.points.size() - before;
-      if (markers > ModelLimits::kMarkers)
-        s.at("markers").fail("the model has more than " + std::to_string(ModelLimits::kMarkers) +
-                                 " markers with these; fabrikd takes at most " +
-                                 std::to_string(ModelLimits::kMarkers),
-                             "keep the markers the solve needs (3 or 4 per segment)");
+      ModelLimits::check_markers(s.at("markers"), markers);
     }
     if (s.has("frame")) spec.anatomical = read_frame(s.at("frame"));
     if (s.has("joint")) spec.joint = read_joint(s.at("joint"));

@@ -14,12 +14,20 @@ namespace fabrik {
 // 150 bodies and lab marker sets up to about 300 markers), while a larger file
 // would make setup and every frame cost what no real body needs. Each limit
 // is named in the error with its pointer and a fix (README, "Model files").
+class JsonReader;
 struct ModelLimits {
   static constexpr int kSegments = 512;
   static constexpr int kPointsPerSegment = 256;  // points and markers of one segment
   static constexpr int kMarkers = 1024;          // in the whole model
   static constexpr int kDepth = 64;              // segments from the root to a leaf
   static constexpr int kCoordinates = 1024;
+
+  // Each throws ConfigError at `where` when its limit is passed (models and
+  // templates say it the same way).
+  static void check_segments(const JsonReader& segments_array);
+  static void check_points(const JsonReader& where, std::size_t points_and_markers);
+  static void check_markers(const JsonReader& where, std::size_t markers_so_far);
+  static void check_depth(const JsonReader& parent, const std::string& segment, int depth);
 };
 
 // `file` is only used in messages. Throws ConfigError.

@@ -10,7 +10,9 @@
 #include <stdexcept>
 #include <thread>
 
+#include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 #include "config/closest_names.hpp"
@@ -67,9 +69,11 @@ zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const 
   } else {
     s.set(zmq::sockopt::sndhwm, pose_queue_messages(c.max_backlog_frames));
     s.set(zmq::sockopt::sndbuf, kPoseSendBufferBytes);
-    // Subscriptions come to the loop (read_subscriptions) instead of going
-    // straight into ZeroMQ's matching tree.
-    s.set(zmq::sockopt::xpub_manual, true);
+    // Every subscription also comes to the loop (read_subscriptions), with
+    // the connection it came from. (ZMQ_XPUB_MANUAL would let the loop apply
+    // them itself, but libzmq 4.3 then pairs a message that is not a
+    // subscription with the next subscription's connection.)
+    s.set(zmq::sockopt::xpub_verboser, true);
     s.set(zmq::sockopt::maxmsgsize, kMaxSubscriptionBytes);
     s.set(zmq::sockopt::rcvhwm, kSubscriptionQueueMessages);
     s.set(zmq::sockopt::rcvbuf, kSubscriberReceiveBufferBytes);
@@ -521,37 +525,69 @@ void Daemon::read_monitor() {
   update_snapshot();
 }
 
-// Subscriptions to a prefix of our topics are applied (XPUB_MANUAL: to the
-// connection that sent them); anything else is refused and, on a bound
-// socket, its connection shut down: ZeroMQ has already stored the
-// subscription for that connection and frees it only when the connection
-// goes. A connected output's peer is the operator's own (a proxy), so it is
-// only ignored there.
+namespace {
+
+// Whether `fd` is still a connection to the socket bound at `endpoint` (as
+// ZeroMQ reports it: tcp://host:port or ipc://path): the descriptor a
+// message came from may have been closed and reused since.
+bool connected_to(int fd, std::string_view endpoint) {
+  sockaddr_storage local{}, peer{};
+  socklen_t local_n = sizeof local, peer_n = sizeof peer;
+  if (getsockname(fd, reinterpret_cast<sockaddr*>(&local), &local_n) != 0 ||
+      getpeername(fd, reinterpret_cast<sockaddr*>(&peer), &peer_n) != 0)
+    return false;  // not a socket, or not a connected one (a listener)
+  if (local.ss_family == AF_INET || local.ss_family == AF_INET6) {
+    if (!endpoint.starts_with("tcp://")) return false;
+    const auto colon = endpoint.rfind(':');
+    const std::uint16_t port = local.ss_family == AF_INET
+                                   ? reinterpret_cast<const sockaddr_in&>(local).sin_port
+                                   : reinterpret_cast<const sockaddr_in6&>(local).sin6_port;
+    return colon != std::string_view::npos &&
+           endpoint.substr(colon + 1) == std::to_string(ntohs(port));
+  }
+  if (local.ss_family == AF_UNIX) {
+    const auto& un = reinterpret_cast<const sockaddr_un&>(local);
+    return endpoint.starts_with("ipc://") && endpoint.substr(6) == std::string_view(un.sun_path);
+  }
+  return false;
+}
+
+}  // namespace
+
+// ZeroMQ applies every subscription itself; the loop sees each one too
+// (XPUB_VERBOSER) and refuses any that is not a prefix of a topic we
+// publish, and any other message: on a bound socket, the connection that
+// sent it is shut down, which is what frees what ZeroMQ stored for it. A
+// connected output's peer is the operator's own (a proxy), so it is only
+// counted there.
 void Daemon::read_subscriptions() {
   State& s = *state_;
+  const bool bound = s.config.output.mode == SocketMode::bind;
+  std::string endpoint;
+  int shut[16];
+  int n_shut = 0;
   for (int n = 0; n < kMaxBatch; ++n) {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
-    const bool subscribe = !m.empty() && m[0] == 1, unsubscribe = !m.empty() && m[0] == 0;
-    if ((subscribe || unsubscribe) && subscribes_to_our_topics(m.substr(1))) {
-      if (subscribe)
-        s.pub.set(zmq::sockopt::subscribe, m.substr(1));
-      else
-        s.pub.set(zmq::sockopt::unsubscribe, m.substr(1));
-      continue;
-    }
-    if (unsubscribe) continue;  // of one refused, or a closed connection's: nothing to undo
+    if (!m.empty() && m[0] == 0) continue;  // an unsubscription: nothing to hold
+    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1))) continue;
     ++counters_.subscriptions_refused;
     // The deprecated ZMQ_SRCFD is the only way ZeroMQ names the connection.
     const int fd = zmq_msg_get(subscription_.handle(), ZMQ_SRCFD);
-    const bool bound = s.config.output.mode == SocketMode::bind;
-    if (bound && fd >= 0) ::shutdown(fd, SHUT_RDWR);
+    bool dropped = false;
+    if (bound && fd >= 0 && std::find(shut, shut + n_shut, fd) == shut + n_shut) {
+      if (endpoint.empty()) endpoint = s.pub.get(zmq::sockopt::last_endpoint);
+      if (connected_to(fd, endpoint) && ::shutdown(fd, SHUT_RDWR) == 0) {
+        dropped = true;
+        if (n_shut < static_cast<int>(std::size(shut))) shut[n_shut++] = fd;
+      }
+    }
     char text[96];
     const std::size_t n_text = safe_text(m.substr(std::min<std::size_t>(1, m.size())), text, 64);
     subscriber_log_.warn(
         "refused a subscription to '{}' on the output{}: fabrikd publishes only the topics pose "
         "and stats (stats: subscriptions_refused)",
-        std::string_view(text, n_text), bound && fd >= 0 ? ", subscriber disconnected" : "");
+        std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "");
   }
   update_snapshot();
 }
