@@ -227,11 +227,11 @@ TEST_CASE("The offline fill lets the skeleton compete only where two more marker
     FAIL("no gap filled");
     return FillMethod::skeleton;
   };
-  // Three holders: the skeleton, on noise-free motion as steady as the
-  // head's other three markers (an exact triple), shares the fill with them.
-  CHECK(method(0) == FillMethod::both);
-  // One: the segment's frame is not scored (the lost marker placed it in the
-  // past, which would flatter it), so the donors fill alone.
+  // One holder: the segment's frame is not scored (the lost marker placed it
+  // in the past, which would flatter it), so the donors fill alone. (With
+  // three, the skeleton competes, but on noise-free motion it ties with exact
+  // donor triples, so whether it is among the best three is down to rounding:
+  // clang and gcc disagree.)
   CHECK(method(2) == FillMethod::donors);
 }
 
