@@ -3,6 +3,11 @@
 // deadline and fails with a message.
 #include <spdlog/sinks/ringbuffer_sink.h>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdlib>
@@ -1021,4 +1026,32 @@ TEST_CASE("Subscriptions: a prefix of pose or stats is applied to the subscriber
   CHECK(stats_seen > 0);
   CHECK(poses_seen == 0);  // "stats" was applied to its own subscriber only
   CHECK(d.daemon.counters().subscriptions_refused > 0);
+}
+
+TEST_CASE("A refused subscriber's descriptor counts as its connection only while it is one to "
+          "the output's own port",
+          "[daemon][limits]") {
+  const int listener = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  REQUIRE(bind(listener, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  REQUIRE(listen(listener, 1) == 0);
+  socklen_t n = sizeof a;
+  getsockname(listener, reinterpret_cast<sockaddr*>(&a), &n);
+  const int port = ntohs(a.sin_port);
+  const int client = socket(AF_INET, SOCK_STREAM, 0);
+  REQUIRE(connect(client, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  const int accepted = accept(listener, nullptr, nullptr);
+  REQUIRE(accepted >= 0);
+  const std::string ours = "tcp://127.0.0.1:" + std::to_string(port);
+  CHECK(wire::connected_to(accepted, ours));
+  CHECK_FALSE(wire::connected_to(accepted, "tcp://127.0.0.1:" + std::to_string(port ^ 1)));
+  CHECK_FALSE(wire::connected_to(accepted, "ipc:///tmp/fabrikd-output"));
+  CHECK_FALSE(wire::connected_to(listener, ours));  // the port's listener: not a connection
+  CHECK_FALSE(wire::connected_to(client, ours));    // the other end: its own port is another
+  close(accepted);
+  CHECK_FALSE(wire::connected_to(accepted, ours));  // closed (nothing opened since)
+  close(client);
+  close(listener);
 }

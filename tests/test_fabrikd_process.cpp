@@ -233,30 +233,30 @@ int free_tcp_port() {
   return ntohs(a.sin_port);
 }
 
-// Peak resident memory (VmHWM), kB.
-long peak_rss_kb(pid_t pid) {
+// The value of one field of /proc/PID/status ("VmRSS:" ...), or "" if absent.
+std::string proc_status(pid_t pid, const std::string& field) {
   std::ifstream in("/proc/" + std::to_string(pid) + "/status");
   for (std::string line; std::getline(in, line);)
-    if (line.rfind("VmHWM:", 0) == 0) return std::stol(line.substr(6));
-  return -1;
+    if (line.rfind(field, 0) == 0) return line.substr(field.size());
+  return "";
+}
+
+// Peak and current resident memory (VmHWM, VmRSS), kB; -1 if unknown.
+long peak_rss_kb(pid_t pid) {
+  const std::string v = proc_status(pid, "VmHWM:");
+  return v.empty() ? -1 : std::stol(v);
+}
+long rss_kb(pid_t pid) {
+  const std::string v = proc_status(pid, "VmRSS:");
+  return v.empty() ? -1 : std::stol(v);
 }
 
 // Whether `pid` has installed a handler for `sig` (SigCgt in /proc/PID/status).
 bool catches_signal(pid_t pid, int sig) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("SigCgt:", 0) == 0)
-      return (std::stoull(line.substr(7), nullptr, 16) >> (sig - 1)) & 1U;
-  return false;
+  const std::string mask = proc_status(pid, "SigCgt:");
+  return !mask.empty() && ((std::stoull(mask, nullptr, 16) >> (sig - 1)) & 1U);
 }
 
-// Current resident memory (VmRSS), kB.
-long rss_kb(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  for (std::string line; std::getline(in, line);)
-    if (line.rfind("VmRSS:", 0) == 0) return std::stol(line.substr(6));
-  return -1;
-}
 
 // A subscriber that speaks ZMTP 3.0 over a raw TCP socket, as a hostile
 // client would: unlike a ZeroMQ SUB socket it keeps no copy of what it

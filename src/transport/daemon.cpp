@@ -525,11 +525,6 @@ void Daemon::read_monitor() {
   update_snapshot();
 }
 
-namespace {
-
-// Whether `fd` is still a connection to the socket bound at `endpoint` (as
-// ZeroMQ reports it: tcp://host:port or ipc://path): the descriptor a
-// message came from may have been closed and reused since.
 bool connected_to(int fd, std::string_view endpoint) {
   sockaddr_storage local{}, peer{};
   socklen_t local_n = sizeof local, peer_n = sizeof peer;
@@ -551,8 +546,6 @@ bool connected_to(int fd, std::string_view endpoint) {
   }
   return false;
 }
-
-}  // namespace
 
 // ZeroMQ applies every subscription itself; the loop sees each one too
 // (XPUB_VERBOSER) and refuses any that is not a prefix of a topic we

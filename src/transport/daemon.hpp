@@ -97,6 +97,10 @@ constexpr int kInputReceiveBufferBytes = 256 * 1024;
 // refusing them is what bounds a subscriber's memory.
 inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats"};
 bool subscribes_to_our_topics(std::string_view prefix);
+// Whether `fd` is still a connection to the socket bound at `endpoint` (as
+// ZeroMQ reports it: tcp://host:port or ipc://path), and not a listener:
+// the descriptor a refused message came from may have been reused since.
+bool connected_to(int fd, std::string_view endpoint);
 // Messages larger than this from a subscriber make ZeroMQ drop it before
 // buffering (a subscription to "stats" is 6 bytes).
 constexpr std::int64_t kMaxSubscriptionBytes = 64;
