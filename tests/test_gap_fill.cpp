@@ -256,7 +256,11 @@ std::optional<eval::GapReport> walk1_gaps(const eval::GapOptions& options) {
 // and the offline one 8.4 mm: both fail. A returning marker's hand-over
 // started at the model point plus the marker's old offset fails the return
 // jump (11.4 mm): it must start at the model's own point of the marker.
-TEST_CASE("walk1 must-show: 1 s gaps live median <= 8 mm and every marker <= 30 mm, offline "
+// The forearms pronate since issue 19: a withheld wrist marker leaves its
+// forearm's axial rotation to the other wrist marker, 25 mm off the axis, and
+// the live 1 s median rose from 7.1 to 8.3 mm (wrist and elbow gaps 4-12 ->
+// 7-16 mm); the bound moved from 8 to 8.5 mm for it (a known cost, in the note).
+TEST_CASE("walk1 must-show: 1 s gaps live median <= 8.5 mm and every marker <= 30 mm, offline "
           "<= 5 and 20 mm, 2 s live median <= 15 mm, return jumps <= 5 mm",
           "[gaps][data]") {
   eval::GapOptions options;
@@ -271,7 +275,7 @@ TEST_CASE("walk1 must-show: 1 s gaps live median <= 8 mm and every marker <= 30 
                                  << " mm, return jump " << s.return_jump_m * 1e3 << " mm");
     const bool live = s.mode == eval::GapMode::live;
     if (s.window_s == 1.0) {
-      CHECK(s.median_rms_m <= (live ? 8e-3 : 5e-3));
+      CHECK(s.median_rms_m <= (live ? 8.5e-3 : 5e-3));
       CHECK(s.worst_rms_m <= (live ? 30e-3 : 20e-3));
     } else if (live) {
       CHECK(s.median_rms_m <= 15e-3);

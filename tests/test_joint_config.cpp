@@ -367,7 +367,11 @@ TEST_CASE("The shipped templates and the built-in model have frames, joints and 
     CHECK(body.segments[s].joint.limited());
   }
   CHECK(body.segments[body.find_segment("r_shank")].joint.type == JointType::hinge);
-  CHECK(body.segments[body.find_segment("l_forearm")].joint.type == JointType::hinge);
+  // Elbows flex and pronate: the forearm turns about its own axis too.
+  const JointLimits& elbow = body.segments[body.find_segment("l_forearm")].joint;
+  CHECK(elbow.type == JointType::ball);
+  CHECK(elbow.max_rad[2] - elbow.min_rad[2] > 2.5);
+  CHECK(body.find_coordinate("pro_sup_r") >= 0);
   CHECK(body.segments[body.find_segment("r_foot")].joint.type == JointType::universal);
   CHECK(body.find_coordinate("knee_angle_r") >= 0);
 }

@@ -5,12 +5,13 @@ namespace fabrik {
 void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
   if (root.has("outliers")) {
     const JsonReader o = root.at("outliers");
-    o.only_keys({"enabled", "floor_mm", "median_factor", "max_per_frame", "min_markers",
+    o.only_keys({"enabled", "floor_mm", "median_factor", "moved_mm", "max_per_frame", "min_markers",
                  "relabel_swaps"});
     OutlierSettings& s = setup.outliers;
     s.enabled = o.get("enabled", s.enabled);
     s.floor_m = o.get("floor_mm", s.floor_m * 1e3, 1.0, 1e6) * 1e-3;
     s.median_factor = o.get("median_factor", s.median_factor, 1.0, 1e6);
+    s.moved_m = o.get("moved_mm", s.moved_m * 1e3, 0.0, 1e6) * 1e-3;
     s.max_per_frame =
         static_cast<int>(o.get("max_per_frame", static_cast<long long>(s.max_per_frame), 0LL, 64LL));
     s.min_markers =

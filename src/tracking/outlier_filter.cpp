@@ -13,8 +13,15 @@ OutlierFilter::OutlierFilter(OutlierSettings settings, std::vector<int> marker_p
   found_.reserve(static_cast<std::size_t>(std::max(settings_.max_per_frame, 0)));
 }
 
+OutlierFilter::OutlierFilter(const Model& model, OutlierSettings settings,
+                             std::vector<int> marker_points)
+    : OutlierFilter(settings, std::move(marker_points)) {
+  neighbours_.emplace(model, marker_points_);
+}
+
 int OutlierFilter::worst_outlier(std::span<const double> distances_m,
-                                 std::span<const std::uint8_t> target_visible) {
+                                 std::span<const std::uint8_t> target_visible,
+                                 std::span<const Eigen::Vector3d> measured_m) {
   int worst = -1, measured = 0;
   bar_m_ = settings_.floor_m;
   for (int i = 0; i < markers_; ++i) {
@@ -30,7 +37,18 @@ int OutlierFilter::worst_outlier(std::span<const double> distances_m,
   const auto mid = scratch_m_.begin() + static_cast<std::ptrdiff_t>(n / 2);
   std::nth_element(scratch_m_.begin(), mid, scratch_m_.begin() + static_cast<std::ptrdiff_t>(n));
   bar_m_ = std::max(settings_.floor_m, settings_.median_factor * *mid);  // upper median
-  return distances_m[worst] > bar_m_ ? worst : -1;
+  if (distances_m[worst] <= bar_m_) return -1;
+  if (!neighbours_ || measured_m.empty()) return worst;
+  // The worst candidate that moved; the others above the bar are fits the model lacks.
+  int found = -1;
+  for (int i = 0; i < markers_; ++i) {
+    if (!target_visible[i] || !std::isfinite(distances_m[i]) || distances_m[i] <= bar_m_) continue;
+    if ((found < 0 || distances_m[i] > distances_m[found]) &&
+        neighbours_->moved(i, measured_m.first(static_cast<std::size_t>(markers_)), target_visible,
+                           settings_.moved_m))
+      found = i;
+  }
+  return found;
 }
 
 bool OutlierFilter::relabel_swaps(const Model& model, const Posture& start,
@@ -79,7 +97,7 @@ SolveResult OutlierFilter::solve(FabrikSolver& solver, const Model& model,
   if (!settings_.enabled) return r;
   found_.clear();
   for (int k = 0; k < settings_.max_per_frame; ++k) {
-    const int i = worst_outlier(solver.target_distances_m(), target_visible);
+    const int i = worst_outlier(solver.target_distances_m(), target_visible, target_world_m);
     if (i < 0) break;
     outlier[i] = 1;
     target_visible[i] = 0;

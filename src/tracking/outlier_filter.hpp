@@ -2,10 +2,13 @@
 // (a label swapped with another marker's, a ghost or reflection, a stray zero) is left out of
 // the frame's solve, so one bad marker cannot drag the skeleton.
 //
-// The rule, after the frame's solve: the marker with the largest residual is an outlier when
-// its residual exceeds both an absolute floor and a multiple of the median residual of the
-// other measured markers. It is left out and the frame solved again from the same start
-// posture; then the next worst is judged the same way, up to `max_per_frame` markers.
+// The rule, after the frame's solve: a marker is a candidate when its residual exceeds both
+// an absolute floor and a multiple of the median residual of the other measured markers
+// (the bar). A candidate is an outlier only if it also moved relative to its neighbours
+// (marker_neighbours.hpp): a marker the model cannot fit (a joint the model lacks) keeps
+// its distances to the markers around it, and is kept. The worst such marker is left out
+// and the frame solved again from the same start posture; then the next is judged the same
+// way, up to `max_per_frame` markers.
 // Two outliers whose measurements each fit the other's model position (within the same bar)
 // are a label swap: they are solved with each other's measurement (relabelled), since
 // leaving a marker out loses what it alone measures (an elbow marker that places the joint).
@@ -16,12 +19,14 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "solver/fabrik_solver.hpp"
 #include "solver/model.hpp"
 #include "solver/posture.hpp"
+#include "tracking/marker_neighbours.hpp"
 
 namespace fabrik {
 
@@ -33,6 +38,10 @@ struct OutlierSettings {
   // Nor one at or below this multiple of the median residual of the other measured markers:
   // when every marker fits worse (fast motion, a poor calibration), the bar rises with them.
   double median_factor = 8.0;
+  // A candidate moved when its distances to most of its measured neighbours are off by
+  // more than this (metres): beyond the few centimetres skin markers move over bone in
+  // fast movement, well within what a swap, ghost or stray zero does.
+  double moved_m = 0.030;
   int max_per_frame = 3;  // markers left out per frame at most (one extra solve each)
   int min_markers = 6;    // measured markers a frame needs before any is judged
   bool relabel_swaps = true;
@@ -42,6 +51,8 @@ class OutlierFilter {
  public:
   // `marker_points[i]`: the model point of the solver's target i (the first targets are the
   // markers judged).
+  OutlierFilter(const Model& model, OutlierSettings settings, std::vector<int> marker_points);
+  // Without a model: judged by the bar alone (no neighbour test), for tests of the bar.
   OutlierFilter(OutlierSettings settings, std::vector<int> marker_points);
   const OutlierSettings& settings() const { return settings_; }
 
@@ -59,10 +70,13 @@ class OutlierFilter {
                     Posture& posture, std::span<std::uint8_t> outlier,
                     std::span<int> relabelled_from);
 
-  // The worst marker of the last solve if it is an outlier, else -1; sets bar_m() either way
-  // (when enough markers were measured).
+  // The worst marker of the last solve that is above the bar and moved relative to its
+  // neighbours (`measured_m`: the markers' measurements), else -1; sets bar_m() either way
+  // (when enough markers were measured). With an empty `measured_m` or no model, the worst
+  // marker if it is above the bar.
   int worst_outlier(std::span<const double> distances_m,
-                    std::span<const std::uint8_t> target_visible);
+                    std::span<const std::uint8_t> target_visible,
+                    std::span<const Eigen::Vector3d> measured_m = {});
   // The residual above which a marker was an outlier in the last judgement (metres).
   double bar_m() const { return bar_m_; }
 
@@ -78,6 +92,7 @@ class OutlierFilter {
   int markers_;
   std::vector<double> scratch_m_;  // the other markers' residuals, for their median
   std::vector<int> found_;         // the outliers of a frame, in the order found
+  std::optional<MarkerNeighbours> neighbours_;
   double bar_m_ = 0.0;
 };
 

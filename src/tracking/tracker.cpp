@@ -67,7 +67,7 @@ Tracker::Tracker(TrackerSetup setup)
       rest_(Posture::rest(*setup_.model)),
       posture_(rest_),
       cold_options_(cold_solver_options(setup_.solver, setup_.cold_start)),
-      outliers_(setup_.outliers, marker_points(setup_)),
+      outliers_(*setup_.model, setup_.outliers, marker_points(setup_)),
       start_(rest_),
       n_(static_cast<int>(setup_.markers.size())) {
   const int n_targets = static_cast<int>(solver_.targets().size());
