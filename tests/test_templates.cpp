@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -341,4 +342,57 @@ TEST_CASE("Without left/right names nothing is derived, the note gives a recipe,
   REQUIRE(fixed.model.contains("coordinates"));
   CHECK(fixed.model["coordinates"].contains("pelvis_tilt"));
   CHECK(fixed.model["coordinates"].contains("p_thigh_rotation"));
+}
+
+TEST_CASE("rajagopal2016 tracks the Rajagopal running trial: residual within OpenSim's, no "
+          "outliers, running arms and legs in its angles (skipped without ../shared/data)",
+          "[templates][data]") {
+  const std::string dir = std::string(FABRIK_SHARED_DATA_DIR) + "/";
+  if (!std::filesystem::exists(dir + "rajagopal_static_run.trc") ||
+      !std::filesystem::exists(dir + "rajagopal_run.trc")) {
+    WARN("SKIPPED: " << dir << "rajagopal_*.trc are absent (real data lives in ../shared/data)");
+    return;
+  }
+  const CalibTemplate t = load_template_file(kSourceDir + "/config/templates/rajagopal2016.json");
+  CalibrateOptions o;
+  o.auto_window = 20;
+  const CalibrationResult r =
+      calibrate(t, io::read_trial(dir + "rajagopal_static_run.trc"), "static_run", o);
+  CHECK(r.derived.empty());  // the template names its own coordinates
+  CHECK(r.fit_rms_m < 1e-3);
+  TempFile cfg(".json");
+  {
+    std::ofstream(cfg.path()) << r.config.dump();
+  }
+  const TrialSolution s =
+      solve_trial(load_daemon_config_file(cfg.path()), io::read_trial(dir + "rajagopal_run.trc"));
+  const json summary = solution_summary(s);
+  INFO(summary.dump());
+  CHECK(s.missing_in_trial.empty());
+  // OpenSim's own IK of this trial (its published marker errors) is 12-18 mm RMS per frame.
+  CHECK(summary["residual_mm"]["rms_mean"].get<double>() < 15.0);
+  CHECK(summary["outliers"]["samples"].get<int>() == 0);  // a clean trial
+  const std::size_t nc = s.coordinate_names.size();
+  auto range = [&](const std::string& name) {
+    const auto it = std::find(s.coordinate_names.begin(), s.coordinate_names.end(), name);
+    REQUIRE(it != s.coordinate_names.end());
+    double lo = 1e9, hi = -1e9;
+    for (std::size_t f = 0; f < s.rms_m.size(); ++f) {
+      const double v = s.coordinates[f * nc + (it - s.coordinate_names.begin())] * kDeg;
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    return std::pair{lo, hi};
+  };
+  for (const char* side : {"_r", "_l"}) {
+    const std::string sd = side;
+    INFO(sd);
+    // Running: the knee flexes past 60 deg in swing (positive in flexion, as Rajagopal's).
+    CHECK(range("knee_angle" + sd).second > 60.0);
+    CHECK(range("knee_angle" + sd).first > -10.0);
+    CHECK(range("hip_flexion" + sd).second - range("hip_flexion" + sd).first > 40.0);
+    // Swinging arms: the elbow flexes and extends, the forearm turns.
+    CHECK(range("elbow_flex" + sd).second - range("elbow_flex" + sd).first > 20.0);
+    CHECK(range("pro_sup" + sd).second - range("pro_sup" + sd).first > 10.0);
+  }
 }
