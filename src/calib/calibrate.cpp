@@ -1,4 +1,5 @@
 #include "calibrate.hpp"
+#include "derive_anatomy.hpp"
 #include "static_window.hpp"
 
 #include <Eigen/Geometry>
@@ -56,6 +57,7 @@ class Calibrator {
     resolved_.assign(t_.points.size(), std::nullopt);
     for (std::size_t i = 0; i < t_.points.size(); ++i)
       r_.points_world_m.emplace_back(t_.points[i].name, point(static_cast<int>(i)));
+    derive();
     build_model();
     fit();
     return std::move(r_);
@@ -297,6 +299,17 @@ class Calibrator {
     return p;
   }
 
+  // Frames and coordinates the template leaves out (derive_anatomy.hpp).
+  void derive() {
+    std::vector<Eigen::Vector3d> points;
+    for (const auto& [name, p] : r_.points_world_m) points.push_back(p);
+    std::vector<std::optional<Eigen::Matrix3d>> given(t_.segments.size());
+    for (std::size_t s = 0; s < t_.segments.size(); ++s)
+      if (t_.segments[s].frame >= 0) given[s] = frame(t_.frames[t_.segments[s].frame]);
+    derived_ = derive_anatomy(t_, points, mean_, given);
+    r_.derived = derived_.report;
+  }
+
   void build_model() {
     nlohmann::ordered_json segs = nlohmann::ordered_json::array();
     for (std::size_t s = 0; s < t_.segments.size(); ++s) {
@@ -322,9 +335,9 @@ class Calibrator {
       }
       if (!pts.empty()) seg["points"] = pts;
       if (!mks.empty()) seg["markers"] = mks;
-      if (sd.frame >= 0) {
+      if (sd.frame >= 0 || derived_.frames[s]) {
         // The anatomical frame at the static pose, which is the rest pose.
-        const Eigen::Matrix3d axes = frame(t_.frames[sd.frame]);
+        const Eigen::Matrix3d axes = sd.frame >= 0 ? frame(t_.frames[sd.frame]) : *derived_.frames[s];
         seg["frame"] = {{"x", unit3(axes.col(0))}, {"y", unit3(axes.col(1))},
                         {"z", unit3(axes.col(2))}};
       }
@@ -344,6 +357,8 @@ class Calibrator {
     r_.model["segments"] = segs;
     if (!t_.coordinates.is_null())
       r_.model["coordinates"] = nlohmann::ordered_json::parse(t_.coordinates.dump());
+    else if (!derived_.coordinates.is_null())
+      r_.model["coordinates"] = derived_.coordinates;
 
     // The targets: the template's default level and weight, and every marker that differs.
     nlohmann::ordered_json markers = nlohmann::ordered_json::object();
@@ -398,7 +413,7 @@ class Calibrator {
       return load_model(nlohmann::json::parse(r_.model.dump()), name);
     } catch (const ConfigError& e) {
       const std::string& p = e.pointer();
-      const bool copied = p.rfind("/coordinates", 0) == 0 ||
+      const bool copied = (p.rfind("/coordinates", 0) == 0 && !t_.coordinates.is_null()) ||
                           (p.rfind("/segments/", 0) == 0 && p.find("/joint") != std::string::npos);
       const std::string prefix = name + ": at " + p + ": ";
       const std::string what = e.what();
@@ -473,6 +488,7 @@ class Calibrator {
   std::vector<int> column_;            // per template marker: trial column, -1 if absent
   std::vector<Eigen::Vector3d> mean_;  // per template marker: static mean (NaN if none)
   std::vector<std::optional<Eigen::Vector3d>> resolved_;  // per template point
+  DerivedAnatomy derived_;
   CalibrationResult r_;
 };
 
@@ -490,6 +506,8 @@ std::string calibration_report(const CalibrationResult& r) {
       << fmt("%.2f", r.window_motion_m * 1e3) << " mm at most ("
       << (r.window_motion_marker.empty() ? "-" : r.window_motion_marker) << ")\n";
   for (const std::string& n : r.notes) out << "note: " << n << "\n";
+  if (!r.derived.empty()) out << "\n";
+  for (const std::string& d : r.derived) out << d << "\n";
   out << "\nSegment lengths (base -> joint or end site):\n";
   for (const SegmentLength& l : r.lengths) {
     char line[200];

@@ -60,6 +60,9 @@ struct CalibrationResult {
   double rest_max_m = 0.0;  // worst distance of a rest model marker to its static mean
   double fit_rms_m = 0.0, fit_max_m = 0.0;
   std::vector<std::string> notes;  // things the user should know (ignored labels, gaps)
+  // Frames and coordinates derived because the template names no coordinates
+  // (derive_anatomy.hpp), or why they could not be: one line each.
+  std::vector<std::string> derived;
 
   const Eigen::Vector3d& point_world_m(const std::string& name) const;
 };
