@@ -24,6 +24,7 @@
 #include "io/opensim_table.hpp"
 #include "offline/solve_trial.hpp"
 #include "process.hpp"
+#include "run_fabrik.hpp"
 #include "solver/joint_angles.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "temp_file.hpp"
@@ -39,19 +40,9 @@ constexpr double kDeg = 180.0 / std::numbers::pi;
 const std::string kSourceDir = FABRIK_SOURCE_DIR;
 
 std::pair<int, std::string> run_fabrik(const std::vector<std::string>& args) {
-  std::string command = "exec '" + std::string(FABRIK_PATH) + "'";
-  for (const std::string& a : args) command += " '" + a + "'";
-  command += " > /dev/null";
-  fabrik::test::Process p({"/bin/sh", "-c", command});
-  const std::optional<int> code = p.wait(std::chrono::seconds(120));
-  REQUIRE(code.has_value());  // fails (and the process is killed) after 120 s
-  return {*code, p.stderr_text()};
+  return fabrik::test::run_fabrik(args, "/dev/null", std::chrono::seconds(120));
 }
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using fabrik::test::slurp;
 
 // Ten identical frames of named positions (a static trial).
 io::MarkerTrial static_trial(const std::vector<std::pair<std::string, Eigen::Vector3d>>& markers) {

@@ -16,6 +16,7 @@
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
 #include "process.hpp"
+#include "run_fabrik.hpp"
 #include "temp_file.hpp"
 #include "tools/replay.hpp"
 #include "tools/synth.hpp"
@@ -304,25 +305,10 @@ TEST_CASE("watch tally: gaps in frame numbers are loss, restarts are not") {
 
 namespace {
 
-const std::string kFabrik = FABRIK_PATH;
 const std::string kDataDir = kSourceDir + "/../shared/data";
 
-// Runs `fabrik ARGS...` with stdout to `stdout_path` (if given); its exit code and stderr.
-std::pair<int, std::string> run_fabrik(const std::vector<std::string>& args,
-                                       const std::string& stdout_path = "/dev/null") {
-  std::string command = "exec '" + kFabrik + "'";
-  for (const std::string& a : args) command += " '" + a + "'";
-  command += " > '" + stdout_path + "'";
-  fabrik::test::Process p({"/bin/sh", "-c", command});
-  const std::optional<int> code = p.wait(std::chrono::seconds(60));
-  REQUIRE(code.has_value());  // fails (and the process is killed) after 60 s
-  return {*code, p.stderr_text()};
-}
-
-std::string slurp(const std::string& path) {
-  std::ifstream in(path);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using fabrik::test::run_fabrik;
+using fabrik::test::slurp;
 
 // 2 s at 100 Hz of the default config's model moving, no noise, no gaps.
 MarkerTrial default_model_trial() {
