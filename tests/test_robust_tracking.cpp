@@ -468,3 +468,33 @@ TEST_CASE("Pronating forearms: wrist markers are never flagged, with or without 
   REQUIRE(worst_hinge_m > 2.0 * hinge_config.tracker.outliers.floor_m);  // the rule is challenged
   CHECK(flagged_hinge == 0);
 }
+
+TEST_CASE("Marker neighbours: a marker moved when its distances to half its neighbours break",
+          "[outliers]") {
+  const DaemonConfig config = default_daemon_config();
+  const Model& model = *config.tracker.model;
+  const std::vector<int> points = marker_points(config);
+  const MarkerNeighbours neighbours(model, points);
+  const Posture rest = Posture::rest(model);
+  std::vector<Eigen::Vector3d> at_m(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) at_m[i] = rest.point_world_m(model, points[i]);
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  const int knee = static_cast<int>(
+      std::find_if(points.begin(), points.end(),
+                   [&](int p) { return model.points[p].name == "RKNE"; }) - points.begin());
+  REQUIRE(knee < static_cast<int>(points.size()));
+  REQUIRE(neighbours.neighbour_count(knee) >= 2);
+  const double tolerance_m = 0.030;
+  CHECK_FALSE(neighbours.moved(knee, at_m, visible, tolerance_m));  // at its model place
+  // 300 mm up the thigh (a ghost or a swap): moved.
+  std::vector<Eigen::Vector3d> moved_m = at_m;
+  moved_m[knee] += Eigen::Vector3d(0.0, 0.300, 0.0);
+  CHECK(neighbours.moved(knee, moved_m, visible, tolerance_m));
+  // 10 mm: within the tolerance of every distance.
+  moved_m[knee] = at_m[knee] + Eigen::Vector3d(0.0, 0.0, 0.010);
+  CHECK_FALSE(neighbours.moved(knee, moved_m, visible, tolerance_m));
+  // No neighbour measured: nothing says it stayed.
+  std::vector<std::uint8_t> alone(points.size(), 0);
+  alone[knee] = 1;
+  CHECK(neighbours.moved(knee, at_m, alone, tolerance_m));
+}
