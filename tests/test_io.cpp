@@ -162,8 +162,10 @@ TEST_CASE("TRC round trip keeps labels, rate, first frame, gaps and positions", 
     CHECK(line4 == "Frame#\tTime\tM1\t\t\tM2\t\t\tM3\t\t\tM4\t\t\tM5\t\t");
     CHECK(line5.rfind("\t\tX1\tY1\tZ1\tX2", 0) == 0);
     CHECK(line6.empty());
-    // Sample 3 (frame 0, marker M4) is missing: columns 12-14 empty.
-    CHECK(row1.rfind("7\t0\t", 0) == 0);
+    // Sample 3 (frame 0, marker M4) is missing: columns 12-14 empty. Frame 7's Time is
+    // the source's: (7 - 1) / 120 s when the trial knows no other (frame 1 at 0 s).
+    CHECK(row1.rfind("7\t0.05\t", 0) == 0);
+    CHECK(read_trc(file.path()).file_time_s(0) == 0.05);
     CHECK(row1.find("\t\t\t\t") != std::string::npos);
   }
 }

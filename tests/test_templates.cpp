@@ -355,7 +355,7 @@ TEST_CASE("rajagopal2016 tracks the Rajagopal running trial: residual within Ope
   const CalibrationResult r =
       calibrate(t, io::read_trial(dir + "rajagopal_static_run.trc"), "static_run", o);
   CHECK(r.derived.empty());  // the template names its own coordinates
-  CHECK(r.fit_rms_m < 1e-3);
+  CHECK(r.fit_rms_mean_m < 3e-3);
   TempFile cfg(".json");
   {
     std::ofstream(cfg.path()) << r.config.dump();

@@ -13,6 +13,8 @@
 
 #include "eval/eval.hpp"
 #include "io/marker_trial.hpp"
+#include "io/opensim_table.hpp"
+#include "mot_steps.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
 #include "process.hpp"
@@ -430,6 +432,57 @@ TEST_CASE("fabrik solve and calibrate on a C3D without 3D points: the truth, exi
   CHECK(calib_code == 2);
   CHECK_THAT(calib_err, Catch::StartsWith("fabrik calibrate: " + expected));
   CHECK_FALSE(fs::exists(out.path()));
+}
+
+TEST_CASE("fabrik solve --angles: the source's times from frame 23, no step above 10 deg") {
+  MarkerTrial trial = default_model_trial();
+  trial.first_frame = 23;
+  trial.first_time_frames = 23;  // Frame# 23 at Time 0.23, as rajagopal_run.trc
+  TempFile trc(".trc"), out(".trc"), mot(".mot");
+  fabrik::io::write_trc(trc.path(), trial);
+  const auto [code, err] = run_fabrik({"solve", "--input", trc.path(), "--output", out.path(),
+                                       "--angles", mot.path(), "--quiet"});
+  INFO(err);
+  REQUIRE(code == 0);
+  const fabrik::io::OpenSimTable t = fabrik::io::read_opensim_table(mot.path());
+  REQUIRE(t.rows == trial.frames());
+  CHECK(t.time_s.front() == 0.23);
+  CHECK(t.time_s[7] == Approx(0.30).margin(1e-12));
+  const fabrik::test::TableStep step = fabrik::test::largest_step(t);
+  INFO("largest step " << step.step << " (" << step.column << " at " << step.time_s << " s)");
+  CHECK(step.step <= fabrik::test::kMaxCoordinateStepDeg);
+}
+
+TEST_CASE("fabrik solve prints its summary when --angles cannot be honoured, then refuses, exit 2") {
+  // A model without coordinates: nothing to write as angles.
+  TempFile config(".json"), trc(".trc"), out(".trc"), mot(".mot"), summary(".txt");
+  std::ofstream(config.path()) << R"({"format": "fabrikd-config/1", "model": {
+      "format": "fabrikd-model/1", "units": "mm",
+      "segments": [
+        {"name": "body", "base": "root", "points": {"j": [0, 300, 0]},
+         "markers": {"A": [100, 0, 0], "B": [0, 200, 0], "C": [0, 0, 100]}},
+        {"name": "arm", "parent": "body", "base": "j",
+         "markers": {"D": [200, 0, 0], "E": [0, -100, 50]}}]}})";
+  MarkerTrial trial;
+  trial.labels = {"A", "B", "C", "D", "E"};
+  trial.rate_hz = 100.0;
+  for (int f = 0; f < 20; ++f)
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.1, 0, 0), Eigen::Vector3d(0, 0.2, 0),
+                                     Eigen::Vector3d(0, 0, 0.1), Eigen::Vector3d(0.2, 0.3, 0),
+                                     Eigen::Vector3d(0, 0.2, 0.05)})
+      trial.positions_m.push_back(p + Eigen::Vector3d(0.001 * f, 0, 0));
+  fabrik::io::write_trc(trc.path(), trial);
+  const auto [code, err] = run_fabrik({"solve", "--config", config.path(), "--input", trc.path(),
+                                       "--output", out.path(), "--angles", mot.path(), "--quiet"},
+                                      summary.path());
+  CHECK(code == 2);
+  CHECK_THAT(err, Catch::Contains("--angles: the model has no named coordinates, so " + mot.path() +
+                                  " was not written (the other outputs were)"));
+  const std::string printed = slurp(summary.path());
+  CHECK_THAT(printed, Catch::Contains("frames            20"));
+  CHECK_THAT(printed, Catch::Contains("marker residual   RMS"));
+  CHECK(fs::exists(out.path()));
+  CHECK_FALSE(fs::exists(mot.path()));
 }
 
 TEST_CASE("fabrik solve refuses a config that fits nothing up front, exit 2") {

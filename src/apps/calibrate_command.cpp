@@ -10,6 +10,7 @@
 #include "calib/sensor_calibration.hpp"
 #include "config/daemon_config.hpp"
 #include "config/json_reader.hpp"
+#include "config/lab_axes_json.hpp"
 #include "config/model_loader.hpp"
 #include "io/orientation_table.hpp"
 #include "read_recording.hpp"
@@ -20,6 +21,7 @@ namespace fabrik {
 namespace {
 struct CalibrateArgs {
   std::string template_path, static_path, output_path, orientations_path, config_path;
+  std::string lab_up, lab_forward;
   bool keep_zeros = false;
   calib::CalibrateOptions options;
 };
@@ -73,13 +75,22 @@ void run_calibrate(const CalibrateArgs& a) {
     throw std::runtime_error("give --template and --static (or --config with "
                              "--static-orientations to recalibrate a config's sensors)");
   const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
+  calib::CalibrateOptions options = a.options;
+  if (!a.lab_up.empty()) {
+    const nlohmann::json axes = a.lab_forward.empty()
+                                    ? nlohmann::json{{"up", a.lab_up}}
+                                    : nlohmann::json{{"up", a.lab_up}, {"forward", a.lab_forward}};
+    options.lab_axes = read_lab_axes(JsonReader(axes, "--lab-up/--lab-forward"));
+  } else if (!a.lab_forward.empty()) {
+    throw std::runtime_error("--lab-forward needs --lab-up: give both");
+  }
   if (!a.orientations_path.empty() && tmpl.sensors.entries.empty())
     throw std::runtime_error(a.template_path + " lists no orientation sensors, so --static-"
                              "orientations has nothing to calibrate. Fix: add \"sensors\" to "
                              "the template");
   const io::MarkerTrial trial =
       apps::read_trial_or_explain("calibrate", a.static_path, a.keep_zeros);
-  calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, a.options);
+  calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, options);
   std::string sensors;
   if (!a.orientations_path.empty()) {
     const Model model = load_model(nlohmann::json::parse(r.model.dump()), "<calibrated model>");
@@ -121,6 +132,12 @@ void add_calibrate_command(CLI::App& app) {
                   "Average the stillest window of N frames (fewest missing samples, then least "
                   "marker motion) instead of --first-frame/--frames")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--lab-up", args->lab_up,
+                  "The lab's up axis, e.g. +z (Vicon Nexus, QTM) or +y (OpenSim); overrides the "
+                  "template's \"lab_axes\". Default: detected from the static trial");
+  cmd->add_option("--lab-forward", args->lab_forward,
+                  "With --lab-up: the lab's forward axis, e.g. +x (default: +x while it is "
+                  "horizontal, else detected)");
   cmd->add_flag("--keep-zeros", args->keep_zeros,
                 "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
   cmd->callback([args] { tools::run_command("calibrate", [&] { run_calibrate(*args); }); });

@@ -32,9 +32,6 @@ void progress_bar(std::size_t done, std::size_t total) {
 void run(const SolveOptions& o) {
   const DaemonConfig config =
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
-  if (!o.angles.empty() && config.tracker.model->coordinates.empty())
-    throw std::runtime_error(config.file + ": --angles: the model has no named coordinates. Fix: "
-                             "add \"coordinates\" to the model or its template");
   if (o.input.empty() && o.orientations.empty())
     throw std::runtime_error("give --input (markers), --orientations (sensors), or both");
   io::MarkerTrial trial;
@@ -71,7 +68,10 @@ void run(const SolveOptions& o) {
     write_trial_file(o.markers_output, s.markers);
     write_filled_csv(o.markers_output + ".filled.csv", s, trial);
   }
-  if (!o.angles.empty()) io::write_opensim_table(o.angles, angles_table(s));
+  // Without coordinates there is no table to write; the run and its summary
+  // still stand, and the refusal comes after them.
+  const bool angles_refused = !o.angles.empty() && config.tracker.model->coordinates.empty();
+  if (!o.angles.empty() && !angles_refused) io::write_opensim_table(o.angles, angles_table(s));
   const nlohmann::json summary = solution_summary(s);
   if (!o.report.empty()) {
     std::ofstream out(o.report);
@@ -82,13 +82,13 @@ void run(const SolveOptions& o) {
   std::printf(
       "frames            %zu (%zu without any tracked marker, left out of the residual)\n"
       "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
-      "frame %zu)\n"
+      "frame %lld)\n"
       "solve             p50 %.1f us, p99 %.1f us, %.1f iterations on average\n"
       "joint centres     %s\n",
       summary["frames"].get<std::size_t>(), summary["frames_without_markers"].get<std::size_t>(),
       r["rms_mean"].get<double>(), r["rms_max"].get<double>(),
       r["max"].get<double>(), r["max_marker"].get<std::string>().c_str(),
-      r["max_frame"].get<std::size_t>(), summary["solve_us"]["p50"].get<double>(),
+      r["max_frame"].get<long long>(), summary["solve_us"]["p50"].get<double>(),
       summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
       o.output.c_str());
   const auto& out = summary["outliers"];
@@ -120,6 +120,11 @@ void run(const SolveOptions& o) {
   if (!s.ignored_in_trial.empty())
     std::printf("not tracked        %zu trial labels (%s...)\n", s.ignored_in_trial.size(),
                 s.ignored_in_trial.front().c_str());
+  std::fflush(stdout);  // the summary before the refusal on stderr
+  if (angles_refused)
+    throw std::runtime_error(config.file + ": --angles: the model has no named coordinates, so " +
+                             o.angles + " was not written (the other outputs were). Fix: add "
+                             "\"coordinates\" to the model or its template");
 }
 
 }  // namespace

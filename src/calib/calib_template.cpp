@@ -338,7 +338,8 @@ struct Loader {
       fmt.fail("unsupported format '" + fmt.as_string() + "'",
                "use \"fabrikd-template/1\" (is this a template?)");
     root.only_keys({"format", "name", "description", "units", "defaults", "segments",
-                    "coordinates", "sensors"});
+                    "coordinates", "sensors", "lab_axes"});
+    if (root.has("lab_axes")) t.lab_axes = read_lab_axes(root.at("lab_axes"));
     if (root.has("coordinates")) {
       root.at("coordinates").expect_object();
       t.coordinates = root.at("coordinates").value();

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "config/lab_axes_json.hpp"
 #include "config/sensors_json.hpp"
 
 namespace fabrik::calib {
@@ -95,6 +96,9 @@ struct CalibTemplate {
   // Named coordinates, copied into the model as they are (fabrikd-model/1
   // "coordinates"); null if none.
   nlohmann::json coordinates;
+  // "lab_axes": the lab's up (and forward) axes, when the template declares
+  // them; else calibration detects them from the static trial.
+  std::optional<LabAxesSpec> lab_axes;
   // Orientation sensors ("sensors": which sensor sits on which segment, the
   // sensors' world and its heading rule); their rotations come from
   // `fabrik calibrate --static-orientations`. No entries if none.

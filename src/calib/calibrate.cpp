@@ -11,8 +11,9 @@
 #include <sstream>
 
 #include "config/config_error.hpp"
+#include "config/daemon_config.hpp"
 #include "config/model_loader.hpp"
-#include "solver/fabrik_solver.hpp"
+#include "tracking/tracker.hpp"
 
 namespace fabrik::calib {
 
@@ -58,6 +59,7 @@ class Calibrator {
     for (std::size_t i = 0; i < t_.points.size(); ++i)
       r_.points_world_m.emplace_back(t_.points[i].name, point(static_cast<int>(i)));
     derive();
+    choose_lab_axes(o);
     build_model();
     fit();
     return std::move(r_);
@@ -310,6 +312,100 @@ class Calibrator {
     r_.derived = derived_.report;
   }
 
+  // The static pose's superior direction: the sum of the segments' anatomical
+  // y axes (superior or proximal, as ISB's frames); and its anterior one: the
+  // root's x axis (the pelvis's front), else the sum of the x axes. Zero
+  // without segment frames (the template's, else derived ones).
+  std::optional<Eigen::Matrix3d> segment_axes(std::size_t s) {
+    if (t_.segments[s].frame >= 0) return frame(t_.frames[t_.segments[s].frame]);
+    if (s < derived_.frames.size()) return derived_.frames[s];
+    return std::nullopt;
+  }
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> static_directions() {
+    Eigen::Vector3d superior = Eigen::Vector3d::Zero(), anterior = Eigen::Vector3d::Zero();
+    for (std::size_t s = 0; s < t_.segments.size(); ++s) {
+      const std::optional<Eigen::Matrix3d> axes = segment_axes(s);
+      if (!axes) continue;
+      superior += axes->col(1);
+      anterior += axes->col(0);
+    }
+    if (const std::optional<Eigen::Matrix3d> root = segment_axes(0)) anterior = root->col(0);
+    return {superior, anterior};
+  }
+
+  // Declared (command line, else template) or detected: up is the signed lab
+  // axis nearest the static pose's superior direction; forward stays +x while
+  // x is horizontal, else it is the horizontal lab axis nearest the anterior
+  // direction. Without segment frames nothing can be detected: Y up is kept.
+  void choose_lab_axes(const CalibrateOptions& o) {
+    const std::optional<LabAxesSpec>& declared = o.lab_axes ? o.lab_axes : t_.lab_axes;
+    const std::string where = o.lab_axes ? "with --lab-up/--lab-forward" : "in the template";
+    const auto [superior, anterior] = static_directions();
+    const bool has_frames = superior.norm() > 1e-9;
+    auto nearest_axis = [](const Eigen::Vector3d& v, const Eigen::Vector3d& except) {
+      Eigen::Vector3d best = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) {
+        if (std::abs(except[k]) > 0.5) continue;
+        const Eigen::Vector3d e = Eigen::Vector3d::Unit(k) * (v[k] < 0.0 ? -1.0 : 1.0);
+        if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
+      }
+      return best;
+    };
+    auto deg_between = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / 3.141592653589793;
+    };
+    Eigen::Vector3d up = Eigen::Vector3d::UnitY();
+    std::string how;
+    if (declared) {
+      up = declared->up_lab;
+      how = "declared " + where;
+      if (has_frames && deg_between(superior, up) > 45.0)
+        r_.notes.push_back("the declared lab up axis " + signed_axis_name(up) + " is " +
+                           fmt("%.0f", deg_between(superior, up)) +
+                           " deg from the static pose's superior direction (the segments' "
+                           "anatomical y axes), which is nearest " +
+                           signed_axis_name(nearest_axis(superior, Eigen::Vector3d::Zero())) +
+                           ". Fix: check the lab axes you declared");
+    } else if (has_frames) {
+      up = nearest_axis(superior, Eigen::Vector3d::Zero());
+      how = "detected from the static trial: up is the lab axis nearest the segments' superior "
+            "(anatomical y) axes, " + fmt("%.1f", deg_between(superior, up)) + " deg from their mean";
+    } else {
+      how = "assumed: the template gives no segment frames to detect them from";
+    }
+    std::optional<Eigen::Vector3d> forward = declared ? declared->forward_lab : std::nullopt;
+    const Eigen::Vector3d front = anterior - up * up.dot(anterior);  // horizontal
+    if (!forward) {
+      forward = default_forward_lab(up);
+      if (forward) {
+        how += "; forward is +x, which is horizontal (kept, so a lab with X forward keeps its "
+               "numbers)";
+      } else if (front.norm() > 1e-9) {
+        forward = nearest_axis(front, up);
+        how += "; forward is the horizontal lab axis nearest the " +
+               std::string(segment_axes(0) ? "root segment's" : "segments'") +
+               " anterior (anatomical x) axis";
+      } else {
+        forward = nearest_axis(Eigen::Vector3d(0, 1, 1), up);
+        how += "; forward is " + signed_axis_name(*forward) + " (no anterior direction to go by)";
+      }
+    }
+    // OpenSim's pelvis angles assume the subject faces about forward: facing
+    // sideways, pelvis_rotation sits near 90 deg and tilt and list swap roles;
+    // facing backwards, near 180 deg with tilt and list of the other sign.
+    if (const double off = front.norm() > 1e-9 ? deg_between(front, *forward) : 0.0; off > 45.0)
+      r_.notes.push_back("the subject faces " + signed_axis_name(nearest_axis(front, up)) +
+                         " in the static trial, " + fmt("%.0f", off) +
+                         " deg from the lab's forward axis " + signed_axis_name(*forward) +
+                         ": pelvis_rotation will sit near that angle and pelvis_tilt and "
+                         "pelvis_list " + (off > 135.0 ? "change sign" : "swap roles") +
+                         ". Fix: if the subject walks along " +
+                         signed_axis_name(nearest_axis(front, up)) + ", declare it forward "
+                         "(--lab-forward or \"lab_axes\" in the template)");
+    r_.lab_axes = LabAxes{up, *forward};
+    r_.lab_axes_how = how;
+  }
+
   void build_model() {
     nlohmann::ordered_json segs = nlohmann::ordered_json::array();
     for (std::size_t s = 0; s < t_.segments.size(); ++s) {
@@ -355,6 +451,7 @@ class Calibrator {
     r_.model["units"] = "mm";
     r_.model["root_position"] = mm3(point(t_.find_point(root.base)));
     r_.model["segments"] = segs;
+    r_.model["lab_axes"] = lab_axes_json(r_.lab_axes);
     if (!t_.coordinates.is_null())
       r_.model["coordinates"] = nlohmann::ordered_json::parse(t_.coordinates.dump());
     else if (!derived_.coordinates.is_null())
@@ -422,57 +519,58 @@ class Calibrator {
     }
   }
 
-  // Fits the calibrated model to every frame of the window as the tracker
-  // would, and measures each marker's residual.
+  // Tracks the window with the written config as `fabrik solve` would (the
+  // same Tracker and settings), and measures each marker's residual and the
+  // window's in solve's terms.
   void fit() {
-    const Model model = load_calibrated_model();
-    std::vector<Target> targets;
-    std::vector<int> tmarker;  // template marker of each target
-    for (std::size_t m = 0; m < t_.markers.size(); ++m) {
-      const MarkerDef& md = t_.markers[m];
-      if (md.static_only) continue;
-      targets.push_back({model.find_point(md.name), md.level, md.weight});
-      tmarker.push_back(static_cast<int>(m));
+    load_calibrated_model();  // a mistake copied from the template is reported there
+    const DaemonConfig config = load_daemon_config(r_.config.dump(), "<calibrated config>");
+    Tracker tracker(config.tracker);
+    const Model& model = tracker.model();
+    const std::vector<MarkerTarget>& targets = config.tracker.markers;
+    const std::size_t n = targets.size();
+    std::vector<int> tmarker(n), column(n);  // template marker and trial column of each target
+    for (std::size_t i = 0; i < n; ++i) {
+      tmarker[i] = t_.find_marker(model.points[targets[i].point].name);
+      column[i] = column_[tmarker[i]];
     }
     const Posture rest = Posture::rest(model);
-    for (std::size_t i = 0; i < targets.size(); ++i)
+    for (std::size_t i = 0; i < n; ++i)
       r_.rest_max_m = std::max(
           r_.rest_max_m, (rest.point_world_m(model, targets[i].point) - mean_[tmarker[i]]).norm());
 
-    SolverOptions opt;
-    opt.tolerance_m = 1e-4;
-    opt.stall_tolerance_m = 1e-4;
-    opt.max_iterations = 50;
-    opt.segment_fit = SegmentFit::rigid;
-    opt.root = RootMode::free;
-    FabrikSolver solver(model, targets, opt);
-    Posture posture = rest;
-    const std::size_t n = targets.size();
     std::vector<Eigen::Vector3d> pos(n);
     std::vector<std::uint8_t> vis(n);
     std::vector<double> sum2(n, 0.0), worst(n, 0.0);
     std::vector<int> count(n, 0);
-    double all2 = 0.0;
-    int all_n = 0;
+    double rms_sum = 0.0;
+    int frames_with_residual = 0;
     for (std::size_t f = first_; f < first_ + count_; ++f) {
       for (std::size_t i = 0; i < n; ++i) {
-        pos[i] = trial_.at(f, static_cast<std::size_t>(column_[tmarker[i]]));
+        pos[i] = column[i] >= 0 ? trial_.at(f, static_cast<std::size_t>(column[i]))
+                                : Eigen::Vector3d::Constant(NAN);
         vis[i] = pos[i].allFinite();
-        if (!vis[i]) pos[i].setZero();
       }
-      solver.solve(pos, vis, posture);
-      const auto d = solver.target_distances_m();
+      const TrackResult& tr = tracker.track(trial_.time_s(f), pos, vis);
+      r_.fit_outlier_samples += tr.outlier_count;
       for (std::size_t i = 0; i < n; ++i) {
-        if (!vis[i]) continue;
-        sum2[i] += d[i] * d[i];
-        worst[i] = std::max(worst[i], d[i]);
+        if (tr.occluded[i] || tr.outliers[i]) continue;
+        const double d = tr.marker_residual_m[i];
+        sum2[i] += d * d;
+        worst[i] = std::max(worst[i], d);
         ++count[i];
-        all2 += d[i] * d[i];
-        ++all_n;
-        r_.fit_max_m = std::max(r_.fit_max_m, d[i]);
+      }
+      if (tr.residual_count == 0) continue;
+      ++frames_with_residual;
+      rms_sum += tr.residual_rms_m;
+      r_.fit_rms_worst_frame_m = std::max(r_.fit_rms_worst_frame_m, tr.residual_rms_m);
+      if (tr.residual_max_m > r_.fit_max_m || r_.fit_max_marker.empty()) {
+        r_.fit_max_m = tr.residual_max_m;
+        r_.fit_max_marker = t_.markers[tmarker[tr.worst_marker]].name;
+        r_.fit_max_frame = trial_.first_frame + static_cast<long long>(f);
       }
     }
-    r_.fit_rms_m = all_n ? std::sqrt(all2 / all_n) : 0.0;
+    r_.fit_rms_mean_m = frames_with_residual ? rms_sum / frames_with_residual : 0.0;
     for (std::size_t i = 0; i < n; ++i) {
       const MarkerDef& md = t_.markers[tmarker[i]];
       r_.fits.push_back({md.name, t_.segments[md.segment].name,
@@ -515,8 +613,14 @@ std::string calibration_report(const CalibrationResult& r) {
                   l.from.c_str(), l.to.c_str(), l.length_m * 1e3);
     out << line;
   }
-  out << "\nMarker fit: the rigid model fitted to each frame of the window (rigid fit, free "
-         "root)\n";
+  out << "\nLab axes: up " << signed_axis_name(r.lab_axes.up_lab) << ", forward "
+      << signed_axis_name(r.lab_axes.forward_lab) << "\n  (" << r.lab_axes_how << ")\n"
+      << "  Coordinates relative to the lab (pelvis_tilt, pelvis_tx, ...) are taken in OpenSim's "
+         "ground frame,\n  X forward and Y up; the config records the axes in its model's "
+         "\"lab_axes\". To declare them:\n  --lab-up/--lab-forward, or \"lab_axes\": {\"up\": "
+         "\"+z\", \"forward\": \"+x\"} in the template\n";
+  out << "\nMarker fit: the window tracked with the written config, as fabrik solve tracks it "
+         "(per marker: RMS and max over its frames)\n";
   out << "  marker               segment          RMS mm   max mm\n";
   for (const MarkerFit& f : r.fits) {
     char line[200];
@@ -524,8 +628,16 @@ std::string calibration_report(const CalibrationResult& r) {
                   f.segment.c_str(), f.rms_m * 1e3, f.max_m * 1e3);
     out << line;
   }
-  out << "  all markers: RMS " << fmt("%.2f", r.fit_rms_m * 1e3) << " mm, max "
-      << fmt("%.2f", r.fit_max_m * 1e3) << " mm\n";
+  out << "  all markers: RMS " << fmt("%.2f", r.fit_rms_mean_m * 1e3)
+      << " mm (mean over frames of each frame's RMS, as fabrik solve; worst frame "
+      << fmt("%.2f", r.fit_rms_worst_frame_m * 1e3) << " mm), max "
+      << fmt("%.2f", r.fit_max_m * 1e3) << " mm ("
+      << (r.fit_max_marker.empty() ? "-" : r.fit_max_marker) << ", frame " << r.fit_max_frame
+      << ")\n";
+  if (r.fit_outlier_samples > 0)
+    out << "  " << r.fit_outlier_samples
+        << " marker samples were left out of their frame's solve as outliers (and of the "
+           "figures), as fabrik solve leaves them out\n";
   out << "Rest posture vs static means: worst marker " << fmt("%.4f", r.rest_max_m * 1e3)
       << " mm\n";
   return out.str();

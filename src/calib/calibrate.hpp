@@ -10,11 +10,13 @@
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "calib_template.hpp"
+#include "config/lab_axes_json.hpp"
 #include "io/marker_trial.hpp"
 
 namespace fabrik::calib {
@@ -30,6 +32,9 @@ struct CalibrateOptions {
   long long first_frame = -1;  // the file's frame number (as in TRC Frame#); -1: the first
   long long frames = -1;       // frames to average; -1: to the end of the trial
   long long auto_window = -1;  // > 0: average the stillest window of this many frames instead
+  // The lab's axes as declared on the command line; they win over the
+  // template's "lab_axes". Neither: detected from the static trial.
+  std::optional<LabAxesSpec> lab_axes = std::nullopt;
 };
 
 struct SegmentLength {
@@ -37,8 +42,10 @@ struct SegmentLength {
   double length_m = 0.0;
 };
 
-// How well the rigid calibrated model reproduces a marker over the window
-// (the model fitted to every frame with the tracking solver, warm-started).
+// How well the calibrated model reproduces a marker over the window: the
+// written config tracked through the window as `fabrik solve` tracks it
+// (the same Tracker and settings), RMS and max over the marker's samples
+// that were solved with (outliers left out).
 struct MarkerFit {
   std::string marker, segment;
   double rms_m = 0.0, max_m = 0.0;
@@ -58,7 +65,16 @@ struct CalibrationResult {
   std::vector<SegmentLength> lengths;
   std::vector<MarkerFit> fits;
   double rest_max_m = 0.0;  // worst distance of a rest model marker to its static mean
-  double fit_rms_m = 0.0, fit_max_m = 0.0;
+  // The window's residual as `fabrik solve` reports it: the mean over frames
+  // of each frame's RMS over its solved markers, the worst frame's RMS, and
+  // the largest single residual with its marker and frame number.
+  double fit_rms_mean_m = 0.0, fit_rms_worst_frame_m = 0.0, fit_max_m = 0.0;
+  std::string fit_max_marker;
+  long long fit_max_frame = 0;
+  int fit_outlier_samples = 0;  // left out of their frame's solve by the outlier rule
+  // The lab's axes written into the model ("lab_axes"), and how they were chosen.
+  LabAxes lab_axes;
+  std::string lab_axes_how;
   std::vector<std::string> notes;  // things the user should know (ignored labels, gaps)
   // Frames and coordinates derived because the template names no coordinates
   // (derive_anatomy.hpp), or why they could not be: one line each.

@@ -5,6 +5,7 @@
 #include <unordered_map>
 
 #include "json_reader.hpp"
+#include "lab_axes_json.hpp"
 #include "solver/model_builder.hpp"
 
 namespace fabrik {
@@ -209,8 +210,8 @@ Model load_model(const nlohmann::json& doc, const std::string& file) {
 }
 
 Model load_model(const JsonReader& root) {
-  root.only_keys(
-      {"format", "name", "units", "root_position", "segments", "coordinates", "description"});
+  root.only_keys({"format", "name", "units", "root_position", "segments", "coordinates",
+                  "lab_axes", "description"});
   if (root.has("format") && root.at("format").as_string() != "fabrikd-model/1")
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
                            "use \"fabrikd-model/1\"");
@@ -254,8 +255,18 @@ Model load_model(const JsonReader& root) {
   const std::vector<CoordinateSpec> coordinates =
       root.has("coordinates") ? read_coordinates(root.at("coordinates"), specs, scale)
                               : std::vector<CoordinateSpec>{};
+  LabAxes lab_axes;
+  if (root.has("lab_axes")) {
+    const LabAxesSpec spec = read_lab_axes(root.at("lab_axes"));
+    const std::optional<Eigen::Vector3d> forward =
+        spec.forward_lab ? spec.forward_lab : default_forward_lab(spec.up_lab);
+    if (!forward)
+      root.at("lab_axes").fail("with x up, the lab's forward axis is not clear",
+                               "add \"forward\": \"+y\" (or \"+z\", \"-y\", \"-z\")");
+    lab_axes = LabAxes{spec.up_lab, *forward};
+  }
   try {
-    return build_model(name, specs, root_m, coordinates);
+    return build_model(name, specs, root_m, coordinates, lab_axes);
   } catch (const ModelError& e) {
     // Point the message at the field the builder complained about.
     std::string pointer = root.pointer() + "/segments";

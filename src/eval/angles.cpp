@@ -91,7 +91,7 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
     r.residual_rms_mean_m += s.rms_m[f] / static_cast<double>(frames);
     if (s.max_m[f] > r.residual_max_m || f == 0) {
       r.residual_max_m = s.max_m[f];
-      r.residual_max_frame = f;
+      r.residual_max_frame = trial.clock().number(f);
       r.residual_max_marker = s.worst[f] >= 0 ? s.markers.labels[s.worst[f]] : "";
     }
   }
@@ -102,20 +102,21 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
   std::vector<std::size_t> rows;
   for (std::size_t row = 0; row < reference.rows; ++row) {
     const double t = reference.time_s[row];
-    const double index = std::round(t * trial.rate_hz - (trial.first_frame - 1));
+    const double index = std::round((t - trial.file_time_s(0)) * trial.rate_hz);
     if (index < 0.0 || index >= static_cast<double>(frames)) continue;
     const auto f = static_cast<std::size_t>(index);
-    if (std::abs(file_time_s(trial, f) - t) > tolerance_s) continue;
+    if (std::abs(trial.file_time_s(f) - t) > tolerance_s) continue;
     rows.push_back(row);
     r.frames.push_back(f);
+    r.frame_numbers.push_back(trial.clock().number(f));
     r.time_s.push_back(t);
   }
   if (rows.empty())
     throw std::invalid_argument(
         "angles: no row of " + reference_file + " matches a frame of the trial in time (" +
         std::to_string(reference.rows) + " rows; trial " +
-        std::to_string(file_time_s(trial, 0)) + "-" +
-        std::to_string(file_time_s(trial, frames ? frames - 1 : 0)) +
+        std::to_string(trial.file_time_s(0)) + "-" +
+        std::to_string(trial.file_time_s(frames ? frames - 1 : 0)) +
         " s). Fix: compare a reference made from this trial");
 
   const double reference_rad = reference.in_degrees() ? std::numbers::pi / 180.0 : 1.0;

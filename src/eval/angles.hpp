@@ -37,12 +37,13 @@ struct AngleReport {
   std::string reference_file;
   std::vector<double> time_s;  // the shared frames' times
   std::vector<std::size_t> frames;  // their trial frame indices
+  std::vector<long long> frame_numbers;  // and numbers, as the trial counts them
   std::vector<CoordinateComparison> rows;  // the model's order
   std::vector<std::string> not_in_reference;  // model coordinates the reference lacks
   std::vector<std::string> not_in_model;      // reference columns the model lacks
   // The tracking run the angles come from (every trial frame).
   double residual_rms_mean_m = 0.0, residual_max_m = 0.0;
-  std::size_t residual_max_frame = 0;
+  long long residual_max_frame = 0;  // frame number, as the trial counts it
   std::string residual_max_marker;
 };
 

@@ -38,6 +38,7 @@ GapReport eval_gaps(const DaemonConfig& config, const io::MarkerTrial& trial,
 
   GapReport report;
   report.rate_hz = trial.rate_hz;
+  report.clock = trial.clock();
   const std::size_t n = markers.size();
   std::vector<double> times_s(frames);
   std::vector<Eigen::Vector3d> measured(frames * n, Eigen::Vector3d::Constant(NAN));
@@ -99,7 +100,7 @@ GapReport eval_gaps(const DaemonConfig& config, const io::MarkerTrial& trial,
           const TwoSidedFill fill = fill_two_sided(config.tracker, times_s, measured, visible);
           for (std::size_t f = start; f < end; ++f) predicted[f - start] = fill.markers_m[f * n + i];
         }
-        GapTrace trace{row.marker, mode, window_s, static_cast<int>(start), {}, {}};
+        GapTrace trace{row.marker, mode, window_s, start, {}, {}};
         for (std::size_t f = start; f < end; ++f) {
           const Eigen::Vector3d& real = trial.at(f, col[i]);
           const Eigen::Vector3d& pred = predicted[f - start];

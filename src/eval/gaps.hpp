@@ -48,12 +48,13 @@ struct GapTrace {
   std::string marker;
   GapMode mode = GapMode::live;
   double window_s = 0.0;
-  int first_frame = 0;  // frame index
+  std::size_t first_frame = 0;  // frame index (GapReport::clock names it)
   std::vector<Eigen::Vector3d> real_m, predicted_m;
 };
 
 struct GapReport {
   double rate_hz = 0.0;
+  io::FrameClock clock;  // the trial's frame numbers and times, to name frames by
   std::vector<GapStats> rows;  // per marker and window length
   std::vector<GapSummary> summary;
   std::vector<GapTrace> traces;

@@ -174,7 +174,7 @@ GaitReport gait_report(const TrialSolution& s) {
         g.hip_flexion_min_deg = std::min(g.hip_flexion_min_deg, value_deg(f, hip));
         g.hip_flexion_max_deg = std::max(g.hip_flexion_max_deg, value_deg(f, hip));
         if (-value_deg(f, knee) > peak.knee_flexion_deg)
-          peak = {side, file_time_s(s.joints, f), -value_deg(f, knee)};
+          peak = {side, s.joints.file_time_s(f), -value_deg(f, knee)};
       }
       g.strides.push_back(peak);
     }
@@ -187,13 +187,12 @@ GaitReport gait_report(const TrialSolution& s) {
   for (std::size_t c = 0; c < n; ++c) {
     if (!s.coordinate_is_rotation[c]) continue;
     for (std::size_t f = 1; f < g.frames; ++f) {
-      const double d = std::remainder(value_deg(f, static_cast<int>(c)) -
-                                          value_deg(f - 1, static_cast<int>(c)),
-                                      360.0);
+      // As written: the coordinates never wrap, so a turn between frames is a jump.
+      const double d = value_deg(f, static_cast<int>(c)) - value_deg(f - 1, static_cast<int>(c));
       if (std::abs(d) > g.max_jump_deg) {
         g.max_jump_deg = std::abs(d);
         g.max_jump_coordinate = s.coordinate_names[c];
-        g.max_jump_frame = f;
+        g.max_jump_frame = s.joints.clock().number(f);
       }
     }
   }
@@ -259,7 +258,7 @@ std::string gait_table(const GaitReport& g) {
   std::snprintf(line, sizeof line,
                 "\n  knee flexion peaks %.1f .. %.1f deg; knee flexion never below %.1f deg\n"
                 "  hip flexion %.1f .. %.1f deg\n"
-                "  largest frame-to-frame change %.2f deg (%s, frame %zu)\n",
+                "  largest frame-to-frame change %.2f deg (%s, frame %lld)\n",
                 lo, hi, g.knee_flexion_min_deg, g.hip_flexion_min_deg, g.hip_flexion_max_deg,
                 g.max_jump_deg, g.max_jump_coordinate.c_str(), g.max_jump_frame);
   out += line;

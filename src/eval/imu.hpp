@@ -50,9 +50,9 @@ struct GaitReport {
   double knee_flexion_min_deg = 0.0;           // both sides
   double hip_flexion_min_deg = 0.0, hip_flexion_max_deg = 0.0;
   bool alternating = false;                    // L and R peaks alternate
-  double max_jump_deg = 0.0;                   // frame to frame, any rotation (wrapped)
+  double max_jump_deg = 0.0;                   // frame to frame, any rotation, as written
   std::string max_jump_coordinate;
-  std::size_t max_jump_frame = 0;
+  long long max_jump_frame = 0;                // the later frame, numbered as the source does
   double sensor_error_rms_deg = 0.0;           // mean over frames
 };
 GaitReport gait_report(const TrialSolution& s);

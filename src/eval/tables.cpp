@@ -17,9 +17,9 @@ std::string walk_table(const WalkReport& r) {
   out += "marker residual RMS         " + mm2(r.rms_mean_m) + " mm mean over frames (worst frame " +
          mm2(r.rms_worst_m) + " mm)\n";
   out += "per-frame max residual      " + mm2(r.max_m_over_frames) + " mm at most (" +
-         r.max_marker + ", frame index " + std::to_string(r.max_frame) + ")\n";
+         r.max_marker + ", frame " + std::to_string(r.max_frame) + ")\n";
   out += "rigid-cluster bound         " + mm2(r.cluster_max_over_frames_m) + " mm at most (" +
-         r.cluster_max_marker + ", frame index " + std::to_string(r.cluster_max_frame) +
+         r.cluster_max_marker + ", frame " + std::to_string(r.cluster_max_frame) +
          "): each segment's markers fitted alone, no joints\n\n";
   out += pad("marker", 16) + pad("segment", 12) + pad("RMS mm", 8, true) + pad("max mm", 8, true) +
          "\n";
@@ -45,10 +45,10 @@ nlohmann::json walk_json(const WalkReport& r) {
           {"rms_mean_mm", r.rms_mean_m * 1e3},
           {"rms_worst_frame_mm", r.rms_worst_m * 1e3},
           {"max_mm", r.max_m_over_frames * 1e3},
-          {"max_frame_index", r.max_frame},
+          {"max_frame", r.max_frame},
           {"max_marker", r.max_marker},
           {"cluster_bound_max_mm", r.cluster_max_over_frames_m * 1e3},
-          {"cluster_bound_frame_index", r.cluster_max_frame},
+          {"cluster_bound_frame", r.cluster_max_frame},
           {"cluster_bound_marker", r.cluster_max_marker},
           {"iterations_mean", r.iterations_mean},
           {"markers", markers}};
@@ -59,7 +59,7 @@ void write_walk_csv(const std::string& path, const WalkReport& r) {
   if (!out) throw std::runtime_error(path + ": cannot write");
   out << "frame,time_s,rms_mm,max_mm,worst_marker,cluster_max_mm,cluster_worst_marker\n";
   for (std::size_t f = 0; f < r.rms_m.size(); ++f)
-    out << f << ',' << fmt("%.4f", static_cast<double>(f) / r.rate_hz) << ','
+    out << r.clock.number(f) << ',' << fmt("%.4f", r.clock.time_s(f)) << ','
         << fmt("%.3f", r.rms_m[f] * 1e3) << ',' << fmt("%.3f", r.max_m[f] * 1e3) << ','
         << r.worst[f] << ',' << fmt("%.3f", r.cluster_max_m[f] * 1e3) << ',' << r.cluster_worst[f]
         << '\n';
@@ -158,9 +158,10 @@ void write_gaps_csv(const std::string& path, const GapReport& r) {
          "pred_y_mm,pred_z_mm,error_mm\n";
   for (const GapTrace& t : r.traces)
     for (std::size_t k = 0; k < t.real_m.size(); ++k) {
-      const std::size_t f = static_cast<std::size_t>(t.first_frame) + k;
-      out << t.marker << ',' << to_string(t.mode) << ',' << t.window_s << ',' << t.first_frame << ',' << f << ','
-          << fmt("%.4f", static_cast<double>(f) / r.rate_hz);
+      const std::size_t f = t.first_frame + k;
+      out << t.marker << ',' << to_string(t.mode) << ',' << t.window_s << ','
+          << r.clock.number(t.first_frame) << ',' << r.clock.number(f) << ','
+          << fmt("%.4f", r.clock.time_s(f));
       for (const Eigen::Vector3d* v : {&t.real_m[k], &t.predicted_m[k]})
         for (int a = 0; a < 3; ++a) out << ',' << fmt("%.3f", (*v)[a] * 1e3);
       out << ',' << fmt("%.3f", (t.predicted_m[k] - t.real_m[k]).norm() * 1e3) << '\n';
@@ -253,7 +254,7 @@ std::string angles_table(const AngleReport& r) {
     out += " (" + fmt("%.3f", r.time_s.front()) + "-" + fmt("%.3f", r.time_s.back()) + " s)";
   out += "\nmarker residual over the whole trial: " + mm2(r.residual_rms_mean_m) +
          " mm mean RMS, " + mm2(r.residual_max_m) + " mm max (" + r.residual_max_marker +
-         ", frame index " + std::to_string(r.residual_max_frame) + ")\n\n";
+         ", frame " + std::to_string(r.residual_max_frame) + ")\n\n";
   out += pad("coordinate", 20) + pad("unit", 5) + pad("RMS", 8, true) + pad("offset", 8, true) +
          pad("RMS-off", 8, true) + pad("r", 7, true) + pad("ROM fab", 8, true) +
          pad("ROM ref", 8, true) + "\n";
@@ -294,7 +295,7 @@ nlohmann::json angles_json(const AngleReport& r) {
           {"residual_mm",
            {{"rms_mean", r.residual_rms_mean_m * 1e3},
             {"max", r.residual_max_m * 1e3},
-            {"max_frame_index", r.residual_max_frame},
+            {"max_frame", r.residual_max_frame},
             {"max_marker", r.residual_max_marker}}},
           {"coordinates", rows},
           {"not_in_reference", r.not_in_reference},
@@ -307,7 +308,7 @@ void write_angles_csv(const std::string& path, const AngleReport& r) {
   out << "coordinate,unit,frame,time_s,fabrik,reference\n";
   for (const CoordinateComparison& c : r.rows)
     for (std::size_t k = 0; k < c.fabrik_si.size(); ++k)
-      out << c.name << ',' << display_unit(c) << ',' << r.frames[k] << ','
+      out << c.name << ',' << display_unit(c) << ',' << r.frame_numbers[k] << ','
           << fmt("%.5f", r.time_s[k]) << ',' << fmt("%.4f", display(c, c.fabrik_si[k])) << ','
           << fmt("%.4f", display(c, c.reference_si[k])) << '\n';
 }

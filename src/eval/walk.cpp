@@ -45,6 +45,7 @@ WalkReport eval_walk(const DaemonConfig& config, const io::MarkerTrial& trial) {
   const std::vector<int> col = trial_columns(config, trial);
   WalkReport r;
   r.rate_hz = trial.rate_hz;
+  r.clock = trial.clock();
   r.rms_m = s.rms_m;
   r.max_m = s.max_m;
   const std::size_t frames = trial.frames();
@@ -55,7 +56,7 @@ WalkReport eval_walk(const DaemonConfig& config, const io::MarkerTrial& trial) {
     r.rms_mean_m += s.rms_m[f] / static_cast<double>(frames);
     r.rms_worst_m = std::max(r.rms_worst_m, s.rms_m[f]);
     if (s.max_m[f] > r.max_m_over_frames)
-      r.max_m_over_frames = s.max_m[f], r.max_frame = f, r.max_marker = r.worst.back();
+      r.max_m_over_frames = s.max_m[f], r.max_frame = trial.clock().number(f), r.max_marker = r.worst.back();
     it_sum += s.iterations[f];
     for (std::size_t i = 0; i < markers.size(); ++i) {
       if (col[i] < 0 || !trial.at(f, col[i]).allFinite()) continue;
@@ -81,7 +82,7 @@ WalkReport eval_walk(const DaemonConfig& config, const io::MarkerTrial& trial) {
     r.cluster_max_m.push_back(worst);
     r.cluster_worst.push_back(worst_name);
     if (worst > r.cluster_max_over_frames_m)
-      r.cluster_max_over_frames_m = worst, r.cluster_max_frame = f,
+      r.cluster_max_over_frames_m = worst, r.cluster_max_frame = trial.clock().number(f),
       r.cluster_max_marker = worst_name;
   }
   r.iterations_mean = frames ? it_sum / static_cast<double>(frames) : 0.0;

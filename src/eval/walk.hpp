@@ -17,6 +17,7 @@ struct MarkerStats {
 
 struct WalkReport {
   double rate_hz = 0.0;
+  io::FrameClock clock;  // the trial's frame numbers and times, to name frames by
   std::vector<double> rms_m, max_m;  // per frame, over measured markers
   std::vector<std::string> worst;    // per frame
   // Per frame, the worst marker residual of an unconstrained rigid fit of
@@ -26,10 +27,10 @@ struct WalkReport {
   std::vector<std::string> cluster_worst;
   double rms_mean_m = 0.0, rms_worst_m = 0.0;
   double max_m_over_frames = 0.0;
-  std::size_t max_frame = 0;
+  long long max_frame = 0;  // frame numbers as the trial counts them
   std::string max_marker;
   double cluster_max_over_frames_m = 0.0;
-  std::size_t cluster_max_frame = 0;
+  long long cluster_max_frame = 0;
   std::string cluster_max_marker;
   double iterations_mean = 0.0;
   std::vector<MarkerStats> markers;  // the tracker's marker order

@@ -6,7 +6,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstddef>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -51,12 +53,34 @@ struct RecordingFacts {
   TimeSteps time_backwards, time_standing;
 };
 
+// How a source numbers and times its frames, to name them in outputs as the source does.
+struct FrameClock {
+  int first_frame = 1;  // number of the first frame
+  // The source's time of the first frame in frame periods; NaN: first_frame - 1 (MarkerTrial).
+  double first_time_frames = std::numeric_limits<double>::quiet_NaN();
+  double rate_hz = 0.0;
+
+  long long number(std::size_t index) const {
+    return static_cast<long long>(first_frame) + static_cast<long long>(index);
+  }
+  // (first_time_frames + index) / rate.
+  double time_s(std::size_t index) const {
+    const double first = std::isnan(first_time_frames) ? first_frame - 1.0 : first_time_frames;
+    return (first + static_cast<double>(index)) / rate_hz;
+  }
+};
+
 // A marker recording in memory. Positions are in METRES (converted once, when read), NaN where a
 // marker is missing.
 struct MarkerTrial {
   std::vector<std::string> labels;           // marker names
   double rate_hz = 0.0;                      // frames per second
   int first_frame = 1;                       // number of the first frame in the source file
+  // The source's time of the first frame, in frame periods (a TRC's first Time times its
+  // rate, on the frame grid when it is within rounding of it). NaN when the source says
+  // nothing (C3D, trials made in memory): first_frame - 1, so frame 1 is at 0 s as OpenSim
+  // reads a TRC that starts at frame 1.
+  double first_time_frames = std::numeric_limits<double>::quiet_NaN();
   std::vector<Eigen::Vector3d> positions_m;  // frame-major: [frame * labels.size() + marker]
   RecordingFacts source;                     // filled by the readers
   // What the reader found odd and how it read it, one sentence each, e.g. "header: NumFrames is
@@ -74,6 +98,10 @@ struct MarkerTrial {
   // Seconds since the first frame. TRC Time columns are rounded, so time comes from the frame
   // index and the rate instead.
   double time_s(std::size_t frame) const { return static_cast<double>(frame) / rate_hz; }
+  // The frame's time as the source counts it: (first_time_frames + frame) / rate. Outputs
+  // (.mot, .trc, reports) carry these times, so they line up with the source and OpenSim.
+  double file_time_s(std::size_t frame) const { return clock().time_s(frame); }
+  FrameClock clock() const { return {first_frame, first_time_frames, rate_hz}; }
   // Index of the first marker named `label`, -1 if absent.
   int find(const std::string& label) const;
 };

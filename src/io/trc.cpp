@@ -185,9 +185,13 @@ class TrcParser {
       }
       Fields fields(line);
       const std::string_view frame_field = fields.next().value_or("");
-      if (rows == 0) trial.first_frame = frame_number(frame_field);
+      const std::string_view time_field = fields.next().value_or("");
+      if (rows == 0) {
+        trial.first_frame = frame_number(frame_field);
+        trial.first_time_frames = first_time_frames(time_field, trial.rate_hz);
+      }
       // Time: rounded in OpenSim's files, so time comes from the rate; only its order is checked.
-      check_time(trial, fields.next().value_or(""), frame_field, rows);
+      check_time(trial, time_field, frame_field, rows);
       for (std::size_t m = 0; m < num_markers; ++m) {
         Eigen::Vector3d p = missing;
         bool complete = true;
@@ -297,6 +301,16 @@ class TrcParser {
   }
 
   [[noreturn]] void fail(const std::string& problem) const { throw FormatError(path_, problem); }
+
+  // The first row's Time in frame periods: where the file's clock starts (frame 1 at 0 s in
+  // OpenSim's own files, frame 23 at 0.23 s in others). Rounded times within a hundredth of a
+  // frame of the grid are put on it, so every later time is exactly (n + index) / rate.
+  static double first_time_frames(std::string_view time_field, double rate_hz) {
+    const std::optional<double> t = parse_number(time_field);
+    if (!t || !std::isfinite(*t)) return std::numeric_limits<double>::quiet_NaN();
+    const double frames = *t * rate_hz;
+    return std::abs(frames - std::round(frames)) < 0.01 ? std::round(frames) : frames;
+  }
 
   // Counts rows whose Time is before (backwards) or equal to (standing) the previous row's, and
   // keeps the first of each; a Time that is not a number is not compared.
@@ -455,7 +469,7 @@ void write_trc(const std::string& path, const MarkerTrial& trial, const std::str
   for (std::size_t f = 0; f < frames; ++f) {
     text = std::to_string(static_cast<long long>(trial.first_frame) + static_cast<long long>(f));
     text += '\t';
-    append_number(text, trial.time_s(f), -1);  // shortest exact form, not rounded like OpenSim's
+    append_number(text, trial.file_time_s(f), -1);  // shortest exact form, not rounded like OpenSim's
     for (std::size_t m = 0; m < n; ++m) {
       const Eigen::Vector3d& p = trial.at(f, m);
       if (!p.allFinite()) {

@@ -61,6 +61,8 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
         table_frames ? 1 + static_cast<int>(std::lround(orientations->time_s.front() *
                                                         orientations->rate_hz))
                      : trial.first_frame;
+    out->first_time_frames = table_frames ? orientations->time_s.front() * orientations->rate_hz
+                                          : trial.first_time_frames;
   }
   std::vector<Eigen::Quaterniond> q_table(orientations ? orientations->sensors.size() : 0);
   std::vector<Eigen::Quaterniond> q_sensor(sensor_count, Eigen::Quaterniond::Identity());
@@ -94,7 +96,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
       if (table_frames) {
         for (std::size_t k = 0; k < q_table.size(); ++k) q_table[k] = orientations->at(f, k);
       } else {
-        orientations->sample(file_time_s(trial, f), q_table);
+        orientations->sample(trial.file_time_s(f), q_table);
       }
       for (int k = 0; k < sensor_count; ++k) {
         const int c = sensor_column[k];
@@ -208,7 +210,7 @@ nlohmann::json solution_summary(const TrialSolution& s) {
            {{"rms_mean", with_markers ? rms_sum / static_cast<double>(with_markers) * 1e3 : 0.0},
             {"rms_max", rms_max * 1e3},
             {"max", max_m * 1e3},
-            {"max_frame", max_frame},
+            {"max_frame", s.markers.first_frame + static_cast<long long>(max_frame)},
             {"max_marker", worst_name},
             {"worst_marker_most_often", most_often}}},
           {"solve_us",
@@ -245,10 +247,6 @@ nlohmann::json solution_summary(const TrialSolution& s) {
   return summary;
 }
 
-double file_time_s(const io::MarkerTrial& trial, std::size_t f) {
-  return (static_cast<double>(trial.first_frame - 1) + static_cast<double>(f)) / trial.rate_hz;
-}
-
 io::OpenSimTable angles_table(const TrialSolution& s) {
   constexpr double kDegPerRad = 180.0 / 3.141592653589793;
   io::OpenSimTable t = io::coordinates_table(s.coordinate_names, true);
@@ -257,7 +255,7 @@ io::OpenSimTable angles_table(const TrialSolution& s) {
   for (std::size_t f = 0; f < s.rms_m.size(); ++f) {
     for (std::size_t c = 0; c < n; ++c)
       row[c] = s.coordinates[f * n + c] * (s.coordinate_is_rotation[c] ? kDegPerRad : 1.0);
-    t.add_row(file_time_s(s.joints, f), row);
+    t.add_row(s.joints.file_time_s(f), row);
   }
   return t;
 }
@@ -269,7 +267,7 @@ void write_filled_csv(const std::string& path, const TrialSolution& s, const io:
   for (const FilledRun& r : s.filled)
     out << r.marker << ',' << trial.first_frame + static_cast<long long>(r.first) << ','
         << trial.first_frame + static_cast<long long>(r.end) - 1 << ','
-        << file_time_s(trial, r.first) << ',' << file_time_s(trial, r.end - 1) << ','
+        << trial.file_time_s(r.first) << ',' << trial.file_time_s(r.end - 1) << ','
         << r.end - r.first << ',' << r.method << '\n';
 }
 

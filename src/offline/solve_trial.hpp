@@ -72,7 +72,7 @@ struct TrialSolution {
 // `progress(frame, frames)` is called now and then (may be empty).
 // `orientations` (may be null) feeds the config's sensors, joined on time:
 // each marker frame takes the table's orientations at its file time
-// (file_time_s, interpolated). A trial without markers (no labels) is tracked
+// (MarkerTrial::file_time_s, interpolated). A trial without markers (no labels) is tracked
 // on the table's rows instead, at the table's times and rate.
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress = {},
@@ -80,15 +80,12 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
 
 // Frames, residual RMS mean and max, worst marker, solve time quantiles. Frames without any
 // measured marker have no residual: they are left out of the residual figures and counted
-// (frames_without_markers).
+// (frames_without_markers). Frames are named by the source's frame numbers (max_frame).
 nlohmann::json solution_summary(const TrialSolution& s);
 
-// Frame f's time as the trial's file counts it: (first_frame - 1 + f) / rate,
-// so a trial whose first frame is 1 starts at 0 s, as OpenSim reads a TRC.
-double file_time_s(const io::MarkerTrial& trial, std::size_t f);
-
 // The coordinates as an OpenSim Coordinates table (.mot): rotations in
-// degrees (inDegrees=yes), translations in metres, times per file_time_s.
+// degrees (inDegrees=yes), translations in metres, at the source's own times
+// (MarkerTrial::file_time_s).
 io::OpenSimTable angles_table(const TrialSolution& s);
 
 // The filled samples as CSV, one run a line: marker, first and last frame

@@ -167,6 +167,11 @@ Eigen::Vector3d fit_joint_angles(const Eigen::Matrix3d& b, const JointLimits& jo
 }
 
 void coordinate_values(const Model& model, const Posture& posture, std::span<double> out) {
+  // World-relative coordinates are OpenSim's, relative to its ground: the
+  // lab's axes turned onto X forward, Y up. A lab that is already so is
+  // left alone: its values stay bit for bit what they were.
+  const bool turned = !(model.lab_axes == LabAxes{});
+  const Eigen::Matrix3d r_reference_lab = model.lab_axes.r_reference_lab();
   int cached_segment = -2, cached_reference = -2;
   Eigen::Vector3d angles = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
@@ -174,15 +179,29 @@ void coordinate_values(const Model& model, const Posture& posture, std::span<dou
     double raw = 0.0;
     if (c.kind == CoordinateKind::rotation) {
       if (c.segment != cached_segment || c.relative_to != cached_reference) {
-        angles = cardan_zxy(relative_anatomical(model, posture, c.segment, c.relative_to));
+        const Eigen::Matrix3d r = relative_anatomical(model, posture, c.segment, c.relative_to);
+        angles = cardan_zxy(c.relative_to < 0 && turned ? Eigen::Matrix3d(r_reference_lab * r) : r);
         cached_segment = c.segment;
         cached_reference = c.relative_to;
       }
       raw = angles[c.angle];
     } else {
-      raw = posture.point_world_m(model, c.point)[c.axis];
+      const Eigen::Vector3d p_lab_m = posture.point_world_m(model, c.point);
+      raw = (turned ? Eigen::Vector3d(r_reference_lab * p_lab_m) : p_lab_m)[c.axis];
     }
     out[i] = c.sign * (raw + c.offset);
+  }
+}
+
+void unwrap_coordinates(const Model& model, std::span<const double> previous,
+                        std::span<double> out) {
+  constexpr double kTurn = 2.0 * std::numbers::pi;
+  for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
+    const Coordinate& c = model.coordinates[i];
+    if (c.kind != CoordinateKind::rotation || !std::isfinite(previous[i])) continue;
+    // value = sign * (raw + offset): a whole turn of raw is sign turns of the value.
+    const double turn = c.sign * kTurn;
+    out[i] += turn * std::round((previous[i] - out[i]) / turn);
   }
 }
 

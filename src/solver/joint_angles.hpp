@@ -59,7 +59,15 @@ Eigen::Vector3d fit_joint_angles(const Eigen::Matrix3d& b, const JointLimits& jo
                                  const Eigen::Vector3d& start_rad, int sweeps);
 
 // Every coordinate of the model (Model::coordinates) at this posture:
-// rotations in radians, translations in metres.
+// rotations in radians, translations in metres. Those relative to the world
+// are in the reference frame of Model::lab_axes (OpenSim's ground). Rotations
+// are the Cardan angles' principal values; see unwrap_coordinates.
 void coordinate_values(const Model& model, const Posture& posture, std::span<double> out);
+
+// Each rotation in `out` moved by whole turns to the value nearest its
+// `previous` one (translations untouched): continuous coordinates over
+// frames, as OpenSim's, which never wrap at +-180 deg.
+void unwrap_coordinates(const Model& model, std::span<const double> previous,
+                        std::span<double> out);
 
 }  // namespace fabrik

@@ -6,14 +6,16 @@ namespace fabrik {
 
 Model::Model(std::string name_, std::vector<Segment> segments_, std::vector<Point> points_,
              std::vector<int> child_ids_, std::vector<Joint> joints_,
-             std::vector<Coordinate> coordinates_, const Eigen::Vector3d& root_rest_m_)
+             std::vector<Coordinate> coordinates_, const Eigen::Vector3d& root_rest_m_,
+             const LabAxes& lab_axes_)
     : name(std::move(name_)),
       segments(std::move(segments_)),
       points(std::move(points_)),
       child_ids(std::move(child_ids_)),
       joints(std::move(joints_)),
       coordinates(std::move(coordinates_)),
-      root_rest_m(root_rest_m_) {}
+      root_rest_m(root_rest_m_),
+      lab_axes(lab_axes_) {}
 
 int Model::find_segment(const std::string& segment_name) const {
   for (int i = 0; i < static_cast<int>(segments.size()); ++i)

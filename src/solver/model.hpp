@@ -91,6 +91,29 @@ struct Coordinate {
   double offset = 0.0;   // radians or metres
 };
 
+// The lab's axes: how the world the marker positions are given in (the
+// lab's frame) lies relative to the reference frame of world-relative
+// coordinates, OpenSim's ground: X forward, Y up, Z = X x Y (right). Each
+// is a signed lab axis, unit, at right angles. Positions stay in the lab's
+// frame; only coordinates relative to the world are expressed in the
+// reference frame. The default, Y up and X forward, is the identity.
+struct LabAxes {
+  Eigen::Vector3d up_lab{0, 1, 0};
+  Eigen::Vector3d forward_lab{1, 0, 0};
+  // Rows: the reference's X, Y, Z axes in the lab; a lab vector v is
+  // r_reference_lab() * v in the reference frame.
+  Eigen::Matrix3d r_reference_lab() const {
+    Eigen::Matrix3d r;
+    r.row(0) = forward_lab.transpose();
+    r.row(1) = up_lab.transpose();
+    r.row(2) = forward_lab.cross(up_lab).transpose();
+    return r;
+  }
+  bool operator==(const LabAxes& o) const {
+    return up_lab == o.up_lab && forward_lab == o.forward_lab;
+  }
+};
+
 class Model {
  public:
   const std::string name;
@@ -100,6 +123,7 @@ class Model {
   const std::vector<Joint> joints;
   const std::vector<Coordinate> coordinates;
   const Eigen::Vector3d root_rest_m;  // world position of the root base at rest
+  const LabAxes lab_axes;             // for coordinates relative to the world
 
   int find_segment(const std::string& segment_name) const;
   int find_point(const std::string& point_name) const;
@@ -116,7 +140,7 @@ class Model {
   friend class ModelAssembly;
   Model(std::string name, std::vector<Segment> segments, std::vector<Point> points,
         std::vector<int> child_ids, std::vector<Joint> joints, std::vector<Coordinate> coordinates,
-        const Eigen::Vector3d& root_rest_m);
+        const Eigen::Vector3d& root_rest_m, const LabAxes& lab_axes);
 };
 
 }  // namespace fabrik

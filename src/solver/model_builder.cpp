@@ -100,7 +100,7 @@ JointLimits joint_limits(int spec_index, const SegmentSpec& spec,
 
 Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs,
                   const Eigen::Vector3d& root_rest_m,
-                  const std::vector<CoordinateSpec>& coordinates) {
+                  const std::vector<CoordinateSpec>& coordinates, const LabAxes& lab_axes) {
   if (specs.empty()) throw ModelError(-1, -1, "segments", "the model has no segments");
   if (!root_rest_m.allFinite())
     throw ModelError(-1, -1, "root_position", "the root position is not finite");
@@ -288,15 +288,19 @@ Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs
     }
     coords.push_back(c);
   }
+  const double up_norm = lab_axes.up_lab.norm(), forward_norm = lab_axes.forward_lab.norm();
+  if (!(std::abs(up_norm - 1.0) < 1e-9 && std::abs(forward_norm - 1.0) < 1e-9 &&
+        std::abs(lab_axes.up_lab.dot(lab_axes.forward_lab)) < 1e-9))
+    throw ModelError(-1, -1, "lab_axes", "the lab's up and forward axes must be unit axes at right angles");
   return ModelAssembly::make(name, std::move(segments), std::move(points), std::move(child_ids),
-                             std::move(joints), std::move(coords), root_rest_m);
+                             std::move(joints), std::move(coords), root_rest_m, lab_axes);
 }
 
 Model without_joint_limits(const Model& model) {
   std::vector<Segment> segments = model.segments;
   for (Segment& s : segments) s.joint = JointLimits{};
   return ModelAssembly::make(model.name, std::move(segments), model.points, model.child_ids,
-                             model.joints, model.coordinates, model.root_rest_m);
+                             model.joints, model.coordinates, model.root_rest_m, model.lab_axes);
 }
 
 }  // namespace fabrik

@@ -67,9 +67,11 @@ class ModelError : public std::invalid_argument {
   std::string field_;
 };
 
+// `lab_axes` must be two lab axes at right angles (ModelError, field "lab_axes").
 Model build_model(const std::string& name, const std::vector<SegmentSpec>& specs,
                   const Eigen::Vector3d& root_rest_m,
-                  const std::vector<CoordinateSpec>& coordinates = {});
+                  const std::vector<CoordinateSpec>& coordinates = {},
+                  const LabAxes& lab_axes = {});
 
 // The same model with every joint free (for comparisons: limits on and off).
 Model without_joint_limits(const Model& model);

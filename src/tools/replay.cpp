@@ -147,9 +147,7 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
       if (table_frames) {
         for (std::size_t k_s = 0; k_s < n_sensors; ++k_s) q[k_s] = table->at(index, k_s);
       } else {
-        table->sample((static_cast<double>(trial.first_frame - 1) + static_cast<double>(index)) /
-                          trial.rate_hz,
-                      q);
+        table->sample(trial.file_time_s(index), q);
       }
       for (std::size_t k_s = 0; k_s < n_sensors; ++k_s) {
         q_visible[k_s] = q[k_s].coeffs().allFinite() ? 1 : 0;

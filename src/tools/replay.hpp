@@ -46,7 +46,7 @@ struct ReplayOptions {
   double wait_subscriber_s = -1.0;
   // Sensor orientations sent with every frame (`orientations`), joined on
   // time: each marker frame takes the table's orientations at its file time
-  // ((first_frame - 1 + index) / rate, interpolated), as `fabrik solve` does.
+  // (MarkerTrial::file_time_s, interpolated), as `fabrik solve` does.
   // With a trial without markers, the table's rows are the frames, at its
   // times. Not owned; may be null.
   const io::OrientationTable* orientations = nullptr;

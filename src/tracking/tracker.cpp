@@ -89,6 +89,7 @@ Tracker::Tracker(TrackerSetup setup)
   measured_.assign(n_, 0);
   result_.gap_s = gap_s_;
   coordinates_.assign(model().coordinates.size(), 0.0);
+  coordinates_now_.assign(model().coordinates.size(), 0.0);
   segment_q_.assign(model().segments.size(), Eigen::Quaterniond::Identity());
   segment_origin_m_.assign(model().segments.size(), Eigen::Vector3d::Zero());
   result_.coordinates = coordinates_;
@@ -110,6 +111,7 @@ Tracker::Tracker(TrackerSetup setup)
 void Tracker::reset() {
   posture_ = rest_;
   warm_ = false;
+  coordinates_continue_ = false;
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
   predictor_.reset();
 }
@@ -157,6 +159,9 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   // A long gap (either way: a source may restart its clock) makes the last pose stale.
   const double gap_s = time_s - last_solved_s_;
   const bool cold = !warm_ || !(std::abs(gap_s) <= setup_.cold_start.after_gap_s);
+  // A clock that went back is a new recording: its coordinates start afresh.
+  // After a gap the subject is the same, so they stay continuous across it.
+  if (!warm_ || gap_s < 0.0) coordinates_continue_ = false;
   if (cold) predictor_.reset();
   // The solver's orientation targets: the sensors' as measured, then the predictor's.
   const std::size_t n_sensors = sensors_.visible().size();
@@ -239,7 +244,10 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     beyond_count += beyond_[i];
   }
   result_.beyond_count = beyond_count;
-  coordinate_values(model(), posture_, coordinates_);
+  coordinate_values(model(), posture_, coordinates_now_);
+  if (coordinates_continue_) unwrap_coordinates(model(), coordinates_, coordinates_now_);
+  std::copy(coordinates_now_.begin(), coordinates_now_.end(), coordinates_.begin());
+  coordinates_continue_ = true;
   for (std::size_t s = 0; s < segment_q_.size(); ++s) {
     const SegmentPose& pose = posture_.segments[s];
     segment_q_[s] = pose.q_world * model().segments[s].q_anatomical;

@@ -68,6 +68,9 @@ struct TrackResult {
   int residual_count = 0;
   int worst_marker = -1;  // index into the setup's markers, -1 if none measured
   // Per Model::coordinates: joint angles (radians) and translations (metres).
+  // Rotations are continuous over frames (unwrap_coordinates, joint_angles.hpp):
+  // principal values on the first frame and after reset() or a clock that went
+  // back, the 2 pi-equivalent nearest the previous frame's value after that.
   std::span<const double> coordinates;
   // Per segment: its anatomical frame's world rotation, and its base (origin) in the world.
   std::span<const Eigen::Quaterniond> segment_q_world;
@@ -153,6 +156,8 @@ class Tracker {
   std::vector<double> last_seen_s_;
   std::vector<Eigen::Vector3d> joints_m_, markers_m_;
   std::vector<double> coordinates_;
+  std::vector<double> coordinates_now_;  // this frame's, before they are unwrapped
+  bool coordinates_continue_ = false;    // coordinates_ holds the previous frame's
   std::vector<Eigen::Quaterniond> segment_q_;
   std::vector<Eigen::Vector3d> segment_origin_m_;
   std::vector<std::uint8_t> occluded_, held_, outlier_, beyond_;
