@@ -493,7 +493,7 @@ void check_template_follows(const std::string& template_file, const Eigen::Matri
 
 }  // namespace
 
-TEST_CASE("Plug-in Gait lower body: calibrate and track a synthetic subject in a Y-up lab; its "
+TEST_CASE("Plug-in Gait lower body: calibrate and track a synthetic subject in a Y-up lab, and its "
           "joint angles follow the motion",
           "[templates]") {
   check_template_follows(kSourceDir + "/config/templates/plugin_gait_lower_body.json",
@@ -502,7 +502,7 @@ TEST_CASE("Plug-in Gait lower body: calibrate and track a synthetic subject in a
                           "hip_flexion_l", "hip_adduction_l", "knee_angle_l"});
 }
 
-TEST_CASE("Plug-in Gait full body: calibrate and track a synthetic subject in a Z-up lab; its "
+TEST_CASE("Plug-in Gait full body: calibrate and track a synthetic subject in a Z-up lab, and its "
           "joint angles follow the motion",
           "[templates]") {
   // Vicon's labs: z up. The subject's y goes to the lab's z.
