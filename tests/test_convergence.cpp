@@ -1,10 +1,11 @@
 // How fast the solve converges, and what that may not cost: the extrapolation of the
-// convergence loop (SolverOptions::extrapolate, fabrik_extrapolation.cpp) and the stopping
-// rule around its jumps.
+// convergence loop (SolverOptions::extrapolate, fabrik_extrapolation.cpp), the stopping rule
+// around its jumps, and the velocity warm start (solver/warm_start.hpp).
 #include <catch2/catch.hpp>
 #include <cmath>
 
 #include "solver/fabrik_solver.hpp"
+#include "solver/warm_start.hpp"
 #include "test_models.hpp"
 
 using namespace fabrik;
@@ -100,4 +101,60 @@ TEST_CASE("After a jump the stopping rule neither stalls on it nor takes a rate 
   // Then rates again: 2e-4 -> 1e-5 contracts fast enough that what is left is below 1e-4.
   CHECK(seq.step(5, 1e-5));
   CHECK(seq.result.status == SolveStatus::stalled);
+}
+
+TEST_CASE("Warm start: a joint's last turn is carried on, damped, with the joints connected",
+          "[convergence][warm]") {
+  const HingedArm arm = hinged_arm();
+  const Model& m = *arm.model;
+  // Two frames 10 ms apart: the root moves, the upper arm and the elbow turn.
+  auto posture_at = [&](double t_s) {
+    std::vector<Eigen::Quaterniond> q = {
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.2 * t_s, Eigen::Vector3d::UnitY())),
+        Eigen::Quaterniond(Eigen::AngleAxisd(3.0 * t_s, Eigen::Vector3d::UnitX())),
+        Eigen::Quaterniond(Eigen::AngleAxisd(0.5 + 4.0 * t_s, Eigen::Vector3d::UnitZ()))};
+    Posture p = Posture::rest(m);
+    set_from_local(m, Eigen::Vector3d(0.5 * t_s, 0.0, 0.0), q, p);
+    return p;
+  };
+  WarmStart warm(m);
+  Posture start = Posture::rest(m);
+  const Posture untouched = start;
+  warm.predict(0.0, true, start);  // nothing recorded: the start stays
+  CHECK(start.segments[1].q_world.isApprox(untouched.segments[1].q_world));
+  warm.record(0.00, posture_at(0.00), true);
+  warm.predict(0.01, true, start);  // one frame: no velocity yet, the last posture
+  CHECK(start.segments[2].q_world.isApprox(posture_at(0.00).segments[2].q_world, 1e-12));
+  warm.record(0.01, posture_at(0.01), true);
+  warm.predict(0.02, true, start);
+  const double d = WarmStart::kDamping;
+  const Posture last = posture_at(0.01), expected = posture_at(0.01 + 0.01 * d);
+  for (std::size_t s = 0; s < m.segments.size(); ++s) {
+    CAPTURE(s);
+    // Each joint turns on by kDamping times its last turn (about one axis here, so the posture
+    // kDamping of a frame later, to the small-angle power's third-order error: 2e-6 rad for
+    // these turns of up to 0.04 rad).
+    CHECK(start.segments[s].q_world.angularDistance(expected.segments[s].q_world) < 1e-5);
+    CHECK(start.segments[s].q_world.angularDistance(last.segments[s].q_world) > 1e-4);
+  }
+  CHECK((start.segments[0].base_world_m - expected.segments[0].base_world_m).norm() < 1e-12);
+  CHECK(max_joint_gap_m(m, start) < 1e-12);
+  // A gap longer than kMaxStepRatio frames, or time going back, carries nothing on.
+  warm.predict(0.01 + 0.01 * (WarmStart::kMaxStepRatio + 0.5), true, start);
+  CHECK(start.segments[2].q_world.isApprox(last.segments[2].q_world, 1e-12));
+  warm.predict(0.005, true, start);
+  CHECK(start.segments[2].q_world.isApprox(last.segments[2].q_world, 1e-12));
+  // A frame without markers carries nothing on, nor does one after a frame whose root was held.
+  warm.predict(0.02, false, start);
+  CHECK(start.segments[2].q_world.isApprox(last.segments[2].q_world, 1e-12));
+  warm.record(0.02, posture_at(0.02), false);
+  warm.predict(0.03, true, start);
+  CHECK(start.segments[2].q_world.isApprox(posture_at(0.02).segments[2].q_world, 1e-12));
+  warm.record(0.03, posture_at(0.03), true);
+  warm.predict(0.04, true, start);
+  CHECK(start.segments[2].q_world.isApprox(posture_at(0.03).segments[2].q_world, 1e-12));
+  warm.reset();
+  start = untouched;
+  warm.predict(0.05, true, start);
+  CHECK(start.segments[2].q_world.isApprox(untouched.segments[2].q_world));
 }
