@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "config/model_loader.hpp"
+#include "solver/joint_angles.hpp"
 #include "solver/model_builder.hpp"
 
 namespace fabrik::test {
@@ -94,6 +96,83 @@ double max_joint_gap_m(const Model& model, const Posture& posture) {
                              posture.segments[s].base_world_m)
                                 .norm());
   return worst;
+}
+
+double max_limit_excess_rad(const Model& m, const Posture& p) {
+  double worst = 0.0;
+  for (int s = 1; s < static_cast<int>(m.segments.size()); ++s) {
+    const JointLimits& j = m.segments[s].joint;
+    if (!j.limited()) continue;
+    const Eigen::Vector3d a = joint_angles_rad(m, p, s);
+    for (int k = 0; k < 3; ++k) {
+      // Outside [lo, hi] on the circle: the distance to the nearer bound.
+      auto wrap = [](double x) { return std::remainder(x, 2.0 * std::numbers::pi); };
+      const double lo = j.min_rad[k], hi = j.max_rad[k];
+      // How far past lo the angle lies, going the positive way round, in [0, 2 pi).
+      const double past_lo = std::fmod(a[k] - lo + 4.0 * std::numbers::pi, 2.0 * std::numbers::pi);
+      const bool inside = k == 1 ? (a[k] >= lo && a[k] <= hi) : past_lo <= hi - lo + 1e-12;
+      if (!inside)
+        worst = std::max(worst, std::min(std::abs(wrap(a[k] - lo)), std::abs(wrap(a[k] - hi))));
+    }
+  }
+  return worst;
+}
+
+// A hinge child's point's component along the hinge axis (parent frame) is that of the rest
+// pose.
+double max_hinge_plane_m(const Model& m, const Posture& p) {
+  double worst = 0.0;
+  for (int s = 1; s < static_cast<int>(m.segments.size()); ++s) {
+    const Segment& seg = m.segments[s];
+    if (seg.joint.type != JointType::hinge) continue;
+    const Eigen::Vector3d u = m.segments[seg.parent].q_anatomical * Eigen::Vector3d::UnitZ();
+    const Eigen::Matrix3d& r_parent = p.segments[seg.parent].r_world;
+    for (int i = seg.first_point; i < seg.first_point + seg.point_count; ++i) {
+      const Eigen::Vector3d v =
+          r_parent.transpose() * (p.point_world_m(m, i) - p.segments[s].base_world_m);
+      worst = std::max(worst, std::abs(v.dot(u) - m.points[i].p_local_m.dot(u)));
+    }
+  }
+  return worst;
+}
+
+HingedArm hinged_arm() {
+  auto spec = [](const char* name, const char* parent, const char* base,
+                 std::vector<PointSpec> points) {
+    SegmentSpec s;
+    s.name = name;
+    s.parent = parent;
+    s.base = base;
+    s.points = std::move(points);
+    return s;
+  };
+  std::vector<SegmentSpec> specs = {
+      spec("torso", "", "root", {{"shoulder", {0, 0.4, 0}, false}, {"T", {0.1, 0.1, 0}, true}}),
+      spec("upper", "torso", "shoulder",
+           {{"elbow", {0, -0.3, 0}, false}, {"UA", {0, -0.15, 0}, true}}),
+      spec("fore", "upper", "elbow",
+           {{"wrist", {0, -0.25, 0}, true}, {"thumb", {0.06, -0.25, 0.0}, true}})};
+  specs[2].joint.type = JointType::hinge;
+  specs[2].joint.min_rad = {-2.6, 0.0, 0.0};
+  specs[2].joint.max_rad = {2.6, 0.0, 0.0};
+  HingedArm arm;
+  arm.model = std::make_shared<const Model>(build_model("arm", specs, Eigen::Vector3d::Zero()));
+  const Model& m = *arm.model;
+  Posture goal = Posture::rest(m);
+  const Eigen::Quaterniond q_upper(
+      Eigen::AngleAxisd(60.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitY()));
+  goal.segments[1].set_rotation(q_upper);
+  goal.segments[2].set_rotation(
+      q_upper * Eigen::Quaterniond(Eigen::AngleAxisd(1.4, Eigen::Vector3d::UnitZ())));
+  goal.segments[2].base_world_m = goal.point_world_m(m, m.segments[2].parent_point);
+  for (int p : m.marker_points()) {
+    arm.targets.push_back({p, 0, 1.0});
+    arm.goal_m.push_back(goal.point_world_m(m, p));
+  }
+  arm.start = Posture::rest(m);
+  arm.start.segments[2].set_rotation(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ())));
+  return arm;
 }
 
 }  // namespace fabrik::test

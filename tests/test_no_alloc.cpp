@@ -341,9 +341,7 @@ TEST_CASE("FabrikSolver::solve with joint limits, subtree carry and orientation 
   const DaemonConfig config = load_daemon_config_file("default.json");
   const Model& model = *config.tracker.model;
   REQUIRE(model.has_joint_limits());
-  std::vector<Target> targets;
   const std::vector<int> points = model.marker_points();
-  for (int p : points) targets.push_back({p, p % 2, 1.0});
   std::vector<OrientationTarget> orientations;
   for (int s = 0; s < static_cast<int>(model.segments.size()); s += 3)
     orientations.push_back({s, 0, 1.0});
@@ -354,25 +352,32 @@ TEST_CASE("FabrikSolver::solve with joint limits, subtree carry and orientation 
   const std::vector<std::uint8_t> q_visible(orientations.size(), 1);
   SyntheticMotion motion(model, MotionSettings{});
   Posture truth = Posture::rest(model);
-  for (double carry : {0.0, 0.5}) {
-    SolverOptions o;
-    o.segment_fit = SegmentFit::rigid;
-    o.root = RootMode::free;
-    o.subtree_carry = carry;
-    FabrikSolver solver(model, targets, o, orientations);
-    Posture posture = Posture::rest(model);
-    long allocations = 0;
-    for (int frame = 0; frame < 50; ++frame) {
-      motion.posture_at(frame / 100.0, truth);
-      motion.sample(truth, points, 0.001, pos);
-      for (std::size_t k = 0; k < orientations.size(); ++k)
-        q[k] = truth.segments[orientations[k].segment].q_world;
-      const long before = g_allocations.load();
-      const SolveResult r = solver.solve(pos, visible, q, q_visible, posture);
-      allocations += g_allocations.load() - before;
-      REQUIRE(r.status != SolveStatus::size_mismatch);
+  // Two levels (the priority loop), and one (the extrapolation of the convergence loop).
+  for (const bool two_levels : {true, false})
+    for (double carry : {0.0, 0.5}) {
+      std::vector<Target> targets;
+      for (int p : points) targets.push_back({p, two_levels ? p % 2 : 0, 1.0});
+      SolverOptions o;
+      o.segment_fit = SegmentFit::rigid;
+      o.root = RootMode::free;
+      o.subtree_carry = carry;
+      FabrikSolver solver(model, targets, o, orientations);
+      Posture posture = Posture::rest(model);
+      long allocations = 0;
+      int jumps = 0;
+      for (int frame = 0; frame < 50; ++frame) {
+        motion.posture_at(frame / 100.0, truth);
+        motion.sample(truth, points, 0.001, pos);
+        for (std::size_t k = 0; k < orientations.size(); ++k)
+          q[k] = truth.segments[orientations[k].segment].q_world;
+        const long before = g_allocations.load();
+        const SolveResult r = solver.solve(pos, visible, q, q_visible, posture);
+        allocations += g_allocations.load() - before;
+        REQUIRE(r.status != SolveStatus::size_mismatch);
+        jumps += r.jumps;
+      }
+      CAPTURE(carry, two_levels, jumps);
+      CHECK(allocations == 0);
+      if (!two_levels) CHECK(jumps > 0);
     }
-    CAPTURE(carry);
-    CHECK(allocations == 0);
-  }
 }

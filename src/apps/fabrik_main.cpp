@@ -47,6 +47,31 @@ int main(int argc, char** argv) {
   b_body->add_option("--segment-fit", body.segment_fit, "paper or rigid")
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
+  b_body->add_option("--config", body.config,
+                     "Measure this daemon config alone (as `fabrik calibrate` writes it) instead "
+                     "of the built-in model and the calibrated shipped template");
+  b_body->add_option("--template", body.template_path,
+                     "Template calibrated for the figure users get (default: the shipped "
+                     "config/templates/gait2354.json)");
+  b_body->add_option(
+      "--static", body.static_trial,
+      "Static trial it is calibrated on (default ../shared/data/subject01_static.trc; "
+      "a generated one when absent)");
+  b_body->add_option("--trial", body.trials,
+                     "Recorded trials to replay through the calibrated config (default "
+                     "../shared/data/subject01_walk1.trc, if present)");
+  b_body
+      ->add_option("--step", body.steps,
+                   "Replay every k-th frame of each trial, for each k given (default 1 2 3)")
+      ->check(CLI::Range(1, 100));
+  b_body
+      ->add_option("--speed", body.speeds,
+                   "Synthetic motion of the calibrated model at these multiples of the default "
+                   "cycle frequency (default 1 3)")
+      ->check(CLI::Range(0.01, 100.0));
+  bool builtin_only = false;
+  b_body->add_flag("--builtin-only", builtin_only,
+                   "Only the built-in model (no calibrated template)");
 
   fabrik::bench::LatencyOptions latency;
   bool latency_json = false;
@@ -80,8 +105,14 @@ int main(int argc, char** argv) {
       const auto r = fabrik::bench::run_latency(latency);
       std::cout << (latency_json ? r.dump(2) + "\n" : fabrik::bench::latency_table(r));
     } else if (b_body->parsed()) {
-      const auto r = fabrik::bench::run_fullbody(body);
-      std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));
+      body.calibrated = !builtin_only;
+      if (!body.config.empty()) {
+        const auto r = fabrik::bench::run_calibrated(body);
+        std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::calibrated_table(r));
+      } else {
+        const auto r = fabrik::bench::run_fullbody(body);
+        std::cout << (body_json ? r.dump(2) + "\n" : fabrik::bench::fullbody_table(r));
+      }
     }
   } catch (const CLI::Error& e) {  // parse errors, and RuntimeError(code) from commands
     return fabrik::apps::exit_safely(app, e);

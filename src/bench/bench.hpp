@@ -5,6 +5,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "solver/model.hpp"
 #include "solver/solve_types.hpp"
@@ -27,6 +28,18 @@ struct FullbodyOptions {
   unsigned seed = 1;
   std::string segment_fit = "rigid";
   std::string model;  // a model file; empty: the built-in config/models/fullbody.json
+  // The figure users get (template_bench.cpp): a daemon config as `fabrik calibrate` writes
+  // it. `config` names one; empty: `template_path` calibrated on `static_trial` (a generated
+  // static trial when that file is absent). Tracked on synthetic motion at each of `speeds`
+  // (times the default cycle frequency) and on each of `trials` that exists, every `steps`-th
+  // frame. `calibrated` false skips it.
+  bool calibrated = true;
+  std::string config;
+  std::string template_path = "config/templates/gait2354.json";
+  std::string static_trial = "../shared/data/subject01_static.trc";
+  std::vector<std::string> trials = {"../shared/data/subject01_walk1.trc"};
+  std::vector<int> steps = {1, 2, 3};
+  std::vector<double> speeds = {1.0, 3.0};
 };
 // Tracking of the built-in full-body model on smooth synthetic motion; a
 // model with joint limits is tracked with them and, in the same run, without.
@@ -36,5 +49,8 @@ nlohmann::json run_fullbody(const FullbodyOptions& options);
 nlohmann::json run_prediction_comparison(const std::shared_ptr<const Model>& model,
                                          const FullbodyOptions& options, const SolverOptions& o);
 std::string fullbody_table(const nlohmann::json& result);
+// The calibrated config's runs (template_bench.cpp), also part of run_fullbody's result.
+nlohmann::json run_calibrated(const FullbodyOptions& options);
+std::string calibrated_table(const nlohmann::json& result);
 
 }  // namespace fabrik::bench

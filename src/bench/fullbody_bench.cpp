@@ -113,6 +113,7 @@ json run_fullbody(const FullbodyOptions& options) {
     out["two_levels"]["without_limits"] =
         track_json(track(free_model, m, options, prioritized, true));
   out["gap_prediction"] = run_prediction_comparison(model, options, o);
+  if (options.calibrated) out["calibrated"] = run_calibrated(options);
   out["benchmark"] = "fullbody";
   out["model"] = {{"name", m.name},
                   {"file", path},
@@ -142,6 +143,10 @@ static std::string gap_prediction(const json& g) {
                 g["solve_us_median_without"].get<double>(),
                 g["solve_us_median_with"].get<double>(), g["ratio"].get<double>());
   return gaps;
+}
+
+static std::string calibrated(const json& r) {
+  return r.contains("calibrated") ? calibrated_table(r["calibrated"]) : std::string();
 }
 
 std::string fullbody_table(const json& r) {
@@ -181,7 +186,7 @@ std::string fullbody_table(const json& r) {
   if (!r.contains("without_limits")) {
     out += figures("no joint limits in the model; every marker at one level", r);
     out += figures("pelvis markers one level stronger (the default config's shape)", two);
-    return out + gap_prediction(r["gap_prediction"]);
+    return out + gap_prediction(r["gap_prediction"]) + calibrated(r);
   }
   out += figures("every marker at one level, with the model's joint limits", r);
   out += figures("the same, joints free", r["without_limits"]);
@@ -189,7 +194,7 @@ std::string fullbody_table(const json& r) {
   out += figures("pelvis markers one level stronger (the default config's shape), with limits", two);
   out += figures("the same, joints free", two["without_limits"]);
   out += ratio(two, two["without_limits"]);
-  return out + gap_prediction(r["gap_prediction"]);
+  return out + gap_prediction(r["gap_prediction"]) + calibrated(r);
 }
 
 }  // namespace fabrik::bench

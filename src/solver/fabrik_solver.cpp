@@ -26,6 +26,44 @@ inline double length_over(double len, double dist_sq) {
 }  // namespace
 
 namespace {
+// Moments of points a (in a child's frame) moved into its parent's frame, a_parent = o + R a.
+FabrikSolver::Moments moved(const FabrikSolver::Moments& m, const Eigen::Matrix3d& r,
+                            const Eigen::Vector3d& o) {
+  FabrikSolver::Moments out;
+  out.da.noalias() = m.d * o.transpose();
+  out.da.noalias() += m.da * r.transpose();
+  out.a.noalias() = m.w * o + r * m.a;
+  out.d = m.d;
+  out.w = m.w;
+  out.count = m.count;
+  return out;
+}
+void add(FabrikSolver::Moments& to, const FabrikSolver::Moments& m) {
+  to.da += m.da;
+  to.d += m.d;
+  to.a += m.a;
+  to.w += m.w;
+  to.count += m.count;
+}
+void add_scaled(FabrikSolver::Moments& to, const FabrikSolver::Moments& m, double f) {
+  to.da += f * m.da;
+  to.d += f * m.d;
+  to.a += f * m.a;
+  to.w += f * m.w;
+  to.count += m.count;
+}
+// One point a (segment frame) pulled towards d (from the moments' origin) with weight w.
+void add_point(FabrikSolver::Moments& m, const Eigen::Vector3d& d, const Eigen::Vector3d& a,
+               double w) {
+  m.da.noalias() += (w * d) * a.transpose();
+  m.d += w * d;
+  m.a += w * a;
+  m.w += w;
+  ++m.count;
+}
+}  // namespace
+
+namespace {
 std::vector<int> levels_of(const std::vector<OrientationTarget>& orientations) {
   std::vector<int> levels;
   for (const OrientationTarget& o : orientations) levels.push_back(o.level);
@@ -69,8 +107,11 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
     }
   }
   slot_first_[n_seg_] = static_cast<int>(slots_.size());
-  carried_.resize(slots_.size());
-  drivers_.resize(drivers_.size() + slots_.size());
+  subtree_.resize(static_cast<std::size_t>(n_seg_));
+  own_.resize(static_cast<std::size_t>(n_pass_ * n_seg_));
+  local_.resize(static_cast<std::size_t>(n_seg_));
+
+  children_.resize(static_cast<std::size_t>(n_seg_));
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
   marked_visible_.assign(targets_.targets().size(), 0);
@@ -79,9 +120,17 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
     target_segment_.push_back(model.points[t.point].segment);
   link_tip_m_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::Zero());
   start_.resize(model.segments.size());
+  jump_.segments.resize(model.segments.size());
+  jump_turns_.resize(model.segments.size());
+  step_turns_.resize(model.segments.size());
+  step_turn_.resize(model.segments.size());
+  jump_rel_q_.assign(model.segments.size(), Eigen::Quaterniond::Identity());
+  step_rel_q_.assign(model.segments.size(), Eigen::Quaterniond::Identity());
+  last_step_m_.assign(model.segments.size(), Eigen::Vector3d::Zero());
   const std::size_t n_all = targets_.targets().size() + orientations_.size();
   distances_m_.assign(n_all, 0.0);
   previous_m_.assign(n_all, 0.0);
+  jump_distances_m_.assign(n_all, 0.0);
   level_previous_m_.assign(n_all, 0.0);
 
   // Orientation targets, grouped by segment.
@@ -111,7 +160,6 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
   parent_of_limited_.assign(static_cast<std::size_t>(n_seg_), 0);
   joint_parent_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
   joint_child_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
-  joint_vector_.assign(slots_.size(), Eigen::Vector3d::Zero());
   for (const Segment& seg : model.segments) {
     if (seg.joint.type != JointType::hinge) {
       arcs_.emplace_back(seg.joint);
@@ -130,27 +178,19 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
     const Segment& seg = model.segments[s];
     if (!seg.joint.limited()) continue;
     limited_[s] = 1;
+    any_limited_ = true;
     parent_of_limited_[seg.parent] = 1;
     joint_parent_[s] = model.segments[seg.parent].q_anatomical.toRotationMatrix();
     joint_child_[s] = seg.q_anatomical.toRotationMatrix();
-    for (int k = slot_first_[s]; k < slot_first_[s + 1]; ++k)
-      joint_vector_[k] = joint_child_[s].transpose() * slots_[k].a_local;
   }
   hinge_.assign(static_cast<std::size_t>(n_seg_), 0);
   hinge_axis_local_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::UnitZ());
-  hinge_across_.assign(slots_.size(), Eigen::Vector3d::Zero());
-  hinge_cross_.assign(slots_.size(), Eigen::Vector3d::Zero());
   for (int s = 1; s < n_seg_; ++s) {
     if (model.segments[s].joint.type != JointType::hinge) continue;
     hinge_[s] = 1;
     // At rest the child's frame is the parent's: one local axis serves both.
     const Eigen::Vector3d u = joint_parent_[s].col(2);
     hinge_axis_local_[s] = u;
-    for (int k = slot_first_[s]; k < slot_first_[s + 1]; ++k) {
-      const Eigen::Vector3d& a = slots_[k].a_local;
-      hinge_across_[k] = a - u * u.dot(a);
-      hinge_cross_[k] = u.cross(a);
-    }
   }
 }
 
@@ -252,6 +292,12 @@ double FabrikSolver::pass_weight(int pass, int t) const {
     const Slot& slot = slots_[k];
     drivers_[n++] = {&slot, &desired_m(slot, target_world_m, posture), weight[k]};
   }
+  gather_orientations(pass, s);
+  return n;
+}
+
+// Sums the orientation targets of segment s that take part in this pass (see gather).
+void FabrikSolver::gather_orientations(int pass, int s) {
   orient_on_ = false;
   if (has_orientation_[s]) {
     // Three virtual points at the lever along the segment's axes, pulled to
@@ -268,7 +314,6 @@ double FabrikSolver::pass_weight(int pass, int t) const {
       orient_on_ = true;
     }
   }
-  return n;
 }
 
 // Forward reaching for one segment: each driver proposes a base position (the
@@ -321,9 +366,14 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
 [[gnu::always_inline]] inline void FabrikSolver::rotate_about_base(int n,
                                                                    const Eigen::Vector3d& base_m,
                                                                    SegmentPose& pose) const {
-  if (options_.segment_fit == SegmentFit::paper && n > 1 && !orient_on_) {
+  if (options_.segment_fit == SegmentFit::paper && (n > 1 || carry_on_) && !orient_on_) {
     Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_desired = Eigen::Vector3d::Zero();
     double weight_sum = 0.0;
+    if (carry_on_) {
+      mean_local = carried_.a;
+      mean_desired = carried_.d + carried_.w * carry_origin_m_;
+      weight_sum = carried_.w;
+    }
     for (int k = 0; k < n; ++k) {
       mean_local += drivers_[k].weight * drivers_[k].a_local();
       mean_desired += drivers_[k].weight * drivers_[k].d_world();
@@ -332,7 +382,7 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
     const Eigen::Vector3d a = pose.r_world * (mean_local / weight_sum);  // P_i(i) -> M(i)
     const Eigen::Vector3d b = mean_desired / weight_sum - base_m;        // P_i(f) -> M(f)
     turn_minimal(a, b, pose);
-  } else if (n == 1 && !orient_on_) {
+  } else if (n == 1 && !orient_on_ && !carry_on_) {
     // One driver: the least-squares rotation nearest the current one is the
     // minimal rotation (the rule above), which is exact and much cheaper.
     turn_minimal(pose.r_world * drivers_[0].a_local(), drivers_[0].d_world() - base_m, pose);
@@ -340,6 +390,7 @@ void FabrikSolver::place_with_candidates(int n, SegmentPose& pose, bool turn) co
     // Orientation targets (virtual points, see gather) add lever^2 w R_d R^T.
     Eigen::Matrix3d m = Eigen::Matrix3d::Zero();
     if (orient_on_) m.noalias() = orient_m_ * pose.r_world.transpose();
+    if (carry_on_) m.noalias() += carried_alignment(base_m) * pose.r_world.transpose();
     for (int k = 0; k < n; ++k) {
       const Eigen::Vector3d a_world = pose.r_world * drivers_[k].a_local();
       m.noalias() += (drivers_[k].weight * (drivers_[k].d_world() - base_m)) * a_world.transpose();
@@ -390,11 +441,13 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
       forward_link(s, target_world_m, posture);
       continue;
     }
+    if (limited_[s]) {
+      forward_limited(pass, s, posture);
+      continue;
+    }
     const int n = gather(pass, s, target_world_m, visible, posture);
     if (root && options_.segment_fit == SegmentFit::rigid) {
       free_root_fit(n, posture.segments[s]);
-    } else if (limited_[s]) {
-      forward_limited(n, s, posture);
     } else {  // see place_with_candidates for why one driver does not turn here
       place_with_candidates(n, posture.segments[s],
                             root || slot_first_[s + 1] - slot_first_[s] > 1 || orient_on_);
@@ -407,33 +460,16 @@ void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_wor
 // sin(theta) u x a), so the drivers' alignment with their desired vectors is
 // C cos(theta) + S sin(theta) + const: its peak is exact in one step, and so
 // is its clamp to the range (a sinusoid falls off on both sides of its peak).
-void FabrikSolver::hinge_fit(int n, int s, Posture& posture) {
+void FabrikSolver::hinge_fit(int s, const Eigen::Matrix3d& g, Posture& posture) {
   SegmentPose& pose = posture.segments[s];
   const SegmentPose& parent = posture.segments[model_.segments[s].parent];
-  double c = 0.0, sn = 0.0;
-  for (int k = 0; k < n; ++k) {
-    const Driver& d = drivers_[k];
-    const std::ptrdiff_t slot = d.slot - slots_.data();
-    const Eigen::Vector3d b_local =
-        parent.r_world.transpose() * (d.weight * (d.d_world() - pose.base_world_m));
-    if (slot >= 0 && slot < static_cast<std::ptrdiff_t>(slots_.size())) {
-      c += b_local.dot(hinge_across_[slot]);
-      sn += b_local.dot(hinge_cross_[slot]);
-    } else {  // a carried slot
-      const Eigen::Vector3d& u = hinge_axis_local_[s];
-      const Eigen::Vector3d& a = d.a_local();
-      c += b_local.dot(a - u * u.dot(a));
-      sn += b_local.dot(u.cross(a));
-    }
-  }
+  // With H = R_parent^T G = sum b a^T (b: the pulls in the parent's frame), the sinusoid's
+  // terms sum b . (a - u u.a) and b . (u x a) are trace(H) - u.H u and
+  // u . (H21 - H12, H02 - H20, H10 - H01).
+  const Eigen::Matrix3d h = parent.r_world.transpose() * g;
   const Eigen::Vector3d& u = hinge_axis_local_[s];
-  if (orient_on_) {
-    // The virtual points (see gather): with M = R_parent^T sum w lever^2 R_d,
-    // their terms are trace(M) - u.M u and u . (M32 - M23, M13 - M31, M21 - M12).
-    const Eigen::Matrix3d m = parent.r_world.transpose() * orient_m_;
-    c += m.trace() - u.dot(m * u);
-    sn += u.dot(Eigen::Vector3d(m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1)));
-  }
+  const double c = h.trace() - u.dot(h * u);
+  const double sn = u.dot(Eigen::Vector3d(h(2, 1) - h(1, 2), h(0, 2) - h(2, 0), h(1, 0) - h(0, 1)));
   Turn& theta = turns_[s][0];
   theta = arcs_[s].clamp(0, peak_turn(c, sn, theta), theta);
   double ch, sh;
@@ -449,14 +485,21 @@ void FabrikSolver::hinge_fit(int n, int s, Posture& posture) {
 // be, not where a free one would be; the backward pass fits the angles.
 // (Fitting the angles here as well gives the same postures on walking data
 // and synthetic motion, for half again the time.)
-void FabrikSolver::forward_limited(int n, int s, Posture& posture) const {
+void FabrikSolver::forward_limited(int pass, int s, Posture& posture) const {
   SegmentPose& pose = posture.segments[s];
   pose.set_unit_rotation(posture.segments[model_.segments[s].parent].q_world * rel_q_[s]);
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  double weight_sum = 0.0;
-  for (int k = 0; k < n; ++k) {
-    sum += drivers_[k].weight * (drivers_[k].d_world() - pose.r_world * drivers_[k].a_local());
-    weight_sum += drivers_[k].weight;
+  // The base that best puts the drivers on their desired positions: the weighted mean of
+  // d - R a, from the targets' moments and each pulling child's joint.
+  const Moments& own = own_[static_cast<std::size_t>(pass * n_seg_ + s)];
+  Eigen::Vector3d sum = own.d + own.w * carry_origin_m_ - pose.r_world * own.a;
+  double weight_sum = own.w;
+  const double* weight =
+      slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * static_cast<int>(slots_.size());
+  for (int k = slot_first_[s]; k < slot_first_[s + 1]; ++k) {
+    const int source = slots_[k].source;
+    if (weight[k] <= 0.0 || source >= 0) continue;
+    sum += weight[k] * (posture.segments[~source].base_world_m - pose.r_world * slots_[k].a_local);
+    weight_sum += weight[k];
   }
   if (weight_sum > 0.0) pose.base_world_m = sum / weight_sum;
 }
@@ -507,6 +550,8 @@ void FabrikSolver::turn_links(Posture& posture) const {
 void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                             std::span<const std::uint8_t> visible, Posture& posture,
                             const Eigen::Vector3d& root_pin_m) {
+  const bool carrying = options_.subtree_carry > 0.0;
+  if (any_limited_) limited_moments(pass, carrying, posture);
   for (int s = 0; s < n_seg_; ++s) {
     SegmentPose& pose = posture.segments[s];
     const Segment& seg = model_.segments[s];
@@ -538,17 +583,20 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
       // began, which solve() brought within range: no limit to enforce.
       continue;
     }
-    int n = gather(pass, s, target_world_m, visible, posture);
-    if (parent_of_limited_[s] && options_.subtree_carry > 0.0)
-      n = carry_limited(pass, s, n, target_world_m, posture);
     if (limited_[s]) {
-      limited_fit(n, s, base_m, posture);
-    } else {
-      rotate_about_base(n, base_m, pose);
+      // Its own targets and pulling children, and (with the carry) its limited subtree.
+      Moments m = local_[s];
+      if (carrying && parent_of_limited_[s]) add_scaled(m, children_[s], options_.subtree_carry);
+      gather_orientations(pass, s);
+      limited_fit(s, m, base_m, posture);
+      continue;
     }
+    const int n = gather(pass, s, target_world_m, visible, posture);
+    if (carrying && parent_of_limited_[s]) carry_limited(pass, s);
+    rotate_about_base(n, base_m, pose);
+    carry_on_ = false;
   }
 }
-
 
 // SolverOptions::subtree_carry: the drivers of limited descendants (through
 // limited joints only), carried rigidly at their joints' latest angles into
@@ -558,44 +606,140 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
 // its long axis to aim a knee hinge. At the child's best angles this is the
 // exact direction for the parent (the child's own angle change is second
 // order), so the loop approaches the constrained least-squares fit.
-int FabrikSolver::carry_limited(int pass, int s, int n,
-                                std::span<const Eigen::Vector3d> target_world_m,
-                                const Posture& posture) {
-  n_carried_ = 0;
-  const Segment& seg = model_.segments[s];
-  for (int i = 0; i < seg.child_count; ++i) {
-    const int c = model_.child_ids[seg.first_child + i];
-    if (!limited_[c] || !active(pass, c)) continue;
-    carry_from(pass, c, rel_q_[c].toRotationMatrix(),
-               model_.points[model_.segments[c].parent_point].p_local_m, n, target_world_m,
-               posture);
+//
+// The fits need the carried points only through their weighted moments (sum of w d a^T,
+// w d, w a and w, with d the desired position and a the point in the fitted segment's
+// frame), so each subtree's moments are summed once per backward pass, leaves first, and
+// moved into each parent's frame as a whole: the same fits for O(segments) work instead of
+// one driver per carried point and ancestor. A subtree's moments are taken before the pass
+// moves anything: its segments come after their ancestors in the pass, so each ancestor's
+// fit sees them as they stood then, as it would driver by driver.
+
+// Per pass and limited segment, the moments of its own targets (the carry's and the forward
+// step's): they stay where they are for the whole solve.
+void FabrikSolver::target_moments(std::span<const Eigen::Vector3d> target_world_m) {
+  const int n_slots = static_cast<int>(slots_.size());
+  for (int pass = 0; pass < pass_count(); ++pass) {
+    const double* weight = slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * n_slots;
+    for (int c = 1; c < n_seg_; ++c) {
+      if (!limited_[c]) continue;
+      Moments& m = own_[static_cast<std::size_t>(pass * n_seg_ + c)];
+      m = Moments{};
+      for (int k = slot_first_[c]; k < slot_first_[c + 1]; ++k) {
+        const int source = slots_[k].source;
+        if (weight[k] > 0.0 && source >= 0)
+          add_point(m, target_world_m[source] - carry_origin_m_, slots_[k].a_local, weight[k]);
+      }
+    }
   }
-  return n;
 }
 
-void FabrikSolver::carry_from(int pass, int c, const Eigen::Matrix3d& r_m,
-                              const Eigen::Vector3d& o_m, int& n,
-                              std::span<const Eigen::Vector3d> target_world_m,
-                              const Posture& posture) {
+// Before a backward pass, per active limited segment: the moments of its own targets and of
+// its pulling free children's joints (local_), of its limited children's subtrees in its
+// frame (children_), and of its whole carried subtree in its parent's frame (subtree_).
+void FabrikSolver::limited_moments(int pass, bool carrying, const Posture& posture) {
   const double* weight =
       slot_weight_.data() + static_cast<std::ptrdiff_t>(pass) * static_cast<int>(slots_.size());
-  for (int k = slot_first_[c]; k < slot_first_[c + 1]; ++k) {
-    if (weight[k] <= 0.0) continue;
-    const int source = slots_[k].source;
-    if (source < 0 && limited_[~source]) continue;  // carried below instead
-    Slot& e = carried_[n_carried_++];
-    e.a_local = o_m + r_m * slots_[k].a_local;
-    e.a_norm_m = e.a_local.norm();
-    e.source = source;
-    drivers_[n++] = {&e, &desired_m(slots_[k], target_world_m, posture), weight[k] * options_.subtree_carry};
+  for (int c = n_seg_ - 1; c > 0; --c) {
+    if (!limited_[c] || !active(pass, c)) continue;
+    Moments m = own_[static_cast<std::size_t>(pass * n_seg_ + c)];
+    for (int k = slot_first_[c]; k < slot_first_[c + 1]; ++k) {
+      const int source = slots_[k].source;
+      if (weight[k] <= 0.0 || source >= 0 || limited_[~source]) continue;
+      add_point(m, posture.segments[~source].base_world_m - carry_origin_m_, slots_[k].a_local,
+                weight[k]);
+    }
+    if (carrying) {
+      // Carried, a limited child counts by its subtree's points, not by its joint.
+      Moments& below = children_[c];
+      below = Moments{};
+      carried_children(pass, c, below);
+      Moments all = m;
+      add(all, below);
+      subtree_[c] = all.w > 0.0 ? moved(all, rel_q_[c].toRotationMatrix(),
+                                        model_.points[model_.segments[c].parent_point].p_local_m)
+                                : Moments{};  // nothing below pulls (orientation targets alone)
+    }
+    // In its own fit the limited children's joints pull too.
+    for (int k = slot_first_[c]; k < slot_first_[c + 1]; ++k) {
+      const int source = slots_[k].source;
+      if (weight[k] <= 0.0 || source >= 0 || !limited_[~source]) continue;
+      add_point(m, posture.segments[~source].base_world_m - carry_origin_m_, slots_[k].a_local,
+                weight[k]);
+    }
+    local_[c] = m;
   }
-  const Segment& seg = model_.segments[c];
+}
+
+// Adds the subtree moments of s's limited children (in s's frame) to `m`.
+void FabrikSolver::carried_children(int pass, int s, Moments& m) const {
+  const Segment& seg = model_.segments[s];
   for (int i = 0; i < seg.child_count; ++i) {
     const int g = model_.child_ids[seg.first_child + i];
-    if (!limited_[g] || !active(pass, g)) continue;
-    carry_from(pass, g, r_m * rel_q_[g].toRotationMatrix(),
-               o_m + r_m * model_.points[model_.segments[g].parent_point].p_local_m, n,
-               target_world_m, posture);
+    if (limited_[g] && active(pass, g)) add(m, subtree_[g]);
+  }
+}
+
+// For a free segment above limited joints: the carry in its fit (rotate_about_base).
+void FabrikSolver::carry_limited(int pass, int s) {
+  carried_ = Moments{};
+  carried_children(pass, s, carried_);
+  const double f = options_.subtree_carry;
+  carried_.da *= f;
+  carried_.d *= f;
+  carried_.a *= f;
+  carried_.w *= f;
+  carry_on_ = carried_.w > 0.0;
+}
+
+// The carried points' alignment about base_m: sum w (d - base) a^T (a in the segment's frame).
+Eigen::Matrix3d FabrikSolver::carried_alignment(const Eigen::Vector3d& base_m) const {
+  return carried_.da - (base_m - carry_origin_m_) * carried_.a.transpose();
+}
+
+// Brings every limited joint of the start posture within its ranges and takes its angles as
+// the fits' warm start. Every fit keeps a joint within range and a segment that rides on its
+// parent keeps its relative rotation, so this one projection keeps every joint of the solve
+// within range, even from a start that was not. Out of range, each angle goes to its nearer
+// bound (the start has no earlier angle to tell which bound it left through), as
+// enforce_joint_limits does; in turns, without trigonometry. A hinge keeps its twist about
+// its axis; an off-axis part (a start not from a solve) is dropped.
+void FabrikSolver::start_within_limits(Posture& posture) {
+  for (int s = 1; s < n_seg_; ++s) {
+    if (!limited_[s]) continue;
+    const Segment& seg = model_.segments[s];
+    SegmentPose& pose = posture.segments[s];
+    const Eigen::Quaterniond& q_parent = posture.segments[seg.parent].q_world;
+    const Eigen::Quaterniond rel = q_parent.conjugate() * pose.q_world;
+    const JointArcs& arcs = arcs_[s];
+    Turns& turns = turns_[s];
+    if (seg.joint.type == JointType::fixed) {
+      rel_q_[s] = Eigen::Quaterniond::Identity();
+      pose.set_unit_rotation(q_parent);
+      continue;
+    }
+    if (hinge_[s]) {
+      const Eigen::Vector3d& u = hinge_axis_local_[s];
+      const Turn twist = twist_turn(rel, u);
+      turns[0] = arcs.clamp(0, twist, twist);
+      double ch, sh;
+      half_turn(turns[0], ch, sh);
+      const Eigen::Quaterniond on_axis(ch, sh * u.x(), sh * u.y(), sh * u.z());
+      // Unchanged (to rounding) when the start was a turn about the axis within range.
+      if (on_axis.coeffs().dot(rel.coeffs()) * on_axis.coeffs().dot(rel.coeffs()) < 1.0 - 1e-15)
+        pose.set_unit_rotation(q_parent * on_axis);
+      rel_q_[s] = q_parent.conjugate() * pose.q_world;
+      continue;
+    }
+    const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
+    turns = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) inside = inside && arcs.inside(k, turns[k]);
+    if (!inside) {
+      for (int k = 0; k < 3; ++k) turns[k] = arcs.clamp(k, turns[k], turns[k]);
+      pose.set_rotation(q_parent * a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate());
+    }
+    rel_q_[s] = q_parent.conjugate() * pose.q_world;
   }
 }
 
@@ -605,7 +749,8 @@ void FabrikSolver::carry_from(int pass, int c, const Eigen::Matrix3d& r_m,
 // desired vectors is <E, B> with B = sum_k w_k (parent-frame desired
 // vector)(segment joint-frame vector)^T, which fit_joint_angles maximises
 // within the ranges (exactly, for a hinge). The base stays where it is.
-void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture) {
+void FabrikSolver::limited_fit(int s, const Moments& m, const Eigen::Vector3d& base_m,
+                               Posture& posture) {
   const Segment& seg = model_.segments[s];
   SegmentPose& pose = posture.segments[s];
   const SegmentPose& parent = posture.segments[seg.parent];
@@ -615,15 +760,19 @@ void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m, Post
     pose.set_unit_rotation(parent.q_world);
     return;
   }
+  // G = sum w (d - base) a^T over the drivers (a in the segment's frame); orientation
+  // targets add sum w lever^2 R_d, the same sum over their virtual points (see gather).
+  Eigen::Matrix3d g = m.da - (base_m - carry_origin_m_) * m.a.transpose();
+  if (orient_on_) g += orient_m_;
   if (hinge_[s]) {
-    hinge_fit(n, s, posture);
+    hinge_fit(s, g, posture);
     return;
   }
   const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
   if (seg.joint.type == JointType::ball) {
     // Most of the time a ball joint's free fit lies within its ranges: then
     // it is the constrained fit too, and cheaper to find.
-    rotate_about_base(n, base_m, pose);
+    free_fit(m, g, base_m, pose);
     const Eigen::Quaterniond rel = parent.q_world.conjugate() * pose.q_world;
     const Turns free = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
     const JointArcs& arcs = arcs_[s];
@@ -633,23 +782,27 @@ void FabrikSolver::limited_fit(int n, int s, const Eigen::Vector3d& base_m, Post
       return;
     }
   }
-  // B = P^T W with P = R_parent J_parent and W = sum_k w_k (world vector)(joint-frame vector)^T.
-  Eigen::Matrix3d w = Eigen::Matrix3d::Zero();
-  if (orient_on_) w.noalias() = orient_m_ * joint_child_[s];  // virtual points, see gather
-  for (int k = 0; k < n; ++k) {
-    const Driver& d = drivers_[k];
-    const std::ptrdiff_t slot = d.slot - slots_.data();
-    const Eigen::Vector3d v = slot >= 0 && slot < static_cast<std::ptrdiff_t>(slots_.size())
-                                  ? joint_vector_[slot]
-                                  : Eigen::Vector3d(joint_child_[s].transpose() * d.a_local());
-    w.noalias() += (d.weight * (d.d_world() - base_m)) * v.transpose();
-  }
-  const Eigen::Matrix3d b = (parent.r_world * joint_parent_[s]).transpose() * w;
+  // B = P^T W with P = R_parent J_parent and W = G J_child: sum w (d - base) v^T with v the
+  // drivers in the joint frame.
+  const Eigen::Matrix3d b = (parent.r_world * joint_parent_[s]).transpose() * (g * joint_child_[s]);
   // Warm start from the joint's angles at its last fit (or at the start of the solve).
   Turns& turns = turns_[s];
   fit_joint_turns(b, arcs_[s], turns, kJointSweeps);
   rel_q_[s] = (a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate()).normalized();
   pose.set_unit_rotation(parent.q_world * rel_q_[s]);
+}
+
+// A limited ball joint's rotation as if it were free, as rotate_about_base turns a free
+// segment, from its drivers' moments: one driver (or the paper's rule), the minimal turn onto
+// the mean; else a Newton step of the least-squares rotation.
+void FabrikSolver::free_fit(const Moments& m, const Eigen::Matrix3d& g,
+                            const Eigen::Vector3d& base_m, SegmentPose& pose) const {
+  if (!orient_on_ && m.w > 0.0 && (m.count == 1 || options_.segment_fit == SegmentFit::paper)) {
+    const double inv = 1.0 / m.w;
+    turn_minimal(pose.r_world * (m.a * inv), m.d * inv + carry_origin_m_ - base_m, pose);
+    return;
+  }
+  fit_rotation_step(g * pose.r_world.transpose(), pose);
 }
 
 // True when this level's targets are within tolerance or stopped moving since
@@ -730,39 +883,34 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     orient_r_[k] = orient_q_[k].toRotationMatrix();
   }
   mark_active(visible);
-  for (int s = 1; s < n_seg_; ++s) {
-    if (!limited_[s]) continue;
-    // Every fit keeps a joint within range and a segment that rides on its
-    // parent keeps its relative rotation, so one check here keeps every
-    // joint of the solve within range, even from a start that was not.
-    enforce_joint_limits(model_, s, posture.segments[s].q_world, posture);
-    const Eigen::Quaterniond& q_parent = posture.segments[model_.segments[s].parent].q_world;
-    rel_q_[s] = q_parent.conjugate() * posture.segments[s].q_world;
-    if (hinge_[s])  // the turn about the axis: the twist of the relative rotation
-      turns_[s][0] = twist_turn(q_parent.conjugate() * posture.segments[s].q_world,
-                                hinge_axis_local_[s]);
-    else
-      turns_[s] = turns_zxy(relative_anatomical(model_, posture, s, model_.segments[s].parent));
-  }
+  start_within_limits(posture);
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
+  carry_origin_m_ = root_pin_m;  // near every point: the carried moments keep their digits
+  if (any_limited_) target_moments(target_world_m);
   if (any_link_)
     for (int s = 0; s < n_seg_; ++s)
       if (link_[s]) link_tip_m_[s] = posture.segments[s].to_world(slots_[slot_first_[s]].a_local);
   SolveResult result = measure(target_world_m, visible, posture);
-  int total_passes = 0;
+  int total_passes = 0, jumps = 0;
   StopRule stop(options_);
+  const int passes = pass_count();
+  int active_levels = 0, strongest = -1;
+  for (int pass = 0; pass < passes; ++pass)
+    if (pass_runs(pass)) {
+      ++active_levels;
+      strongest = pass;
+    }
+  // One level's error is one number to lower; links keep their rotation apart (turn_links).
+  const bool extrapolating = options_.extrapolate && active_levels == 1 && !any_link_;
+  if (extrapolating) {
+    start_steps(posture);
+    previous_step_sq_ = 0.0;
+  }
   for (int iteration = 0;; ++iteration) {
     if (stop.should_stop(iteration, distances_m_, previous_m_, result)) {
       if (any_link_) turn_links(posture);
       return result;
     }
-    const int passes = pass_count();
-    int active_levels = 0, strongest = -1;
-    for (int pass = 0; pass < passes; ++pass)
-      if (pass_runs(pass)) {
-        ++active_levels;
-        strongest = pass;
-      }
     for (int pass = 0; pass < passes; ++pass) {  // weakest level first
       if (!pass_runs(pass)) continue;
       // The strongest level is revisited until it settles, so that it ends
@@ -783,6 +931,11 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     result = measure(target_world_m, visible, posture);
     result.iterations = iteration + 1;
     result.passes = total_passes;
+    result.jumps = jumps;
+    if (extrapolating && extrapolate(target_world_m, visible, posture, result)) {
+      stop.jumped();
+      ++jumps;
+    }
   }
 }
 

@@ -23,6 +23,15 @@ namespace fabrik {
 
 class FabrikSolver {
  public:
+  // Weighted moments of points pulled towards desired positions: sum of w d a^T, w d, w a
+  // and w (d from an origin, a in a segment's frame), for the subtree carry.
+  struct Moments {
+    Eigen::Matrix3d da = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d d = Eigen::Vector3d::Zero(), a = Eigen::Vector3d::Zero();
+    double w = 0.0;
+    int count = 0;  // points
+  };
+
   // The solver shares ownership of the (immutable) model.
   FabrikSolver(std::shared_ptr<const Model> model, std::vector<Target> targets,
                SolverOptions options, std::vector<OrientationTarget> orientations = {});
@@ -117,15 +126,51 @@ class FabrikSolver {
   bool orientation_visible(int k) const { return orient_visible_[k] != 0; }
   // A segment with a limited base joint: the rotation within its ranges that
   // best aims its drivers, about a given base.
-  void limited_fit(int n, int s, const Eigen::Vector3d& base_m, Posture& posture);
-  void hinge_fit(int n, int s, Posture& posture);
-  int carry_limited(int pass, int s, int n, std::span<const Eigen::Vector3d> target_world_m,
-                    const Posture& posture);
-  void carry_from(int pass, int c, const Eigen::Matrix3d& r_m, const Eigen::Vector3d& o_m, int& n,
-                  std::span<const Eigen::Vector3d> target_world_m, const Posture& posture);
-  std::vector<Slot> carried_;  // scratch: carried descendants' slots, in the fitted segment's frame
-  int n_carried_ = 0;
-  void forward_limited(int n, int s, Posture& posture) const;
+  void limited_fit(int s, const Moments& m, const Eigen::Vector3d& base_m, Posture& posture);
+  void free_fit(const Moments& m, const Eigen::Matrix3d& g, const Eigen::Vector3d& base_m,
+                SegmentPose& pose) const;
+  void hinge_fit(int s, const Eigen::Matrix3d& g, Posture& posture);
+  void gather_orientations(int pass, int s);
+
+  void start_within_limits(Posture& posture);
+  // The subtree carry's points as moments (fabrik_solver.cpp, "subtree_carry").
+  void target_moments(std::span<const Eigen::Vector3d> target_world_m);
+  void limited_moments(int pass, bool carrying, const Posture& posture);
+  void carried_children(int pass, int s, Moments& m) const;
+  void carry_limited(int pass, int s);
+  Eigen::Matrix3d carried_alignment(const Eigen::Vector3d& base_m) const;
+  std::vector<Moments> own_;    // [pass][segment]: a limited segment's targets, in its frame
+  std::vector<Moments> local_;  // per limited segment, per backward pass: targets and free children
+  std::vector<Moments> children_;  // and its limited children's subtrees, in its frame
+  std::vector<Moments> subtree_;  // per limited segment: its carried subtree, in its parent's frame
+  Moments carried_;               // the carry into the segment being fitted, in its frame
+  bool carry_on_ = false;         // the fit includes carried_
+  bool any_limited_ = false;
+  Eigen::Vector3d carry_origin_m_ = Eigen::Vector3d::Zero();  // the moments' d are from here
+  void forward_limited(int pass, int s, Posture& posture) const;
+  // SolverOptions::extrapolate (fabrik_extrapolation.cpp).
+  bool extrapolate(std::span<const Eigen::Vector3d> target_world_m,
+                   std::span<const std::uint8_t> visible, Posture& posture, SolveResult& result);
+  void start_steps(const Posture& posture);
+  void record_step(const Posture& posture, double& step_sq, double& dot);
+  double weighted_error_m2() const;
+  Eigen::Quaterniond relative_rotation(int s, const Posture& posture) const;
+  // A jump goes at most this many times the last step ahead, and only after two steps whose
+  // directions agree to this cosine and whose sizes shrink by at least kMinRate.
+  static constexpr double kMaxJump = 3.0;
+  static constexpr double kMinAlignment = 0.9;
+  static constexpr double kMinRate = 0.5;
+  Posture jump_;  // scratch: the jumped posture
+  std::vector<Turns> jump_turns_,
+      step_turns_;                // per segment: jumped turns, turns after the last step
+  std::vector<Turns> step_turn_;  // per segment: the last step's change of each turn
+  std::vector<Eigen::Quaterniond> jump_rel_q_, step_rel_q_;
+  std::vector<Eigen::Vector3d> last_step_m_;  // per segment: the last step (see record_step)
+  Eigen::Vector3d step_base_m_ = Eigen::Vector3d::Zero(),
+                  last_base_step_m_ = Eigen::Vector3d::Zero();
+  double previous_step_sq_ = 0.0;
+  int steps_recorded_ = 0;
+  std::vector<double> jump_distances_m_;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
   std::shared_ptr<const Model> model_holder_;
@@ -153,20 +198,16 @@ class FabrikSolver {
   std::vector<int> target_segment_;  // the segment of each target's point
   // Joint limits: per segment, whether its base joint is limited or it is
   // the parent of a limited joint (then never a link: the child's limit needs
-  // its full rotation), and the anatomical frames of both sides; per slot of
-  // a limited segment, its local vector in the segment's anatomical frame.
+  // its full rotation), and the anatomical frames of both sides.
   std::vector<std::uint8_t> limited_, parent_of_limited_;
   std::vector<Eigen::Matrix3d> joint_parent_, joint_child_;
-  std::vector<Eigen::Vector3d> joint_vector_;
   std::vector<JointArcs> arcs_;  // per segment
   std::vector<Turns> turns_;     // per limited segment: its joint angles at its latest fit
   std::vector<Eigen::Quaterniond> rel_q_;  // and its rotation relative to the parent then
-  // Hinges: the axis (parent frame), and per slot its local vector's part
-  // across the axis and the axis crossed with it; a hinge's turns_[s][0] and
-  // arcs_[s] are its angle from rest.
+  // Hinges: the axis (parent frame); a hinge's turns_[s][0] and arcs_[s] are its angle from
+  // rest.
   std::vector<std::uint8_t> hinge_;
   std::vector<Eigen::Vector3d> hinge_axis_local_;
-  std::vector<Eigen::Vector3d> hinge_across_, hinge_cross_;
   std::vector<SegmentPose> start_;   // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level

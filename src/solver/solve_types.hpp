@@ -60,6 +60,10 @@ struct SolverOptions {
   // whose fixed point can sit far from the constrained least-squares fit on
   // real data; > 0 costs iterations (see README "subtree carry").
   double subtree_carry = 0.0;
+  // Jump ahead along the convergence loop's steps when they shrink along one direction
+  // (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the
+  // weighted squared distance of the targets. false: FABRIK's own iterations alone.
+  bool extrapolate = true;
   // The lever of orientation targets (see OrientationTarget), metres.
   double orientation_lever_m = 0.1;
 };
@@ -92,6 +96,7 @@ struct SolveResult {
   SolveStatus status = SolveStatus::no_targets;
   int iterations = 0;  // of the convergence loop
   int passes = 0;      // forward + backward reaching passes, over all levels
+  int jumps = 0;       // extrapolations kept (SolverOptions::extrapolate)
   int visible_targets = 0;
   // Over visible targets, unweighted; an orientation target counts as its
   // angle times orientation_lever_m.

@@ -69,6 +69,7 @@ Tracker::Tracker(TrackerSetup setup)
       cold_options_(cold_solver_options(setup_.solver, setup_.cold_start)),
       outliers_(*setup_.model, setup_.outliers, marker_points(setup_)),
       start_(rest_),
+      warm_start_(*setup_.model),
       n_(static_cast<int>(setup_.markers.size())) {
   const int n_targets = static_cast<int>(solver_.targets().size());
   target_world_m_.assign(n_targets, Eigen::Vector3d::Zero());
@@ -112,6 +113,7 @@ void Tracker::reset() {
   posture_ = rest_;
   warm_ = false;
   coordinates_continue_ = false;
+  warm_start_.reset();
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
   predictor_.reset();
 }
@@ -181,6 +183,8 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     solver_.set_options(cold_options_);
   } else {
     start_ = posture_;
+    // The motion carried on, where markers place the root (warm_start.hpp).
+    warm_start_.predict(time_s, any_point, start_);
   }
   const Eigen::Vector3d root_before_m = start_.segments[0].base_world_m;
   result_.solve = outliers_.solve(solver_, model(), target_world_m_, target_visible_,
@@ -203,6 +207,9 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
     const Eigen::Vector3d shift_m = root_before_m - posture_.segments[0].base_world_m;
     for (SegmentPose& pose : posture_.segments) pose.base_world_m += shift_m;
   }
+  if (cold) warm_start_.reset();
+  if (result_.solve.status != SolveStatus::no_targets)
+    warm_start_.record(time_s, posture_, !result_.root_held);
   for (int i = 0; i < n_; ++i) {
     if (occluded_[i] || !target_visible_[i]) continue;  // outliers left out are not held
     last_seen_m_[i] = target_world_m_[i];

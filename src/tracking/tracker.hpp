@@ -17,6 +17,7 @@
 #include "solver/fabrik_solver.hpp"
 #include "solver/model.hpp"
 #include "solver/posture.hpp"
+#include "solver/warm_start.hpp"
 #include "tracking/sensor_targets.hpp"
 #include "tracking/cold_start.hpp"
 #include "tracking/fit_quality.hpp"
@@ -148,6 +149,7 @@ class Tracker {
   SolverOptions cold_options_;
   OutlierFilter outliers_;
   Posture start_;  // the frame's start posture, for the outlier filter's re-solves
+  WarmStart warm_start_;  // where start_ comes from on a warm frame
   std::vector<int> marker_points_;
   int n_ = 0;                                    // markers
   std::vector<Eigen::Vector3d> target_world_m_;  // [n_]: measured, [n_, 2n_): held
