@@ -10,8 +10,9 @@ limited joint angle (ranges narrower than twice the tolerance hold the angle and
 out; the Cardan angle of the segment relative to its parent, as the joint's
 range is written) to a copy of the config, runs `fabrik solve --angles` on it and reads the
 .mot back. It prints, per angle with any frame at a bound, the frames at the lower and upper
-bound and the longest run of consecutive frames there; then the frames with any angle at a
-bound. Standard library only.
+bound, the longest run of consecutive frames there, and the largest step into the bound (the
+change on a frame it arrived there) beside the angle's 95th-percentile step; then the frames with
+any angle at a bound. Standard library only.
 """
 import argparse
 import json
@@ -77,13 +78,20 @@ def main():
     any_frame = set()
     result = {"frames": len(rows), "tolerance_deg": tol, "angles": {}}
     print("%d frames; an angle within %.2f deg of its range's end is at the bound" % (len(rows), tol))
-    print("%-22s %-6s %12s %10s %10s %12s" % ("segment", "angle", "range deg", "at lower", "at upper",
-                                              "longest run"))
+    print("%-22s %-6s %12s %10s %10s %12s %12s %12s" % ("segment", "angle", "range deg", "at lower",
+                                                        "at upper", "longest run", "entry step",
+                                                        "p95 step"))
     for name, (seg, letter, lo, hi) in ranges.items():
         col = names.index(name)
         at = [row[col] <= lo + tol or row[col] >= hi - tol for row in rows]
         lower = sum(1 for row in rows if row[col] <= lo + tol)
         upper = sum(1 for row in rows if row[col] >= hi - tol)
+        # A jump to a bound: the step on the frame an angle arrives there, against
+        # the angle's own steps elsewhere (its 95th percentile).
+        steps = sorted(abs(rows[f][col] - rows[f - 1][col]) for f in range(1, len(rows)))
+        p95 = steps[int(0.95 * (len(steps) - 1))] if steps else 0.0
+        entry = max([abs(rows[f][col] - rows[f - 1][col]) for f in range(1, len(rows))
+                     if at[f] and not at[f - 1]] or [0.0])
         run = best = 0
         for f, hit in enumerate(at):
             run = run + 1 if hit else 0
@@ -91,10 +99,12 @@ def main():
             if hit:
                 any_frame.add(f)
         result["angles"]["%s.%s" % (seg, letter)] = {"range_deg": [lo, hi], "at_lower": lower,
-                                                     "at_upper": upper, "longest_run": best}
+                                                     "at_upper": upper, "longest_run": best,
+                                                     "largest_entry_step_deg": entry,
+                                                     "p95_step_deg": p95}
         if lower or upper:
-            print("%-22s %-6s %12s %10d %10d %12d" % (seg, letter, "[%g, %g]" % (lo, hi), lower,
-                                                      upper, best))
+            print("%-22s %-6s %12s %10d %10d %12d %12.2f %12.2f" % (
+                seg, letter, "[%g, %g]" % (lo, hi), lower, upper, best, entry, p95))
     result["frames_with_any_angle_at_a_bound"] = len(any_frame)
     print("frames with any angle at a bound: %d of %d" % (len(any_frame), len(rows)))
     if a.json:
