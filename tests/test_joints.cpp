@@ -12,6 +12,7 @@
 #include "solver/joint_angles.hpp"
 #include "solver/joint_fit.hpp"
 #include "solver/model_builder.hpp"
+#include "synth/random_draws.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "test_models.hpp"
 
@@ -31,7 +32,7 @@ std::vector<std::uint8_t> all_visible(std::size_t n) {
 
 Eigen::Matrix3d random_rotation(std::mt19937_64& rng) {
   std::normal_distribution<double> g(0.0, 1.0);
-  return Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized().toRotationMatrix();
+  return draw_rotation(g, rng).toRotationMatrix();
 }
 
 // A random tree whose segments have random anatomical frames and random
@@ -47,9 +48,8 @@ Model random_joint_model(std::mt19937_64& rng, int n_segments) {
     again = false;
     const Model plain = build_model("random", specs, Eigen::Vector3d::Zero());
     for (const Segment& seg : plain.segments)
-      if (seg.parent >= 0 &&
-          std::abs(joint_angles_rad(plain, Posture::rest(plain), plain.find_segment(seg.name))[1]) >
-              1.2) {
+      if (seg.parent >= 0 && std::abs(joint_angles_rad(plain, Posture::rest(plain),
+                                                       plain.find_segment(seg.name))[1]) > 1.2) {
         for (SegmentSpec& s : specs)
           if (s.name == seg.name) s.anatomical = random_rotation(rng);
         again = true;
@@ -59,8 +59,8 @@ Model random_joint_model(std::mt19937_64& rng, int n_segments) {
   for (SegmentSpec& s : specs) {
     if (s.parent.empty()) continue;
     const int seg = plain.find_segment(s.name);
-    const Eigen::Vector3d rest =
-        cardan_zxy(relative_anatomical(plain, Posture::rest(plain), seg, plain.segments[seg].parent));
+    const Eigen::Vector3d rest = cardan_zxy(
+        relative_anatomical(plain, Posture::rest(plain), seg, plain.segments[seg].parent));
     s.joint.type = static_cast<JointType>(type(rng));
     for (int k = 0; k < 3; ++k) {
       const double bound = k == 1 ? std::numbers::pi / 2 : std::numbers::pi;
@@ -93,7 +93,8 @@ TEST_CASE("Turn arithmetic agrees with the angle form of the joint fit", "[joint
     Eigen::Matrix3d b;
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) b(r, c) = u(rng);
-    const Eigen::Vector3d start(angle(rng), 0.5 * angle(rng), angle(rng));
+    const Eigen::Vector3d start =
+        draw_vector3(angle, rng).cwiseProduct(Eigen::Vector3d(1.0, 0.5, 1.0));
     const Eigen::Vector3d by_angles = fit_joint_angles(b, j, start, 2);
     Turns turns;
     for (int k = 0; k < 3; ++k) turns[k] = {std::cos(start[k]), std::sin(start[k])};
@@ -133,8 +134,7 @@ TEST_CASE("Property: random trees with joint limits end within them, rigid and c
     std::vector<Eigen::Vector3d> pos;
     for (const Target& t : targets)
       pos.push_back(goal.point_world_m(*m, t.point) +
-                    (trial % 2 ? Eigen::Vector3d(offset(rng), offset(rng), offset(rng))
-                               : Eigen::Vector3d::Zero()));
+                    (trial % 2 ? draw_vector3(offset, rng) : Eigen::Vector3d::Zero()));
     const auto visible = all_visible(targets.size());
     for (SegmentFit fit : {SegmentFit::paper, SegmentFit::rigid})
       for (RootMode root : {RootMode::fixed, RootMode::free})
@@ -219,7 +219,8 @@ TEST_CASE("Limited joints reach reachable targets within range", "[joints]") {
                             body.points[i].kind == PointKind::marker});
       const auto ends = [&](const char* suffix) {
         return s.name.size() > std::strlen(suffix) &&
-               s.name.compare(s.name.size() - std::strlen(suffix), std::strlen(suffix), suffix) == 0;
+               s.name.compare(s.name.size() - std::strlen(suffix), std::strlen(suffix), suffix) ==
+                   0;
       };
       if (ends("shank")) {
         s.joint.type = JointType::hinge;
@@ -274,7 +275,9 @@ TEST_CASE("A target moving across a hinge limit gives a continuous angle, also f
   // follow it into range, stop at the bound it reaches, and stay there while
   // the target goes round behind (never jump to the other bound).
   std::vector<SegmentSpec> specs(2);
-  specs[0] = {"upper", "", "shoulder",
+  specs[0] = {"upper",
+              "",
+              "shoulder",
               {{"elbow", {0, -0.30, 0}, false}, {"m_upper", {0.05, -0.15, 0.0}, true}}};
   specs[1] = {"forearm", "upper", "elbow", {{"wrist", {0, -0.25, 0}, false}}};
   specs[1].joint.type = JointType::hinge;
@@ -315,15 +318,16 @@ TEST_CASE("A target moving across a hinge limit gives a continuous angle, also f
   CHECK(biggest_step_deg <= 1.0 + 1e-3);
 }
 
-TEST_CASE("A target moving across a ball joint's range gives continuous angles", "[joints][flips]") {
+TEST_CASE("A target moving across a ball joint's range gives continuous angles",
+          "[joints][flips]") {
   // A ball joint limited to +-45 degrees about z, +-30 about x and +-20 about
   // y, whose child has three markers that fix its orientation; the targets
   // turn the child from -90 to +90 degrees about z and back, tilted about x.
   std::vector<SegmentSpec> specs(2);
   specs[0].name = "base";
   specs[0].base = "root";
-  specs[0].points = {{"hip", {0, -0.10, 0}, false}, {"m0", {0.1, 0, 0}, true},
-                     {"m1", {0, 0, 0.1}, true}};
+  specs[0].points = {
+      {"hip", {0, -0.10, 0}, false}, {"m0", {0.1, 0, 0}, true}, {"m1", {0, 0, 0.1}, true}};
   specs[1].name = "leg";
   specs[1].parent = "base";
   specs[1].base = "hip";
@@ -342,8 +346,12 @@ TEST_CASE("A target moving across a ball joint's range gives continuous angles",
   o.tolerance_m = 1e-6;
   o.stall_tolerance_m = 1e-8;
   o.max_iterations = 200;
-  FabrikSolver solver(m, {{points[0], 1, 1.0}, {points[1], 1, 1.0}, {points[2], 0, 1.0},
-                          {points[3], 0, 1.0}, {points[4], 0, 1.0}},
+  FabrikSolver solver(m,
+                      {{points[0], 1, 1.0},
+                       {points[1], 1, 1.0},
+                       {points[2], 0, 1.0},
+                       {points[3], 0, 1.0},
+                       {points[4], 0, 1.0}},
                       o);
   Posture posture = rest;
   Eigen::Vector3d previous = Eigen::Vector3d::Constant(NAN);
@@ -390,7 +398,7 @@ TEST_CASE("Jacobian baselines keep the same joints", "[joints][jacobian]") {
       if (m->points[p].kind != PointKind::base) targets.push_back({p, 0, 1.0});
     std::uniform_real_distribution<double> u(-0.5, 0.5);
     std::vector<Eigen::Vector3d> pos;
-    for (std::size_t i = 0; i < targets.size(); ++i) pos.emplace_back(u(rng), u(rng), u(rng));
+    for (std::size_t i = 0; i < targets.size(); ++i) pos.push_back(draw_vector3(u, rng));
     for (JacobianMethod method :
          {JacobianMethod::transpose, JacobianMethod::damped_least_squares}) {
       SolverOptions o;

@@ -7,6 +7,7 @@
 #include "config/model_loader.hpp"
 #include "solver/joint_angles.hpp"
 #include "solver/model_builder.hpp"
+#include "synth/random_draws.hpp"
 
 namespace fabrik::test {
 
@@ -40,8 +41,8 @@ std::vector<SegmentSpec> random_tree_specs(std::mt19937_64& rng, int n_segments)
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   std::uniform_int_distribution<int> n_points(1, 4);
   auto random_offset = [&] {
-    Eigen::Vector3d v(unit(rng), unit(rng), unit(rng));
-    while (v.norm() < 0.1) v = Eigen::Vector3d(unit(rng), unit(rng), unit(rng));
+    Eigen::Vector3d v = draw_vector3(unit, rng);
+    while (v.norm() < 0.1) v = draw_vector3(unit, rng);
     const double len = 0.05 + 0.45 * (unit(rng) + 1.0) / 2.0;
     return Eigen::Vector3d(v.normalized() * len);
   };

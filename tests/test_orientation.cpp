@@ -8,6 +8,7 @@
 
 #include "solver/fabrik_solver.hpp"
 #include "solver/joint_angles.hpp"
+#include "synth/random_draws.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "test_models.hpp"
 
@@ -104,7 +105,8 @@ TEST_CASE("Pelvis markers and limb orientation targets place every joint centre"
       marker_points.push_back(p);
     }
   std::vector<OrientationTarget> orientations;
-  for (int s = 1; s < static_cast<int>(m->segments.size()); ++s) orientations.push_back({s, 0, 1.0});
+  for (int s = 1; s < static_cast<int>(m->segments.size()); ++s)
+    orientations.push_back({s, 0, 1.0});
   FabrikSolver solver(m, points, tracking_options(), orientations);
   MotionSettings ms;
   ms.seed = 4;
@@ -116,11 +118,13 @@ TEST_CASE("Pelvis markers and limb orientation targets place every joint centre"
   for (int f = 0; f < 50; ++f) {
     motion.posture_at(0.03 * f, truth);
     motion.sample(truth, marker_points, 0.0, pos);
-    for (std::size_t k = 0; k < q.size(); ++k) q[k] = truth.segments[orientations[k].segment].q_world;
+    for (std::size_t k = 0; k < q.size(); ++k)
+      q[k] = truth.segments[orientations[k].segment].q_world;
     solver.solve(pos, std::vector<std::uint8_t>(pos.size(), 1), q,
                  std::vector<std::uint8_t>(q.size(), 1), posture);
     for (const Joint& j : m->joints)
-      worst_m = std::max(worst_m, (posture.point_world_m(*m, j.point) - truth.point_world_m(*m, j.point)).norm());
+      worst_m = std::max(
+          worst_m, (posture.point_world_m(*m, j.point) - truth.point_world_m(*m, j.point)).norm());
   }
   CAPTURE(worst_m);
   CHECK(worst_m < 1e-4);
@@ -177,14 +181,14 @@ TEST_CASE("Property: random trees with orientation targets stay rigid and within
     for (int s = 0; s < static_cast<int>(m->segments.size()); ++s)
       if (g(rng) > 0.3) {
         orientations.push_back({s, static_cast<int>(std::abs(g(rng))), 1.0});
-        q.push_back(Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized());
+        q.push_back(draw_rotation(g, rng));
       }
     std::vector<Target> points;
     std::vector<Eigen::Vector3d> pos;
     for (int p : m->marker_points())
       if (g(rng) > 1.0) {
         points.push_back({p, 0, 1.0});
-        pos.emplace_back(g(rng), g(rng), g(rng));
+        pos.push_back(draw_vector3(g, rng));
       }
     FabrikSolver solver(m, points, tracking_options(), orientations);
     Posture posture = Posture::rest(*m);

@@ -1,4 +1,5 @@
 #include "generic_static.hpp"
+#include "synth/random_draws.hpp"
 
 #include <random>
 #include <string>
@@ -74,8 +75,7 @@ io::MarkerTrial generic_gait2354_static(int frames, double noise_m, unsigned see
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0.0, noise_m);
   for (int f = 0; f < frames; ++f)
-    for (const auto& m : markers)
-      trial.positions_m.push_back(m.second + Eigen::Vector3d(noise(rng), noise(rng), noise(rng)));
+    for (const auto& m : markers) trial.positions_m.push_back(m.second + draw_vector3(noise, rng));
   return trial;
 }
 

@@ -1,4 +1,5 @@
 #include "synthetic_motion.hpp"
+#include "random_draws.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,11 +15,9 @@ SyntheticMotion::SyntheticMotion(const Model& model, MotionSettings settings)
   for (std::size_t s = 0; s < model.segments.size(); ++s) {
     // Flexion (about the lateral axis) swings most, twist least, as in gait.
     const Eigen::Vector3d share(0.35, 0.25, 1.0);
-    amplitude_rad_.emplace_back(
-        share.cwiseProduct(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_))) *
-        settings.max_swing_rad);
-    phase_rad_.emplace_back(Eigen::Vector3d(unit(rng_), unit(rng_), unit(rng_)) * 2.0 *
-                            std::numbers::pi);
+    amplitude_rad_.emplace_back(share.cwiseProduct(draw_vector3(unit, rng_)) *
+                                settings.max_swing_rad);
+    phase_rad_.emplace_back(draw_vector3(unit, rng_) * 2.0 * std::numbers::pi);
   }
   q_local_.resize(model.segments.size());
 }
@@ -84,8 +83,7 @@ void SyntheticMotion::sample(const Posture& posture, std::span<const int> points
   std::normal_distribution<double> noise(0.0, 1.0);
   for (std::size_t i = 0; i < points.size(); ++i) {
     out_world_m[i] = posture.point_world_m(model_, points[i]);
-    if (noise_m > 0.0)
-      out_world_m[i] += Eigen::Vector3d(noise(rng_), noise(rng_), noise(rng_)) * noise_m;
+    if (noise_m > 0.0) out_world_m[i] += draw_vector3(noise, rng_) * noise_m;
   }
 }
 

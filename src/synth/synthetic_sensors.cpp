@@ -1,4 +1,5 @@
 #include "synthetic_sensors.hpp"
+#include "random_draws.hpp"
 
 #include <numbers>
 
@@ -7,7 +8,7 @@ namespace fabrik {
 namespace {
 Eigen::Quaterniond random_rotation(std::mt19937_64& rng) {
   std::normal_distribution<double> g(0.0, 1.0);
-  return Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized();
+  return draw_rotation(g, rng);
 }
 
 Eigen::Quaterniond small_rotation(const Eigen::Vector3d& v_rad) {
@@ -26,9 +27,8 @@ SyntheticSensors::SyntheticSensors(std::vector<int> segments, SensorNoise noise,
   }
   heading_rad_ = unit(rng_) * std::numbers::pi;
   // A z-up sensors' world: -90 deg about x takes its z onto the model's y.
-  q_world_sensors_ =
-      Eigen::AngleAxisd(heading_rad_, Eigen::Vector3d::UnitY()) *
-      Eigen::AngleAxisd(-std::numbers::pi / 2, Eigen::Vector3d::UnitX());
+  q_world_sensors_ = Eigen::AngleAxisd(heading_rad_, Eigen::Vector3d::UnitY()) *
+                     Eigen::AngleAxisd(-std::numbers::pi / 2, Eigen::Vector3d::UnitX());
 }
 
 void SyntheticSensors::sample(const Posture& posture, double t_s,
@@ -38,8 +38,7 @@ void SyntheticSensors::sample(const Posture& posture, double t_s,
   for (std::size_t k = 0; k < segments_.size(); ++k) {
     const Eigen::Quaterniond drift(
         Eigen::AngleAxisd(drift_rate_rad_per_s_[k] * t_s, Eigen::Vector3d::UnitZ()));
-    const Eigen::Quaterniond jitter =
-        small_rotation(Eigen::Vector3d(g(rng_), g(rng_), g(rng_)) * noise_.noise_rad);
+    const Eigen::Quaterniond jitter = small_rotation(draw_vector3(g, rng_) * noise_.noise_rad);
     out[k] = (drift * q_sensors_world * posture.segments[segments_[k]].q_world *
               q_segment_sensor_[k] * jitter)
                  .normalized();
