@@ -907,7 +907,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     previous_step_sq_ = 0.0;
   }
   for (int iteration = 0;; ++iteration) {
-    if (stop.should_stop(iteration, distances_m_, previous_m_, result)) {
+    if (iteration == 0 && stop.should_stop(0, distances_m_, previous_m_, result)) {
       if (any_link_) turn_links(posture);
       return result;
     }
@@ -932,6 +932,12 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     result.iterations = iteration + 1;
     result.passes = total_passes;
     result.jumps = jumps;
+    // The stopping rule judges the iteration before any jump: a jump restarts its rates, so
+    // jumping when the iteration says the loop is done would cost two more iterations.
+    if (stop.should_stop(iteration + 1, distances_m_, previous_m_, result)) {
+      if (any_link_) turn_links(posture);
+      return result;
+    }
     if (extrapolating && extrapolate(target_world_m, visible, posture, result)) {
       stop.jumped();
       ++jumps;

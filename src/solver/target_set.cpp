@@ -60,23 +60,19 @@ bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
     for (std::size_t i = 0; i < distances_m.size(); ++i)
       if (!std::isnan(distances_m[i]))
         change_m = std::max(change_m, std::abs(distances_m[i] - previous_m[i]));
-    if (after_jump_ == 2) {
-      after_jump_ = 1;
-    } else {
-      double remaining_m = change_m;
-      if (after_jump_ == 1) {
-        after_jump_ = 0;  // the first change after a jump: no rate yet
-      } else if (iteration > 2 && change_m < last_change_m_) {
-        const double rate = change_m / last_change_m_;
-        remaining_m = change_m * rate / (1.0 - rate);
-      } else if (iteration > 2) {
-        remaining_m = change_m * 1e6;  // not contracting: only a tiny change itself may stop
-      }
-      last_change_m_ = change_m;
-      if (change_m <= options_.stall_tolerance_m || remaining_m <= options_.stall_tolerance_m) {
-        result.status = SolveStatus::stalled;
-        return true;
-      }
+    double remaining_m = change_m;
+    if (after_jump_) {
+      after_jump_ = 0;  // the first change after a jump: no rate yet
+    } else if (iteration > 2 && change_m < last_change_m_) {
+      const double rate = change_m / last_change_m_;
+      remaining_m = change_m * rate / (1.0 - rate);
+    } else if (iteration > 2) {
+      remaining_m = change_m * 1e6;  // not contracting: only a tiny change itself may stop
+    }
+    last_change_m_ = change_m;
+    if (change_m <= options_.stall_tolerance_m || remaining_m <= options_.stall_tolerance_m) {
+      result.status = SolveStatus::stalled;
+      return true;
     }
   }
   if (iteration >= options_.max_iterations) {

@@ -92,15 +92,14 @@ class StopRule {
   // Returns true (and sets result.status) when the solve should stop.
   bool should_stop(int iteration, std::span<const double> distances_m,
                    std::span<const double> previous_m, SolveResult& result);
-  // The posture jumped after the last iteration (SolverOptions::extrapolate): the next check
-  // sees the jump in its change and does not judge a stall; the one after judges the change
-  // alone, without a contraction rate.
-  void jumped() { after_jump_ = 2; }
+  // The posture jumped after the last check (SolverOptions::extrapolate): the next check
+  // judges the change alone, without a contraction rate.
+  void jumped() { after_jump_ = true; }
 
  private:
   const SolverOptions& options_;
   double last_change_m_ = 0.0;
-  int after_jump_ = 0;
+  bool after_jump_ = false;
 };
 
 }  // namespace fabrik
