@@ -39,6 +39,16 @@ void write_coordinate(ByteWriter& w, float v) {
   w.u32(std::isnan(v) ? 0xFFFFFFFFu : std::bit_cast<std::uint32_t>(v));
 }
 
+// Component header and the 3D header; both 3D components share the frame's rates.
+void write_3d_header(ByteWriter& w, std::uint32_t type, std::size_t count, std::size_t marker_bytes,
+                     const DataFrame& frame) {
+  w.u32(static_cast<std::uint32_t>(kComponentHeaderBytes + k3dHeaderBytes + count * marker_bytes));
+  w.u32(type);
+  w.u32(static_cast<std::uint32_t>(count));
+  w.u16(frame.drop_rate_2d_permille);
+  w.u16(frame.out_of_sync_rate_2d_permille);
+}
+
 }  // namespace
 
 Status read_data(const PacketView& packet, ByteOrder order, std::size_t max_markers, DataFrame& out) {
@@ -105,22 +115,12 @@ void write_data_packet(const DataFrame& frame, ByteOrder order, std::vector<std:
   w.u32(frame.frame_number);
   w.u32(static_cast<std::uint32_t>(frame.has_3d) + static_cast<std::uint32_t>(frame.has_3d_no_labels));
   if (frame.has_3d) {
-    const std::size_t n = frame.labelled_p_qtm_mm.size();
-    w.u32(static_cast<std::uint32_t>(kComponentHeaderBytes + k3dHeaderBytes + n * kLabelledBytes));
-    w.u32(kComponent3d);
-    w.u32(static_cast<std::uint32_t>(n));
-    w.u16(frame.drop_rate_2d_permille);
-    w.u16(frame.out_of_sync_rate_2d_permille);
+    write_3d_header(w, kComponent3d, frame.labelled_p_qtm_mm.size(), kLabelledBytes, frame);
     for (const auto& p : frame.labelled_p_qtm_mm)
       for (int k = 0; k < 3; ++k) write_coordinate(w, p[k]);
   }
   if (frame.has_3d_no_labels) {
-    const std::size_t n = frame.unlabelled.size();
-    w.u32(static_cast<std::uint32_t>(kComponentHeaderBytes + k3dHeaderBytes + n * kUnlabelledBytes));
-    w.u32(kComponent3dNoLabels);
-    w.u32(static_cast<std::uint32_t>(n));
-    w.u16(frame.drop_rate_2d_permille);
-    w.u16(frame.out_of_sync_rate_2d_permille);
+    write_3d_header(w, kComponent3dNoLabels, frame.unlabelled.size(), kUnlabelledBytes, frame);
     for (const auto& m : frame.unlabelled) {
       for (int k = 0; k < 3; ++k) write_coordinate(w, m.p_qtm_mm[k]);
       w.u32(m.id);

@@ -4,6 +4,9 @@
 #include <cstdint>
 #include <set>
 
+#include "common/safe_text.hpp"
+#include "common/utf8.hpp"
+
 namespace fabrik::qtm {
 
 namespace {
@@ -18,24 +21,6 @@ std::string_view trim(std::string_view s) {
   while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
   while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
   return s;
-}
-
-void append_utf8(std::string& out, std::uint32_t cp) {
-  if (cp < 0x80) {
-    out += static_cast<char>(cp);
-  } else if (cp < 0x800) {
-    out += static_cast<char>(0xC0 | (cp >> 6));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  } else if (cp < 0x10000) {
-    out += static_cast<char>(0xE0 | (cp >> 12));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  } else {
-    out += static_cast<char>(0xF0 | (cp >> 18));
-    out += static_cast<char>(0x80 | ((cp >> 12) & 0x3F));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3F));
-    out += static_cast<char>(0x80 | (cp & 0x3F));
-  }
 }
 
 // Walks the document, keeping the path of open elements and the text of the
@@ -78,7 +63,7 @@ class Reader {
         if (!read_start_tag()) return false;
       }
     }
-    if (!path_.empty()) return fail("unclosed element <" + path_.back() + ">");
+    if (!path_.empty()) return fail("unclosed element <" + safe_text(path_.back(), 64) + ">");
     if (!root_seen) return fail("no XML element");
     if (!seen_3d_) return fail("no The_3D block in the parameters");
     if (declared_labels_ >= 0 && static_cast<std::size_t>(declared_labels_) != out_.labels.size())
@@ -111,12 +96,12 @@ class Reader {
     if (!read_name(name)) return false;
     for (;;) {  // attributes: checked for form, their values unused
       skip_space();
-      if (i_ >= s_.size()) return fail("unterminated tag <" + name + ">");
+      if (i_ >= s_.size()) return fail("unterminated tag <" + safe_text(name, 64) + ">");
       if (s_[i_] == '>' || starts("/>")) break;
       std::string attribute;
       if (!read_name(attribute)) return false;
       skip_space();
-      if (i_ >= s_.size() || s_[i_] != '=') return fail("attribute " + attribute + " without a value");
+      if (i_ >= s_.size() || s_[i_] != '=') return fail("attribute " + safe_text(attribute, 64) + " without a value");
       ++i_;
       skip_space();
       if (i_ >= s_.size() || (s_[i_] != '"' && s_[i_] != '\'')) return fail("unquoted attribute value");
@@ -125,7 +110,7 @@ class Reader {
       i_ = end + 1;
     }
     if (path_.empty() && name.rfind("QTM_Parameters", 0) != 0)
-      return fail("the root element is <" + name + ">, not <QTM_Parameters_Ver_n.n>");
+      return fail("the root element is <" + safe_text(name, 64) + ">, not <QTM_Parameters_Ver_n.n>");
     const bool empty_element = s_[i_] == '/';
     i_ += empty_element ? 2 : 1;
     if (path_.size() >= limits_.max_depth) return fail("elements nested deeper than the limit");
@@ -140,9 +125,9 @@ class Reader {
     std::string name;
     if (!read_name(name)) return false;
     skip_space();
-    if (i_ >= s_.size() || s_[i_] != '>') return fail("unterminated end tag </" + name + ">");
+    if (i_ >= s_.size() || s_[i_] != '>') return fail("unterminated end tag </" + safe_text(name, 64) + ">");
     ++i_;
-    if (path_.empty() || path_.back() != name) return fail("end tag </" + name + "> does not match");
+    if (path_.empty() || path_.back() != name) return fail("end tag </" + safe_text(name, 64) + "> does not match");
     return close_element();
   }
 
@@ -172,7 +157,7 @@ class Reader {
           return fail("bad character reference");
         append_utf8(text_, cp);
       } else {
-        return fail("unknown entity &" + std::string(ent) + ";");
+        return fail("unknown entity &" + safe_text(ent, 16) + ";");
       }
     }
     return true;
@@ -192,7 +177,7 @@ class Reader {
       int n = -1;
       const auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
       if (ec != std::errc() || p != text.data() + text.size() || n < 0)
-        return fail("Labels is not a count: '" + std::string(text) + "'");
+        return fail("Labels is not a count: '" + safe_text(text, 32) + "'");
       declared_labels_ = n;
     } else if (in_3d(4) && path_[2] == "Label" && path_[3] == "Name") {
       if (label_name_seen_) return fail("a Label with two Names");
@@ -202,7 +187,7 @@ class Reader {
     } else if (in_3d(3) && path_[2] == "Label") {
       if (!label_name_seen_) return fail("a Label without a Name");
       if (out_.labels.size() >= limits_.max_labels) return fail("more labels than the limit");
-      if (!names_.insert(label_name_).second) return fail("the label '" + label_name_ + "' appears twice");
+      if (!names_.insert(label_name_).second) return fail("the label '" + safe_text(label_name_, 64) + "' appears twice");
       out_.labels.push_back(label_name_);
       label_name_seen_ = false;
     }
