@@ -352,6 +352,7 @@ TEST_CASE("qtm: a framing error poisons the splitter until reset", "[qtm]") {
   CHECK(splitter.next(p) == Status::too_large);
   splitter.feed(kShuttingDownLittle);
   CHECK(splitter.next(p) == Status::too_large);  // the framing is lost: no guessing
+  CHECK(splitter.buffered_bytes() == huge.size());  // and nothing more is buffered
   splitter.reset();
   splitter.feed(kShuttingDownLittle);
   CHECK(splitter.next(p) == Status::ok);
