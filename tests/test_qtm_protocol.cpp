@@ -249,6 +249,13 @@ TEST_CASE("qtm: other components are skipped by their size, 3D no labels read", 
   REQUIRE(f.unlabelled.size() == 1);
   CHECK(f.unlabelled[0].p_qtm_mm == Eigen::Vector3f(-1.5f, 0.5f, 100.0f));
   CHECK(f.unlabelled[0].id == 7);
+  // Without a 3D component the rates are the 3D no labels component's, not a previous frame's.
+  CHECK(f.drop_rate_2d_permille == 3);
+  CHECK(f.out_of_sync_rate_2d_permille == 4);
+  REQUIRE(read_data(whole(kData3dLittle, ByteOrder::little), ByteOrder::little, 1000, f) == Status::ok);
+  REQUIRE(read_data(whole(kDataSkipAndNoLabelsLittle, ByteOrder::little), ByteOrder::little, 1000, f) ==
+          Status::ok);
+  CHECK(f.drop_rate_2d_permille == 3);
 }
 
 TEST_CASE("qtm: every truncation of a valid packet is an error, never a crash", "[qtm]") {
@@ -400,7 +407,9 @@ TEST_CASE("qtm: data packets round trip through the encoder, both byte orders", 
         CHECK(decoded.unlabelled[i].p_qtm_mm == f.unlabelled[i].p_qtm_mm);
         CHECK(decoded.unlabelled[i].id == f.unlabelled[i].id);
       }
-      if (f.has_3d) CHECK(decoded.drop_rate_2d_permille == f.drop_rate_2d_permille);
+      const bool rates_sent = f.has_3d || f.has_3d_no_labels;
+      CHECK(decoded.drop_rate_2d_permille == (rates_sent ? f.drop_rate_2d_permille : 0));
+      CHECK(decoded.out_of_sync_rate_2d_permille == (rates_sent ? f.out_of_sync_rate_2d_permille : 0));
     }
   }
 }

@@ -15,6 +15,10 @@
 #include <string>
 #include <vector>
 
+#include "bridges/qtm/commands.hpp"
+#include "bridges/qtm/data_packet.hpp"
+#include "bridges/qtm/packet.hpp"
+#include "bridges/qtm/parameters_xml.hpp"
 #include "io/marker_trial.hpp"
 #include "transport/marker_codec.hpp"
 
@@ -139,6 +143,41 @@ void configs(const fs::path& config_dir, const json& fullbody, const json& paper
   write("json_reader", "default_config", default_config.dump(2));
 }
 
+// QTM RT streams (fuzz_qtm_packet): the first byte picks the byte order
+// (bit 0) and the chunk size (bits 1-7); then what a server sends a client:
+// welcome, version reply, 3D parameters, frames, an event, no more data, an error.
+void qtm_streams() {
+  using namespace fabrik::qtm;
+  for (const ByteOrder order : {ByteOrder::little, ByteOrder::big}) {
+    std::string stream(1, static_cast<char>((order == ByteOrder::big ? 1 : 0) | (6 << 1)));
+    std::vector<std::uint8_t> packet;
+    auto add = [&] { stream.append(packet.begin(), packet.end()); };
+    write_string_packet(PacketType::command, "QTM RT Interface connected.", order, packet);
+    add();
+    write_string_packet(PacketType::command, "Version set to 1.19", order, packet);
+    add();
+    write_string_packet(PacketType::xml, write_parameters_3d({{"LASI", "RASI", "L&R"}, "+Z"}, "1.19"),
+                        order, packet);
+    add();
+    DataFrame frame;
+    frame.timestamp_us = 1000000;
+    frame.frame_number = 42;
+    frame.has_3d = frame.has_3d_no_labels = true;
+    frame.drop_rate_2d_permille = 5;
+    frame.labelled_p_qtm_mm = {{1.0f, 2.0f, 3.0f}, Eigen::Vector3f::Constant(std::nanf("")), {-4.5f, 0.0f, 1e4f}};
+    frame.unlabelled = {{{10.0f, 20.0f, 30.0f}, 7}};
+    write_data_packet(frame, order, packet);
+    add();
+    write_event_packet(Event::camera_settings_changed, order, packet);
+    add();
+    write_packet(PacketType::no_more_data, {}, order, packet);
+    add();
+    write_string_packet(PacketType::error, "Parse Error", order, packet);
+    add();
+    write("qtm_packet", order == ByteOrder::big ? "session_big" : "session_little", stream);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -154,6 +193,7 @@ int main(int argc, char** argv) {
     marker_frames(fullbody);
     trials();
     configs(config_dir, fullbody, paper_model);
+    qtm_streams();
   } catch (const std::exception& e) {
     std::cerr << "fabrik_fuzz_corpus: " << e.what() << "\n";
     return 2;

@@ -7,7 +7,6 @@ namespace fabrik::qtm {
 
 namespace {
 
-constexpr std::size_t kFrameHeaderBytes = 16;     // timestamp, frame number, component count
 constexpr std::size_t kComponentHeaderBytes = 8;  // size, type
 constexpr std::size_t k3dHeaderBytes = 8;         // marker count, drop rate, out of sync rate
 constexpr std::size_t kLabelledBytes = 12;        // x y z
@@ -60,6 +59,7 @@ Status read_data(const PacketView& packet, ByteOrder order, std::size_t max_mark
   if (!r.ok()) return Status::truncated;
   out.components_skipped = 0;
   out.has_3d = out.has_3d_no_labels = false;
+  out.drop_rate_2d_permille = out.out_of_sync_rate_2d_permille = 0;
   out.labelled_p_qtm_mm.clear();
   out.unlabelled.clear();
 
@@ -91,6 +91,10 @@ Status read_data(const PacketView& packet, ByteOrder order, std::size_t max_mark
               read_3d_header(body, body_bytes, kUnlabelledBytes, max_markers, count, drop, out_of_sync);
           s != Status::ok)
         return s;
+      if (!out.has_3d) {  // the 3D component's rates win; both describe the same cameras
+        out.drop_rate_2d_permille = drop;
+        out.out_of_sync_rate_2d_permille = out_of_sync;
+      }
       out.unlabelled.resize(count);
       for (auto& m : out.unlabelled) {
         m.p_qtm_mm = read_xyz(body);

@@ -32,9 +32,11 @@ struct DataFrame {
   std::uint32_t component_count = 0;
   std::uint32_t components_skipped = 0;  // types other than 1 and 2
 
-  bool has_3d = false;
+  // The 2D rates of the 3D component, else of the 3D no labels component, else 0.
   std::uint16_t drop_rate_2d_permille = 0;
   std::uint16_t out_of_sync_rate_2d_permille = 0;
+
+  bool has_3d = false;
   std::vector<Eigen::Vector3f> labelled_p_qtm_mm;  // in the order of the 3D parameters' labels
 
   bool has_3d_no_labels = false;
