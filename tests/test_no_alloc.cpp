@@ -11,8 +11,12 @@
 #include <cerrno>
 #include <catch2/catch.hpp>
 #include <cstdlib>
+#include <limits>
 #include <new>
+#include <span>
 
+#include "bridges/qtm/data_packet.hpp"
+#include "bridges/qtm/packet.hpp"
 #include "config/daemon_config.hpp"
 #include "solver/fabrik_solver.hpp"
 #include "solver/jacobian_solver.hpp"
@@ -380,4 +384,51 @@ TEST_CASE("FabrikSolver::solve with joint limits, subtree carry and orientation 
       CHECK(allocations == 0);
       if (!two_levels) CHECK(jumps > 0);
     }
+}
+
+TEST_CASE("The QTM stream path (split, decode data, encode data) allocates nothing after warm-up",
+          "[alloc][qtm]") {
+  using namespace fabrik::qtm;
+  DataFrame sent, decoded;
+  sent.has_3d = sent.has_3d_no_labels = true;
+  sent.labelled_p_qtm_mm.assign(60, Eigen::Vector3f(100.0f, 200.0f, 300.0f));
+  sent.unlabelled.assign(3, UnlabelledMarker{Eigen::Vector3f(1.0f, 2.0f, 3.0f), 1});
+  PacketSplitter splitter(ByteOrder::little, 1 << 16);
+  std::vector<std::uint8_t> packet, two_packets;
+  packet.reserve(1 << 12);
+  two_packets.reserve(1 << 13);
+  long split_allocations = 0, decode_allocations = 0, encode_allocations = 0;
+  int frames = 0;
+  for (std::uint32_t f = 0; f < 60; ++f) {
+    sent.frame_number = f;
+    sent.labelled_p_qtm_mm[f % 60].x() = std::numeric_limits<float>::quiet_NaN();  // occlusions
+    long before = g_allocations.load();
+    write_data_packet(sent, ByteOrder::little, packet);
+    if (f >= 2) encode_allocations += g_allocations.load() - before;
+    // Two packets per read, cut off-centre: the splitter carries a partial packet over.
+    two_packets.assign(packet.begin(), packet.end());
+    two_packets.insert(two_packets.end(), packet.begin(), packet.end());
+    const std::size_t cut = packet.size() + 13;
+    for (const auto& chunk : {std::span<const std::uint8_t>(two_packets).first(cut),
+                              std::span<const std::uint8_t>(two_packets).subspan(cut)}) {
+      before = g_allocations.load();
+      splitter.feed(chunk);
+      PacketView view;
+      Status status;
+      while (true) {
+        status = splitter.next(view);
+        if (status != Status::ok) break;
+        const long before_decode = g_allocations.load();
+        const Status decoded_status = read_data(view, ByteOrder::little, 1000, decoded);
+        if (f >= 2) decode_allocations += g_allocations.load() - before_decode;
+        frames += decoded_status == Status::ok && decoded.frame_number == f;
+      }
+      if (f >= 2) split_allocations += g_allocations.load() - before;
+      REQUIRE(status == Status::need_more);
+    }
+  }
+  CHECK(frames == 120);
+  CHECK(split_allocations == 0);
+  CHECK(decode_allocations == 0);
+  CHECK(encode_allocations == 0);
 }
