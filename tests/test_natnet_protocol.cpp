@@ -292,6 +292,9 @@ TEST_CASE("NatNet header: the payload size must match the datagram", "[natnet]")
   }
   const Bytes empty_request = encode_message(MessageId::request_model_def, {});
   CHECK(empty_request == Bytes{0x04, 0x00, 0x00, 0x00});
+  CHECK(encode_message(MessageId::frame_of_data, zeros(kMaxPayloadBytes)).size() ==
+        kHeaderBytes + kMaxPayloadBytes);
+  CHECK(encode_message(MessageId::frame_of_data, zeros(kMaxPayloadBytes + 1)).empty());
 }
 
 TEST_CASE("NatNet connect request carries the version asked for", "[natnet]") {

@@ -64,6 +64,10 @@ class Reader {
   // A NUL-terminated string that must end inside the payload.
   std::string cstring(const char* what) {
     if (!ok()) return {};
+    if (remaining() == 0) {  // also keeps memchr away from an empty span's null data()
+      fail(std::string("truncated: ") + what + " is missing");
+      return {};
+    }
     const auto* begin = bytes_.data() + offset_;
     const void* nul = std::memchr(begin, 0, remaining());
     if (nul == nullptr) {

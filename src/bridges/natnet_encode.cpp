@@ -73,6 +73,7 @@ void description(Writer& w, const Version& v, std::int32_t type, Body body) {
 }  // namespace
 
 std::vector<std::uint8_t> encode_message(MessageId id, std::span<const std::uint8_t> payload) {
+  if (payload.size() > kMaxPayloadBytes) return {};  // the uint16 size cannot say it
   Writer w;
   w.put(static_cast<std::uint16_t>(id));
   w.put(static_cast<std::uint16_t>(payload.size()));

@@ -61,6 +61,7 @@ struct Message {
 // The payload size in the header must equal the datagram's rest exactly:
 // shorter is truncated, longer is oversized; both are errors.
 bool split_message(std::span<const std::uint8_t> datagram, Message& out, std::string& error);
+// Empty if the payload is longer than the header's uint16 size can say.
 std::vector<std::uint8_t> encode_message(MessageId id, std::span<const std::uint8_t> payload);
 
 // --- connect / server info ---------------------------------------------------
