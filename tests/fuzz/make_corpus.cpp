@@ -19,6 +19,7 @@
 #include "bridges/qtm/data_packet.hpp"
 #include "bridges/qtm/packet.hpp"
 #include "bridges/qtm/parameters_xml.hpp"
+#include "bridges/natnet_protocol.hpp"
 #include "io/marker_trial.hpp"
 #include "transport/marker_codec.hpp"
 
@@ -180,6 +181,42 @@ void qtm_streams() {
 
 }  // namespace
 
+// NatNet datagrams from the codec's encoders, one per message kind and version;
+// the first byte picks the version in fuzz_natnet_packet (0: 3.0 ... 3: 4.1).
+void natnet_packets() {
+  namespace nn = fabrik::natnet;
+  const nn::Version versions[] = {{3, 0, 0, 0}, {3, 1, 0, 0}, {4, 0, 0, 0}, {4, 1, 0, 0}};
+  auto put = [](const std::string& name, std::uint8_t version_index, nn::MessageId id,
+                const std::vector<std::uint8_t>& payload) {
+    const std::vector<std::uint8_t> datagram = nn::encode_message(id, payload);
+    std::string bytes(1, static_cast<char>(version_index));
+    bytes.append(datagram.begin(), datagram.end());
+    write("natnet_packet", name, bytes);
+  };
+  for (std::uint8_t i = 0; i < std::size(versions); ++i) {
+    const nn::Version& v = versions[i];
+    const std::string tag = std::to_string(v.major) + std::to_string(v.minor);
+    nn::FrameOfData f;
+    f.frame_number = 7;
+    f.marker_sets = {{"subject01", {{0.1f, 0.2f, 0.3f}, {0.4f, 0.5f, 0.6f}}}};
+    f.other_markers_p_m = {{1.f, 1.f, 1.f}};
+    f.rigid_bodies = {{1, {0.f, 1.f, 0.f}, {0.f, 0.f, 0.f, 1.f}, 0.001f, 1}};
+    f.skeletons = {{2, {{65537, {0.f, 1.f, 0.f}, {0.f, 0.f, 0.f, 1.f}, 0.f, 1}}}};
+    f.labeled_markers = {{65537, {0.1f, 0.2f, 0.3f}, 0.014f, 0, 0.0002f},
+                         {65538, {0.f, 0.f, 0.f}, 0.014f, 1, 0.f}};
+    f.timestamp_s = 0.01;
+    put("frame_" + tag, i, nn::MessageId::frame_of_data, nn::encode_frame_of_data(f, v));
+    nn::ModelDefinitions d;
+    d.marker_sets = {{"subject01", {"LASI", "RASI"}}};
+    d.rigid_bodies = {{"wand", 1, -1, {0.f, 0.f, 0.f}, {{{0.01f, 0.f, 0.f}, 1, "w1"}}}};
+    d.skeletons = {{"subject01", 2, {{"Hip", 65537, -1, {0.f, 1.f, 0.f}, {}}}}};
+    put("model_" + tag, i, nn::MessageId::model_def, nn::encode_model_definitions(d, v));
+  }
+  nn::ServerInfo info{"Motive", {3, 1, 0, 0}, {4, 1, 0, 0}, 10'000'000, 1511, true, {239, 255, 42, 99}};
+  put("server_info", 3, nn::MessageId::server_info, nn::encode_server_info(info));
+  put("connect", 3, nn::MessageId::connect, nn::encode_connect_request({4, 1, 0, 0}));
+}
+
 int main(int argc, char** argv) {
   if (argc != 3) {
     std::cerr << "usage: fabrik_fuzz_corpus SOURCE_DIR OUT_DIR\n";
@@ -194,6 +231,7 @@ int main(int argc, char** argv) {
     trials();
     configs(config_dir, fullbody, paper_model);
     qtm_streams();
+    natnet_packets();
   } catch (const std::exception& e) {
     std::cerr << "fabrik_fuzz_corpus: " << e.what() << "\n";
     return 2;
