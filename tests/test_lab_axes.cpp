@@ -134,8 +134,7 @@ void check_same(const TrialSolution& a, const TrialSolution& b) {
 
 // The run's .mot, written and read back, steps no more than `bound_deg`
 // between rows (the issue's 10 deg by default).
-void check_mot_continuous(const TrialSolution& s,
-                          double bound_deg = test::kMaxCoordinateStepDeg) {
+void check_mot_continuous(const TrialSolution& s, double bound_deg = test::kMaxCoordinateStepDeg) {
   test::TempFile mot(".mot");
   io::write_opensim_table(mot.path(), angles_table(s));
   const io::OpenSimTable table = io::read_opensim_table(mot.path());
@@ -155,9 +154,10 @@ double value_at(const TrialSolution& s, const std::string& name, std::size_t fra
 
 }  // namespace
 
-TEST_CASE("Lab axes: a Z-up copy of a synthetic subject gives the Y-up coordinates, detected "
-          "from its static trial",
-          "[lab_axes][calib]") {
+TEST_CASE(
+    "Lab axes: a Z-up copy of a synthetic subject gives the Y-up coordinates, detected "
+    "from its static trial",
+    "[lab_axes][calib]") {
   const json tmpl = leg_template_with_coordinates();
   const io::MarkerTrial static_y = test::Subject().trial();
   const calib::CalibrationResult ry = calibrated(tmpl, static_y);
@@ -196,9 +196,10 @@ TEST_CASE("Lab axes: a Z-up copy of a synthetic subject gives the Y-up coordinat
   CHECK(std::abs(std::abs(value_at(sw, "pelvis_list", 0) * kDeg) - 90.0) < 20.0);
 }
 
-TEST_CASE("Lab axes: Z up with the walk along +y gives the same coordinates when declared, in "
-          "the template or on the command line",
-          "[lab_axes][calib]") {
+TEST_CASE(
+    "Lab axes: Z up with the walk along +y gives the same coordinates when declared, in "
+    "the template or on the command line",
+    "[lab_axes][calib]") {
   const json tmpl = leg_template_with_coordinates();
   const io::MarkerTrial static_y = test::Subject().trial();
   const DaemonConfig cy = config_of(calibrated(tmpl, static_y));
@@ -287,8 +288,8 @@ struct Turntable {
     SegmentSpec body;
     body.name = "body";
     body.base = "root";
-    body.points = {{"a", {0.2, 0.0, 0.0}, true}, {"b", {0.0, 0.3, 0.0}, true},
-                   {"c", {0.0, 0.0, 0.25}, true}};
+    body.points = {
+        {"a", {0.2, 0.0, 0.0}, true}, {"b", {0.0, 0.3, 0.0}, true}, {"c", {0.0, 0.0, 0.25}, true}};
     CoordinateSpec heading;
     heading.name = "heading";
     heading.segment = "body";
@@ -296,14 +297,16 @@ struct Turntable {
     model = std::make_shared<const Model>(
         build_model("turntable", {body}, Eigen::Vector3d(0, 1, 0), {heading}));
     setup.model = model;
-    for (int p : model->marker_points()) setup.markers.push_back({model->points[p].name, p, 0, 1.0});
+    for (int p : model->marker_points())
+      setup.markers.push_back({model->points[p].name, p, 0, 1.0});
     setup.solver.root = RootMode::free;
     setup.solver.segment_fit = SegmentFit::rigid;
   }
   // The markers with the body turned by `angle_rad` about the vertical.
   std::vector<Eigen::Vector3d> at(double angle_rad) const {
     std::vector<Eigen::Vector3d> out;
-    const Eigen::Matrix3d r = Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Eigen::Matrix3d r =
+        Eigen::AngleAxisd(angle_rad, Eigen::Vector3d::UnitY()).toRotationMatrix();
     for (const MarkerTarget& m : setup.markers)
       out.push_back(model->root_rest_m + r * model->points[m.point].p_local_m);
     return out;
@@ -330,8 +333,8 @@ TEST_CASE("A heading turning through +-180 deg is continuous, from the first fra
   }
   CHECK(largest_step_deg == Approx(5.0).margin(0.1));
   // A gap long enough for a cold start: the same recording, still continuous.
-  const double after_gap = tracker.track(frames * 0.01 + 2.0, t.at(previous + 0.05), visible)
-                               .coordinates[0];
+  const double after_gap =
+      tracker.track(frames * 0.01 + 2.0, t.at(previous + 0.05), visible).coordinates[0];
   CHECK(after_gap == Approx(previous + 0.05).margin(0.1 / kDeg));
   // A clock that goes back is a new recording: principal values again.
   const double restarted = tracker.track(0.0, t.at(previous), visible).coordinates[0];
@@ -387,8 +390,8 @@ struct Subject01 {
 
 DaemonConfig gait2354(const io::MarkerTrial& stat, const calib::CalibrateOptions& o = {},
                       calib::CalibrationResult* result = nullptr) {
-  const calib::CalibTemplate t = calib::load_template_file(
-      std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json");
+  const calib::CalibTemplate t =
+      calib::load_template_file(std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json");
   calib::CalibrationResult r = calib::calibrate(t, stat, "static.trc", o);
   if (result) *result = r;
   return config_of(r);
@@ -396,9 +399,10 @@ DaemonConfig gait2354(const io::MarkerTrial& stat, const calib::CalibrateOptions
 
 }  // namespace
 
-TEST_CASE("subject01 in a Z-up lab: every coordinate within 0.1 deg and 0.1 mm of the Y-up "
-          "lab's (skipped without ../shared/data)",
-          "[lab_axes][data]") {
+TEST_CASE(
+    "subject01 in a Z-up lab: every coordinate within 0.1 deg and 0.1 mm of the Y-up "
+    "lab's (skipped without ../shared/data)",
+    "[lab_axes][data]") {
   const Subject01 data;
   if (!data.present) return;
   const io::MarkerTrial static_y = io::read_trial(data.static_path);
@@ -420,8 +424,8 @@ TEST_CASE("subject01 in a Z-up lab: every coordinate within 0.1 deg and 0.1 mm o
     const Eigen::Matrix3d r = z_up_y_forward_from_y_up();
     calib::CalibrateOptions o;
     o.lab_axes = LabAxesSpec{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitY()};
-    const TrialSolution sc =
-        solve_trial(gait2354(through_file(turned(static_y, r)), o), through_file(turned(walk_y, r)));
+    const TrialSolution sc = solve_trial(gait2354(through_file(turned(static_y, r)), o),
+                                         through_file(turned(walk_y, r)));
     check_same(sy, sc);
     check_mot_continuous(sc);
   }
@@ -437,4 +441,31 @@ TEST_CASE("walk1's .mot jumps at most 10 deg between frames (skipped without ../
   if (!data.present) return;
   check_mot_continuous(
       solve_trial(gait2354(io::read_trial(data.static_path)), io::read_trial(data.walk_path)));
+}
+
+TEST_CASE("largest_jump: a wrap and a lone snap are jumps, a fast sustained swing is not",
+          "[lab_axes][numbers]") {
+  io::OpenSimTable t;
+  t.columns = {"time", "swing", "snap"};
+  // swing: 0, 11, 22, 33, 33 (three 11 deg steps in a row); snap: 0, 0, 12, 12, 372 (a
+  // lone 12 deg step, then a 360 deg wrap).
+  const double swing[] = {0, 11, 22, 33, 33}, snap[] = {0, 0, 12, 12, 372};
+  t.rows = 5;
+  for (std::size_t r = 0; r < t.rows; ++r) {
+    t.time_s.push_back(0.01 * static_cast<double>(r));
+    t.values.push_back(swing[r]);
+    t.values.push_back(snap[r]);
+  }
+  const test::TableStep step = test::largest_step(t), jump = test::largest_jump(t);
+  CHECK(step.step == Approx(360.0));
+  CHECK(jump.step == Approx(360.0));
+  CHECK(jump.column == "snap");
+  t.values[4 * 2 + 1] = 12.0;  // no wrap: the lone 12 deg step is the largest jump
+  CHECK(test::largest_jump(t).step == Approx(12.0));
+  CHECK(test::largest_jump(t).time_s == Approx(0.02));
+  for (std::size_t r = 0; r < t.rows; ++r)
+    t.values[r * 2 + 1] = 0.0;  // snap flat: the swing's
+                                // steps sustain each other
+  CHECK(test::largest_jump(t).step == 0.0);
+  CHECK(test::largest_step(t).step == Approx(11.0));
 }

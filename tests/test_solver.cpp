@@ -400,3 +400,15 @@ TEST_CASE("Property: random trees keep geometry and the rigid fit never ends wor
         }
   }
 }
+
+TEST_CASE("draw_vector3 and draw_rotation take their draws in x, y, z (w first) order", "[synth]") {
+  int next = 0;
+  auto counter = [&next](int&) { return static_cast<double>(++next); };
+  int engine = 0;
+  CHECK(draw_vector3(counter, engine).isApprox(Eigen::Vector3d(1, 2, 3)));
+  const Eigen::Quaterniond q = draw_rotation(counter, engine);  // draws 4, 5, 6, 7
+  const double n = std::sqrt(16.0 + 25.0 + 36.0 + 49.0);
+  CHECK(q.w() == Approx(4.0 / n));
+  CHECK(q.x() == Approx(5.0 / n));
+  CHECK(q.z() == Approx(7.0 / n));
+}
