@@ -186,8 +186,10 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   if (root.has("input")) {
     const JsonReader in = root.at("input");
     in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames",
-                  "max_abs_coordinate_mm", "zero_is_missing", "quaternion_tolerance"});
+                  "max_abs_coordinate_mm", "zero_is_missing", "quaternion_tolerance", "source",
+                  "source_options"});
     c.input = read_endpoint(in, c.input);
+    c.source = read_source_config(in);
     if (in.has("units")) c.input_m_per_unit = metres_per_unit(in.at("units"));
     c.max_payload_bytes = static_cast<std::size_t>(
         in.get("max_payload_bytes", static_cast<long long>(c.max_payload_bytes), 64LL, 1LL << 30));

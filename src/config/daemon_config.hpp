@@ -7,6 +7,7 @@
 #include <string>
 
 #include "sensors_json.hpp"
+#include "source_config.hpp"
 #include "tracking/tracker.hpp"
 
 namespace fabrik {
@@ -26,6 +27,8 @@ struct DaemonConfig {
   Endpoint input{"tcp://127.0.0.1:5555", SocketMode::bind};
   Endpoint output{"tcp://127.0.0.1:5556", SocketMode::bind};
   double input_m_per_unit = 1e-3;   // for frames without "units"
+  // A QTM or NatNet server read beside the ZeroMQ input (kind none: no source).
+  SourceConfig source;
   double output_m_per_unit = 1e-3;  // pose positions and residuals
   std::string output_units = "mm";
   Encoding output_encoding = Encoding::json;

@@ -129,7 +129,40 @@ struct StatsFields {
   const DaemonCounters& c;
   IntervalSamples &solve_us, &queue_us;
   std::string_view last_error, config;  // both already safe (safe_text)
+  const SourceInput* source = nullptr;  // null: the config names no source
 };
+
+// stats.source (proto/stats.schema.json): the vendor server's connection.
+template <class Writer>
+void write_source_stats(Writer& w, const SourceInput& source) {
+  const SourceInput::Status st = source.status();
+  const bridges::SourceStatus::Snapshot& c = st.connection;
+  const auto count = [&](const char* key, std::uint64_t v) {
+    w.key(key);
+    w.uint(v);
+  };
+  const auto text_or_null = [&](const char* key, const std::string& text) {
+    w.key(key);
+    if (text.empty())
+      w.null();
+    else
+      w.string(safe_text(text, 240));
+  };
+  w.begin_map(10);
+  w.key("url");
+  w.string(safe_text(source.config().url, 240));
+  w.key("connected");
+  w.boolean(c.connected);
+  text_or_null("server", c.server);
+  count("connections", c.connections);
+  count("reconnects", c.reconnects);
+  count("errors", c.errors);
+  count("bad_packets", c.bad_packets);
+  count("frames", c.frames);
+  count("frames_dropped", st.frames_dropped);
+  text_or_null("last_error", c.last_error);
+  w.end_map();
+}
 
 template <class Writer>
 void write_stats(Writer& w, const StatsFields& s) {
@@ -148,7 +181,7 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  w.begin_map(26);  // MessagePack needs the exact count of the keys below
+  w.begin_map(s.source ? 27 : 26);  // MessagePack needs the exact count of the keys below
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -185,6 +218,10 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("outliers", s.c.outliers);
   count("poor_frames", s.c.poor_frames);
   count("subscriptions_refused", s.c.subscriptions_refused);
+  if (s.source) {
+    w.key("source");
+    write_source_stats(w, *s.source);
+  }
   w.end_map();
 }
 
@@ -211,6 +248,7 @@ struct Daemon::State {
   std::size_t bytes = 0;
   zmq::socket_t sub, pub;
   zmq::socket_t monitor;  // the input socket's disconnect and accept-failure events
+  std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
 };
 
 struct Daemon::ReloadJob {
@@ -279,10 +317,22 @@ void Daemon::attach_sockets(State& next, State* old) {
     old->pub.set(zmq::sockopt::sndhwm, pose_queue_messages(next.config.max_backlog_frames));
     next.pub = std::move(old->pub);
   }
+  // A source keeps its connection while neither it nor the lab's axes changed.
+  const SourceConfig& source = next.config.source;
+  const LabAxes& lab = next.config.tracker.model->lab_axes;
+  if (old && old->source && old->source->config() == source &&
+      old->config.tracker.model->lab_axes == lab) {
+    next.source = std::move(old->source);
+  } else if (source.kind != SourceKind::none) {
+    next.source = std::make_unique<SourceInput>(context_, source, lab,
+                                                source_client_ ? source_client_(source)
+                                                               : make_source_client(source));
+    spdlog::info("source {}: connecting", safe_text(source.url, 128));
+  }
 }
 
-Daemon::Daemon(zmq::context_t& context, DaemonConfig config)
-    : context_(context), started_(Clock::now()) {
+Daemon::Daemon(zmq::context_t& context, DaemonConfig config, SourceClientFactory source_client)
+    : context_(context), source_client_(std::move(source_client)), started_(Clock::now()) {
   auto s = prepare_state(std::move(config));
   attach_sockets(*s, nullptr);
   state_ = std::move(s);
@@ -360,18 +410,18 @@ void Daemon::internal_error(std::string_view where, std::string_view what) noexc
 
 // Takes what ZeroMQ has queued, without decoding, into the ring of waiting
 // messages. Returns how many messages it received.
-int Daemon::drain_input(int budget) {
+int Daemon::drain_input(zmq::socket_t& in, int budget) {
   State& s = *state_;
   const int capacity = static_cast<int>(s.waiting.size());
   int received = 0;
   for (; received < budget; ++received) {
-    if (!s.sub.recv(topic_, zmq::recv_flags::dontwait)) break;
+    if (!in.recv(topic_, zmq::recv_flags::dontwait)) break;
     const Clock::time_point now = Clock::now();
     ++counters_.frames_in;
     int parts = 1;
     for (bool more = topic_.more(); more; ++parts) {
       zmq::message_t& m = parts == 1 ? payload_ : extra_;
-      if (!s.sub.recv(m, zmq::recv_flags::dontwait)) break;  // parts arrive together
+      if (!in.recv(m, zmq::recv_flags::dontwait)) break;  // parts arrive together
       more = m.more();
     }
     if (parts != 2) {
@@ -401,12 +451,12 @@ int Daemon::drain_input(int budget) {
   return received;
 }
 
-void Daemon::serve_input() {
+void Daemon::serve_input(zmq::socket_t& in) {
   const Clock::time_point until = Clock::now() + kMaxServe;
   int budget = kMaxBatch;
   for (;;) {
     State& s = *state_;
-    budget -= drain_input(budget);
+    budget -= drain_input(in, budget);
     if (s.count == 0) break;
     const int slot = s.first;
     s.first = (s.first + 1) % static_cast<int>(s.waiting.size());
@@ -595,7 +645,8 @@ void Daemon::publish_stats(double interval_s) {
       solve_us_,
       queue_us_,
       last_error_.view(),
-      s.config_name};
+      s.config_name,
+      s.source.get()};
   if (s.config.output_encoding == Encoding::msgpack) {
     MsgpackWriter w(stats_out_);
     write_stats(w, fields);
@@ -704,16 +755,20 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
         std::chrono::duration_cast<std::chrono::milliseconds>(next_stats - Clock::now()),
         std::chrono::milliseconds(0), std::chrono::milliseconds(reload_ ? 10 : 100));
     State& s = *state_;
-    zmq::pollitem_t items[4] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
+    zmq::pollitem_t items[5] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
                                 {s.pub.handle(), 0, ZMQ_POLLIN, 0}};
     int n_items = 2;
+    if (s.source) items[n_items++] = {s.source->socket().handle(), 0, ZMQ_POLLIN, 0};
+    const int fixed_items = n_items;
     if (control.wake_fd >= 0) items[n_items++] = {nullptr, control.wake_fd, ZMQ_POLLIN, 0};
     if (s.monitor) items[n_items++] = {s.monitor.handle(), 0, ZMQ_POLLIN, 0};
     try {
       zmq::poll(items, n_items, wait);
-      if (items[0].revents & ZMQ_POLLIN) serve_input();
+      if (items[0].revents & ZMQ_POLLIN) serve_input(s.sub);
       if (items[1].revents & ZMQ_POLLIN) read_subscriptions();
-      for (int k = 2; k < n_items; ++k) {
+      if (fixed_items == 3 && (items[2].revents & ZMQ_POLLIN)) serve_input(state_->source->socket());
+      if (state_->source) state_->source->log_changes();
+      for (int k = fixed_items; k < n_items; ++k) {
         if (!(items[k].revents & ZMQ_POLLIN)) continue;
         if (items[k].socket == nullptr) {
           std::uint64_t count;

@@ -31,6 +31,7 @@
 #include "pose_codec.hpp"
 #include "rate_limited_log.hpp"
 #include "safe_text.hpp"
+#include "source_input.hpp"
 
 namespace fabrik::wire {
 
@@ -119,7 +120,10 @@ class Daemon {
  public:
   // Opens the sockets (bind or connect per config). Throws ConfigError
   // (at /input/endpoint or /output/endpoint, with a fix) when one cannot be opened.
-  Daemon(zmq::context_t& context, DaemonConfig config);
+  // `source_client` makes the client of the config's source (tests and
+  // benchmarks hand in their own); empty: make_source_client.
+  using SourceClientFactory = std::function<SourceClient(const SourceConfig&)>;
+  Daemon(zmq::context_t& context, DaemonConfig config, SourceClientFactory source_client = {});
   ~Daemon();
 
   // Runs until control.stop. On control.reload, calls load_config() on a
@@ -148,8 +152,8 @@ class Daemon {
   void finish_reload();
   void wait_for_reload_at_stop();
 
-  void serve_input();
-  int drain_input(int budget);
+  void serve_input(zmq::socket_t& in);
+  int drain_input(zmq::socket_t& in, int budget);
   void serve_frame(int slot);
   void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received);
   void read_monitor();
@@ -164,6 +168,7 @@ class Daemon {
   void warn_config_mismatch(const MarkerFrame& f);
 
   zmq::context_t& context_;
+  SourceClientFactory source_client_;
   std::unique_ptr<State> state_;
   std::shared_ptr<ReloadJob> reload_;
   bool reload_abandoned_ = false;

@@ -1,0 +1,59 @@
+#include "source_frames.hpp"
+
+#include <cmath>
+#include <unordered_set>
+
+#include "marker_codec.hpp"
+
+namespace fabrik::wire {
+
+std::string strip_subject_prefix(const std::string& name, const std::string& prefix) {
+  if (prefix == "*") {
+    const std::size_t colon = name.rfind(':');
+    return colon == std::string::npos ? name : name.substr(colon + 1);
+  }
+  if (!prefix.empty() && name.starts_with(prefix)) return name.substr(prefix.size());
+  return name;
+}
+
+Eigen::Matrix3d r_lab_server(const LabAxes& server, const LabAxes& lab) {
+  // r_reference_lab() maps lab vectors to a common reference (forward, up, right).
+  return lab.r_reference_lab().transpose() * server.r_reference_lab();
+}
+
+namespace {
+
+LabAxes server_axes(const SourceConfig& source, const LabAxes& lab) {
+  if (source.axes) return *source.axes;
+  if (source.kind == SourceKind::natnet) return LabAxes{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX()};
+  return lab;
+}
+
+}  // namespace
+
+SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab)
+    : prefix_(source.subject_prefix), r_lab_server_(r_lab_server(server_axes(source, lab), lab)) {}
+
+void SourceFrames::labels(std::span<const std::string> server_names) {
+  names_.clear();
+  std::unordered_set<std::string> seen;
+  for (const std::string& name : server_names) {
+    std::string stripped = strip_subject_prefix(name, prefix_);
+    names_.push_back(seen.insert(stripped).second ? std::move(stripped) : name);
+  }
+  p_lab_m_.assign(names_.size(), Eigen::Vector3d::Zero());
+  visible_.assign(names_.size(), 0);
+}
+
+void SourceFrames::encode(std::uint64_t frame_number, double time_s,
+                          std::span<const Eigen::Vector3d> p_server_mm, std::string& payload) {
+  for (std::size_t i = 0; i < names_.size(); ++i) {
+    const bool seen = i < p_server_mm.size() && p_server_mm[i].allFinite();
+    visible_[i] = seen ? 1 : 0;
+    p_lab_m_[i] = seen ? Eigen::Vector3d(r_lab_server_ * p_server_mm[i] * 1e-3) : Eigen::Vector3d::Zero();
+  }
+  encode_marker_frame(frame_number, std::isfinite(time_s) ? &time_s : nullptr, names_, p_lab_m_,
+                      visible_, "mm", PayloadEncoding::msgpack, payload);
+}
+
+}  // namespace fabrik::wire

@@ -1,0 +1,50 @@
+// A vendor source's frames as fabrikd's own `markers` messages: the server's
+// names with the subject prefix taken off, its positions rotated from its
+// axes into the model's lab axes, in millimetres. The message then takes
+// the same path as one from the ZeroMQ input (decoding, plausibility,
+// occlusion, stats).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "config/source_config.hpp"
+#include "solver/model.hpp"
+
+namespace fabrik::wire {
+
+// "Subject:LASI" with "*" -> "LASI"; with "Subject:" -> "LASI"; with "" unchanged.
+// A name without the given prefix is kept whole (it then matches no marker
+// of the model unless the model names it so).
+std::string strip_subject_prefix(const std::string& name, const std::string& prefix);
+
+// The rotation from the server's axes into the lab's: server up to lab up,
+// server forward to lab forward.
+Eigen::Matrix3d r_lab_server(const LabAxes& server, const LabAxes& lab);
+
+class SourceFrames {
+ public:
+  SourceFrames(const SourceConfig& source, const LabAxes& lab);
+
+  // The server's names for the positions of the frames that follow. Two
+  // names that strip to the same keep the first; the others stay whole.
+  void labels(std::span<const std::string> server_names);
+  // Encodes one frame (MessagePack, units mm) into `payload`. Positions
+  // beyond the labels are ignored; labels beyond the positions are sent as missing.
+  void encode(std::uint64_t frame_number, double time_s,
+              std::span<const Eigen::Vector3d> p_server_mm, std::string& payload);
+  const std::vector<std::string>& names() const { return names_; }
+
+ private:
+  std::string prefix_;
+  Eigen::Matrix3d r_lab_server_;
+  std::vector<std::string> names_;
+  std::vector<Eigen::Vector3d> p_lab_m_;
+  std::vector<std::uint8_t> visible_;
+};
+
+}  // namespace fabrik::wire

@@ -1,0 +1,100 @@
+#include "source_input.hpp"
+
+#include <atomic>
+
+#include "safe_text.hpp"
+#include "source_frames.hpp"
+
+namespace fabrik::wire {
+
+namespace {
+
+// The client's side: each frame encoded and pushed, never blocking the client.
+class PushSink final : public bridges::FrameSink {
+ public:
+  PushSink(zmq::socket_t& push, SourceFrames& frames, bridges::SourceStatus& status,
+           std::atomic<std::uint64_t>& dropped)
+      : push_(push), frames_(frames), status_(status), dropped_(dropped) {
+    payload_.reserve(1 << 16);
+  }
+  void labels(std::span<const std::string> names) override { frames_.labels(names); }
+  void frame(std::uint64_t frame_number, double time_s,
+             std::span<const Eigen::Vector3d> p_server_mm) override {
+    try {
+      frames_.encode(frame_number, time_s, p_server_mm, payload_);
+      if (!push_.send(zmq::buffer(std::string_view("markers")),
+                      zmq::send_flags::sndmore | zmq::send_flags::dontwait)) {
+        ++dropped_;
+        return;
+      }
+      (void)push_.send(zmq::buffer(payload_), zmq::send_flags::dontwait);  // parts go together
+      status_.frame_delivered();
+    } catch (const std::exception& e) {
+      status_.error(std::string("could not hand a frame to the loop: ") + e.what());
+    }
+  }
+
+ private:
+  zmq::socket_t& push_;
+  SourceFrames& frames_;
+  bridges::SourceStatus& status_;
+  std::atomic<std::uint64_t>& dropped_;
+  std::string payload_;
+};
+
+std::string fresh_endpoint() {
+  static std::atomic<int> sources{0};
+  return "inproc://fabrikd-source-" + std::to_string(++sources);
+}
+
+}  // namespace
+
+SourceInput::SourceInput(zmq::context_t& context, const SourceConfig& source, const LabAxes& lab,
+                         SourceClient client)
+    : config_(source), lab_(lab), endpoint_(fresh_endpoint()),
+      pull_(context, zmq::socket_type::pull) {
+  pull_.set(zmq::sockopt::linger, 0);
+  pull_.set(zmq::sockopt::rcvhwm, kSourceQueueMessages);
+  pull_.bind(endpoint_);
+  thread_ = std::jthread([this, &context, client = std::move(client)](std::stop_token stop) {
+    run(stop, context, client);
+  });
+}
+
+SourceInput::~SourceInput() {
+  thread_.request_stop();
+  if (thread_.joinable()) thread_.join();
+}
+
+void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClient client) {
+  try {
+    zmq::socket_t push(context, zmq::socket_type::push);
+    push.set(zmq::sockopt::linger, 0);
+    push.set(zmq::sockopt::sndhwm, kSourceQueueMessages);
+    push.connect(endpoint_);
+    SourceFrames frames(config_, lab_);
+    PushSink sink(push, frames, status_, frames_dropped_);
+    client(sink, status_, stop);
+  } catch (const std::exception& e) {  // the context went away, or no memory for the socket
+    status_.error(std::string("source stopped: ") + e.what());
+  }
+}
+
+SourceInput::Status SourceInput::status() const {
+  return {status_.snapshot(), frames_dropped_.load()};
+}
+
+void SourceInput::log_changes() {
+  const bridges::SourceStatus::Snapshot now = status_.snapshot();
+  const std::string url = safe_text(config_.url, 128);
+  if (now.connections != logged_.connections && now.connected)
+    spdlog::info("source {}: connected to {}{}", url, safe_text(now.server, 128),
+                 now.reconnects > 0 ? fmt::format(" (reconnect {})", now.reconnects) : "");
+  else if (logged_.connected && !now.connected)
+    spdlog::warn("source {}: connection lost: {}", url, safe_text(now.last_error, 240));
+  if (now.errors != logged_.errors && !(logged_.connected && !now.connected))
+    error_log_.warn("source {}: {}", url, safe_text(now.last_error, 240));
+  logged_ = now;
+}
+
+}  // namespace fabrik::wire

@@ -1,0 +1,274 @@
+// A vendor source inside the daemon, with a scripted client standing in for
+// QTM or NatNet: names, axes, units, frame numbers and times reach the pose
+// as they would from the ZeroMQ input, and the source's connection shows in
+// stats. The vendor clients themselves: test_qtm_client, test_natnet_client.
+#include <catch2/catch.hpp>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <future>
+#include <mutex>
+#include <thread>
+
+#include "config/daemon_config.hpp"
+#include "socket_client.hpp"
+#include "transport/daemon.hpp"
+#include "transport/source_frames.hpp"
+#include "synth/synthetic_motion.hpp"
+
+using namespace fabrik;
+using namespace std::chrono_literals;
+using nlohmann::json;
+
+namespace {
+
+SourceConfig source_of(const std::string& input_json) {
+  const json j = json::parse(input_json);
+  return read_source_config(JsonReader(j, "test.json", "/input"));
+}
+
+std::string config_error(const std::string& input_json) {
+  try {
+    (void)source_of(input_json);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Stands in for a vendor client: announces its labels, hands over each
+// frame once the test allows it (lock step: the daemon's overload rule would
+// drop frames handed over faster than they are solved) and then idles until
+// stopped, as a connected server would.
+struct ScriptedServer {
+  std::vector<std::string> labels;
+  std::vector<std::vector<Eigen::Vector3d>> frames_mm;  // per frame, per label
+  std::uint64_t first_frame = 1;
+  double rate_hz = 100.0;
+  std::mutex mutex;
+  std::condition_variable_any released_cv;
+  std::size_t allowed = 0;  // frames the client may hand over
+
+  void allow(std::size_t frames) {
+    std::lock_guard lock(mutex);
+    allowed = frames;
+    released_cv.notify_all();
+  }
+  wire::SourceClient client() {
+    return [this](bridges::FrameSink& sink, bridges::SourceStatus& status, std::stop_token stop) {
+      std::unique_lock lock(mutex);
+      if (!released_cv.wait(lock, stop, [&] { return allowed > 0; })) return;
+      status.connected("scripted server 1.0");
+      sink.labels(labels);
+      for (std::size_t i = 0; i < frames_mm.size(); ++i) {
+        if (!released_cv.wait(lock, stop, [&] { return allowed > i; })) return;
+        sink.frame(first_frame + i, static_cast<double>(i) / rate_hz, frames_mm[i]);
+      }
+      status.error("scripted server: end of the script");
+      released_cv.wait(lock, stop, [] { return false; });
+    };
+  }
+};
+
+struct DaemonThread {
+  DaemonThread(zmq::context_t& context, DaemonConfig config, wire::Daemon::SourceClientFactory f)
+      : daemon(context, std::move(config), std::move(f)) {
+    thread = std::thread([this] {
+      daemon.run(control);
+      done.set_value();
+    });
+  }
+  ~DaemonThread() {
+    control.stop = true;
+    if (finished.wait_for(5s) != std::future_status::ready) {
+      std::fprintf(stderr, "FAILED: the daemon did not stop within 5 s\n");
+      std::abort();
+    }
+    thread.join();
+  }
+  wire::Daemon daemon;
+  wire::DaemonControl control;
+  std::promise<void> done;
+  std::future<void> finished = done.get_future();
+  std::thread thread;
+};
+
+}  // namespace
+
+TEST_CASE("Subject prefixes come off marker names as configured", "[source]") {
+  CHECK(wire::strip_subject_prefix("Subject:LASI", "*") == "LASI");
+  CHECK(wire::strip_subject_prefix("A:B:LASI", "*") == "LASI");
+  CHECK(wire::strip_subject_prefix("LASI", "*") == "LASI");
+  CHECK(wire::strip_subject_prefix("Subject:LASI", "") == "Subject:LASI");
+  CHECK(wire::strip_subject_prefix("Subject01_LASI", "Subject01_") == "LASI");
+  CHECK(wire::strip_subject_prefix("Other:LASI", "Subject:") == "Other:LASI");
+}
+
+TEST_CASE("A server's axes rotate into the lab's: Motive's Y up into a Z-up lab", "[source]") {
+  const LabAxes motive{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX()};
+  const LabAxes z_up{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()};
+  const Eigen::Matrix3d r = wire::r_lab_server(motive, z_up);
+  // Forward stays x, Motive's up (y) becomes z, Motive's z (to the right of
+  // forward in a Y-up right-handed frame... its -right) becomes -y.
+  CHECK((r * Eigen::Vector3d(1, 2, 3) - Eigen::Vector3d(1, -3, 2)).norm() < 1e-12);
+  CHECK(std::abs(r.determinant() - 1.0) < 1e-12);
+  CHECK((wire::r_lab_server(z_up, z_up) - Eigen::Matrix3d::Identity()).norm() < 1e-12);
+  // A lab with forward along y and a server with forward along x: a quarter turn about up.
+  const LabAxes z_up_y_forward{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitY()};
+  CHECK((wire::r_lab_server(z_up, z_up_y_forward) * Eigen::Vector3d(1, 0, 0) -
+         Eigen::Vector3d(0, 1, 0)).norm() < 1e-12);
+}
+
+TEST_CASE("Source URLs and options are read, and wrong ones refused with the fix", "[source]") {
+  const SourceConfig qtm = source_of(R"({"source": "qtm://10.0.0.5"})");
+  CHECK(qtm.kind == SourceKind::qtm);
+  CHECK(qtm.host == "10.0.0.5");
+  CHECK(qtm.port == 22223);
+  const SourceConfig natnet = source_of(
+      R"({"source": "natnet://motive.lab:1600", "source_options": {"natnet_data": "unicast",
+          "subject_prefix": "", "axes": {"up": "+z"}}})");
+  CHECK(natnet.kind == SourceKind::natnet);
+  CHECK(natnet.host == "motive.lab");
+  CHECK(natnet.port == 1600);
+  CHECK_FALSE(natnet.multicast);
+  CHECK(natnet.subject_prefix.empty());
+  REQUIRE(natnet.axes);
+  CHECK(natnet.axes->up_lab == Eigen::Vector3d::UnitZ());
+  CHECK(natnet.axes->forward_lab == Eigen::Vector3d::UnitX());
+  CHECK(source_of(R"({"source": "qtm://[::1]:22224"})").host == "::1");
+  CHECK(source_of(R"({"source": "qtm://[::1]:22224"})").port == 22224);
+  CHECK(source_of(R"({})").kind == SourceKind::none);
+
+  CHECK_THAT(config_error(R"({"source": "vicon://host"})"), Catch::Contains("unknown source"));
+  CHECK_THAT(config_error(R"({"source": "qtm://"})"), Catch::Contains("names no host"));
+  CHECK_THAT(config_error(R"({"source": "qtm://host:0"})"), Catch::Contains("1..65535"));
+  CHECK_THAT(config_error(R"({"source": "qtm://host:70000"})"), Catch::Contains("1..65535"));
+  CHECK_THAT(config_error(R"({"source": "qtm://host:"})"), Catch::Contains("1..65535"));
+  CHECK_THAT(config_error(R"({"source": "qtm:host"})"), Catch::Contains("not a source URL"));
+  CHECK_THAT(config_error(R"({"source": "qtm://h", "source_options": {"natnet_data": "unicast"}})"),
+             Catch::Contains("natnet:// sources only"));
+  CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"frequency_divisor": 2}})"),
+             Catch::Contains("qtm:// sources only"));
+  CHECK_THAT(config_error(R"({"source_options": {}})"), Catch::Contains("without a source"));
+  CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"axes": {"up": "x"}}})"),
+             Catch::Contains("no forward axis"));
+}
+
+// The largest difference between the numbers of two documents of the same shape (infinity if not).
+double largest_difference(const json& a, const json& b) {
+  if (a.is_number() && b.is_number()) return std::abs(a.get<double>() - b.get<double>());
+  if (a.type() != b.type() || a.size() != b.size()) return INFINITY;
+  if (a.is_object()) {
+    double d = 0;
+    for (const auto& [k, v] : a.items()) {
+      if (!b.contains(k)) return INFINITY;
+      d = std::max(d, largest_difference(v, b.at(k)));
+    }
+    return d;
+  }
+  if (a.is_array()) {
+    double d = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, largest_difference(a[i], b[i]));
+    return d;
+  }
+  return a == b ? 0.0 : INFINITY;
+}
+
+TEST_CASE(
+    "A source's frames reach the pose like ZeroMQ frames: prefix stripped, axes rotated, "
+    "frame and time carried, connection in stats",
+    "[source][daemon]") {
+  zmq::context_t context;
+  spdlog::set_level(spdlog::level::err);
+  const auto config_at = [](const std::string& name) {
+    DaemonConfig c = default_daemon_config();
+    c.input = {"inproc://" + name + "-markers", SocketMode::bind};
+    c.output = {"inproc://" + name + "-poses", SocketMode::bind};
+    c.stats_interval_s = 0.05;
+    return c;
+  };
+  DaemonConfig with_source = config_at("source");
+  // A Z-up server whose forward is the lab's -x: a half turn about up from the lab.
+  with_source.source = source_of(
+      R"({"source": "natnet://127.0.0.1", "source_options": {"axes": {"up": "+z", "forward": "-x"}}})");
+  const Model& model = *with_source.tracker.model;
+  const LabAxes server{Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitX()};
+  const Eigen::Matrix3d r_server_lab = wire::r_lab_server(server, model.lab_axes).transpose();
+  REQUIRE((r_server_lab - Eigen::Matrix3d::Identity()).norm() > 1.0);  // the rotation matters
+
+  // 60 frames of synthetic motion; marker 2 hidden in frames 20-29.
+  ScriptedServer script;
+  script.first_frame = 5000;
+  std::vector<json> zmq_frames;
+  MotionSettings ms;
+  SyntheticMotion motion(model, ms);
+  Posture posture = Posture::rest(model);
+  const auto& targets = with_source.tracker.markers;
+  for (const MarkerTarget& t : targets) script.labels.push_back("Subject7:" + t.marker);
+  script.labels.push_back("Subject7:NOT_IN_MODEL");
+  for (int i = 0; i < 60; ++i) {
+    motion.posture_at(i / script.rate_hz, posture);
+    std::vector<Eigen::Vector3d> server_mm;
+    json markers = json::object();
+    for (std::size_t k = 0; k < targets.size(); ++k) {
+      const Eigen::Vector3d lab_mm = posture.point_world_m(model, targets[k].point) * 1e3;
+      const bool hidden = k == 2 && i >= 20 && i < 30;
+      server_mm.push_back(hidden ? Eigen::Vector3d::Constant(NAN) : Eigen::Vector3d(r_server_lab * lab_mm));
+      markers[targets[k].marker] = hidden ? json(nullptr) : json{lab_mm.x(), lab_mm.y(), lab_mm.z()};
+    }
+    server_mm.push_back(Eigen::Vector3d(1, 2, 3));
+    markers["NOT_IN_MODEL"] = {1, 2, 3};
+    script.frames_mm.push_back(server_mm);
+    zmq_frames.push_back(json{{"frame", script.first_frame + i},
+                              {"time", i / script.rate_hz},
+                              {"units", "mm"},
+                              {"markers", markers}});
+  }
+
+  // The reference: the same frames on the ZeroMQ input of a daemon without a source.
+  std::vector<json> reference;
+  {
+    DaemonThread d(context, config_at("reference"), {});
+    test::SocketClient client(context, "inproc://reference-markers", "inproc://reference-poses");
+    REQUIRE(client.receive("stats"));  // subscribed: nothing sent from now on is lost
+    for (const json& f : zmq_frames) {
+      client.send(f.dump());
+      auto pose = client.receive("pose");
+      REQUIRE(pose);
+      reference.push_back(*pose);
+    }
+  }
+  DaemonThread d(context, with_source, [&](const SourceConfig&) { return script.client(); });
+  test::SocketClient client(context, "inproc://source-markers", "inproc://source-poses");
+  const auto before = client.stats_until([](const json& s) { return s.contains("source"); });
+  REQUIRE(before);
+  CHECK((*before)["source"]["connected"] == false);
+  CHECK((*before)["source"]["url"] == "natnet://127.0.0.1");
+  for (std::size_t i = 0; i < reference.size(); ++i) {
+    script.allow(i + 1);
+    auto pose = client.receive("pose");
+    REQUIRE(pose);
+    INFO("frame " << i);
+    CHECK((*pose)["frame"] == reference[i]["frame"]);
+    CHECK((*pose)["time"] == reference[i]["time"]);
+    CHECK((*pose)["occluded"] == reference[i]["occluded"]);
+    CHECK(largest_difference((*pose)["joints"], reference[i]["joints"]) < 1e-6);  // mm
+    CHECK(largest_difference((*pose)["markers"], reference[i]["markers"]) < 1e-6);
+  }
+  const auto after = client.stats_until([](const json& s) {
+    return s["source"]["frames"] == 60 && !s["source"]["last_error"].is_null();
+  });
+  REQUIRE(after);
+  const json& source = (*after)["source"];
+  CHECK(source["connected"] == true);
+  CHECK(source["server"] == "scripted server 1.0");
+  CHECK(source["connections"] == 1);
+  CHECK(source["reconnects"] == 0);
+  CHECK(source["frames_dropped"] == 0);
+  CHECK(source["last_error"] == "scripted server: end of the script");
+  CHECK((*after)["frames_out"] == 60);
+  CHECK((*after)["unknown_markers"] == 60);
+  CHECK((*after)["decode_errors"] == 0);
+}
