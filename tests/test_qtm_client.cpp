@@ -668,3 +668,158 @@ TEST_CASE("qtm client: a big-endian session, byte for byte", "[qtm][client]") {
   CHECK(client.sink.label_sets() == std::vector<std::vector<std::string>>{{"LASI"}});
   CHECK(client.status.snapshot().server == "QTM RT protocol 1.19");
 }
+
+// ----------------------------------------------------------------------------
+// The simulator seen from a raw connection, as a third-party client sees it.
+
+namespace {
+
+class RawConnection {
+ public:
+  explicit RawConnection(std::uint16_t port, ByteOrder order = ByteOrder::little) : order_(order), in_(order, 1 << 20) {
+    std::string error;
+    fd_ = bridges::connect_tcp("127.0.0.1", port, 1.0, stop_.get_token(), error);
+    REQUIRE(fd_.valid());
+  }
+  void command(std::string_view text) {
+    Bytes b;
+    write_command_packet(text, order_, b);
+    send_bytes(fd_.get(), b, stop_.get_token());
+  }
+  // The next packet's type and bytes (string packets: their text), within `seconds`.
+  std::optional<std::pair<PacketType, Bytes>> next(double seconds = 1.0) {
+    const auto deadline = bridges::deadline_after(seconds);
+    for (;;) {
+      PacketView p;
+      if (in_.next(p) == Status::ok) return std::pair{*p.type(), Bytes(p.data.begin(), p.data.end())};
+      if (bridges::wait_fd(fd_.get(), POLLIN, deadline, stop_.get_token()) != bridges::WaitResult::ready)
+        return std::nullopt;
+      std::uint8_t buf[8192];
+      const long n = bridges::read_some(fd_.get(), buf);
+      if (n == 0 || n == -2) return std::nullopt;
+      if (n > 0) in_.feed(std::span(buf, static_cast<std::size_t>(n)));
+    }
+  }
+  // The next packet that is not data or no-more-data, as text.
+  std::optional<std::pair<PacketType, std::string>> reply(double seconds = 1.0) {
+    for (;;) {
+      auto p = next(seconds);
+      if (!p) return std::nullopt;
+      if (p->first == PacketType::data || p->first == PacketType::no_more_data) continue;
+      std::string text(p->second.begin(), p->second.end());
+      if (!text.empty() && text.back() == '\0') text.pop_back();
+      return std::pair{p->first, text};
+    }
+  }
+  ByteOrder order() const { return order_; }
+
+ private:
+  std::stop_source stop_;
+  ByteOrder order_;
+  PacketSplitter in_;
+  bridges::Fd fd_;
+};
+
+}  // namespace
+
+TEST_CASE("qtm simulator: answers commands as the protocol document says", "[qtm][client]") {
+  ServerThread server(recording(), looping());
+  RawConnection c(server.server.port_little_endian());
+  using R = std::pair<PacketType, std::string>;
+  // Exactly this string: Qualisys's Python SDK compares it whole.
+  CHECK(c.reply() == R{PacketType::command, "QTM RT Interface connected"});
+  c.command("Version");
+  CHECK(c.reply() == R{PacketType::command, "Version is 1.1"});  // QTM's default without Version
+  c.command("version 1.7");
+  CHECK(c.reply() == R{PacketType::error, "Version NOT supported"});
+  c.command("version 1.26");
+  CHECK(c.reply() == R{PacketType::command, "Version set to 1.26"});
+  c.command("ByteOrder");
+  CHECK(c.reply() == R{PacketType::command, "Byte order is little endian"});
+  c.command("QTMVersion");
+  CHECK(c.reply()->second.rfind("QTM Version is ", 0) == 0);
+  c.command("NoSuchCommand");
+  CHECK(c.reply() == R{PacketType::error, "Parse Error"});
+  c.command("Start");
+  CHECK(c.reply() == R{PacketType::error, "You must be master to issue this command"});
+  c.command("GetParameters 6D");
+  CHECK(c.reply() == R{PacketType::error, "Parameters not available"});
+  c.command("getparameters general 3d");
+  const auto xml = c.reply();
+  REQUIRE(xml);
+  CHECK(xml->first == PacketType::xml);
+  CHECK(xml->second.rfind("<QTM_Parameters_Ver_1.26>", 0) == 0);
+  CHECK(xml->second.find("<Frequency>500</Frequency>") != std::string::npos);  // 100 Hz x rate_scale 5
+  Parameters3d p;
+  std::string error;
+  REQUIRE(read_parameters_3d(xml->second, p, error));
+  CHECK(p.labels == recording().names);
+  // GetState: an event packet with the state, RT from file running.
+  c.command("GetState");
+  const auto state = c.next();
+  REQUIRE(state);
+  CHECK(state->first == PacketType::event);
+  CHECK(state->second == Bytes{8});
+  // GetCurrentFrame: one data packet.
+  c.command("GetCurrentFrame 3D");
+  const auto frame = c.next();
+  REQUIRE(frame);
+  CHECK(frame->first == PacketType::data);
+  // StreamFrames has no reply of its own: data packets follow. Frequency:50
+  // of a 500 Hz stream is about every 10th frame.
+  c.command("StreamFrames Frequency:50 3D");
+  std::vector<std::uint32_t> numbers;
+  while (numbers.size() < 6) {
+    const auto d = c.next();
+    REQUIRE(d);
+    REQUIRE(d->first == PacketType::data);
+    Bytes whole_packet;
+    write_packet(PacketType::data, d->second, ByteOrder::little, whole_packet);
+    PacketView v;
+    REQUIRE(read_packet(whole_packet, ByteOrder::little, 1 << 20, v) == Status::ok);
+    DataFrame f;
+    REQUIRE(read_data(v, ByteOrder::little, 100, f) == Status::ok);
+    CHECK(f.has_3d);
+    numbers.push_back(f.frame_number);
+  }
+  for (std::size_t i = 1; i < numbers.size(); ++i) CHECK(numbers[i] - numbers[i - 1] == 10);
+  c.command("StreamFrames Stop");
+  c.command("ByteOrder");  // after Stop, the reply comes once the data in flight has
+  CHECK(c.reply() == R{PacketType::command, "Byte order is little endian"});
+  CHECK_FALSE(c.next(0.1));  // nothing more streams
+}
+
+TEST_CASE("qtm simulator: a script that ends says so, pauses hold the frames back", "[qtm][client]") {
+  bridges::SimScript s;
+  s.rate_scale = 10.0;  // 1000 Hz: 100 frames in 0.1 s
+  s.pauses.push_back({50, 0.3});
+  QtmSimServer server(recording(), s, QtmSimServer::Options{"127.0.0.1", 0});
+  RawConnection c(server.port_big_endian(), ByteOrder::big);  // connected before frames start
+  std::jthread serving([&](std::stop_token st) { server.run(st); });
+  REQUIRE(c.reply());
+  c.command("StreamFrames AllFrames 3D");
+  std::vector<std::pair<std::uint32_t, Clock::time_point>> got;
+  bool no_more_data = false, stopped_event = false;
+  while (auto p = c.next(2.0)) {
+    if (p->first == PacketType::data) {
+      Bytes whole_packet;
+      write_packet(PacketType::data, p->second, ByteOrder::big, whole_packet);
+      PacketView v;
+      DataFrame f;
+      REQUIRE(read_packet(whole_packet, ByteOrder::big, 1 << 20, v) == Status::ok);
+      REQUIRE(read_data(v, ByteOrder::big, 100, f) == Status::ok);
+      got.emplace_back(f.frame_number, Clock::now());
+    }
+    no_more_data |= p->first == PacketType::no_more_data;
+    stopped_event |= p->first == PacketType::event && p->second == Bytes{9};
+  }
+  serving.join();  // run() returned by itself: the script ended
+  CHECK(no_more_data);
+  CHECK(stopped_event);
+  REQUIRE(got.size() >= 60);
+  CHECK(got.back().first == 100);
+  CHECK(server.progress().frames_sent == 100);
+  // The pause before frame index 50 (frame number 51).
+  for (std::size_t i = 1; i < got.size(); ++i)
+    if (got[i].first == 51) CHECK(std::chrono::duration<double>(got[i].second - got[i - 1].second).count() > 0.25);
+}

@@ -29,8 +29,11 @@ namespace {
 using bridges::Clock;
 
 // Protocol versions served: 1.8 changed the 3D component to 32-bit floats
-// without padding (the layout we write); 1.25 is the newest we claim.
-constexpr ProtocolVersion kOldest{1, 8}, kNewest{1, 25};
+// without padding, the layout written here, and no later version changed it.
+// QTM refuses a version newer than it knows; the simulator accepts any 1.x
+// from 1.8 on, so that a client newer than this file (Qualisys's Python SDK
+// asks for its own latest version) is not locked out.
+constexpr ProtocolVersion kOldest{1, 8}, kNewest{1, 99};
 constexpr int kMaxClients = 10;                       // doc, "Connecting"
 constexpr std::size_t kMaxClientPacket = 1u << 20;    // commands and settings XML
 constexpr std::size_t kMaxQueuedBytes = 8u << 20;     // a client this far behind is dropped
@@ -416,9 +419,9 @@ struct QtmSimServer::Impl {
       if (c.rate == Client::Rate::divisor) {
         send = c.counter++ % c.n == 0;
       } else if (c.rate == Client::Rate::frequency) {
-        c.credit += static_cast<double>(c.n) / serve_hz;
-        send = c.credit >= 1.0;
+        send = c.credit >= 1.0 - 1e-9;  // n / rate summed in binary: 10 x 0.1 is just below 1
         if (send) c.credit -= 1.0;
+        c.credit += static_cast<double>(c.n) / serve_hz;
       }
       if (send) send_frame(c, c.want_3d, c.want_3d_no_labels);
     }
