@@ -823,3 +823,55 @@ TEST_CASE("qtm simulator: a script that ends says so, pauses hold the frames bac
   for (std::size_t i = 1; i < got.size(); ++i)
     if (got[i].first == 51) CHECK(std::chrono::duration<double>(got[i].second - got[i - 1].second).count() > 0.25);
 }
+
+TEST_CASE("qtm client: stop is seen within a poll slice in every long wait", "[qtm][client]") {
+  auto o = [](std::uint16_t port) {
+    auto opts = options_for(port);
+    opts.policy.connect_timeout_s = opts.policy.reply_timeout_s = opts.policy.stall_timeout_s = 30.0;
+    return opts;
+  };
+  SECTION("waiting for the welcome") {
+    FakePeer peer([](int fd, const std::stop_token& st) { hold(fd, st); });
+    ClientThread client(o(peer.port()));
+    REQUIRE(eventually([&] { return peer.accepted() == 1; }, 2.0));
+    CHECK(client.stop() < 0.25);
+  }
+  SECTION("streaming, no frame yet") {
+    FakePeer peer([](int fd, const std::stop_token& st) {
+      if (handshake(fd, st)) hold(fd, st);
+    });
+    ClientThread client(o(peer.port()));
+    REQUIRE(eventually([&] { return client.status.snapshot().connected; }, 2.0));
+    CHECK(client.stop() < 0.25);
+    CHECK(client.status.snapshot().errors == 0);  // a stop is not an error
+  }
+  SECTION("waiting out a backoff") {
+    FakePeer peer([](int, const std::stop_token&) {});  // accepts and closes
+    auto opts = o(peer.port());
+    opts.policy.reconnect_min_s = opts.policy.reconnect_max_s = 30.0;
+    ClientThread client(opts);
+    REQUIRE(eventually([&] { return client.status.snapshot().errors == 1; }, 2.0));
+    CHECK(client.stop() < 0.25);
+  }
+}
+
+TEST_CASE("qtm client: the rest of a started packet is bounded by reply_timeout_s, not stall_timeout_s",
+          "[qtm][client]") {
+  FakePeer peer([](int fd, const std::stop_token& st) {
+    if (!handshake(fd, st)) return;
+    const Bytes p = good_data_packet(1);
+    send_bytes(fd, Bytes(p.begin(), p.begin() + 20), st);
+    hold(fd, st);
+  });
+  auto opts = options_for(peer.port());
+  opts.policy.stall_timeout_s = 30.0;
+  opts.policy.reply_timeout_s = 0.2;
+  ClientThread client(opts);
+  REQUIRE(eventually([&] { return client.status.snapshot().connected; }, 2.0));
+  const auto t0 = Clock::now();
+  REQUIRE(eventually([&] { return client.status.snapshot().errors >= 1; }, 3.0));
+  const double waited_s = seconds_since(t0);
+  client.stop();
+  CHECK(client.status.snapshot().last_error.find("stalled mid-packet") != std::string::npos);
+  CHECK(waited_s < 1.0);
+}
