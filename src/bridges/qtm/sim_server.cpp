@@ -456,8 +456,9 @@ struct QtmSimServer::Impl {
     std::int64_t paused_at = -1, restarted_at = -1;  // each pause and restart once
     std::vector<pollfd> fds;
     while (!stop.stop_requested()) {
-      // Frames that are due (a late loop catches up rather than drifts).
-      while (Clock::now() >= next_due) {
+      // Frames that are due: a late loop catches up rather than drifts, a
+      // burst at a time so that commands and new clients are still served.
+      for (int burst = 0; burst < 64 && Clock::now() >= next_due; ++burst) {
         const std::int64_t g = next_index;
         if (script_over(g)) {
           ended = true;
