@@ -555,3 +555,16 @@ TEST_CASE("NatNet simulator refuses what it cannot serve, with a clear message",
   same.command_port = first.command_port();
   CHECK_THROWS_WITH(NatNetSimServer(recording(3), SimScript{}, same), Catch::Contains("command socket"));
 }
+
+TEST_CASE("NatNet client stops promptly in the middle of a long wait for a reply",
+          "[natnet][client]") {
+  BadPeer peer(Misbehaviour::silent);
+  RecordingSink sink;
+  SourceStatus status;
+  auto options = unicast_client(peer.port());
+  options.policy.connect_timeout_s = 30.0;
+  ClientThread client(options, sink, status);
+  REQUIRE(wait_status(status, 5.0, [&](const auto&) { return peer.connects() >= 1; }));
+  CHECK(client.stop_s() < 0.3);  // waits are sliced to 100 ms
+  CHECK(status.snapshot().errors == 0);  // stopping is not a failure
+}
