@@ -319,7 +319,8 @@ namespace {
 
 // A hand-written NatNet peer that misbehaves in one way.
 enum class Misbehaviour {
-  silent, wrong_version, natnet2, garbage, stall, malformed, truncated, oversized, huge
+  silent, wrong_version, natnet2, garbage, stall, malformed, truncated, oversized, huge,
+  undescribed_set  // frames name a marker set the first definitions do not have
 };
 
 class BadPeer {
@@ -394,15 +395,21 @@ class BadPeer {
       return;
     }
     if (id != MessageId::request_model_def) return;
+    ++model_requests_;
+    const bool second_set = how_ == Misbehaviour::undescribed_set;
     natnet::ModelDefinitions defs;
-    defs.marker_sets.push_back({"S", {"M1", "M2"}});
+    defs.marker_sets.push_back({second_set && model_requests_ > 1 ? "T" : "S", {"M1", "M2"}});
     reply(to, natnet::encode_message(MessageId::model_def, natnet::encode_model_definitions(defs, v)));
     natnet::FrameOfData frame;
-    frame.marker_sets.push_back({"S", {{0.1F, 0.2F, 0.3F}, {0.4F, 0.5F, 0.6F}}});
+    frame.frame_number = model_requests_;
+    frame.marker_sets.push_back({second_set ? "T" : "S", {{0.1F, 0.2F, 0.3F}, {0.4F, 0.5F, 0.6F}}});
     const Bytes good = natnet::encode_message(MessageId::frame_of_data,
                                               natnet::encode_frame_of_data(frame, v));
     Bytes bad = good;
     switch (how_) {
+      case Misbehaviour::undescribed_set:
+        reply(to, good);
+        return;
       case Misbehaviour::stall:
         return;
       case Misbehaviour::malformed:  // marker set count -5
@@ -430,6 +437,7 @@ class BadPeer {
   std::mutex mutex_;
   std::vector<Bytes> received_;
   int connects_ = 0;
+  int model_requests_ = 0;  // the serving thread's only
   std::jthread thread_;  // last: stops before the rest is destroyed
 };
 
@@ -470,7 +478,7 @@ TEST_CASE("NatNet client: each bad peer gives a clear error, retries, and stops 
   const double stop_s = client.stop_s();
   CHECK(stop_s < 0.5);
   CHECK_FALSE(status.snapshot().connected);
-  for (const auto& f : sink.frames()) CHECK(f.frame_number == 0);  // only the good frames
+  for (const auto& f : sink.frames()) CHECK(near_float(f.p_mm[0], {100, 200, 300}));  // good ones only
 }
 
 // Hand-computed from NatNetTypes.h / NatNetClient.py: message id (uint16 LE)
@@ -567,4 +575,22 @@ TEST_CASE("NatNet client stops promptly in the middle of a long wait for a reply
   REQUIRE(wait_status(status, 5.0, [&](const auto&) { return peer.connects() >= 1; }));
   CHECK(client.stop_s() < 0.3);  // waits are sliced to 100 ms
   CHECK(status.snapshot().errors == 0);  // stopping is not a failure
+}
+
+TEST_CASE("NatNet client asks for definitions again when a frame names an undescribed marker set",
+          "[natnet][client]") {
+  BadPeer peer(Misbehaviour::undescribed_set);
+  RecordingSink sink;
+  SourceStatus status;
+  ClientThread client(unicast_client(peer.port()), sink, status);
+  REQUIRE(sink.wait(5.0, [](const auto& frames, const auto&) { return !frames.empty(); }));
+  const auto labels = sink.label_sets();
+  REQUIRE(labels.size() == 2);
+  CHECK(labels[0] == std::vector<std::string>{"S:M1", "S:M2"});
+  CHECK(labels[1] == std::vector<std::string>{"T:M1", "T:M2"});
+  const auto frames = sink.frames();
+  CHECK(frames.front().labels_version == 1);  // the frame that named T waited for T's names
+  CHECK(frames.front().frame_number == 2);
+  CHECK(near_float(frames.front().p_mm[1], {400, 500, 600}));
+  CHECK(status.snapshot().errors == 0);
 }
