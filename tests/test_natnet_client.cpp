@@ -537,7 +537,8 @@ TEST_CASE("NatNet simulator answers Bitstream and unknown requests as Motive doe
   const Bytes unknown = {0x02, 0x00, 0x04, 0x00, 'F', 'o', 'o', 0x00};
   CHECK(ask(unknown, natnet::MessageId::unrecognized_request) == Bytes{0x64, 0x00, 0x00, 0x00});
   // The stream is now NatNet 3.0: its definitions carry Motive 2's "all" set.
-  const Bytes defs_reply = ask({0x04, 0x00, 0x00, 0x00}, natnet::MessageId::model_def);
+  // Asked as NatNetClient.py asks: a size of 0 and a NUL the size does not count.
+  const Bytes defs_reply = ask({0x04, 0x00, 0x00, 0x00, 0x00}, natnet::MessageId::model_def);
   natnet::Message m;
   REQUIRE(natnet::split_message(defs_reply, m, error));
   natnet::ModelDefinitions defs;

@@ -263,6 +263,19 @@ struct NatNetSimServer::Impl {
     }
   }
 
+  // A command as the SDK's clients send it. Leniently: NatNetClient.py ends
+  // even its payload-less requests (NAT_REQUEST_MODELDEF, NAT_KEEPALIVE) with
+  // a NUL that the header's size of 0 does not count, so bytes past the
+  // header's size are ignored; fewer than it says is still refused.
+  static bool split_request(std::span<const std::uint8_t> datagram, natnet::Message& m) {
+    if (datagram.size() < natnet::kHeaderBytes) return false;
+    const std::size_t size = datagram[2] | (datagram[3] << 8);
+    if (datagram.size() - natnet::kHeaderBytes < size) return false;
+    m.id = static_cast<MessageId>(datagram[0] | (datagram[1] << 8));
+    m.payload = datagram.subspan(natnet::kHeaderBytes, size);
+    return true;
+  }
+
   // Answers commands until `until` (or stop), in slices of at most 100 ms.
   void serve_commands(Clock::time_point until, const std::stop_token& stop) {
     for (;;) {
@@ -280,7 +293,7 @@ struct NatNetSimServer::Impl {
           static_cast<int>(std::chrono::ceil<std::chrono::milliseconds>(slice).count()), error);
       if (got != UdpSocket::Received::datagram || bytes > buffer.size()) continue;
       natnet::Message m;
-      if (natnet::split_message(buffer, m, error)) handle(from, m);
+      if (split_request(buffer, m)) handle(from, m);
     }
   }
 
