@@ -39,6 +39,8 @@ struct ConnectionPolicy {
   double reconnect_min_s = 0.1;    // first wait after a failure, doubled each failure
   double reconnect_max_s = 5.0;    // the longest wait
   std::size_t max_packet_bytes = std::size_t{16} << 20;  // larger is an error, not a buffer
+
+  bool operator==(const ConnectionPolicy&) const = default;
 };
 
 // Waits between attempts: min, 2 min, 4 min ... max; reset once connected.

@@ -103,11 +103,11 @@ SourceConfig read_source_config(const JsonReader& input) {
   c.data_port = static_cast<std::uint16_t>(
       o.get("data_port", static_cast<long long>(c.data_port), 1LL, 65535LL));
   c.local_interface = o.get("local_interface", c.local_interface);
-  c.connect_timeout_s = o.get("connect_timeout_s", c.connect_timeout_s, 0.01, 600.0);
-  c.reply_timeout_s = o.get("reply_timeout_s", c.reply_timeout_s, 0.01, 600.0);
-  c.stall_timeout_s = o.get("stall_timeout_s", c.stall_timeout_s, 0.05, 3600.0);
-  c.reconnect_min_s = o.get("reconnect_min_s", c.reconnect_min_s, 0.001, 600.0);
-  c.reconnect_max_s = o.get("reconnect_max_s", c.reconnect_max_s, c.reconnect_min_s, 3600.0);
+  c.policy.connect_timeout_s = o.get("connect_timeout_s", c.policy.connect_timeout_s, 0.01, 600.0);
+  c.policy.reply_timeout_s = o.get("reply_timeout_s", c.policy.reply_timeout_s, 0.01, 600.0);
+  c.policy.stall_timeout_s = o.get("stall_timeout_s", c.policy.stall_timeout_s, 0.05, 3600.0);
+  c.policy.reconnect_min_s = o.get("reconnect_min_s", c.policy.reconnect_min_s, 0.001, 600.0);
+  c.policy.reconnect_max_s = o.get("reconnect_max_s", c.policy.reconnect_max_s, c.policy.reconnect_min_s, 3600.0);
   return c;
 }
 

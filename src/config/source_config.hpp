@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "bridges/source.hpp"
 #include "json_reader.hpp"
 #include "lab_axes_json.hpp"
 
@@ -36,11 +37,8 @@ struct SourceConfig {
   // Y-up (forward +x). Positions are rotated from these into the model's lab axes.
   std::optional<LabAxes> axes;
 
-  double connect_timeout_s = 2.0;
-  double reply_timeout_s = 2.0;
-  double stall_timeout_s = 3.0;
-  double reconnect_min_s = 0.1;
-  double reconnect_max_s = 5.0;
+  // Timeouts and reconnection backoff; the defaults are the bridges' own.
+  bridges::ConnectionPolicy policy;
 
   bool operator==(const SourceConfig&) const = default;
 };
