@@ -69,8 +69,16 @@ class Connection {
       fail("command socket: " + error);
       return false;
     }
+    // Joined on "any", the kernel picks the default route's interface, which
+    // is not the one Motive streams from when it is on this host (loopback)
+    // or behind another interface: join on the one that routes to Motive.
+    std::string interface_address = o_.local_interface;
+    if (o_.multicast && interface_address == "0.0.0.0") {
+      std::string route_error;
+      if (auto local = local_address_towards(server_, route_error)) interface_address = *local;
+    }
     if (o_.multicast && (!data_.open("0.0.0.0", o_.data_port, true, error) ||
-                         !data_.join_multicast(o_.multicast_group, o_.local_interface, error))) {
+                         !data_.join_multicast(o_.multicast_group, interface_address, error))) {
       fail("data socket: " + error);
       return false;
     }

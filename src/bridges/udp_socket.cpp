@@ -49,6 +49,32 @@ std::optional<UdpEndpoint> resolve_ipv4(const std::string& host, std::uint16_t p
   return e;
 }
 
+std::optional<std::string> local_address_towards(const UdpEndpoint& to, std::string& error) {
+  // connect() on a datagram socket only chooses the route: nothing is sent.
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) {
+    error = errno_text("socket");
+    return std::nullopt;
+  }
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = to.address_be;
+  addr.sin_port = htons(to.port == 0 ? 9 : to.port);
+  sockaddr_in local{};
+  socklen_t len = sizeof local;
+  std::optional<std::string> found;
+  if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&local), &len) != 0) {
+    error = errno_text(("no route to " + to_string(to)).c_str());
+  } else {
+    char text[INET_ADDRSTRLEN] = {};
+    if (inet_ntop(AF_INET, &local.sin_addr, text, sizeof text)) found = text;
+    else error = errno_text("inet_ntop");
+  }
+  ::close(fd);
+  return found;
+}
+
 UdpSocket::UdpSocket(UdpSocket&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
 UdpSocket& UdpSocket::operator=(UdpSocket&& other) noexcept {
   if (this != &other) {

@@ -21,6 +21,10 @@ std::string to_string(const UdpEndpoint& e);
 std::optional<UdpEndpoint> resolve_ipv4(const std::string& host, std::uint16_t port,
                                         std::string& error);
 
+// The address of this host's interface that routes to `to` (what a socket
+// connected to it would send from), as a dotted quad; nullopt with `error`.
+std::optional<std::string> local_address_towards(const UdpEndpoint& to, std::string& error);
+
 class UdpSocket {
  public:
   UdpSocket() = default;

@@ -5,10 +5,14 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <thread>
 
 #include "common/safe_text.hpp"
 #include "replay.hpp"
 #include "run_command.hpp"
+#include "bridges/natnet_sim_server.hpp"
+#include "bridges/qtm/sim_server.hpp"
+#include "sim.hpp"
 #include "synth.hpp"
 #include "watch.hpp"
 
@@ -206,6 +210,163 @@ void add_synth_command(CLI::App& app) {
       std::fprintf(stderr, "synth: %s: %zu frames x %zu markers at %g Hz, %zu gaps; joints: %s\n",
                    safe_lines(a->output).c_str(), t.markers.frames(), t.markers.markers(),
                    t.markers.rate_hz, t.gaps.size(), safe_lines(joints).c_str());
+    });
+  });
+}
+
+namespace {
+
+struct SimArgs {
+  std::string file, bind = "127.0.0.1", file_up;
+  SimScriptArgs script;
+  bool loop = false, keep_zeros = false;
+  double rate_scale = 1.0;
+  std::int64_t frames = -1;
+  int base_port = 22222;                          // QTM
+  int command_port = 1510, data_port = 1511;     // NatNet
+  bool unicast = false;
+  std::string multicast_group = "239.255.42.99", up_axis = "+y", version = "4.1", subject;
+};
+
+void add_common_sim_options(CLI::App* cmd, SimArgs& a) {
+  cmd->add_option("file", a.file, "Recording (.trc or .c3d)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--bind", a.bind, "Address to serve on (0.0.0.0: every interface)");
+  cmd->add_option("--file-up", a.file_up,
+                  "The recording's up axis (+x, -y, +z, ...; default +y for TRC, +z for C3D)");
+  cmd->add_option("--rate-scale", a.rate_scale, "Serve at this multiple of the file's rate")
+      ->check(CLI::Range(0.01, 100.0));
+  cmd->add_flag("--loop", a.loop, "Start over at the end (frame numbers keep increasing)");
+  cmd->add_option("--frames", a.frames, "Stop after N frames (default: the file, or forever with --loop)")
+      ->check(CLI::Range(std::int64_t{1}, std::numeric_limits<std::int64_t>::max()));
+  cmd->add_option("--pause-at", a.script.pauses, "T:S holds the stream for S s at time T (repeatable)");
+  cmd->add_option("--drop", a.script.drops,
+                  "NAME:T0:T1: the server does not see NAME from T0 to T1 s (repeatable)");
+  cmd->add_option("--rename-at", a.script.renames,
+                  "T:OLD=NEW: the server's label OLD becomes NEW at T s (repeatable)");
+  cmd->add_option("--restart-at", a.script.restarts,
+                  "T:S: the server goes away at T s and comes back S s later (repeatable)");
+  cmd->add_flag("--keep-zeros", a.keep_zeros,
+                "Serve exact (0, 0, 0) samples as positions (default: as not seen)");
+}
+
+std::pair<bridges::SimRecording, bridges::SimScript> sim_inputs(const char* command, const SimArgs& a) {
+  io::MarkerTrial trial = io::read_trial(a.file, {.zeros_are_missing = !a.keep_zeros});
+  for (const std::string& w : trial.warnings)
+    std::fprintf(stderr, "fabrik %s: warning: %s: %s\n", command, safe_lines(a.file).c_str(),
+                 safe_lines(w).c_str());
+  io::require_marker_data(trial, a.file);
+  bridges::SimRecording recording = sim_recording(trial, a.file_up);
+  bridges::SimScript script = sim_script(a.script, recording);
+  script.loop = a.loop;
+  script.rate_scale = a.rate_scale;
+  script.max_frames = a.frames;
+  std::fprintf(stderr, "%s: %s: %zu frames x %zu markers at %g Hz (up %s), served at %g Hz%s\n", command,
+               safe_lines(a.file).c_str(), recording.p_mm.size(), recording.names.size(), recording.rate_hz,
+               recording.up.c_str(), recording.rate_hz * a.rate_scale, a.loop ? ", looping" : "");
+  return {std::move(recording), std::move(script)};
+}
+
+// Serves on a thread of its own until the script ends or Ctrl-C, printing progress.
+template <class Server>
+void serve_until_stopped(const char* command, Server& server) {
+  catch_stop_signals();
+  std::atomic<bool> done{false};
+  std::jthread thread([&](std::stop_token stop) {
+    try {
+      server.run(stop);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "\nfabrik %s: %s\n", command, safe_lines(e.what()).c_str());
+    }
+    done = true;
+  });
+  std::uint64_t shown = ~std::uint64_t{0};
+  while (!done.load() && !g_stop.load()) {
+    // This command's own thread: nothing waits on it, it only reports.
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    const auto p = server.progress();
+    if (p.frames_sent != shown)
+      std::fprintf(stderr, "\r%s: %llu frames served, %d client(s)   ", command,
+                   static_cast<unsigned long long>(p.frames_sent), p.clients);
+    shown = p.frames_sent;
+  }
+  thread.request_stop();
+  thread.join();
+  std::fprintf(stderr, "\n%s: served %llu frames%s\n", command,
+               static_cast<unsigned long long>(server.progress().frames_sent),
+               g_stop.load() ? ", stopped by signal" : ", end of the script");
+}
+
+std::uint16_t port_of(int port, const char* option) {
+  if (port < 0 || port > 65535) throw std::invalid_argument(std::string(option) + " must be 0-65535");
+  return static_cast<std::uint16_t>(port);
+}
+
+}  // namespace
+
+void add_sim_command(CLI::App& app) {
+  CLI::App* sim = app.add_subcommand(
+      "sim", "Serve a TRC/C3D recording as a mocap system streams it live: Qualisys QTM (RT protocol) or "
+             "OptiTrack Motive (NatNet), to try fabrikd's \"source\" input without the lab's system");
+  sim->require_subcommand(1);
+
+  auto q = std::make_shared<SimArgs>();
+  CLI::App* qtm_cmd = sim->add_subcommand(
+      "qtm", "A QTM RT server (protocol 1.8 and later, over TCP; the 3D component, labels from the 3D "
+             "parameters, events on label changes): fabrikd connects with \"source\": \"qtm://HOST\"");
+  add_common_sim_options(qtm_cmd, *q);
+  qtm_cmd->add_option("--base-port", q->base_port,
+                      "QTM's base port: little endian on base + 1, big endian on base + 2");
+  qtm_cmd->callback([q] {
+    run_command("sim qtm", [&] {
+      auto [recording, script] = sim_inputs("sim qtm", *q);
+      qtm::QtmSimServer::Options o;
+      o.bind_address = q->bind;
+      o.base_port = port_of(q->base_port, "--base-port");
+      qtm::QtmSimServer server(std::move(recording), std::move(script), o);
+      std::fprintf(stderr, "sim qtm: serving on %s port %u (little endian; fabrikd: \"qtm://%s:%u\") and %u (big endian)\n",
+                   safe_lines(q->bind).c_str(), server.port_little_endian(), safe_lines(q->bind).c_str(),
+                   server.port_little_endian(), server.port_big_endian());
+      serve_until_stopped("sim qtm", server);
+    });
+  });
+
+  auto n = std::make_shared<SimArgs>();
+  CLI::App* natnet_cmd = sim->add_subcommand(
+      "natnet", "A Motive NatNet server (command channel, model definitions, frames of data in metres, "
+                "Y up by default): fabrikd connects with \"source\": \"natnet://HOST\"");
+  add_common_sim_options(natnet_cmd, *n);
+  natnet_cmd->add_option("--command-port", n->command_port, "Command port");
+  natnet_cmd->add_option("--data-port", n->data_port, "Data port");
+  natnet_cmd->add_flag("--unicast", n->unicast, "Send frames to each connected client instead of the group");
+  natnet_cmd->add_option("--multicast-group", n->multicast_group, "Multicast group of the frames");
+  natnet_cmd->add_option("--up-axis", n->up_axis, "Motive's streaming up axis (+y as Motive's default, or +z)");
+  natnet_cmd->add_option("--natnet-version", n->version, "NatNet version served, e.g. 3.1 or 4.1");
+  natnet_cmd->add_option("--subject", n->subject,
+                         "Marker set name: markers are named SUBJECT:MARKER (default: Subject, names bare)");
+  natnet_cmd->callback([n] {
+    run_command("sim natnet", [&] {
+      auto [recording, script] = sim_inputs("sim natnet", *n);
+      script.subject_prefix = n->subject;
+      bridges::NatNetSimServer::Options o;
+      o.bind_address = n->bind;
+      o.command_port = port_of(n->command_port, "--command-port");
+      o.data_port = port_of(n->data_port, "--data-port");
+      o.multicast = !n->unicast;
+      o.multicast_group = n->multicast_group;
+      o.up_axis = n->up_axis;
+      int major = 0, minor = 0;
+      char tail = 0;
+      if (std::sscanf(n->version.c_str(), "%d.%d%c", &major, &minor, &tail) != 2 || major < 0 ||
+          major > 255 || minor < 0 || minor > 255)
+        throw std::invalid_argument("--natnet-version '" + n->version + "': expected MAJOR.MINOR, e.g. 4.1");
+      o.version = {static_cast<std::uint8_t>(major), static_cast<std::uint8_t>(minor), 0, 0};
+      bridges::NatNetSimServer server(std::move(recording), std::move(script), o);
+      std::fprintf(stderr, "sim natnet: commands on %s:%u, data %s port %u (fabrikd: \"natnet://%s:%u\"%s)\n",
+                   safe_lines(n->bind).c_str(), server.command_port(),
+                   o.multicast ? ("to " + safe_lines(o.multicast_group)).c_str() : "unicast,",
+                   server.data_port(), safe_lines(n->bind).c_str(), server.command_port(),
+                   o.multicast ? "" : " with \"natnet_data\": \"unicast\"");
+      serve_until_stopped("sim natnet", server);
     });
   });
 }

@@ -9,12 +9,14 @@ namespace fabrik::tools {
 void add_replay_command(CLI::App& app);
 void add_watch_command(CLI::App& app);
 void add_synth_command(CLI::App& app);
+void add_sim_command(CLI::App& app);
 
 // All of the above.
 inline void add_tool_commands(CLI::App& app) {
   add_replay_command(app);
   add_watch_command(app);
   add_synth_command(app);
+  add_sim_command(app);
 }
 
 }  // namespace fabrik::tools

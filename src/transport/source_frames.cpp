@@ -53,7 +53,7 @@ void SourceFrames::encode(std::uint64_t frame_number, double time_s,
     p_lab_m_[i] = seen ? Eigen::Vector3d(r_lab_server_ * p_server_mm[i] * 1e-3) : Eigen::Vector3d::Zero();
   }
   encode_marker_frame(frame_number, std::isfinite(time_s) ? &time_s : nullptr, names_, p_lab_m_,
-                      visible_, "mm", PayloadEncoding::msgpack, payload);
+                      visible_, "m", PayloadEncoding::msgpack, payload);
 }
 
 }  // namespace fabrik::wire

@@ -33,7 +33,8 @@ class SourceFrames {
   // The server's names for the positions of the frames that follow. Two
   // names that strip to the same keep the first; the others stay whole.
   void labels(std::span<const std::string> server_names);
-  // Encodes one frame (MessagePack, units mm) into `payload`. Positions
+  // Encodes one frame (MessagePack, units m: converted once, here, as the
+  // decoder converts a ZeroMQ frame's mm) into `payload`. Positions
   // beyond the labels are ignored; labels beyond the positions are sent as missing.
   void encode(std::uint64_t frame_number, double time_s,
               std::span<const Eigen::Vector3d> p_server_mm, std::string& payload);
