@@ -69,6 +69,19 @@ class SocketClient {
     }
   }
 
+  // The next message of any topic, decoded, with its topic; nothing on timeout.
+  std::optional<std::pair<std::string, nlohmann::json>> receive_any(
+      std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
+    zmq::pollitem_t items[] = {{sub_.handle(), 0, ZMQ_POLLIN, 0}};
+    zmq::poll(items, 1, timeout);
+    if (!(items[0].revents & ZMQ_POLLIN)) return std::nullopt;
+    zmq::message_t t, p;
+    (void)sub_.recv(t);
+    if (!t.more()) return std::pair<std::string, nlohmann::json>{std::string(t.to_string_view()), nullptr};
+    (void)sub_.recv(p);
+    return std::pair<std::string, nlohmann::json>{std::string(t.to_string_view()), decode_payload(p)};
+  }
+
   // The next message of `topic`, decoded (JSON or MessagePack), or nothing on
   // timeout. A payload that is not valid JSON (or UTF-8) throws.
   std::optional<nlohmann::json> receive(

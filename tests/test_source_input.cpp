@@ -65,6 +65,7 @@ struct ScriptedServer {
       for (std::size_t i = 0; i < frames_mm.size(); ++i) {
         if (!released_cv.wait(lock, stop, [&] { return allowed > i; })) return;
         sink.frame(first_frame + i, static_cast<double>(i) / rate_hz, frames_mm[i]);
+        status.frame_delivered();  // as the vendor clients count
       }
       status.error("scripted server: end of the script");
       released_cv.wait(lock, stop, [] { return false; });

@@ -18,6 +18,7 @@ using Clock = std::chrono::steady_clock;
 using natnet::MessageId;
 
 constexpr auto kSlice = std::chrono::milliseconds(100);
+constexpr auto kConnectResend = std::chrono::milliseconds(250);
 // NatNetClient.py and PacketClient keep a unicast subscription alive by
 // sending NAT_KEEPALIVE on the command socket; once a second is plenty.
 constexpr auto kKeepAlive = std::chrono::seconds(1);
@@ -136,11 +137,19 @@ class Connection {
   bool handshake() {
     // The version asked for is left 0 ("the server's"): frames are then read
     // with the version the server info announces.
-    if (!send(MessageId::connect, natnet::encode_connect_request({}))) return false;
     natnet::Message m;
     const auto connect_deadline = Clock::now() + seconds(o_.policy.connect_timeout_s);
+    // UDP: a NAT_CONNECT sent while Motive was not yet (or no longer) up is
+    // lost without a word, so it is sent again every kConnectResend.
+    if (!send(MessageId::connect, natnet::encode_connect_request({}))) return false;
+    auto resend_at = Clock::now() + kConnectResend;
     for (;;) {
-      const Next next = next_message(connect_deadline, m);
+      const Next next = next_message(std::min(connect_deadline, resend_at), m);
+      if (next == Next::timeout && Clock::now() < connect_deadline) {
+        if (!send(MessageId::connect, natnet::encode_connect_request({}))) return false;
+        resend_at = Clock::now() + kConnectResend;
+        continue;
+      }
       if (next == Next::timeout)
         fail("no reply to NAT_CONNECT within " + format_seconds(o_.policy.connect_timeout_s) +
              " (is Motive running with streaming on, at this address and command port?)");

@@ -28,7 +28,6 @@ class PushSink final : public bridges::FrameSink {
         return;
       }
       (void)push_.send(zmq::buffer(payload_), zmq::send_flags::dontwait);  // parts go together
-      status_.frame_delivered();
     } catch (const std::exception& e) {
       status_.error(std::string("could not hand a frame to the loop: ") + e.what());
     }
