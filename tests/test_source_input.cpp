@@ -8,7 +8,9 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <fstream>
 #include <future>
+#include <set>
 #include <mutex>
 #include <thread>
 
@@ -269,6 +271,15 @@ TEST_CASE(
   CHECK(source["reconnects"] == 0);
   CHECK(source["frames_dropped"] == 0);
   CHECK(source["last_error"] == "scripted server: end of the script");
+  // The block is what proto/stats.schema.json says, key for key.
+  std::ifstream schema_file(std::string(FABRIK_SOURCE_DIR) + "/proto/stats.schema.json");
+  const json schema = json::parse(schema_file)["properties"]["source"];
+  std::set<std::string> required, written, described;
+  for (const json& k : schema["required"]) required.insert(k.get<std::string>());
+  for (const auto& [k, v] : schema["properties"].items()) described.insert(k);
+  for (const auto& [k, v] : source.items()) written.insert(k);
+  CHECK(written == required);
+  CHECK(written == described);
   CHECK((*after)["frames_out"] == 60);
   CHECK((*after)["unknown_markers"] == 60);
   CHECK((*after)["decode_errors"] == 0);

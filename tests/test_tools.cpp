@@ -268,6 +268,24 @@ TEST_CASE("watch decodes JSON and MessagePack payloads by their first byte") {
   CHECK_THROWS_WITH(decode_payload(truncated), Catch::Contains("bad msgpack"));
 }
 
+TEST_CASE("watch tally: a vendor source's connection shows in the live line, its error when it is down") {
+  WatchTally tally;
+  CHECK_THAT(tally.live_line(0.0), !Catch::Contains("source"));
+  json source = {{"url", "qtm://lab"}, {"connected", true}, {"server", "QTM RT protocol 1.19"},
+                 {"connections", 2}, {"reconnects", 1}, {"errors", 3}, {"bad_packets", 0},
+                 {"frames", 1234}, {"frames_dropped", 0}, {"last_error", "QTM at lab: gone"}};
+  tally.add_stats(json{{"decode_errors", 0}, {"source", source}}, 0.1);
+  std::string line = tally.live_line(0.1);
+  CHECK_THAT(line, Catch::Contains("source connected (1234 frames, 1 reconnects, 3 errors)"));
+  CHECK_THAT(line, !Catch::Contains("gone"));
+  source["connected"] = false;
+  source["bad_packets"] = 2;
+  tally.add_stats(json{{"decode_errors", 0}, {"source", source}}, 0.2);
+  line = tally.live_line(0.2);
+  CHECK_THAT(line, Catch::Contains("source NOT connected (1234 frames, 1 reconnects, 3 errors, 2 bad packets): "
+                                   "QTM at lab: gone"));
+}
+
 TEST_CASE("watch tally: gaps in frame numbers are loss, restarts are not") {
   WatchTally tally;
   const auto pose = [](std::uint64_t frame, double rms, const char* status) {

@@ -113,6 +113,30 @@ void WatchTally::add_stats(const json& stats, double) {
   last_stats_ = stats;
 }
 
+namespace {
+
+// A vendor source's connection, when the daemon reads one: what a lab looks
+// at first when poses stop.
+std::string source_text(const json& stats) {
+  const auto it = stats.find("source");
+  if (it == stats.end() || !it->is_object()) return "";
+  const json& s = *it;
+  const auto uint_at = [&](const char* key) -> std::uint64_t {
+    const auto v = s.find(key);
+    return v != s.end() && v->is_number_integer() ? static_cast<std::uint64_t>(std::max<std::int64_t>(v->get<std::int64_t>(), 0)) : 0;
+  };
+  std::string text = "  | source " + std::string(s.value("connected", false) ? "connected" : "NOT connected");
+  text += " (" + std::to_string(uint_at("frames")) + " frames, " + std::to_string(uint_at("reconnects")) +
+          " reconnects, " + std::to_string(uint_at("errors")) + " errors";
+  if (const auto bad = uint_at("bad_packets")) text += ", " + std::to_string(bad) + " bad packets";
+  text += ")";
+  if (!s.value("connected", false) && s.contains("last_error") && s["last_error"].is_string())
+    text += ": " + s["last_error"].get<std::string>();
+  return text;
+}
+
+}  // namespace
+
 std::string WatchTally::live_line(double t_s) {
   const Interval& in = interval_;
   const double span_s = in.start_s >= 0.0 ? t_s - in.start_s : 0.0;
@@ -133,6 +157,7 @@ std::string WatchTally::live_line(double t_s) {
                   number_at(*last_stats_, "/queue_latency_us/p99"_json_pointer),
                   number_at(*last_stats_, "/decode_errors"_json_pointer));
     line += buf;
+    line += source_text(*last_stats_);
   }
   line += angles_text(last_angles_);
   if (missing_frames_) line += "  | lost " + std::to_string(missing_frames_);
