@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "config/daemon_config.hpp"
+#include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "transport/daemon.hpp"
 #include "transport/source_frames.hpp"
@@ -23,6 +24,8 @@
 using namespace fabrik;
 using namespace std::chrono_literals;
 using nlohmann::json;
+using test::DaemonThread;
+using test::largest_difference;
 
 namespace {
 
@@ -73,29 +76,6 @@ struct ScriptedServer {
       released_cv.wait(lock, stop, [] { return false; });
     };
   }
-};
-
-struct DaemonThread {
-  DaemonThread(zmq::context_t& context, DaemonConfig config, wire::Daemon::SourceClientFactory f)
-      : daemon(context, std::move(config), std::move(f)) {
-    thread = std::thread([this] {
-      daemon.run(control);
-      done.set_value();
-    });
-  }
-  ~DaemonThread() {
-    control.stop = true;
-    if (finished.wait_for(5s) != std::future_status::ready) {
-      std::fprintf(stderr, "FAILED: the daemon did not stop within 5 s\n");
-      std::abort();
-    }
-    thread.join();
-  }
-  wire::Daemon daemon;
-  wire::DaemonControl control;
-  std::promise<void> done;
-  std::future<void> finished = done.get_future();
-  std::thread thread;
 };
 
 }  // namespace
@@ -157,26 +137,6 @@ TEST_CASE("Source URLs and options are read, and wrong ones refused with the fix
   CHECK_THAT(config_error(R"({"source_options": {}})"), Catch::Contains("without a source"));
   CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"axes": {"up": "x"}}})"),
              Catch::Contains("no forward axis"));
-}
-
-// The largest difference between the numbers of two documents of the same shape (infinity if not).
-double largest_difference(const json& a, const json& b) {
-  if (a.is_number() && b.is_number()) return std::abs(a.get<double>() - b.get<double>());
-  if (a.type() != b.type() || a.size() != b.size()) return INFINITY;
-  if (a.is_object()) {
-    double d = 0;
-    for (const auto& [k, v] : a.items()) {
-      if (!b.contains(k)) return INFINITY;
-      d = std::max(d, largest_difference(v, b.at(k)));
-    }
-    return d;
-  }
-  if (a.is_array()) {
-    double d = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, largest_difference(a[i], b[i]));
-    return d;
-  }
-  return a == b ? 0.0 : INFINITY;
 }
 
 TEST_CASE(

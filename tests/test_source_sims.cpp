@@ -18,6 +18,7 @@
 #include "config/daemon_config.hpp"
 #include "eval/subject.hpp"
 #include "io/marker_trial.hpp"
+#include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "tools/sim.hpp"
@@ -27,30 +28,10 @@
 using namespace fabrik;
 using namespace std::chrono_literals;
 using nlohmann::json;
+using test::DaemonThread;
+using test::largest_difference;
 
 namespace {
-
-struct DaemonThread {
-  DaemonThread(zmq::context_t& context, DaemonConfig config) : daemon(context, std::move(config)) {
-    thread = std::thread([this] {
-      daemon.run(control);
-      done.set_value();
-    });
-  }
-  ~DaemonThread() {
-    control.stop = true;
-    if (finished.wait_for(5s) != std::future_status::ready) {
-      std::fprintf(stderr, "FAILED: the daemon did not stop within 5 s\n");
-      std::abort();
-    }
-    thread.join();
-  }
-  wire::Daemon daemon;
-  wire::DaemonControl control;
-  std::promise<void> done;
-  std::future<void> finished = done.get_future();
-  std::thread thread;
-};
 
 // A simulated server serving on a thread of its own until the script ends.
 template <class Server>
@@ -70,22 +51,6 @@ DaemonConfig on_inproc(DaemonConfig c, const std::string& name) {
 SourceConfig source_of(const std::string& input_json) {
   const json j = json::parse(input_json);
   return read_source_config(JsonReader(j, "test.json", "/input"));
-}
-
-// The largest difference between the numbers of two documents of the same shape (infinity if not).
-double largest_difference(const json& a, const json& b) {
-  if (a.is_number() && b.is_number()) return std::abs(a.get<double>() - b.get<double>());
-  if (a.type() != b.type() || a.size() != b.size()) return INFINITY;
-  double d = 0;
-  if (a.is_object()) {
-    for (const auto& [k, v] : a.items()) d = std::max(d, b.contains(k) ? largest_difference(v, b.at(k)) : INFINITY);
-    return d;
-  }
-  if (a.is_array()) {
-    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, largest_difference(a[i], b[i]));
-    return d;
-  }
-  return a == b ? 0.0 : INFINITY;
 }
 
 // Poses and the last stats from a daemon's output until `last_frame` has been

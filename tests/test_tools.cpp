@@ -21,6 +21,7 @@
 #include "run_fabrik.hpp"
 #include "temp_file.hpp"
 #include "tools/replay.hpp"
+#include "tools/sim.hpp"
 #include "tools/synth.hpp"
 #include "tools/watch.hpp"
 #include "tools/wire.hpp"
@@ -220,6 +221,67 @@ TEST_CASE("replay over tcp in MessagePack, looping with --frames") {
     CHECK(doc["time"].get<double>() == Approx(static_cast<double>(k) / 100.0));
     CHECK(doc["markers"]["B"].is_null() == (k % 50 >= 10 && k % 50 < 15));
   }
+}
+
+TEST_CASE("fabrik sim: a trial becomes the servers' recording in mm, its script in frames") {
+  MarkerTrial t;
+  t.labels = {"RASI", "LASI"};
+  t.rate_hz = 50.0;
+  t.source.format = "TRC";
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  t.positions_m = {{1.0, 2.0, 3.0}, {nan, nan, nan}, {0.5, 0.25, -1.0}, {0.001, 0, 0}};
+  fabrik::bridges::SimRecording r = fabrik::tools::sim_recording(t, "");
+  CHECK(r.up == "+y");  // OpenSim's TRC
+  CHECK(r.rate_hz == 50.0);
+  REQUIRE(r.p_mm.size() == 2);
+  CHECK(r.p_mm[0][0] == Eigen::Vector3d(1000, 2000, 3000));
+  CHECK(r.p_mm[0][1].array().isNaN().all());
+  CHECK(r.p_mm[1][1] == Eigen::Vector3d(1, 0, 0));
+  t.source.format = "C3D";
+  CHECK(fabrik::tools::sim_recording(t, "").up == "+z");
+  CHECK(fabrik::tools::sim_recording(t, "-x").up == "-x");
+
+  fabrik::tools::SimScriptArgs a;
+  a.pauses = {"1:0.5"};
+  a.drops = {"LASI:0.1:0.3"};
+  a.renames = {"2:RASI=R_ASIS"};
+  a.restarts = {"0.5:2"};
+  const fabrik::bridges::SimScript s = fabrik::tools::sim_script(a, r);
+  REQUIRE(s.pauses.size() == 1);
+  CHECK(s.pauses[0].at_frame == 50);
+  CHECK(s.pauses[0].seconds == 0.5);
+  REQUIRE(s.drops.size() == 1);
+  CHECK(s.drops[0].marker == "LASI");
+  CHECK(s.drops[0].from_frame == 5);
+  CHECK(s.drops[0].to_frame == 15);
+  REQUIRE(s.renames.size() == 1);
+  CHECK(s.renames[0].at_frame == 100);
+  CHECK(s.renames[0].from == "RASI");
+  CHECK(s.renames[0].to == "R_ASIS");
+  REQUIRE(s.restarts.size() == 1);
+  CHECK(s.restarts[0].at_frame == 25);
+  CHECK(s.restarts[0].down_seconds == 2.0);
+
+  // The error of a script with one spec in the list `field` of SimScriptArgs.
+  using Field = std::vector<std::string> fabrik::tools::SimScriptArgs::*;
+  const auto error = [&](Field field, const std::string& spec) -> std::string {
+    fabrik::tools::SimScriptArgs bad;
+    (bad.*field).push_back(spec);
+    try {
+      (void)fabrik::tools::sim_script(bad, r);
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  CHECK_THAT(error(&fabrik::tools::SimScriptArgs::pauses, "1"), Catch::Contains("--pause-at '1': expected T:S"));
+  CHECK_THAT(error(&fabrik::tools::SimScriptArgs::pauses, "x:1"), Catch::Contains("T 'x' is not a time in seconds"));
+  CHECK_THAT(error(&fabrik::tools::SimScriptArgs::restarts, "1:-2"), Catch::Contains("S '-2' is not a time in seconds"));
+  CHECK_THAT(error(&fabrik::tools::SimScriptArgs::renames, "1:RASI"), Catch::Contains("expected T:OLD=NEW"));
+  CHECK_THAT(error(&fabrik::tools::SimScriptArgs::renames, "1:NOPE=X"), Catch::Contains("the recording has no marker 'NOPE'"));
+  CHECK_THAT(error(&fabrik::tools::SimScriptArgs::drops, "NOPE:0:1"), Catch::Contains("the recording has no marker 'NOPE'"));
+  MarkerTrial empty;
+  CHECK_THROWS_WITH(fabrik::tools::sim_recording(empty, ""), Catch::Contains("no marker frames"));
 }
 
 TEST_CASE("replay rejects a drop of a marker that is not in the recording") {

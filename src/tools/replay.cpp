@@ -9,9 +9,8 @@
 
 namespace fabrik::tools {
 
-namespace {
-
-double parse_seconds(const std::string& text, const std::string& spec, const char* which) {
+double parse_seconds_field(const std::string& text, const std::string& option, const std::string& spec,
+                           const std::string& field, const std::string& expected) {
   std::size_t used = 0;
   double v = 0.0;
   try {
@@ -20,12 +19,10 @@ double parse_seconds(const std::string& text, const std::string& spec, const cha
     used = 0;
   }
   if (used == 0 || used != text.size() || !std::isfinite(v) || v < 0.0)
-    throw std::invalid_argument("--drop '" + spec + "': " + which + " '" + text +
-                                "' is not a time in seconds >= 0 (expected NAME:T0:T1)");
+    throw std::invalid_argument(option + " '" + spec + "': " + field + " '" + text +
+                                "' is not a time in seconds >= 0 (expected " + expected + ")");
   return v;
 }
-
-}  // namespace
 
 DropSpec parse_drop_spec(const std::string& spec) {
   const std::size_t c2 = spec.rfind(':');
@@ -38,8 +35,8 @@ DropSpec parse_drop_spec(const std::string& spec) {
   d.marker = spec.substr(0, c1);
   if (d.marker.empty())
     throw std::invalid_argument("--drop '" + spec + "': the marker name is empty");
-  d.t0_s = parse_seconds(spec.substr(c1 + 1, c2 - c1 - 1), spec, "T0");
-  d.t1_s = parse_seconds(spec.substr(c2 + 1), spec, "T1");
+  d.t0_s = parse_seconds_field(spec.substr(c1 + 1, c2 - c1 - 1), "--drop", spec, "T0", "NAME:T0:T1");
+  d.t1_s = parse_seconds_field(spec.substr(c2 + 1), "--drop", spec, "T1", "NAME:T0:T1");
   if (!(d.t1_s > d.t0_s))
     throw std::invalid_argument("--drop '" + spec + "': T1 must be greater than T0");
   return d;

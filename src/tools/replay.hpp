@@ -22,6 +22,11 @@ struct DropSpec {
   double t0_s = 0.0;
   double t1_s = 0.0;
 };
+// A command-line time field ("--drop 'A:x:2': T0 'x' is not a time in seconds >= 0 (expected
+// NAME:T0:T1)"): throws std::invalid_argument unless `text` is a whole finite number >= 0.
+double parse_seconds_field(const std::string& text, const std::string& option, const std::string& spec,
+                           const std::string& field, const std::string& expected);
+
 // Splits at the last two colons (Vicon labels look like "Subject:RASI"). Throws
 // std::invalid_argument with a message that quotes the spec and says what is wrong.
 DropSpec parse_drop_spec(const std::string& spec);

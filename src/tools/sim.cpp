@@ -10,21 +10,6 @@ namespace fabrik::tools {
 
 namespace {
 
-double parse_number(const std::string& text, const std::string& option, const std::string& spec,
-                    const char* expected) {
-  std::size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || !std::isfinite(v) || v < 0.0)
-    throw std::invalid_argument(option + " '" + spec + "': '" + text +
-                                "' is not a number of seconds >= 0 (expected " + expected + ")");
-  return v;
-}
-
 std::int64_t frame_at(double t_s, const bridges::SimRecording& r) {
   return static_cast<std::int64_t>(std::llround(t_s * r.rate_hz));
 }
@@ -64,13 +49,13 @@ bridges::SimScript sim_script(const SimScriptArgs& args, const bridges::SimRecor
   bridges::SimScript s;
   for (const std::string& spec : args.pauses) {
     const auto [t, d] = split_at_colon(spec, "--pause-at", "T:S (time and seconds to pause)");
-    s.pauses.push_back({frame_at(parse_number(t, "--pause-at", spec, "T:S"), recording),
-                        parse_number(d, "--pause-at", spec, "T:S")});
+    s.pauses.push_back({frame_at(parse_seconds_field(t, "--pause-at", spec, "T", "T:S"), recording),
+                        parse_seconds_field(d, "--pause-at", spec, "S", "T:S")});
   }
   for (const std::string& spec : args.restarts) {
     const auto [t, d] = split_at_colon(spec, "--restart-at", "T:S (time and seconds down)");
-    s.restarts.push_back({frame_at(parse_number(t, "--restart-at", spec, "T:S"), recording),
-                          parse_number(d, "--restart-at", spec, "T:S")});
+    s.restarts.push_back({frame_at(parse_seconds_field(t, "--restart-at", spec, "T", "T:S"), recording),
+                          parse_seconds_field(d, "--restart-at", spec, "S", "T:S")});
   }
   for (const std::string& spec : args.renames) {
     const auto [t, change] = split_at_colon(spec, "--rename-at", "T:OLD=NEW");
@@ -81,7 +66,7 @@ bridges::SimScript sim_script(const SimScriptArgs& args, const bridges::SimRecor
     bool known = false;
     for (const std::string& n : recording.names) known = known || n == from;
     if (!known) throw std::invalid_argument("--rename-at '" + spec + "': the recording has no marker '" + from + "'");
-    s.renames.push_back({frame_at(parse_number(t, "--rename-at", spec, "T:OLD=NEW"), recording), from, to});
+    s.renames.push_back({frame_at(parse_seconds_field(t, "--rename-at", spec, "T", "T:OLD=NEW"), recording), from, to});
   }
   for (const std::string& spec : args.drops) {
     const DropSpec d = parse_drop_spec(spec);

@@ -1,0 +1,64 @@
+// A wire::Daemon running on a thread of its own for in-process tests, and a
+// comparison of two documents' numbers (poses from two daemons).
+#pragma once
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <future>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "transport/daemon.hpp"
+
+namespace fabrik::test {
+
+// Stops the daemon on destruction; a daemon that does not stop within 5 s
+// aborts the test run with a message (a wedged loop must fail, not hang).
+struct DaemonThread {
+  DaemonThread(zmq::context_t& context, DaemonConfig config,
+               wire::Daemon::SourceClientFactory source_client = {})
+      : daemon(context, std::move(config), std::move(source_client)) {
+    thread = std::thread([this] {
+      daemon.run(control);
+      done.set_value();
+    });
+  }
+  ~DaemonThread() {
+    control.stop = true;
+    if (finished.wait_for(std::chrono::seconds(5)) != std::future_status::ready) {
+      std::fprintf(stderr, "FAILED: the daemon did not stop within 5 s\n");
+      std::abort();
+    }
+    thread.join();
+  }
+  DaemonThread(const DaemonThread&) = delete;
+  DaemonThread& operator=(const DaemonThread&) = delete;
+
+  wire::Daemon daemon;
+  wire::DaemonControl control;
+  std::promise<void> done;
+  std::future<void> finished = done.get_future();
+  std::thread thread;
+};
+
+// The largest difference between the numbers of two documents of the same
+// shape; infinity where the shapes, keys or other values differ.
+inline double largest_difference(const nlohmann::json& a, const nlohmann::json& b) {
+  if (a.is_number() && b.is_number()) return std::abs(a.get<double>() - b.get<double>());
+  if (a.type() != b.type() || a.size() != b.size()) return INFINITY;
+  double d = 0;
+  if (a.is_object()) {
+    for (const auto& [k, v] : a.items())
+      d = std::max(d, b.contains(k) ? largest_difference(v, b.at(k)) : INFINITY);
+    return d;
+  }
+  if (a.is_array()) {
+    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, largest_difference(a[i], b[i]));
+    return d;
+  }
+  return a == b ? 0.0 : INFINITY;
+}
+
+}  // namespace fabrik::test
