@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "config/daemon_config.hpp"
+#include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "transport/daemon.hpp"
 #include "transport/source_frames.hpp"
@@ -21,6 +22,7 @@
 using namespace fabrik;
 using namespace std::chrono_literals;
 using nlohmann::json;
+using test::DaemonThread;
 
 namespace {
 
@@ -65,34 +67,12 @@ struct ScriptedServer {
       for (std::size_t i = 0; i < frames_mm.size(); ++i) {
         if (!released_cv.wait(lock, stop, [&] { return allowed > i; })) return;
         sink.frame(first_frame + i, static_cast<double>(i) / rate_hz, frames_mm[i]);
+        status.frame_delivered();  // as the vendor clients count them
       }
       status.error("scripted server: end of the script");
       released_cv.wait(lock, stop, [] { return false; });
     };
   }
-};
-
-struct DaemonThread {
-  DaemonThread(zmq::context_t& context, DaemonConfig config, wire::Daemon::SourceClientFactory f)
-      : daemon(context, std::move(config), std::move(f)) {
-    thread = std::thread([this] {
-      daemon.run(control);
-      done.set_value();
-    });
-  }
-  ~DaemonThread() {
-    control.stop = true;
-    if (finished.wait_for(5s) != std::future_status::ready) {
-      std::fprintf(stderr, "FAILED: the daemon did not stop within 5 s\n");
-      std::abort();
-    }
-    thread.join();
-  }
-  wire::Daemon daemon;
-  wire::DaemonControl control;
-  std::promise<void> done;
-  std::future<void> finished = done.get_future();
-  std::thread thread;
 };
 
 }  // namespace
