@@ -25,13 +25,19 @@ struct DaemonThread {
       done.set_value();
     });
   }
-  ~DaemonThread() {
+  ~DaemonThread() { stop(); }
+  // Seconds from the request until run() returned (0 when already stopped).
+  double stop() {
+    if (!thread.joinable()) return 0.0;
+    const auto t0 = std::chrono::steady_clock::now();
     control.stop = true;
     if (finished.wait_for(std::chrono::seconds(5)) != std::future_status::ready) {
       std::fprintf(stderr, "FAILED: the daemon did not stop within 5 s\n");
       std::abort();
     }
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     thread.join();
+    return s;
   }
   DaemonThread(const DaemonThread&) = delete;
   DaemonThread& operator=(const DaemonThread&) = delete;

@@ -28,6 +28,8 @@ class PushSink final : public bridges::FrameSink {
         return;
       }
       (void)push_.send(zmq::buffer(payload_), zmq::send_flags::dontwait);  // parts go together
+      // Not counted here: the client counts each frame it hands over
+      // (SourceStatus::frame_delivered); counting again doubled stats' frames.
     } catch (const std::exception& e) {
       status_.error(std::string("could not hand a frame to the loop: ") + e.what());
     }

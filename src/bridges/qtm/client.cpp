@@ -426,12 +426,15 @@ void run_qtm_client(const QtmClientOptions& options, bridges::FrameSink& sink, b
     } catch (...) {
       failure = Failure{"QTM client: internal error", false, false};
     }
-    if (was_connected) status.disconnected();
-    if (failure.stopped || stop.stop_requested()) break;
-    if (failure.bad_packet)
+    const bool stopping = failure.stopped || stop.stop_requested();
+    if (!stopping && failure.bad_packet)
       status.bad_packet(failure.what);
-    else
+    else if (!stopping)
       status.error(failure.what);
+    // After the error: whoever sees the connection lost also sees why
+    // (fabrikd logs "connection lost: <last_error>" on that change).
+    if (was_connected) status.disconnected();
+    if (stopping) break;
     wait_or_stop(backoff.next_wait_s(), stop);
   }
 }
