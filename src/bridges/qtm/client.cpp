@@ -144,8 +144,9 @@ class Session {
         return std::nullopt;
       }
       if (s != Status::need_more)
-        return fail("QTM at " + where_ + ": " + to_string(s) + " (limit " +
-                        std::to_string(o_.policy.max_packet_bytes) + " bytes, ConnectionPolicy::max_packet_bytes)",
+        return fail("QTM at " + where_ + ": " + to_string(s) + " (" +
+                        std::to_string(o_.policy.max_packet_bytes) +
+                        " bytes; no QTM packet is that large: a corrupt stream, or not a QTM server)",
                     true);
       auto until = deadline;
       if (splitter_->buffered_bytes() > 0) {
