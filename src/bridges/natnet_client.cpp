@@ -78,6 +78,7 @@ class Connection {
       std::string route_error;
       if (auto local = local_address_towards(server_, route_error)) interface_address = *local;
     }
+    joined_interface_ = interface_address;
     if (o_.multicast && (!data_.open("0.0.0.0", o_.data_port, true, error) ||
                          !data_.join_multicast(o_.multicast_group, interface_address, error))) {
       fail("data socket: " + error);
@@ -235,10 +236,15 @@ class Connection {
         return;
       }
       if (now >= last_frame + stall) {
+        // Multicast that never arrives is NatNet users' most common "no data":
+        // say where the client listened and what to try.
         fail("no frame of data for " + format_seconds(o_.policy.stall_timeout_s) +
-             (o_.multicast ? " on " + o_.multicast_group + ":" + std::to_string(o_.data_port)
-                           : std::string(" (unicast)")) +
-             ": Motive stopped streaming or is gone");
+             (o_.multicast ? " on " + o_.multicast_group + ":" + std::to_string(o_.data_port) +
+                                 " (joined on " + joined_interface_ +
+                                 "): Motive stopped streaming, or its multicast does not reach this "
+                                 "interface (set local_interface, open UDP " +
+                                 std::to_string(o_.data_port) + " in the firewall, or use unicast)"
+                           : std::string(" (unicast): Motive stopped streaming or is gone")));
         return;
       }
       if (next != Next::message) continue;
@@ -289,6 +295,7 @@ class Connection {
   std::stop_token stop_;
   UdpEndpoint server_;
   UdpSocket command_, data_;
+  std::string joined_interface_;  // where the data socket joined the group
   std::vector<std::uint8_t> buffer_;
   natnet::ServerInfo info_;
   natnet::MarkerTable table_;
