@@ -6,6 +6,7 @@
 
 #include "bench/bench.hpp"
 #include "bench/generic_static.hpp"
+#include "bench/latency_bench.hpp"
 #include "calib/calibrate.hpp"
 #include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
@@ -130,5 +131,31 @@ TEST_CASE("bench fullbody --config replays a recorded trial forward and back, ev
     // Noise-free markers of the model itself, turning back at each end: tracked closely (the
     // worst frames, up to 8 mm, follow the cold first one, which stalls short of the fit).
     CHECK(run["as_configured"]["marker_residual_mm"]["rms_mean"].get<double>() < 2.0);
+  }
+}
+
+TEST_CASE("bench latency --source: QTM and NatNet frames and ZeroMQ frames all come back as poses",
+          "[bench][latency][source]") {
+  bench::LatencyOptions o;
+  o.sources = {"qtm", "natnet"};
+  o.source_rate_hz = 200.0;  // 100 Hz on each input
+  o.seconds = 0.2;           // 20 frames each: the plumbing, not the times
+  const nlohmann::json r = bench::run_latency(o);
+  REQUIRE(r["source_runs"].size() == 2);
+  for (const nlohmann::json& run : r["source_runs"]) {
+    CAPTURE(run.dump());
+    REQUIRE(run["inputs"].size() == 2);
+    CHECK(run["inputs"][0]["input"] == "zmq");
+    CHECK(run["inputs"][1]["input"] == run["source"]);
+    for (const nlohmann::json& in : run["inputs"]) {
+      // Every frame the server wrote (the hook saw them all, in order) had a
+      // ZeroMQ frame after it. Poses: some of each (a loaded machine's stall
+      // may make the daemon drop a backlog, which is not what this checks).
+      CHECK(in["frames_sent"] == 20);
+      CHECK(in["poses_received"].get<int>() > 0);
+      CHECK(in["latency_us"]["p50"].get<double>() > 0.0);
+    }
+    CHECK(run["daemon_decode_errors"] == 0);
+    CHECK(run["daemon_unknown_markers"] == 0);
   }
 }

@@ -88,6 +88,13 @@ int main(int argc, char** argv) {
   b_latency->add_option("--orientations", latency.orientations,
                         "none; mixed: markers and a sensor on every segment; only: sensors alone")
       ->check(CLI::IsMember({"none", "mixed", "only"}));
+  b_latency
+      ->add_option("--source", latency.sources,
+                   "Compare a vendor source with the ZeroMQ input (qtm, natnet; repeatable or a "
+                   "list): one daemon fed by a simulated server and ZeroMQ alternately, "
+                   "--rate then the total (default 500)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"qtm", "natnet"}));
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
   fabrik::apps::add_solve_command(app);
@@ -102,6 +109,7 @@ int main(int argc, char** argv) {
       const auto r = fabrik::bench::run_paper(paper);
       std::cout << (paper_json ? r.dump(2) + "\n" : fabrik::bench::paper_table(r));
     } else if (b_latency->parsed()) {
+      if (b_latency->count("--rate") > 0) latency.source_rate_hz = latency.rate_hz;
       const auto r = fabrik::bench::run_latency(latency);
       std::cout << (latency_json ? r.dump(2) + "\n" : fabrik::bench::latency_table(r));
     } else if (b_body->parsed()) {

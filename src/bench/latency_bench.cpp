@@ -6,13 +6,21 @@
 #include <atomic>
 #include <charconv>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <filesystem>
+#include <limits>
+#include <mutex>
 #include <thread>
+#include <unordered_map>
 #include <zmq.hpp>
 
+#include "bridges/natnet_sim_server.hpp"
+#include "bridges/qtm/sim_server.hpp"
 #include "config/daemon_config.hpp"
+#include "config/lab_axes_json.hpp"
 #include "stats.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
@@ -45,6 +53,35 @@ bool pose_frame(const zmq::message_t& m, std::uint64_t& frame) {
   }
   return false;
 }
+
+// The bench's side of a daemon: a PUB on its marker input, a SUB on its poses.
+struct DaemonPeer {
+  zmq::socket_t pub, sub;
+  zmq::message_t topic, body;
+
+  DaemonPeer(zmq::context_t& context, wire::Daemon& daemon)
+      : pub(context, zmq::socket_type::pub), sub(context, zmq::socket_type::sub) {
+    pub.set(zmq::sockopt::linger, 0);
+    sub.set(zmq::sockopt::linger, 0);
+    sub.set(zmq::sockopt::subscribe, "pose");
+    sub.set(zmq::sockopt::rcvhwm, 0);
+    pub.connect(daemon.input_endpoint());
+    sub.connect(daemon.output_endpoint());
+  }
+  void send(const std::string& payload) {
+    pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
+    pub.send(zmq::buffer(payload));
+  }
+  // A pose within timeout_ms: true with its frame number.
+  bool receive(int timeout_ms, std::uint64_t& frame) {
+    zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
+    if (zmq::poll(items, 1, std::chrono::milliseconds(timeout_ms)) <= 0) return false;
+    (void)sub.recv(topic);
+    if (!topic.more()) return false;
+    (void)sub.recv(body);
+    return pose_frame(body, frame);
+  }
+};
 
 json run_one(const LatencyOptions& o, const std::string& transport) {
   DaemonConfig config = default_daemon_config();
@@ -110,14 +147,7 @@ json run_one(const LatencyOptions& o, const std::string& transport) {
   wire::DaemonControl control;
   std::thread daemon_thread([&] { daemon.run(control); });
 
-  zmq::socket_t pub(client_context, zmq::socket_type::pub),
-      sub(client_context, zmq::socket_type::sub);
-  pub.set(zmq::sockopt::linger, 0);
-  sub.set(zmq::sockopt::linger, 0);
-  sub.set(zmq::sockopt::subscribe, "pose");
-  sub.set(zmq::sockopt::rcvhwm, 0);
-  pub.connect(daemon.input_endpoint());
-  sub.connect(daemon.output_endpoint());
+  DaemonPeer peer(client_context, daemon);
 
   std::string payload;
   auto send = [&](std::uint64_t frame, int i) {
@@ -127,18 +157,9 @@ json run_one(const LatencyOptions& o, const std::string& transport) {
                               std::span<const Eigen::Vector3d>(frames_m[i % cycle]).first(names.size()),
                               visible, "mm", in_encoding, payload, nullptr,
                               with_sensors ? &sensors : nullptr);
-    pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
-    pub.send(zmq::buffer(payload));
+    peer.send(payload);
   };
-  zmq::message_t topic, body;
-  auto receive = [&](int timeout_ms, std::uint64_t& frame) {
-    zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
-    if (zmq::poll(items, 1, std::chrono::milliseconds(timeout_ms)) <= 0) return false;
-    (void)sub.recv(topic);
-    if (!topic.more()) return false;
-    (void)sub.recv(body);
-    return pose_frame(body, frame);
-  };
+  auto receive = [&](int timeout_ms, std::uint64_t& frame) { return peer.receive(timeout_ms, frame); };
 
   // Connect both ways before measuring: probe until a pose comes back, then
   // let the probes in flight drain.
@@ -212,6 +233,292 @@ json run_one(const LatencyOptions& o, const std::string& transport) {
             {"max", quantile(latency_us, 1.0)}}}};
 }
 
+// p50, p90, p99 and max of one input's frames; sent[i] unset: not sent.
+json input_figures(const std::vector<Clock::time_point>& sent_at,
+                   const std::vector<std::uint8_t>& sent,
+                   const std::vector<Clock::time_point>& received_at,
+                   const std::vector<std::uint8_t>& received) {
+  std::vector<double> latency_us;
+  int n_sent = 0;
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    if (!sent[i]) continue;
+    ++n_sent;
+    if (received[i])
+      latency_us.push_back(
+          std::chrono::duration<double, std::micro>(received_at[i] - sent_at[i]).count());
+  }
+  const int n_received = static_cast<int>(latency_us.size());
+  return {{"frames_sent", n_sent},
+          {"poses_received", n_received},
+          {"lost", n_sent - n_received},
+          {"latency_us",
+           {{"p50", quantile(latency_us, 0.5)},
+            {"p90", quantile(latency_us, 0.9)},
+            {"p99", quantile(latency_us, 0.99)},
+            {"max", quantile(latency_us, 1.0)}}}};
+}
+
+// One daemon with two inputs: its ZeroMQ SUB (tcp loopback) and a vendor
+// source, a simulated QTM or NatNet server on loopback that fabrikd's own
+// client (make_source_client) connects to and decodes. The inputs take
+// turns: each frame the server writes is followed, half a period later, by
+// one on the ZeroMQ input, so both see the same machine and daemon load
+// and never queue behind each other. Latency: from the moment the encoded
+// frame was handed over (just before the server's send to the socket, via
+// on_frame_sent; just before the PUB's send) to the subscriber's receive
+// of its pose, matched by frame number.
+json run_source(const LatencyOptions& o, const std::string& source) {
+  if (source != "qtm" && source != "natnet")
+    throw std::invalid_argument("unknown source '" + source + "' (use qtm or natnet)");
+  DaemonConfig config = default_daemon_config();
+  config.input = {"tcp://127.0.0.1:*", SocketMode::bind};
+  config.output = {"tcp://127.0.0.1:*", SocketMode::bind};
+  config.output_encoding = o.encoding == "msgpack" ? Encoding::msgpack : Encoding::json;
+  const wire::PayloadEncoding in_encoding =
+      o.encoding == "msgpack" ? wire::PayloadEncoding::msgpack : wire::PayloadEncoding::json;
+  const double each_hz = o.source_rate_hz / 2.0;  // per input
+  if (!(each_hz > 0.0)) throw std::invalid_argument("the source rate must be positive");
+
+  // One second of synthetic motion at twice the per-input rate: the server
+  // serves the even steps, the ZeroMQ input the odd ones, so the daemon's
+  // tracker sees one motion with time going forward.
+  const Model& model = *config.tracker.model;
+  std::vector<std::string> names;
+  std::vector<int> points;
+  for (const MarkerTarget& t : config.tracker.markers)
+    names.push_back(t.marker), points.push_back(t.point);
+  const int cycle = std::max(1, static_cast<int>(std::lround(each_hz)));  // frames per input
+  std::vector<std::vector<Eigen::Vector3d>> steps_m(2 * cycle,
+                                                    std::vector<Eigen::Vector3d>(names.size()));
+  {
+    SyntheticMotion motion(model, MotionSettings{});
+    Posture p = Posture::rest(model);
+    for (int k = 0; k < 2 * cycle; ++k) {
+      motion.posture_at(k / (2.0 * each_hz), p);
+      motion.sample(p, points, 0.5e-3, steps_m[k]);
+    }
+  }
+  bridges::SimRecording recording;
+  recording.rate_hz = each_hz;
+  recording.names = names;
+  recording.up = signed_axis_name(model.lab_axes.up_lab);  // the motion is in the lab's axes
+  for (int i = 0; i < cycle; ++i) {
+    recording.p_mm.emplace_back();
+    for (const Eigen::Vector3d& p_m : steps_m[2 * i]) recording.p_mm.back().push_back(p_m * 1000.0);
+  }
+  bridges::SimScript script;
+  script.loop = true;
+
+  // Frames the server handed to the OS while measuring, for the sender.
+  struct Handed {
+    std::uint64_t frame;
+    Clock::time_point at;
+  };
+  std::mutex handed_mutex;
+  std::condition_variable handed_cv;
+  std::deque<Handed> handed;
+  bool measuring = false;
+  auto on_frame_sent = [&](std::uint64_t frame, Clock::time_point send_start) {
+    std::lock_guard lock(handed_mutex);
+    if (!measuring) return;
+    handed.push_back({frame, send_start});
+    handed_cv.notify_one();
+  };
+
+  // The server, and the source config that points the daemon at it. QTM
+  // numbers frames from 1 (index + 1), NatNet from 0.
+  std::unique_ptr<qtm::QtmSimServer> qtm_server;
+  std::unique_ptr<bridges::NatNetSimServer> natnet_server;
+  std::uint64_t first_frame_number = 0;
+  config.source.host = "127.0.0.1";
+  if (source == "qtm") {
+    qtm::QtmSimServer::Options so;
+    so.bind_address = "127.0.0.1";
+    so.base_port = 0;
+    so.on_frame_sent = on_frame_sent;
+    qtm_server = std::make_unique<qtm::QtmSimServer>(recording, script, so);
+    config.source.kind = SourceKind::qtm;
+    config.source.port = qtm_server->port_little_endian();
+    first_frame_number = 1;
+  } else {
+    bridges::NatNetSimServer::Options so;
+    so.bind_address = "127.0.0.1";
+    so.command_port = 0;
+    so.data_port = 0;
+    so.multicast = false;  // unicast: loopback need not carry multicast
+    so.on_frame_sent = on_frame_sent;
+    natnet_server = std::make_unique<bridges::NatNetSimServer>(recording, script, so);
+    config.source.kind = SourceKind::natnet;
+    config.source.port = natnet_server->command_port();
+    config.source.data_port = natnet_server->data_port();
+    config.source.multicast = false;
+    config.source.local_interface = "127.0.0.1";
+  }
+  config.source.url = source + "://127.0.0.1:" + std::to_string(config.source.port);
+
+  zmq::context_t daemon_context(1), client_context(1);
+  wire::Daemon daemon(daemon_context, config);
+  wire::DaemonControl control;
+  std::thread daemon_thread([&] { daemon.run(control); });
+  std::jthread server_thread([&](std::stop_token stop) {
+    if (qtm_server) qtm_server->run(stop);
+    else natnet_server->run(stop);
+  });
+
+  DaemonPeer peer(client_context, daemon);
+
+  // ZeroMQ frames are numbered far above any the server reaches in a run,
+  // so a pose's frame number says which input it came from.
+  constexpr std::uint64_t kZmqFirst = std::uint64_t{1} << 40;
+  constexpr std::uint64_t kZmqProbe = std::uint64_t{1} << 41;
+  std::string payload;
+  const std::vector<std::uint8_t> visible(names.size(), 1);
+  // Encodes, then returns the moment just before the send: like the
+  // server's send_start, the frame's encoding is not the transport's cost.
+  auto send = [&](std::uint64_t frame, std::uint64_t step) {
+    const double t_s = static_cast<double>(step) / (2.0 * each_hz);
+    wire::encode_marker_frame(frame, &t_s, names, steps_m[step % steps_m.size()], visible, "mm",
+                              in_encoding, payload);
+    const Clock::time_point send_start = Clock::now();
+    peer.send(payload);
+    return send_start;
+  };
+  auto receive = [&](int timeout_ms, std::uint64_t& frame) { return peer.receive(timeout_ms, frame); };
+  // The daemon's loop first: a server gone under a running client is logged as a lost connection.
+  auto stop_all = [&] {
+    control.stop = true;
+    daemon_thread.join();
+    server_thread.request_stop();
+    if (server_thread.joinable()) server_thread.join();
+  };
+
+  // Both inputs connected: probe the ZeroMQ input until a pose of a probe
+  // comes back, and wait for a pose of a server's frame (the client's
+  // handshake and its backoff take a while), within 15 s.
+  bool zmq_up = false, source_up = false;
+  const Clock::time_point connect_deadline = Clock::now() + std::chrono::seconds(15);
+  for (std::uint64_t i = 0; !(zmq_up && source_up) && Clock::now() < connect_deadline; ++i) {
+    if (!zmq_up) (void)send(kZmqProbe + i, 0);
+    std::uint64_t f = 0;
+    if (receive(25, f)) (f >= kZmqFirst ? zmq_up : source_up) = true;
+  }
+  if (!(zmq_up && source_up)) {
+    const std::string error = daemon.counters().frames_in ? "" : " (no frame reached the daemon)";
+    stop_all();
+    throw std::runtime_error(std::string("no pose came back from ") +
+                             (zmq_up ? source : "the ZeroMQ input") + error);
+  }
+  // Let the probes' poses in flight arrive (they are told apart by number).
+  for (const Clock::time_point settle = Clock::now() + std::chrono::milliseconds(200);
+       Clock::now() < settle;) {
+    std::uint64_t f = 0;
+    (void)receive(10, f);
+  }
+
+  const wire::DaemonCounters before = daemon.counters();
+  const int n = std::max(1, static_cast<int>(std::lround(each_hz * o.seconds)));  // per input
+  std::vector<Clock::time_point> source_sent_at(n), zmq_sent_at(n), source_received_at(n),
+      zmq_received_at(n);
+  std::vector<std::uint8_t> source_sent(n, 0), zmq_sent(n, 0), source_got(n, 0), zmq_got(n, 0);
+  // Source poses by frame number: the window's first number is known to the
+  // sender only once the server has written that frame.
+  std::unordered_map<std::uint64_t, Clock::time_point> source_poses;
+  source_poses.reserve(2 * static_cast<std::size_t>(n) + 64);
+  std::atomic<std::uint64_t> window_first{std::numeric_limits<std::uint64_t>::max()};
+  std::atomic<bool> sending_done{false};
+  {
+    std::lock_guard lock(handed_mutex);
+    measuring = true;
+  }
+  std::thread sender([&] {
+    const auto half_period =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(0.5 / each_hz));
+    for (int k = 0; k < n; ++k) {
+      Handed h;
+      {
+        std::unique_lock lock(handed_mutex);
+        // The server stalled for a second: stop; what is missing counts as lost.
+        if (!handed_cv.wait_for(lock, std::chrono::seconds(1), [&] { return !handed.empty(); }))
+          break;
+        h = handed.front();
+        handed.pop_front();
+      }
+      if (k == 0) window_first = h.frame;
+      const std::uint64_t i = h.frame - window_first;  // the server numbers consecutively
+      if (i >= static_cast<std::uint64_t>(n)) break;
+      source_sent_at[i] = h.at;
+      source_sent[i] = 1;
+      std::this_thread::sleep_until(h.at + half_period);  // midway to the server's next frame
+      const std::uint64_t step = 2 * (h.frame - first_frame_number) + 1;
+      zmq_sent_at[k] = send(kZmqFirst + static_cast<std::uint64_t>(k), step);
+      zmq_sent[k] = 1;
+    }
+    {
+      std::lock_guard lock(handed_mutex);
+      measuring = false;
+    }
+    sending_done = true;
+  });
+  int zmq_received = 0;
+  auto source_complete = [&] {
+    const std::uint64_t first = window_first;
+    for (int i = 0; i < n; ++i)
+      if (!source_poses.contains(first + static_cast<std::uint64_t>(i))) return false;
+    return true;
+  };
+  // Receive until every pose of both windows is in, or for at most a second
+  // after the last send (the rest is lost); the server keeps streaming.
+  Clock::time_point give_up = Clock::time_point::max();
+  while (Clock::now() < give_up) {
+    std::uint64_t f = 0;
+    if (receive(20, f)) {
+      const Clock::time_point now = Clock::now();
+      if (f >= kZmqFirst) {
+        const std::uint64_t k = f - kZmqFirst;
+        if (k < static_cast<std::uint64_t>(n) && !zmq_got[k]) {
+          zmq_got[k] = 1;
+          zmq_received_at[k] = now;
+          ++zmq_received;
+        }
+      } else {
+        source_poses.emplace(f, now);
+      }
+    }
+    if (sending_done) {
+      if (give_up == Clock::time_point::max()) give_up = Clock::now() + std::chrono::seconds(1);
+      if (zmq_received == n && source_complete()) break;
+    }
+  }
+  sender.join();
+  stop_all();
+  const wire::DaemonCounters after = daemon.counters();
+
+  if (window_first != std::numeric_limits<std::uint64_t>::max())
+    for (int i = 0; i < n; ++i)
+      if (const auto it = source_poses.find(window_first + static_cast<std::uint64_t>(i));
+          it != source_poses.end()) {
+        source_got[i] = 1;
+        source_received_at[i] = it->second;
+      }
+  json zmq = input_figures(zmq_sent_at, zmq_sent, zmq_received_at, zmq_got);
+  json src = input_figures(source_sent_at, source_sent, source_received_at, source_got);
+  const double zmq_p50_us = zmq["latency_us"]["p50"].get<double>();
+  const double source_p50_us = src["latency_us"]["p50"].get<double>();
+  zmq["input"] = "zmq";
+  src["input"] = source;
+  return {{"source", source},
+          {"zmq_transport", "tcp"},
+          {"rate_hz_per_input", each_hz},
+          {"inputs", json::array({zmq, src})},
+          {"source_p50_over_zmq_p50", source_p50_us / zmq_p50_us},
+          {"source_p50_minus_zmq_p50_us", source_p50_us - zmq_p50_us},
+          {"source_p50_within_50_us", source_p50_us - zmq_p50_us <= 50.0},
+          {"daemon_frames_dropped", after.frames_dropped - before.frames_dropped},
+          {"daemon_decode_errors", after.decode_errors - before.decode_errors},
+          {"daemon_unknown_markers", after.unknown_markers - before.unknown_markers},
+          {"daemon_poor_frames", after.poor_frames - before.poor_frames}};
+}
+
 }  // namespace
 
 json run_latency(const LatencyOptions& o) {
@@ -226,6 +533,18 @@ json run_latency(const LatencyOptions& o) {
                "marker frame sent by the source -> pose received by the subscriber, one process, "
                "steady clock"},
               {"runs", json::array()}};
+  if (!o.sources.empty()) {
+    // A source comparison replaces the transport runs: one daemon per source.
+    out["rate_hz"] = o.source_rate_hz;
+    out["measured"] =
+        "encoded frame handed over (just before the ZeroMQ send, or the simulated server's "
+        "TCP/UDP send) -> pose "
+        "received by the subscriber, one daemon fed by both inputs alternately, one process, "
+        "steady clock";
+    out["source_runs"] = json::array();
+    for (const std::string& s : o.sources) out["source_runs"].push_back(run_source(o, s));
+    return out;
+  }
   for (const std::string& t : o.transports) out["runs"].push_back(run_one(o, t));
   return out;
 }
@@ -233,6 +552,38 @@ json run_latency(const LatencyOptions& o) {
 std::string latency_table(const json& r) {
   std::string s;
   char buf[512];
+  if (r.contains("source_runs")) {
+    for (const json& run : r["source_runs"]) {
+      std::snprintf(buf, sizeof buf,
+                    "Source vs ZeroMQ input: one daemon, %g Hz on each input alternately, %g s, "
+                    "%s ZeroMQ frames and poses, full-body model (45 markers)\n",
+                    run["rate_hz_per_input"].get<double>(), r["seconds"].get<double>(),
+                    r["encoding"].get<std::string>().c_str());
+      s += buf;
+      s += "  input        sent   received   lost   p50 us   p90 us   p99 us   max us\n";
+      for (const json& in : run["inputs"]) {
+        const json& l = in["latency_us"];
+        std::snprintf(buf, sizeof buf, "  %-9s %7d %10d %6d %8.1f %8.1f %8.1f %8.1f\n",
+                      (in["input"] == "zmq" ? std::string("zmq tcp") : in["input"].get<std::string>())
+                          .c_str(),
+                      in["frames_sent"].get<int>(), in["poses_received"].get<int>(),
+                      in["lost"].get<int>(), l["p50"].get<double>(), l["p90"].get<double>(),
+                      l["p99"].get<double>(), l["max"].get<double>());
+        s += buf;
+      }
+      std::snprintf(buf, sizeof buf,
+                    "  %s p50 - zmq p50: %+.1f us (ratio %.2f; %s 50 us); daemon dropped %llu, "
+                    "poor fits %llu\n",
+                    run["source"].get<std::string>().c_str(),
+                    run["source_p50_minus_zmq_p50_us"].get<double>(),
+                    run["source_p50_over_zmq_p50"].get<double>(),
+                    run["source_p50_within_50_us"].get<bool>() ? "within" : "NOT within",
+                    static_cast<unsigned long long>(run["daemon_frames_dropped"].get<std::uint64_t>()),
+                    static_cast<unsigned long long>(run["daemon_poor_frames"].get<std::uint64_t>()));
+      s += buf;
+    }
+    return s;
+  }
   std::snprintf(buf, sizeof buf,
                 "End-to-end latency: %g Hz for %g s, %s, full-body model (%s)\n",
                 r["rate_hz"].get<double>(), r["seconds"].get<double>(),

@@ -1,7 +1,9 @@
 // `fabrik bench latency`: the daemon pipeline (decode, solve, encode,
 // publish) on its own thread, fed by a marker source at a fixed rate over
 // loopback tcp and ipc; end-to-end latency from the source's send to the
-// subscriber's receive, on one steady clock.
+// subscriber's receive, on one steady clock. With sources: the same for a
+// frame from a simulated QTM or NatNet server, which fabrikd's own client
+// decodes, against frames on the ZeroMQ input of the same daemon.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -18,6 +20,14 @@ struct LatencyOptions {
   // "none"; "mixed": markers plus an orientation sensor on every segment;
   // "only": the sensors alone (the frames' `orientations`, wire contract addition).
   std::string orientations = "none";
+  // Vendor sources ("qtm", "natnet") to compare with the ZeroMQ input, each
+  // in a run of its own: one daemon fed by both inputs, alternately. Empty:
+  // only the transports above.
+  std::vector<std::string> sources;
+  // The daemon's total input rate in a source run, split evenly between the
+  // source and the ZeroMQ input (moderate: the comparison is of latency, not
+  // of throughput).
+  double source_rate_hz = 500.0;
 };
 nlohmann::json run_latency(const LatencyOptions& options);
 std::string latency_table(const nlohmann::json& result);

@@ -301,12 +301,15 @@ struct NatNetSimServer::Impl {
     if (models_changed && Clock::now() - models_changed_at > kModelsChangedFor) models_changed = false;
     last_frame = natnet::encode_message(MessageId::frame_of_data,
                                         natnet::encode_frame_of_data(frame(index), version));
+    const Clock::time_point send_start = Clock::now();
     if (opt.multicast) {
       data.send_to(group, last_frame, buffer_error);
     } else {
       for (const auto& c : clients) data.send_to(c.at, last_frame, buffer_error);
     }
     ++frames_sent;
+    if (opt.on_frame_sent && (opt.multicast || !clients.empty()))
+      opt.on_frame_sent(static_cast<std::uint64_t>(index), send_start);
   }
 
   // Script events at or before `index` not yet done: renames, then a restart,

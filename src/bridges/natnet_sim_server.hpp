@@ -31,7 +31,9 @@
 // dropped), multicast to group:data_port.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stop_token>
 #include <string>
@@ -53,6 +55,13 @@ class NatNetSimServer {
     // What Motive's streaming "Up Axis" is: the recording (SimRecording::up)
     // is rotated into it.
     std::string up_axis = "+y";
+    // Called on the server's thread right after a frame's datagram was
+    // handed to the OS (sendto to the group, or to every unicast client),
+    // with its frame number and the moment just before its first sendto;
+    // not called for a frame that went to no client. For `fabrik bench
+    // latency --source natnet`, which times each frame.
+    std::function<void(std::uint64_t frame_number, std::chrono::steady_clock::time_point send_start)>
+        on_frame_sent;
   };
 
   // Binds both sockets; throws std::runtime_error with a clear message for an

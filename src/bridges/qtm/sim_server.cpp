@@ -413,6 +413,8 @@ struct QtmSimServer::Impl {
       }
     build_frame(g);
     const double serve_hz = rec.rate_hz * script.rate_scale;
+    bool sent_any = false;
+    Clock::time_point send_start;
     for (Client& c : clients) {
       if (!c.streaming || c.closing || c.dead) continue;
       bool send = true;
@@ -423,8 +425,12 @@ struct QtmSimServer::Impl {
         if (send) c.credit -= 1.0;
         c.credit += static_cast<double>(c.n) / serve_hz;
       }
-      if (send) send_frame(c, c.want_3d, c.want_3d_no_labels);
+      if (!send) continue;
+      if (!sent_any) send_start = Clock::now();
+      sent_any = true;
+      send_frame(c, c.want_3d, c.want_3d_no_labels);
     }
+    if (sent_any && options.on_frame_sent) options.on_frame_sent(current.frame_number, send_start);
     frames_served.store(static_cast<std::uint64_t>(g + 1));
   }
 

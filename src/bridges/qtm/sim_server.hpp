@@ -8,7 +8,9 @@
 // drops markers, renames labels and restarts the server.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <stop_token>
 #include <string>
@@ -24,6 +26,13 @@ class QtmSimServer {
     // QTM's base port: little endian on base + 1, big endian on base + 2.
     // 0: any free pair of adjacent ports (tests).
     std::uint16_t base_port = 22222;
+    // Called on the server's thread right after a frame was handed to the
+    // OS (send() on every streaming client's socket), with the frame number
+    // clients see and the moment just before its first send (its encoding
+    // included, a microsecond); not called for a frame that went to no
+    // client. For `fabrik bench latency --source qtm`, which times each frame.
+    std::function<void(std::uint64_t frame_number, std::chrono::steady_clock::time_point send_start)>
+        on_frame_sent;
   };
   struct Progress {
     std::uint64_t frames_sent = 0;  // frames served (the simulated measurement's clock)
