@@ -35,6 +35,13 @@ using bridges::Clock;
 
 namespace {
 
+// A simulated QTM on loopback, on any free pair of ports.
+QtmSimServer::Options any_free_ports() {
+  QtmSimServer::Options o;
+  o.base_port = 0;
+  return o;
+}
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Polls `done` until it holds or `seconds` pass: a bounded wait on a condition.
@@ -154,7 +161,7 @@ struct ServerThread {
   QtmSimServer server;
   std::jthread thread;
   ServerThread(bridges::SimRecording r, bridges::SimScript s)
-      : server(std::move(r), std::move(s), QtmSimServer::Options{"127.0.0.1", 0}),
+      : server(std::move(r), std::move(s), any_free_ports()),
         thread([this](std::stop_token st) { server.run(st); }) {}
 };
 
@@ -685,7 +692,7 @@ TEST_CASE("qtm simulator: a script that ends says so, pauses hold the frames bac
   bridges::SimScript s;
   s.rate_scale = 10.0;  // 1000 Hz: 100 frames in 0.1 s
   s.pauses.push_back({50, 0.3});
-  QtmSimServer server(recording(), s, QtmSimServer::Options{"127.0.0.1", 0});
+  QtmSimServer server(recording(), s, any_free_ports());
   RawConnection c(server.port_big_endian(), ByteOrder::big);  // connected before frames start
   std::jthread serving([&](std::stop_token st) { server.run(st); });
   REQUIRE(c.reply());

@@ -33,6 +33,13 @@ using test::largest_difference;
 
 namespace {
 
+// A simulated QTM on loopback, on any free pair of ports.
+qtm::QtmSimServer::Options any_free_ports() {
+  qtm::QtmSimServer::Options o;
+  o.base_port = 0;
+  return o;
+}
+
 // A simulated server serving on a thread of its own until the script ends.
 template <class Server>
 struct ServerThread {
@@ -149,7 +156,7 @@ Comparison through_simulator(Protocol p, const DaemonConfig& config, const bridg
   std::unique_ptr<bridges::NatNetSimServer> natnet_server;
   std::uint64_t last_frame = 0;
   if (p == Protocol::qtm) {
-    qtm_server = std::make_unique<qtm::QtmSimServer>(rec, script, qtm::QtmSimServer::Options{"127.0.0.1", 0});
+    qtm_server = std::make_unique<qtm::QtmSimServer>(rec, script, any_free_ports());
     with_source.source =
         source_of(R"({"source": "qtm://127.0.0.1:)" + std::to_string(qtm_server->port_little_endian()) + "\"}");
     last_frame = static_cast<std::uint64_t>(script.max_frames);
@@ -299,7 +306,7 @@ TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is
     std::unique_ptr<qtm::QtmSimServer> qtm_server;
     std::unique_ptr<bridges::NatNetSimServer> natnet_server;
     if (p == Protocol::qtm) {
-      qtm_server = std::make_unique<qtm::QtmSimServer>(rec, script, qtm::QtmSimServer::Options{"127.0.0.1", 0});
+      qtm_server = std::make_unique<qtm::QtmSimServer>(rec, script, any_free_ports());
       with_source.source = source_of(R"({"source": "qtm://127.0.0.1:)" +
                                      std::to_string(qtm_server->port_little_endian()) +
                                      R"(", "source_options": {)" + options + "}}");
