@@ -107,8 +107,10 @@ class SocketClient {
   }
 
   // Probes until a pose answers; returns the frame number after the probes.
+  // Up to 600 probes, 30 s: a CI machine starved of CPU has taken over 10 s
+  // to join a fresh daemon's tcp sockets.
   std::uint64_t handshake(std::uint64_t probe_frame = 1000000) {
-    for (int i = 0; i < 200; ++i) {
+    for (int i = 0; i < 600; ++i) {
       send_frame(probe_frame + static_cast<std::uint64_t>(i));
       if (auto pose = receive("pose", std::chrono::milliseconds(50))) {
         // Collect the answers to probes still in flight.
