@@ -239,6 +239,10 @@ TEST_CASE("A pose carries measured only when asked: the visible markers' measure
 TEST_CASE("The model message names exactly what the poses name, once, in both encodings",
           "[codec][model]") {
   DaemonConfig c = default_daemon_config();
+  // A stream name of its own for one marker, and one model marker not tracked: the message
+  // lists the markers the poses carry, not the model's marker points.
+  c.tracker.markers.front().marker = "Sub:" + c.tracker.markers.front().marker;
+  c.tracker.markers.pop_back();
   // Two orientation sensors too, listed in the message.
   c.tracker.sensors.sensors.push_back({"pelvis_imu", 0, 0, 1.0});
   c.tracker.sensors.sensors.push_back({"torso_imu", 1, 0, 1.0});
