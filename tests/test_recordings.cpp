@@ -17,6 +17,25 @@
 using namespace fabrik;
 using nlohmann::json;
 
+namespace {
+
+// A shipped template calibrated on `trial` (as `fabrik calibrate` writes it),
+// loaded as a daemon config named `name`, on inproc endpoints of `tag`.
+DaemonConfig calibrated(const std::string& template_name, const io::MarkerTrial& trial,
+                        const std::string& trial_path, const std::string& name,
+                        const std::string& tag, const calib::CalibrateOptions& window = {}) {
+  const calib::CalibTemplate tmpl =
+      calib::load_template_file(FABRIK_SOURCE_DIR "/config/templates/" + template_name);
+  const calib::CalibrationResult cal = calib::calibrate(tmpl, trial, trial_path, window);
+  DaemonConfig config = load_daemon_config(cal.config.dump(), name);
+  config.input = {"inproc://" + tag + "-in", SocketMode::bind};
+  config.output = {"inproc://" + tag + "-out", SocketMode::bind};
+  spdlog::set_level(spdlog::level::err);
+  return config;
+}
+
+}  // namespace
+
 TEST_CASE("Vicon.c3d with its real gaps streams through fabrikd without losing a frame",
           "[daemon][data]") {
   const std::string path = FABRIK_SHARED_DATA_DIR "/Vicon.c3d";
@@ -25,16 +44,11 @@ TEST_CASE("Vicon.c3d with its real gaps streams through fabrikd without losing a
     return;
   }
   const io::MarkerTrial trial = io::read_c3d(path);
-  const calib::CalibTemplate tmpl =
-      calib::load_template_file(FABRIK_SOURCE_DIR "/config/templates/vicon_upper_body.json");
   calib::CalibrateOptions window;
   window.first_frame = trial.first_frame;
   window.frames = 20;  // the subject stands still at the start, every marker visible
-  const calib::CalibrationResult cal = calib::calibrate(tmpl, trial, path, window);
-  DaemonConfig config = load_daemon_config(cal.config.dump(), "<calibrated from Vicon.c3d>");
-  config.input = {"inproc://vicon-in", SocketMode::bind};
-  config.output = {"inproc://vicon-out", SocketMode::bind};
-  spdlog::set_level(spdlog::level::err);
+  const DaemonConfig config = calibrated("vicon_upper_body.json", trial, path,
+                                         "<calibrated from Vicon.c3d>", "vicon", window);
 
   zmq::context_t context;
   wire::Daemon daemon(context, config);
@@ -122,14 +136,8 @@ TEST_CASE(
     WARN("skipped: " << static_path << " or " << walk_path << " is absent");
     return;
   }
-  const calib::CalibTemplate tmpl =
-      calib::load_template_file(FABRIK_SOURCE_DIR "/config/templates/gait2354.json");
-  const calib::CalibrationResult cal =
-      calib::calibrate(tmpl, io::read_trial(static_path), static_path);
-  DaemonConfig config = load_daemon_config(cal.config.dump(), "<calibrated gait2354>");
-  config.input = {"inproc://gait2354-in", SocketMode::bind};
-  config.output = {"inproc://gait2354-out", SocketMode::bind};
-  spdlog::set_level(spdlog::level::err);
+  const DaemonConfig config = calibrated("gait2354.json", io::read_trial(static_path), static_path,
+                                         "<calibrated gait2354>", "gait2354");
   zmq::context_t context;
   test::DaemonThread d(context, config);
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
