@@ -96,8 +96,13 @@ constexpr int kInputReceiveBufferBytes = 256 * 1024;
 // connection dropped. ZeroMQ keeps every subscription it is sent in a tree
 // (about 32 bytes per subscribed byte, never given back while connected), so
 // refusing them is what bounds a subscriber's memory.
-inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats"};
+inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats", "model"};
 bool subscribes_to_our_topics(std::string_view prefix);
+// Whether a subscription to `prefix` receives the topic `model` (sent to it
+// when the subscription arrives: Daemon::read_subscriptions).
+inline bool subscribes_to_model(std::string_view prefix) {
+  return std::string_view("model").starts_with(prefix);
+}
 // Whether `fd` is still a connection to the socket bound at `endpoint` (as
 // ZeroMQ reports it: tcp://host:port or ipc://path), and not a listener:
 // the descriptor a refused message came from may have been reused since.
@@ -159,6 +164,7 @@ class Daemon {
   void read_monitor();
   void read_subscriptions();
   void publish_stats(double interval_s);
+  void publish_model();
   void send(const char* topic, const std::string& payload);
   void bad_input(std::string_view what, std::string_view detail,
                  std::string_view after = {}) noexcept;
