@@ -14,7 +14,12 @@ stdin, one a line, change what it sends to every client:
     garbage  undecodable messages instead of poses; status "garbage"
     quit
 With --trial S it sends, on connect, one `trial` message of S seconds of
-poses at 50 Hz and nothing live.
+poses at 50 Hz and nothing live. With --pose EP it relays a real fabrikd's
+`pose`, `stats` (and `model`, once fabrikd publishes it; until then a model
+without bones made from the first pose) at --rate-hz, newest pose wins:
+the page on live poses before `fabrik view` exists. Also answers as
+`stub_view_server.py view --pose EP --listen H:P [--rate-hz N]`, the
+command line of `fabrik view`.
 
 HTTP: GET only; `/` and `/index.html`, `/app/<name>.js|.css` (flat, names
 [A-Za-z0-9_-]+) from src/view/web, `/three/build/three.module.js` and
@@ -220,6 +225,7 @@ class Feed:
         self.clients = 0
         self.undecodable = 0
         self.model = model(args.up)
+        self.relay = Relay(args.pose) if args.pose else None
 
     def set_mode(self, mode):
         with self.lock:
@@ -227,6 +233,78 @@ class Feed:
 
     def frame_now(self):
         return int((time.monotonic() - self.t0) * self.args.source_hz) + 1
+
+
+class Relay:
+    """Newest pose, stats and model from a fabrikd (ZeroMQ SUB)."""
+
+    def __init__(self, endpoint):
+        import zmq  # Debian's python3-zmq
+        self.zmq = zmq
+        self.lock = threading.Lock()
+        self.pose = self.stats = self.model = None
+        self.poses = 0        # poses received
+        self.pose_at = None   # monotonic time of the last one
+        self.undecodable = 0
+        # `model` on a socket of its own: a fabrikd that does not publish it
+        # drops the subscriber that asks (and it reconnects), not the poses.
+        self.socks = []
+        for topics in ((b'pose', b'stats'), (b'model',)):
+            sub = zmq.Context.instance().socket(zmq.SUB)
+            sub.setsockopt(zmq.LINGER, 0)
+            for topic in topics:
+                sub.setsockopt(zmq.SUBSCRIBE, topic)
+            sub.connect(endpoint)
+            self.socks.append(sub)
+        threading.Thread(target=self.run, daemon=True).start()
+
+    @staticmethod
+    def decode(payload):
+        if payload[:1] in (b'{', b'[', b' ', b'\n'):
+            return json.loads(payload)
+        import msgpack  # Debian's python3-msgpack
+        return msgpack.unpackb(payload, raw=False)
+
+    def run(self):
+        poller = self.zmq.Poller()
+        for sub in self.socks:
+            poller.register(sub, self.zmq.POLLIN)
+        while True:
+            ready = dict(poller.poll())
+            for sub in self.socks:
+                if sub in ready:
+                    self.take(sub.recv_multipart())
+
+    def take(self, parts):
+        try:
+            topic, doc = parts[0].decode(), self.decode(parts[1])
+        except Exception:  # noqa: BLE001 - whatever the payload is, it is garbage
+            with self.lock:
+                self.undecodable += 1
+            return
+        with self.lock:
+            if topic == 'pose':
+                self.pose, self.pose_at = doc, time.monotonic()
+                self.poses += 1
+                if self.model is None:
+                    self.model = {'derived': True, 'config': 'fabrikd (model derived from a pose)',
+                                  'units': doc.get('units', 'mm'),
+                                  'lab_axes': {'up': [0, 1, 0], 'forward': [1, 0, 0]},
+                                  'joints': list(doc['joints']), 'bones': [],
+                                  'segments': [{'name': n, 'parent': None, 'origin': None}
+                                               for n in doc.get('segments', {})],
+                                  'markers': [{'name': m, 'segment': None} for m in doc['markers']],
+                                  'coordinates': [{'name': c, 'min_deg': None, 'max_deg': None}
+                                                  for c in doc.get('angles', {})],
+                                  'sensors': []}
+            elif topic == 'stats':
+                self.stats = doc
+            elif topic == 'model':
+                self.model = doc
+
+    def snapshot(self):
+        with self.lock:
+            return self.pose, self.poses, self.pose_at, self.stats, self.model, self.undecodable
 
 
 class WebSocket:
@@ -350,6 +428,8 @@ class Handler(http.server.BaseHTTPRequestHandler):
             send('trial', {'model': feed.model, 'poses': poses})
             ws.closed.wait()
             return
+        if feed.relay:
+            return self.serve_relay(ws, feed, send)
         send('model', feed.model)
         period = 1.0 / args.rate_hz
         next_send = time.monotonic()
@@ -391,6 +471,40 @@ class Handler(http.server.BaseHTTPRequestHandler):
             ws.closed.wait(max(0.0, next_send - time.monotonic()))
 
 
+    def serve_relay(self, ws, feed, send):
+        period = 1.0 / feed.args.rate_hz
+        sent_model = sent_poses = last_stats = None
+        next_send = next_status = time.monotonic()
+        window = []  # (time, poses received) over the last second
+        while not ws.closed.is_set():
+            now = time.monotonic()
+            pose_doc, poses, pose_at, stats, model_doc, undecodable = feed.relay.snapshot()
+            if model_doc is not None and model_doc is not sent_model:
+                send('model', model_doc)
+                sent_model = model_doc
+            if pose_doc is not None and poses != sent_poses and sent_model is not None:
+                send('pose', pose_doc)
+                sent_poses = poses
+            if stats is not None and stats is not last_stats:
+                send('stats', stats)
+                last_stats = stats
+            window = [w for w in window if w[0] > now - 1.0] + [(now, poses)]
+            if now >= next_status:
+                next_status += 1.0
+                stream, message = 'ok', ''
+                if pose_at is None:
+                    stream, message = 'waiting', 'no pose from %s yet' % feed.args.pose
+                elif now - pose_at > 1.0:
+                    stream, message = 'stalled', 'no pose from %s for %.0f s' % (feed.args.pose, now - pose_at)
+                send('status', {'stream': stream, 'message': message,
+                                'poses_per_s': float(window[-1][1] - window[0][1]),
+                                'undecodable': undecodable, 'clients': feed.clients})
+            next_send += period
+            if next_send < now - period:
+                next_send = now
+            ws.closed.wait(max(0.0, next_send - time.monotonic()))
+
+
 class Server(http.server.ThreadingHTTPServer):
     daemon_threads = True
     allow_reuse_address = True
@@ -398,7 +512,9 @@ class Server(http.server.ThreadingHTTPServer):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('command', nargs='?', choices=['view'], help='ignored: `fabrik view`\'s command line')
     ap.add_argument('--listen', default='127.0.0.1:0')
+    ap.add_argument('--pose', help='relay this fabrikd output endpoint instead of the synthetic walk')
     ap.add_argument('--rate-hz', type=float, default=60.0, help='poses per second sent to each client')
     ap.add_argument('--source-hz', type=float, default=250.0, help='the synthetic stream\'s frame rate')
     ap.add_argument('--up', choices=['y', 'z'], default='y')

@@ -66,6 +66,7 @@ export class StatusView {
     const parts = [
       `input ${fmt(this.inputRate, 0, ' Hz')}`,
       `fabrikd ${fmt(s.pose_rate_hz, 0, ' poses/s')}`,
+      `view ${fmt(st.poses_per_s, 0, ' poses/s')}`,
       `page ${state.trial ? '-' : this.rateWindow.length + ' poses/s'}`,
       `latency ${fmt(s.queue_latency_us && s.queue_latency_us.p50, 0)}/${fmt(s.queue_latency_us && s.queue_latency_us.p99, 0, ' us')} (p50/p99), paint ${fmt(state.lastPaintMs, 1, ' ms')}`,
       `solve ${fmt(s.solve_us && s.solve_us.p50, 1, ' us')}`,
