@@ -431,7 +431,9 @@ def has_view(fabrik_view):
         r = subprocess.run([fabrik_view, 'view', '--help'], capture_output=True, timeout=20)
     except (OSError, subprocess.TimeoutExpired):
         return False
-    return r.returncode == 0
+    # CLI11 answers `fabrik NOSUCH --help` with the main help and 0: look for
+    # the view's own option.
+    return r.returncode == 0 and b'--listen' in r.stdout
 
 
 def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
