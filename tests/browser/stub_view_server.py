@@ -139,7 +139,7 @@ def occluded_at(frame):
         out.append('RKNE')
     if (frame // 45) % 4 == 1:
         out.append('LWRA')
-    if (frame // 90) % 2 == 1:
+    if (frame // 100) % 5 in (2, 3):
         out += ['RHEE', 'C7']
     return out
 

@@ -264,10 +264,11 @@ def check_rate(page, rate_hz, reference, seconds=5.0):
     check(s1['painted'] > s0['painted'], 'painted new poses')
 
 
-def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0):
+def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0, segments=None):
     """Each sample: what the page drew for frame F is the model's bones and
     markers, and the occluded ones are exactly the pose's (of F) occluded."""
     frames, with_occlusions, compared, last = set(), 0, 0, None
+    measured_shown = page.eval('window.fabrikView.state().drawn.measured > 0 || null')
     for _ in range(samples):
         d = page.state()['drawn']
         last = d
@@ -278,6 +279,13 @@ def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0):
             compared += 1
             check_quiet(sorted(d['occluded']) == sorted(expected),
                         f'frame {d["frame"]}: drew occluded {sorted(d["occluded"])}, the pose says {sorted(expected)}')
+        if measured_shown is not None:  # the pose had `measured`: one dot and one line per visible marker
+            check_quiet(d['measured'] == markers - len(d['occluded']) == d['residual_lines'],
+                        f'frame {d["frame"]}: {d["measured"]} measured markers and {d["residual_lines"]} residual '
+                        f'lines drawn, {markers - len(d["occluded"])} markers visible')
+        if segments is not None:
+            check_quiet(d['frames'] == segments, f'frame {d["frame"]}: {d["frames"]} segment frames drawn, '
+                        f'the model has {segments}')
         frames.add(d['frame'])
         with_occlusions += bool(d['occluded'])
         time.sleep(seconds / samples)
@@ -285,6 +293,10 @@ def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0):
           f'and {markers} markers drawn each time')
     check(compared >= samples // 2, f'occluded markers drawn occluded in the same frame ({compared} frames compared, '
           f'{with_occlusions} with occlusions)')
+    if measured_shown:
+        check(True, 'a measured marker and a residual line for each visible marker')
+    if segments is not None:
+        check(True, f'{segments} segment frames drawn')
     check(with_occlusions > 0, 'some samples had occluded markers')
     check(len(frames) > samples // 4, 'the frames moved on between samples')
     return last
@@ -373,7 +385,7 @@ def run_stub(out_dir):
             check_rate(page, rate, reference)
         finally:
             reference.close()
-        check_drawn(page, bones, markers, stub.occluded_at)
+        check_drawn(page, bones, markers, stub.occluded_at, segments=len(model['segments']))
         check_plots(page)
         shot = page.screenshot(os.path.join(out_dir, 'view_page.png'))
         print(f'  ..  screenshot {shot}')

@@ -124,7 +124,7 @@ export class SkeletonScene {
   // Draws one pose; returns what is in the scene now (counted from the
   // scene's objects, not from the pose).
   draw(pose) {
-    if (!this.model) return {frame: pose.frame, bones: 0, markers: 0, occluded: []};
+    if (!this.model) return {frame: pose.frame, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0};
     const occluded = new Set(pose.occluded);
     for (const [name, mesh] of this.markers) {
       const p = pose.markers[name];
@@ -180,7 +180,10 @@ export class SkeletonScene {
     const shown = (o) => o.visible && o.parent === this.world;
     const markers = [...this.markers.values()].filter(shown);
     return {frame, bones: this.bones.filter(shown).length, markers: markers.length,
-            occluded: markers.filter((m) => m.material === this.materials.occluded).map((m) => m.userData.name)};
+            occluded: markers.filter((m) => m.material === this.materials.occluded).map((m) => m.userData.name),
+            measured: [...this.measured.values()].filter(shown).length,
+            residual_lines: this.residuals.geometry.drawRange.count / 2,
+            frames: [...this.frames.values()].filter(shown).length};
   }
 
   // Frames the subject on its first pose; with follow on, keeps it centred.

@@ -15,7 +15,7 @@ export const state = {
   garbage: 0,            // messages the page could not use
   lastGarbage: null,     // what was wrong with the last one
   painted: 0,            // frames painted with a pose not painted before
-  drawn: {frame: null, bones: 0, markers: 0, occluded: []},
+  drawn: {frame: null, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0},
   paintMs: [],           // recent arrival -> painted latencies (ms)
   lastPaintMs: null,
   banner: null,          // error banner text, null when none
