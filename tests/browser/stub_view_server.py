@@ -4,7 +4,7 @@
 messages, with a synthetic walking subject.
 
     stub_view_server.py [--listen 127.0.0.1:0] [--rate-hz 60] [--source-hz 250]
-                        [--up y|z] [--trial SECONDS]
+                        [--up y|z] [--synthetic-trial SECONDS] [--pose EP]
 
 Prints `stub_view_server: http://HOST:PORT/` once it listens. Commands on
 stdin, one a line, change what it sends to every client:
@@ -13,7 +13,7 @@ stdin, one a line, change what it sends to every client:
     silent   nothing at all (the page must notice by itself)
     garbage  undecodable messages instead of poses; status "garbage"
     quit
-With --trial S it sends, on connect, one `trial` message of S seconds of
+With --synthetic-trial S it sends, on connect, one `trial` message of S seconds of
 poses at 50 Hz and nothing live. With --pose EP it relays a real fabrikd's
 `pose`, `stats` (and `model`, once fabrikd publishes it; until then a model
 without bones made from the first pose) at --rate-hz, newest pose wins:
@@ -422,9 +422,9 @@ class Handler(http.server.BaseHTTPRequestHandler):
     def serve(self, ws, feed):
         args = feed.args
         send = lambda topic, data: ws.send(json.dumps({'topic': topic, 'data': data}, separators=(',', ':')))  # noqa: E731
-        if args.trial:
+        if args.synthetic_trial:
             rate = 50.0
-            poses = [pose(f, rate, args.up) for f in range(1, int(args.trial * rate) + 1)]
+            poses = [pose(f, rate, args.up) for f in range(1, int(args.synthetic_trial * rate) + 1)]
             send('trial', {'model': feed.model, 'poses': poses})
             ws.closed.wait()
             return
@@ -518,7 +518,7 @@ def main():
     ap.add_argument('--rate-hz', type=float, default=60.0, help='poses per second sent to each client')
     ap.add_argument('--source-hz', type=float, default=250.0, help='the synthetic stream\'s frame rate')
     ap.add_argument('--up', choices=['y', 'z'], default='y')
-    ap.add_argument('--trial', type=float, default=0.0, metavar='SECONDS')
+    ap.add_argument('--synthetic-trial', type=float, default=0.0, metavar='SECONDS')
     args = ap.parse_args()
     host, _, port = args.listen.rpartition(':')
     server = Server((host or '127.0.0.1', int(port)), Handler)

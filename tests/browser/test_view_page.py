@@ -399,7 +399,7 @@ def run_stub(out_dir):
         check(page.state()['garbage'] > 0, 'the garbage was counted, the page carried on')
         check_no_exceptions(page)
 
-        trial = Stub('--trial', '4')
+        trial = Stub('--synthetic-trial', '4')
         page.navigate(trial.url)
         s = wait_for(lambda: (lambda s: s if s and s['trial'] and s['painted'] >= 0 and s['drawn']['frame']
                               else None)(page.state()), 30, 'the trial to load')
@@ -487,13 +487,15 @@ def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
         procs.append(view)
         url = f'http://127.0.0.1:{view_port}/'
 
-        def serving():
-            try:
-                with urllib.request.urlopen(url, timeout=2) as r:
-                    return r.status == 200
-            except OSError:
-                return view.poll() is not None
-        wait_for(serving, 30, 'fabrik view to serve its page')
+        def serving(u, proc):
+            def probe():
+                try:
+                    with urllib.request.urlopen(u, timeout=2) as r:
+                        return r.status == 200
+                except OSError:
+                    return proc.poll() is not None
+            return probe
+        wait_for(serving(url, view), 30, 'fabrik view to serve its page')
         check(view.poll() is None, f'fabrik view serves {url}')
 
         # Our own record of every pose, straight from fabrikd: frame -> occluded.
@@ -557,6 +559,32 @@ def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
         stop(replay)
         s = wait_for(lambda: (lambda s: s if s['banner'] else None)(page.state()), 15, 'the banner (the stream stopped)')
         check('stop' in s['banner'] or 'stall' in s['banner'], f'banner when the replay stops: "{s["banner"]}"')
+        check_no_exceptions(page)
+
+        # Offline: the same trial solved by `fabrik view --trial`, one `trial` message.
+        help_text = subprocess.run([fabrik_view, 'view', '--help'], capture_output=True, timeout=20).stdout
+        if b'--trial' not in help_text:
+            print('  ..  `fabrik view` has no --trial yet: trial mode not checked')
+            return 0
+        trial_port = free_port()
+        trial = subprocess.Popen([fabrik_view, 'view', '--trial', walk, '--config', config,
+                                  '--listen', f'127.0.0.1:{trial_port}'], stdout=logs['view'],
+                                 stderr=subprocess.STDOUT, start_new_session=True)
+        procs.append(trial)
+        trial_url = f'http://127.0.0.1:{trial_port}/'
+        wait_for(serving(trial_url, trial), 60, 'fabrik view --trial to serve its page')
+        check(trial.poll() is None, f'fabrik view --trial serves {trial_url}')
+        page.navigate(trial_url)
+        s = wait_for(lambda: (lambda s: s if s and s['trial'] and s['drawn']['frame'] is not None
+                              else None)(page.state()), 60, 'the trial to load')
+        check(s['trial']['poses'] == 151, f'trial mode: {s["trial"]["poses"]} poses of subject01_walk1 (151 frames)')
+        check(s['drawn']['bones'] == s['model']['bones'] and s['drawn']['markers'] == s['model']['markers'],
+              'trial: the model\'s bones and markers drawn')
+        page.eval("(() => { const s = document.getElementById('scrub'); s.value = '75';"
+                  " s.dispatchEvent(new Event('input')); })()")
+        s = wait_for(lambda: (lambda s: s if s['trial']['index'] == 75 else None)(page.state()), 5,
+                     'the time slider to index 75')
+        check(s['paused'] and s['banner'] is None, f'the time slider shows pose 75 (frame {s["drawn"]["frame"]})')
         check_no_exceptions(page)
         return 0
     finally:
