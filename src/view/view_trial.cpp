@@ -1,47 +1,13 @@
 #include "view_trial.hpp"
 
-#include <filesystem>
-
 #include "offline/solve_trial.hpp"
+#include "common/safe_text.hpp"
+#include "transport/model_codec.hpp"
 #include "transport/pose_codec.hpp"
 
 namespace fabrik::view {
 
 using nlohmann::json;
-
-namespace {
-
-json vector_json(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
-
-}  // namespace
-
-json minimal_model(const DaemonConfig& config) {
-  const Model& model = *config.tracker.model;
-  json joints = json::array(), markers = json::array(), segments = json::array(),
-       coordinates = json::array(), sensors = json::array();
-  for (const Joint& j : model.joints) joints.push_back(j.name);
-  for (const MarkerTarget& m : config.tracker.markers) {
-    const int seg = m.point >= 0 ? model.points[m.point].segment : -1;
-    markers.push_back({{"name", m.marker},
-                       {"segment", seg >= 0 ? json(model.segments[seg].name) : json(nullptr)}});
-  }
-  for (const Segment& s : model.segments)
-    segments.push_back({{"name", s.name},
-                        {"parent", s.parent >= 0 ? json(model.segments[s.parent].name)
-                                                 : json(nullptr)}});
-  for (const Coordinate& c : model.coordinates) coordinates.push_back({{"name", c.name}});
-  for (const SensorTarget& s : config.tracker.sensors.sensors) sensors.push_back(s.sensor);
-  return {{"config", std::filesystem::path(config.file).filename().string()},
-          {"units", config.output_units},
-          {"lab_axes",
-           {{"up", vector_json(model.lab_axes.up_lab)},
-            {"forward", vector_json(model.lab_axes.forward_lab)}}},
-          {"joints", joints},
-          {"markers", markers},
-          {"segments", segments},
-          {"coordinates", coordinates},
-          {"sensors", sensors}};
-}
 
 TrialView trial_view(const DaemonConfig& config, const io::MarkerTrial& trial) {
   // Poses are written as the daemon writes them (PoseEncoder, JSON), spliced into one array.
@@ -66,7 +32,10 @@ TrialView trial_view(const DaemonConfig& config, const io::MarkerTrial& trial) {
   poses += ']';
   TrialView v;
   v.poses = count;
-  v.message = R"({"topic":"trial","data":{"model":)" + minimal_model(config).dump() +
+  // The model as fabrikd publishes it on its `model` topic (bones, ranges).
+  const std::string model = wire::encode_model(config.tracker, safe_text(config.file), config.output_units,
+                                               wire::PayloadEncoding::json);
+  v.message = R"({"topic":"trial","data":{"model":)" + model +
               R"(,"poses":)" + poses + "}}";
   return v;
 }

@@ -10,10 +10,6 @@
 
 namespace fabrik::view {
 
-// The model as far as the view can tell it from the config: {"config", "units", "lab_axes",
-// "joints", "markers": [{"name", "segment"}], "segments": [{"name", "parent"}],
-// "coordinates": [{"name"}], "sensors"} (a subset of the daemon's `model` topic).
-nlohmann::json minimal_model(const DaemonConfig& config);
 
 struct TrialView {
   std::string message;  // {"topic": "trial", "data": {"model": ..., "poses": [...]}}
