@@ -116,18 +116,40 @@ class SocketClient {
 
   // Probes until a pose answers; returns the frame number after the probes.
   // Up to 600 probes, 30 s: a CI machine starved of CPU has taken over 10 s
-  // to join a fresh daemon's tcp sockets.
+  // to join a fresh daemon's tcp sockets. On failure the message says what
+  // did come back, so a dead daemon, a dead output and a dead input differ.
   std::uint64_t handshake(std::uint64_t probe_frame = 1000000) {
+    int stats_seen = 0;
+    nlohmann::json last_stats;
     for (int i = 0; i < 600; ++i) {
       send_frame(probe_frame + static_cast<std::uint64_t>(i));
-      if (auto pose = receive("pose", std::chrono::milliseconds(50))) {
-        // Collect the answers to probes still in flight.
-        while (receive("pose", std::chrono::milliseconds(100))) {
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(50);
+      for (;;) {
+        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+            deadline - std::chrono::steady_clock::now());
+        if (left.count() <= 0) break;
+        auto message = receive_any(left);
+        if (!message) break;
+        if (message->first == "stats") {
+          ++stats_seen;
+          last_stats = std::move(message->second);
+        } else if (message->first == "pose") {
+          // Collect the answers to probes still in flight.
+          while (receive("pose", std::chrono::milliseconds(100))) {
+          }
+          return probe_frame + 1000;
         }
-        return probe_frame + 1000;
       }
     }
-    throw std::runtime_error("no pose came back from the daemon");
+    auto field = [&](const char* key) {
+      return last_stats.is_object() && last_stats.contains(key) ? last_stats[key].dump() : "?";
+    };
+    throw std::runtime_error(
+        "no pose came back from the daemon in 600 probes (" + std::to_string(stats_seen) +
+        " stats came, the last with frames_in " + field("frames_in") + ", decode_errors " +
+        field("decode_errors") + ", input_disconnects " + field("input_disconnects") +
+        ", accept_failures " + field("accept_failures") + ", last_error " +
+        field("last_error") + ")");
   }
 
  private:

@@ -25,6 +25,7 @@
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
 #include "transport/model_codec.hpp"
+#include "transport/socket_monitor.hpp"
 
 #include "sanitized.hpp"
 
@@ -207,6 +208,55 @@ std::uint64_t counter(const json& stats, const char* key) {
 }
 
 }  // namespace
+
+// One message from `pub` reaches `sub` within `timeout` (PUB/SUB drops until
+// the subscription has crossed, so it is sent again until one arrives).
+bool one_message_crosses(zmq::socket_t& pub, zmq::socket_t& sub, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    pub.send(zmq::str_buffer("probe"), zmq::send_flags::dontwait);
+    zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
+    zmq::poll(items, 1, std::chrono::milliseconds(20));
+    zmq::message_t m;
+    if ((items[0].revents & ZMQ_POLLIN) && sub.recv(m, zmq::recv_flags::dontwait)) return true;
+  }
+  return false;
+}
+
+TEST_CASE("A socket monitor that is gone leaves the context working when a peer leaves afterwards",
+          "[daemon][robustness]") {
+  // A wedged I/O thread would make the context's destructor wait for ever: on
+  // failure it is left alive, so the test fails instead of hanging.
+  auto* context = new zmq::context_t;
+  bool wedged = true;
+  {
+    zmq::socket_t sub(*context, zmq::socket_type::sub);
+    sub.set(zmq::sockopt::linger, 0);
+    sub.set(zmq::sockopt::subscribe, "");
+    sub.bind("tcp://127.0.0.1:*");
+    const std::string endpoint = sub.get(zmq::sockopt::last_endpoint);
+    {
+      wire::SocketMonitor monitor(*context, sub, ZMQ_EVENT_DISCONNECTED);
+      REQUIRE(monitor);
+      zmq::socket_t first(*context, zmq::socket_type::pub);
+      first.set(zmq::sockopt::linger, 0);
+      first.connect(endpoint);
+      REQUIRE(one_message_crosses(first, sub, 5s));
+      // Its reader goes first (the monitor ends), the peer leaves after.
+      monitor = wire::SocketMonitor();
+    }
+    bool all = true;
+    for (int peer = 0; peer < 3 && all; ++peer) {
+      zmq::socket_t next(*context, zmq::socket_type::pub);
+      next.set(zmq::sockopt::linger, 0);
+      next.connect(endpoint);
+      all = one_message_crosses(next, sub, 5s);
+    }
+    wedged = !all;
+  }
+  CHECK_FALSE(wedged);
+  if (!wedged) delete context;
+}
 
 TEST_CASE("N frames in give N poses out with matching frame numbers, inproc and tcp", "[daemon]") {
   zmq::context_t context;

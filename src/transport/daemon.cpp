@@ -18,6 +18,7 @@
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "model_codec.hpp"
+#include "socket_monitor.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -249,7 +250,7 @@ struct Daemon::State {
   int first = 0, count = 0;
   std::size_t bytes = 0;
   zmq::socket_t sub, pub;
-  zmq::socket_t monitor;  // the input socket's disconnect and accept-failure events
+  SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
 };
 
@@ -299,14 +300,7 @@ void Daemon::attach_sockets(State& next, State* old) {
   const bool keep_pub = old && same(old->config.output, next.config.output);
   if (!keep_sub) {
     next.sub = open_socket(context_, zmq::socket_type::sub, next.config);
-    static std::atomic<int> monitors{0};
-    const std::string address = "inproc://fabrikd-input-monitor-" + std::to_string(++monitors);
-    if (zmq_socket_monitor(next.sub.handle(), address.c_str(),
-                           ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED) == 0) {
-      next.monitor = zmq::socket_t(context_, zmq::socket_type::pair);
-      next.monitor.set(zmq::sockopt::linger, 0);
-      next.monitor.connect(address);
-    }
+    next.monitor = SocketMonitor(context_, next.sub, ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED);
   }
   if (!keep_pub) next.pub = open_socket(context_, zmq::socket_type::xpub, next.config);
   if (keep_sub) {
@@ -560,8 +554,8 @@ void Daemon::read_monitor() {
   State& s = *state_;
   for (int n = 0; n < kMaxBatch; ++n) {
     zmq::message_t event, address;
-    if (!s.monitor.recv(event, zmq::recv_flags::dontwait)) break;
-    if (event.more()) (void)s.monitor.recv(address, zmq::recv_flags::dontwait);
+    if (!s.monitor.events().recv(event, zmq::recv_flags::dontwait)) break;
+    if (event.more()) (void)s.monitor.events().recv(address, zmq::recv_flags::dontwait);
     if (event.size() < 6) continue;
     std::uint16_t id;
     std::uint32_t value;
@@ -782,7 +776,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
     if (s.source) items[n_items++] = {s.source->socket().handle(), 0, ZMQ_POLLIN, 0};
     const int fixed_items = n_items;
     if (control.wake_fd >= 0) items[n_items++] = {nullptr, control.wake_fd, ZMQ_POLLIN, 0};
-    if (s.monitor) items[n_items++] = {s.monitor.handle(), 0, ZMQ_POLLIN, 0};
+    if (s.monitor) items[n_items++] = {s.monitor.events().handle(), 0, ZMQ_POLLIN, 0};
     try {
       zmq::poll(items, n_items, wait);
       if (items[0].revents & ZMQ_POLLIN) serve_input(s.sub);
