@@ -6,6 +6,7 @@
 #include <atomic>
 #include <boost/asio.hpp>
 #include <charconv>
+#include <cstdio>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <boost/beast/websocket.hpp>
@@ -154,7 +155,17 @@ struct PosePayload {
   std::string bytes;
   bool msgpack = false;
   bool checked = false;  // fully (PoseCheck); JSON only at its first send
+  double view_unix_ms = 0;  // when it arrived here (wall clock): the page measures view -> paint
 };
+
+// The pose's message: its envelope carries view_ms, the arrival time at the view.
+std::string pose_envelope(const std::string& data, double view_unix_ms) {
+  char stamp[48];
+  const int n = std::snprintf(stamp, sizeof stamp, R"(,"view_ms":%.3f})", view_unix_ms);
+  std::string message = R"({"topic":"pose","data":)";
+  message.reserve(message.size() + data.size() + static_cast<std::size_t>(n));
+  return message.append(data).append(stamp, static_cast<std::size_t>(n));
+}
 
 // The cheap check of a JSON pose on arrival (a full parse of every pose at 1 kHz would be most
 // of the view's CPU): an object that ends where it should, with a "frame" number.
@@ -534,10 +545,11 @@ Text ViewServer::Impl::pose_message(std::uint64_t& seq) {
   try {
     if (!io_pose->checked) check_pose(io_pose->bytes, false);
     if (io_pose->msgpack)  // checked: decodes
-      pose_text = topic_message("pose", json::from_msgpack(io_pose->bytes));
+      pose_text = std::make_shared<const std::string>(pose_envelope(
+          json::from_msgpack(io_pose->bytes).dump(-1, ' ', false, json::error_handler_t::replace),
+          io_pose->view_unix_ms));
     else  // well-formed JSON, valid UTF-8: spliced in as it came
-      pose_text = std::make_shared<const std::string>(R"({"topic":"pose","data":)" +
-                                                      io_pose->bytes + "}");
+      pose_text = std::make_shared<const std::string>(pose_envelope(io_pose->bytes, io_pose->view_unix_ms));
   } catch (const std::exception& e) {
     const double t_s = std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
     std::lock_guard lock(m);
@@ -646,8 +658,11 @@ void ViewServer::Impl::receive(std::vector<zmq::message_t>& parts) {
             msgpack ? check_pose(payload, true) : quick_json_frame(payload);
         if (!frame) throw std::runtime_error("a pose without a frame number, or cut short");
         if (o.on_pose) o.on_pose(*frame);
+        const double view_unix_ms = std::chrono::duration<double, std::milli>(
+                                        std::chrono::system_clock::now().time_since_epoch())
+                                        .count();
         auto p = std::make_shared<const PosePayload>(
-            PosePayload{std::string(payload), msgpack, msgpack});
+            PosePayload{std::string(payload), msgpack, msgpack, view_unix_ms});
         {
           std::lock_guard lock(m);
           pose = std::move(p);

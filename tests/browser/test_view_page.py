@@ -104,27 +104,10 @@ def read_line(proc, timeout_s, what):
     raise Failed(f'timed out waiting for {what} to print its address')
 
 
-class Chromium:
-    """Headless Chromium with one page, spoken to over the DevTools protocol."""
+class Tab:
+    """One page target of a browser, spoken to over the DevTools protocol."""
 
-    def __init__(self, url, workdir):
-        self.profile = tempfile.mkdtemp(prefix='chromium-profile-', dir=workdir)
-        self.log = open(os.path.join(workdir, 'chromium.log'), 'wb')
-        self.proc = subprocess.Popen(['/usr/bin/chromium', *CHROMIUM_FLAGS,
-                                      f'--user-data-dir={self.profile}', url],
-                                     stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
-        port_file = os.path.join(self.profile, 'DevToolsActivePort')
-        wait_for(lambda: os.path.exists(port_file) and open(port_file).read().count('\n') >= 1
-                 or self.proc.poll() is not None, 60, 'chromium to open its DevTools port')
-        if self.proc.poll() is not None:
-            raise Failed(f'chromium exited with code {self.proc.returncode} (see {self.log.name})')
-        port = int(open(port_file).read().split()[0])
-
-        def page_target():
-            with urllib.request.urlopen(f'http://127.0.0.1:{port}/json/list', timeout=5) as r:
-                pages = [t for t in json.load(r) if t.get('type') == 'page']
-            return pages[0]['webSocketDebuggerUrl'] if pages else None
-        ws_url = wait_for(page_target, 30, 'chromium\'s page target')
+    def __init__(self, ws_url):
         self.ws = websocket.create_connection(ws_url, timeout=30, suppress_origin=True)
         self.next_id = 0
         self.exceptions = []   # uncaught exceptions in the page
@@ -174,11 +157,47 @@ class Chromium:
             f.write(base64.b64decode(data))
         return path
 
-    def close(self):
+    def close_socket(self):
         try:
             self.ws.close()
         except Exception:  # noqa: BLE001 - closing anyway
             pass
+
+
+class Chromium(Tab):
+    """Headless Chromium, its first page being this Tab; new_tab() opens more."""
+
+    def __init__(self, url, workdir):
+        self.profile = tempfile.mkdtemp(prefix='chromium-profile-', dir=workdir)
+        self.log = open(os.path.join(workdir, 'chromium.log'), 'wb')
+        self.proc = subprocess.Popen(['/usr/bin/chromium', *CHROMIUM_FLAGS,
+                                      f'--user-data-dir={self.profile}', url],
+                                     stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
+        port_file = os.path.join(self.profile, 'DevToolsActivePort')
+        wait_for(lambda: os.path.exists(port_file) and open(port_file).read().count('\n') >= 1
+                 or self.proc.poll() is not None, 60, 'chromium to open its DevTools port')
+        if self.proc.poll() is not None:
+            raise Failed(f'chromium exited with code {self.proc.returncode} (see {self.log.name})')
+        self.port = int(open(port_file).read().split()[0])
+
+        def page_target():
+            with urllib.request.urlopen(f'http://127.0.0.1:{self.port}/json/list', timeout=5) as r:
+                pages = [t for t in json.load(r) if t.get('type') == 'page']
+            return pages[0]['webSocketDebuggerUrl'] if pages else None
+        self.tabs = []
+        super().__init__(wait_for(page_target, 30, 'chromium\'s page target'))
+
+    def new_tab(self, url):
+        request = urllib.request.Request(f'http://127.0.0.1:{self.port}/json/new?{url}', method='PUT')
+        with urllib.request.urlopen(request, timeout=10) as r:
+            tab = Tab(json.load(r)['webSocketDebuggerUrl'])
+        self.tabs.append(tab)
+        return tab
+
+    def close(self):
+        for tab in self.tabs:
+            tab.close_socket()
+        self.close_socket()
         stop(self.proc)
         self.log.close()
         shutil.rmtree(self.profile, ignore_errors=True)

@@ -62,7 +62,9 @@ export function connect(onMessage, onChange) {
         onChange();
         return;
       }
-      onMessage(msg.topic, msg.data, arrivedAt);
+      // view_ms: when the pose reached `fabrik view` (wall clock, this machine), on this page's clock.
+      const viewAt = Number.isFinite(msg.view_ms) ? msg.view_ms - performance.timeOrigin : null;
+      onMessage(msg.topic, msg.data, arrivedAt, viewAt);
     };
   }
   open();

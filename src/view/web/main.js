@@ -39,7 +39,7 @@ function setModel(model) {
   dirty = true;
 }
 
-function onMessage(topic, data, arrivedAt) {
+function onMessage(topic, data, arrivedAt, viewAt) {
   switch (topic) {
     case 'model': setModel(data); break;
     case 'pose':
@@ -47,7 +47,7 @@ function onMessage(topic, data, arrivedAt) {
       state.latest = data;
       state.latestAt = arrivedAt;
       status.onPose(arrivedAt);
-      history.push(data, arrivedAt);
+      history.push(data, arrivedAt, viewAt);
       break;
     case 'stats': state.stats = data; status.onStats(data); break;
     case 'status': state.status = data; break;
@@ -70,7 +70,8 @@ function paint(now) {
     scene.render();
     if (entry !== painted && entry.arrivedAt !== null && !history.isPaused()) {
       state.painted++;
-      notePaint(performance.now() - entry.arrivedAt);
+      const now = performance.now();
+      notePaint(now - entry.arrivedAt, entry.viewAt !== null ? now - entry.viewAt : null);
     }
     painted = entry;
     dirty = false;

@@ -17,6 +17,7 @@ export const state = {
   painted: 0,            // frames painted with a pose not painted before
   drawn: {frame: null, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0},
   paintMs: [],           // recent arrival -> painted latencies (ms)
+  viewPaintMs: [],       // recent arrival at fabrik view -> painted latencies (ms)
   lastPaintMs: null,
   banner: null,          // error banner text, null when none
   paused: false,
@@ -27,10 +28,15 @@ export const state = {
 
 const PAINT_KEEP = 600;
 
-export function notePaint(ms) {
+function keep(values, v) {
+  values.push(v);
+  if (values.length > PAINT_KEEP) values.splice(0, values.length - PAINT_KEEP);
+}
+
+export function notePaint(ms, viewMs) {
   state.lastPaintMs = ms;
-  state.paintMs.push(ms);
-  if (state.paintMs.length > PAINT_KEEP) state.paintMs.splice(0, state.paintMs.length - PAINT_KEEP);
+  keep(state.paintMs, ms);
+  if (viewMs !== null) keep(state.viewPaintMs, viewMs);
 }
 
 function quantile(values, q) {
@@ -63,5 +69,7 @@ export function snapshot() {
     last_paint_ms: state.lastPaintMs,
     paint_ms: {n: state.paintMs.length, p50: quantile(state.paintMs, 0.5),
                p95: quantile(state.paintMs, 0.95), max: quantile(state.paintMs, 1)},
+    view_to_paint_ms: {n: state.viewPaintMs.length, p50: quantile(state.viewPaintMs, 0.5),
+                       p95: quantile(state.viewPaintMs, 0.95), max: quantile(state.viewPaintMs, 1)},
   }));
 }
