@@ -445,6 +445,38 @@ TEST_CASE("view websocket: the model on connect and when it changes, stats forwa
   CHECK(read_until(c, "stats", [](const json& d) { return d["pose_rate_hz"] == 99.0; }));
 }
 
+TEST_CASE("view websocket: a pose's envelope says when it reached the view (view_ms, wall clock)") {
+  WebRoot web;
+  LiveView v(options_for(web));
+  WsClient c(v.port());
+  REQUIRE(c.connected());
+  auto unix_ms = [] {
+    return std::chrono::duration<double, std::milli>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  };
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  std::optional<json> envelope;
+  double sent_ms = 0;
+  for (int frame = 1; !envelope && Clock::now() < deadline; ++frame) {
+    sent_ms = unix_ms();
+    v.send("pose", json{{"frame", frame}, {"joints", json::object()}}.dump());
+    while (const auto text = c.read(std::chrono::milliseconds(50))) {
+      json m = json::parse(*text);
+      if (m["topic"] == "pose" && m["data"]["frame"] == frame) {
+        envelope = std::move(m);
+        break;
+      }
+    }
+  }
+  const double read_ms = unix_ms();
+  REQUIRE(envelope);
+  REQUIRE((*envelope)["view_ms"].is_number());
+  const double view_ms = (*envelope)["view_ms"].get<double>();
+  CHECK(view_ms >= sent_ms - 1.0);
+  CHECK(view_ms <= read_ms + 1.0);
+}
+
 TEST_CASE("view stream status: states from arrivals") {
   view::StreamStatus s(2.0, "tcp://x");
   CHECK(s.status(0.0, 0)["stream"] == "waiting");

@@ -559,6 +559,10 @@ def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
         finally:
             reference.close()
         pump()
+        v = page.state()['view_to_paint_ms']
+        check(v['n'] > 0 and 0 < v['p50'] < 10000,
+              f'the page measures fabrik view -> painted from view_ms: p50 {v["p50"]:.1f} ms, '
+              f'p95 {v["p95"]:.1f} ms over {v["n"]} poses')
 
         def occluded_of(frame):
             pump()
