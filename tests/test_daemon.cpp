@@ -1227,6 +1227,30 @@ TEST_CASE(
   CHECK(d.daemon.counters().subscriptions_refused == 0);
 }
 
+TEST_CASE("A subscriber toggling a model subscription gets the model at most every 100 ms",
+          "[daemon][model]") {
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
+  const std::string output = d.daemon.output_endpoint();
+  zmq::socket_t watcher = subscriber(context, output, "model");
+  REQUIRE(next_model(watcher, Clock::now() + 5s));  // connected
+  zmq::socket_t toggler = subscriber(context, output, "stats");
+  const Clock::time_point start = Clock::now();
+  int models = 0;
+  while (Clock::now() - start < 1s) {
+    toggler.set(zmq::sockopt::subscribe, "model");
+    toggler.set(zmq::sockopt::unsubscribe, "model");
+    if (test::receive_topic(watcher, "model", 1ms)) ++models;  // paces the loop too
+  }
+  // The last one asked for comes within the interval.
+  while (test::receive_topic(watcher, "model", 300ms)) ++models;
+  const double span_s = std::chrono::duration<double>(Clock::now() - start).count();
+  CAPTURE(models, span_s);
+  CHECK(models >= 1);
+  CHECK(models <= span_s / 0.1 + 3);
+  CHECK(d.run_error.empty());
+}
+
 TEST_CASE("Poses carry measured when the config asks: the frame's visible markers in output units",
           "[daemon][measured]") {
   zmq::context_t context;

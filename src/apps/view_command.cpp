@@ -31,6 +31,7 @@ void run(const ViewArgs& a) {
   std::tie(o.listen_host, o.listen_port) = view::parse_listen(a.listen);
   o.rate_hz = a.rate_hz;
   o.max_clients = a.max_clients;
+  o.max_connections = a.max_clients + 48;  // room for page loads beside the WebSockets
   o.web_root = a.web_root.empty() ? FABRIK_VIEW_WEB_ROOT : a.web_root;
   if (!std::filesystem::is_regular_file(std::filesystem::path(o.web_root) / "index.html"))
     std::fprintf(stderr, "fabrik view: warning: %s has no index.html: / answers 404\n",

@@ -638,11 +638,22 @@ void Daemon::read_subscriptions() {
         std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "");
   }
   update_snapshot();
-  if (model_wanted) publish_model();
+  if (model_wanted) want_model(Clock::now());
+}
+
+constexpr auto kModelInterval = std::chrono::milliseconds(100);
+
+void Daemon::want_model(Clock::time_point now) {
+  if (now - last_model_ >= kModelInterval)
+    publish_model();
+  else
+    model_pending_ = true;
 }
 
 void Daemon::publish_model() {
   send("model", state_->model_out);
+  last_model_ = Clock::now();
+  model_pending_ = false;
 }
 
 void Daemon::publish_stats(double interval_s) {
@@ -800,6 +811,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
       internal_error("on the input: ", e.what());
     }
     const Clock::time_point now = Clock::now();
+    if (model_pending_) want_model(now);  // the loop wakes at least every 100 ms
     if (now >= next_stats) {
       try {
         publish_stats(std::chrono::duration<double>(now - last_stats).count());

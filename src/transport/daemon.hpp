@@ -165,6 +165,9 @@ class Daemon {
   void read_subscriptions();
   void publish_stats(double interval_s);
   void publish_model();
+  // Publishes the model now, or within kModelInterval of the last one: a
+  // subscriber toggling subscriptions cannot make the loop publish at will.
+  void want_model(std::chrono::steady_clock::time_point now);
   void send(const char* topic, const std::string& payload);
   void bad_input(std::string_view what, std::string_view detail,
                  std::string_view after = {}) noexcept;
@@ -182,6 +185,8 @@ class Daemon {
   mutable std::mutex snapshot_mutex_;  // counters() may be called from other threads
   DaemonCounters snapshot_;
   std::chrono::steady_clock::time_point started_;
+  bool model_pending_ = false;  // asked for within kModelInterval of the last one
+  std::chrono::steady_clock::time_point last_model_{};
   IntervalSamples solve_us_, queue_us_;
   std::uint64_t interval_frames_out_ = 0;
   FixedText<256> last_error_;  // never allocates: survives an out-of-memory error path

@@ -148,6 +148,8 @@ class HttpSession;
 
 // The full check (PoseCheck) of a pose; throws std::runtime_error with the reason.
 std::optional<std::uint64_t> check_pose(std::string_view payload, bool msgpack);
+// The same check of any document, frame or not.
+void check_document(std::string_view payload, bool msgpack);
 
 // The newest pose as it came (checked, not decoded): made into a message only when a client
 // is due one.
@@ -161,7 +163,8 @@ struct PosePayload {
 // The pose's message: its envelope carries view_ms, the arrival time at the view.
 std::string pose_envelope(const std::string& data, double view_unix_ms) {
   char stamp[48];
-  const int n = std::snprintf(stamp, sizeof stamp, R"(,"view_ms":%.3f})", view_unix_ms);
+  const int n = std::clamp(std::snprintf(stamp, sizeof stamp, R"(,"view_ms":%.3f})", view_unix_ms), 0,
+                           static_cast<int>(sizeof stamp) - 1);
   std::string message = R"({"topic":"pose","data":)";
   message.reserve(message.size() + data.size() + static_cast<std::size_t>(n));
   return message.append(data).append(stamp, static_cast<std::size_t>(n));
@@ -209,6 +212,7 @@ struct ViewServer::Impl {
 
   // The Asio thread's own (declared before the io_context: sessions outlive its handlers).
   int connections = 0;
+  int ws_clients = 0;  // WebSocket sessions, upgrading ones included (the --max-clients count)
   std::set<WsSession*> sessions;
   std::uint64_t rejected_clients = 0;
   // What the sessions send, as last copied from the shared state.
@@ -229,6 +233,7 @@ struct ViewServer::Impl {
 
   void notify();
   void refresh();
+  bool pose_waiting();  // a pose newer than the Asio thread's copy
   void on_news();
   void tick_status();
   void do_accept();
@@ -242,8 +247,11 @@ struct ViewServer::Impl {
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
   WsSession(ViewServer::Impl& impl, beast::tcp_stream&& stream, ConnectionSlot&& slot)
-      : impl_(impl), ws_(std::move(stream)), timer_(ws_.get_executor()), slot_(std::move(slot)) {}
+      : impl_(impl), ws_(std::move(stream)), timer_(ws_.get_executor()), slot_(std::move(slot)) {
+    ++impl_.ws_clients;
+  }
   ~WsSession() {
+    --impl_.ws_clients;
     impl_.sessions.erase(this);
     if (hungry_) impl_.hungry.fetch_sub(1);
     if (writing_) impl_.writing.fetch_sub(1);
@@ -356,6 +364,8 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     } else if (!hungry_) {
       hungry_ = true;  // due, and nothing new: the next pose wakes this thread
       impl_.hungry.fetch_add(1);
+      // A pose that landed before the count rose woke nobody: look again.
+      if (impl_.pose_waiting()) impl_.notify();
     }
     if (!msg) return;
     write(std::move(msg));
@@ -450,7 +460,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return reply(http::status::forbidden, "not from this machine's page\n", true);
     if (websocket::is_upgrade(req)) {
       if (req.target() != "/ws" || head_) return reply(http::status::not_found, "not found\n", true);
-      if (impl_.sessions.size() >= static_cast<std::size_t>(impl_.o.max_clients)) {
+      if (impl_.ws_clients >= impl_.o.max_clients) {
         ++impl_.rejected_clients;
         return reply(http::status::service_unavailable, "too many clients\n", true);
       }
@@ -481,6 +491,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     res_.set(http::field::content_type, "text/plain; charset=utf-8");
     res_.set(http::field::cache_control, "no-store");
     if (status == http::status::method_not_allowed) res_.set(http::field::allow, "GET, HEAD");
+    if (status == http::status::upgrade_required)  // RFC 9110: a 426 names the protocol
+      res_.set(http::field::upgrade, "websocket");
     send(text, close);
   }
 
@@ -558,6 +570,14 @@ Text ViewServer::Impl::pose_message(std::uint64_t& seq) {
   return pose_text;
 }
 
+void check_document(std::string_view payload, bool msgpack) {
+  PoseCheck check;
+  if (!json::sax_parse(payload.begin(), payload.end(), &check,
+                       msgpack ? json::input_format_t::msgpack : json::input_format_t::json))
+    throw std::runtime_error(std::string("bad ") + (msgpack ? "msgpack" : "json") +
+                             " payload: " + check.error);
+}
+
 std::optional<std::uint64_t> check_pose(std::string_view payload, bool msgpack) {
   PoseCheck check;
   const bool ok =
@@ -576,6 +596,11 @@ void ViewServer::Impl::notify() {
       notify_pending.store(false);
       on_news();
     });
+}
+
+bool ViewServer::Impl::pose_waiting() {
+  std::lock_guard lock(m);
+  return pose_seq != io_pose_seq;
 }
 
 void ViewServer::Impl::on_news() {
@@ -672,6 +697,9 @@ void ViewServer::Impl::receive(std::vector<zmq::message_t>& parts) {
         if (hungry.load() > 0 || writing.load() > 0) notify();
         return;
       } else if (topic == "stats" || topic == "model") {
+        // Bounded nesting first: decoding and writing it back are recursive.
+        check_document(payload,
+                       wire::document_encoding(payload) == wire::PayloadEncoding::msgpack);
         Text text = topic_message(topic.c_str(), wire::decode_document(payload));
         std::lock_guard lock(m);
         if (topic == "stats") {
@@ -726,7 +754,7 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     s.sub.emplace(context, zmq::socket_type::sub);
     s.sub->set(zmq::sockopt::linger, 0);
     s.sub->set(zmq::sockopt::rcvtimeo, 50);
-    s.sub->set(zmq::sockopt::rcvhwm, 1000);
+    s.sub->set(zmq::sockopt::rcvhwm, 100);  // 0.1 s at 1 kHz: newest wins, not a backlog
     s.sub->set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(s.o.max_payload_bytes));
     for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
     s.sub->connect(s.o.pose_endpoint);

@@ -32,7 +32,7 @@ struct ViewOptions {
   std::size_t max_ws_message_bytes = 4096;  // inbound; a larger message closes the client
   double request_timeout_s = 10.0;   // an HTTP request (or the WebSocket handshake) within this
   double ws_idle_timeout_s = 30.0;   // no frame (nor pong) from a client this long: closed
-  std::size_t max_payload_bytes = 4 << 20;  // larger ZeroMQ messages are dropped by ZeroMQ
+  std::size_t max_payload_bytes = 1 << 20;  // larger ZeroMQ messages are dropped by ZeroMQ
   // Offline: serve this `trial` message (and no subscription) instead.
   std::shared_ptr<const std::string> trial_message;
   std::string trial_note;  // the status message's text in trial mode

@@ -118,8 +118,10 @@ class WsClient {
       connected_ = false;
       beast::error_code ignored;
       beast::get_lowest_layer(ws_).socket().close(ignored);
-      ioc_.restart();
-      ioc_.run_for(std::chrono::milliseconds(200));
+      for (int i = 0; i < 50 && !done; ++i) {  // the handler holds this frame's locals
+        ioc_.restart();
+        ioc_.run_for(std::chrono::milliseconds(100));
+      }
       return std::nullopt;
     }
     return beast::buffers_to_string(buffer_.data());
@@ -135,6 +137,16 @@ class WsClient {
     });
     ioc_.restart();
     ioc_.run_for(std::chrono::seconds(3));
+    if (!done) {  // the handler holds this frame's locals: close, and let it run before returning
+      last_error_ = beast::error::timeout;
+      connected_ = false;
+      beast::error_code ignored;
+      beast::get_lowest_layer(ws_).socket().close(ignored);
+      for (int i = 0; i < 50 && !done; ++i) {
+        ioc_.restart();
+        ioc_.run_for(std::chrono::milliseconds(100));
+      }
+    }
     return done && !ec;
   }
 

@@ -22,7 +22,7 @@ the stub, when it is garbage or silent) and goes when it is back; trial mode
 screenshot into DIR (view_page.png, or view_subject01_walk1.png).
 
 Exit codes: 0 passed, 1 failed, 77 skipped (no chromium, no python3-websocket,
-or no `view` subcommand yet), as registered with ctest's SKIP_RETURN_CODE.
+no ../shared/data for the fabrikd chain), as registered with ctest's SKIP_RETURN_CODE.
 """
 import argparse
 import base64
@@ -630,11 +630,10 @@ def main():
                 ap.error('--fabrik-view needs --fabrikd and --fabrik')
             for exe in (args.fabrikd, args.fabrik, args.fabrik_view):
                 if not os.access(exe, os.X_OK):
-                    print(f'SKIP: {exe} is not built')
-                    return SKIP
+                    raise Failed(f'{exe} is not built')
             if not has_view(args.fabrik_view):
-                print(f'SKIP: {args.fabrik_view} has no `view` subcommand yet (`{args.fabrik_view} view --help` failed)')
-                return SKIP
+                raise Failed(f'{args.fabrik_view} has no working `view` subcommand '
+                             f'(`{args.fabrik_view} view --help` does not list --listen)')
             rc = run_fabrik(args.out_dir, args.fabrikd, args.fabrik, args.fabrik_view)
         else:
             rc = run_stub(args.out_dir)

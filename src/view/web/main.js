@@ -30,7 +30,12 @@ let painted = null;   // the history entry on screen
 let dirty = true;     // repaint even if the entry is the same (model, options, camera)
 scene.controls.addEventListener('change', () => { dirty = true; });
 
+let modelText = null;  // the model on screen, as text: a resent model is not rebuilt
+
 function setModel(model) {
+  const text = JSON.stringify(model);
+  if (text === modelText) return;
+  modelText = text;
   state.model = model;
   scene.setModel(model);
   state.labUp = scene.up.toArray();

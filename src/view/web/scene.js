@@ -20,6 +20,16 @@ const finite3 = (p) => Array.isArray(p) && p.length === 3 && p.every(Number.isFi
 const COLORS = {marker: 0x3fb8ff, occluded: 0xff9a2e, measured: 0xffffff, bone: 0xd8dde3,
                 residual: 0xff4f6d, up: 0x7cff7c};
 
+// Removes a group's children and frees their GPU buffers (a new model rebuilds them all).
+function disposeChildren(group) {
+  group.traverse((o) => {
+    if (o === group) return;
+    if (o.geometry) o.geometry.dispose();
+    for (const m of [].concat(o.material || [])) m.dispose();
+  });
+  group.remove(...group.children);
+}
+
 export class SkeletonScene {
   constructor(container) {
     this.container = container;
@@ -60,7 +70,7 @@ export class SkeletonScene {
     this.forward = axisVector(model.lab_axes && model.lab_axes.forward, [1, 0, 0]);
     this.camera.up.copy(this.up);
     this.buildLab();
-    this.world.remove(...this.world.children);
+    disposeChildren(this.world);
 
     const sphere = new THREE.SphereBufferGeometry(1, 12, 8);
     this.materials = {
@@ -111,7 +121,7 @@ export class SkeletonScene {
   }
 
   buildLab() {
-    this.lab.remove(...this.lab.children);
+    disposeChildren(this.lab);
     const grid = new THREE.GridHelper(10, 20, 0x4a5460, 0x2c323a);
     grid.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), this.up);
     this.lab.add(grid);
