@@ -188,9 +188,21 @@ class Chromium(Tab):
         super().__init__(wait_for(page_target, 30, 'chromium\'s page target'))
 
     def new_tab(self, url):
-        request = urllib.request.Request(f'http://127.0.0.1:{self.port}/json/new?{url}', method='PUT')
-        with urllib.request.urlopen(request, timeout=10) as r:
-            tab = Tab(json.load(r)['webSocketDebuggerUrl'])
+        """Another page in a window of its own: a background tab would not paint."""
+        with urllib.request.urlopen(f'http://127.0.0.1:{self.port}/json/version', timeout=10) as r:
+            browser = Tab.__new__(Tab)  # the browser target: calls only, no page domains
+            browser.ws = websocket.create_connection(json.load(r)['webSocketDebuggerUrl'], timeout=30,
+                                                     suppress_origin=True)
+            browser.next_id, browser.exceptions, browser.console = 0, [], []
+        try:
+            target = browser.call('Target.createTarget', url=url, newWindow=True)['targetId']
+        finally:
+            browser.close_socket()
+
+        def page_ws():
+            with urllib.request.urlopen(f'http://127.0.0.1:{self.port}/json/list', timeout=5) as r:
+                return next((t['webSocketDebuggerUrl'] for t in json.load(r) if t.get('id') == target), None)
+        tab = Tab(wait_for(page_ws, 30, 'the new page target'))
         self.tabs.append(tab)
         return tab
 
