@@ -23,9 +23,30 @@ inline nlohmann::json decode_payload(const zmq::message_t& p) {
   return nlohmann::json::parse(p.to_string_view());
 }
 
+// The next message of `topic` on a SUB socket (others skipped), undecoded,
+// or nothing on timeout.
+inline std::optional<zmq::message_t> receive_topic(zmq::socket_t& sub, const std::string& topic,
+                                                   std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return std::nullopt;
+    zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
+    zmq::poll(items, 1, left);
+    if (!(items[0].revents & ZMQ_POLLIN)) continue;
+    zmq::message_t t, p;
+    (void)sub.recv(t);
+    if (!t.more()) continue;
+    (void)sub.recv(p);
+    if (t.to_string_view() == topic) return p;
+  }
+}
+
 class SocketClient {
  public:
-  // Connects a PUB to the daemon's input and a SUB (pose and stats) to its output.
+  // Connects a PUB to the daemon's input and a SUB (every topic: pose, stats, model) to its
+  // output.
   SocketClient(zmq::context_t& context, const std::string& input, const std::string& output)
       : pub_(context, zmq::socket_type::pub), sub_(context, zmq::socket_type::sub) {
     pub_.set(zmq::sockopt::linger, 0);
@@ -53,20 +74,7 @@ class SocketClient {
   std::optional<zmq::message_t> receive_raw(
       const std::string& topic,
       std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    for (;;) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-          deadline - std::chrono::steady_clock::now());
-      if (left.count() <= 0) return std::nullopt;
-      zmq::pollitem_t items[] = {{sub_.handle(), 0, ZMQ_POLLIN, 0}};
-      zmq::poll(items, 1, left);
-      if (!(items[0].revents & ZMQ_POLLIN)) continue;
-      zmq::message_t t, p;
-      (void)sub_.recv(t);
-      if (!t.more()) continue;
-      (void)sub_.recv(p);
-      if (t.to_string_view() == topic) return p;
-    }
+    return receive_topic(sub_, topic, timeout);
   }
 
   // The next message of any topic, decoded, with its topic; nothing on timeout.

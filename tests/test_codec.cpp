@@ -7,8 +7,11 @@
 #include <random>
 
 #include "config/daemon_config.hpp"
+#include "daemon_thread.hpp"
+#include "model_message.hpp"
 #include "transport/json_sax_reader.hpp"
 #include "transport/marker_codec.hpp"
+#include "transport/model_codec.hpp"
 #include "transport/pose_codec.hpp"
 #include "transport/safe_text.hpp"
 
@@ -27,6 +30,22 @@ std::string msgpack(const json& j) {
 }
 
 const std::vector<std::string> kNames = {"A", "B", "C"};
+
+// The tracked markers at rest, moved by `offset`, and which are visible: all but `hidden`.
+struct Measurements {
+  std::vector<Eigen::Vector3d> p_m;
+  std::vector<std::uint8_t> visible;
+};
+Measurements rest_measurements(const Tracker& tracker, const Eigen::Vector3d& offset,
+                               const std::vector<std::string>& hidden = {}) {
+  const Posture rest = Posture::rest(tracker.model());
+  Measurements out;
+  for (const MarkerTarget& m : tracker.setup().markers) {
+    out.p_m.push_back(rest.point_world_m(tracker.model(), m.point) + offset);
+    out.visible.push_back(std::count(hidden.begin(), hidden.end(), m.marker) ? 0 : 1);
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -141,13 +160,7 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
           "[codec]") {
   DaemonConfig c = default_daemon_config();
   Tracker tracker(c.tracker);
-  const Posture rest = Posture::rest(tracker.model());
-  std::vector<Eigen::Vector3d> measured;
-  std::vector<std::uint8_t> visible;
-  for (const MarkerTarget& m : c.tracker.markers) {
-    measured.push_back(rest.point_world_m(tracker.model(), m.point) + Eigen::Vector3d(0.001, 0, 0));
-    visible.push_back(m.marker == "RKNE" ? 0 : 1);
-  }
+  const auto [measured, visible] = rest_measurements(tracker, {0.001, 0, 0}, {"RKNE"});
   const TrackResult& r = tracker.track(0.0, measured, visible);
   PoseEncoder je(tracker, "mm", PayloadEncoding::json), me(tracker, "mm", PayloadEncoding::msgpack);
   std::string jp, mp;
@@ -178,6 +191,111 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
   CHECK(json::parse(jp)["gap_s"].size() == 1);
   CHECK(wire_status(SolveStatus::stalled) == "converged");
   CHECK(wire_status(SolveStatus::max_iterations) == "max_iterations");
+}
+
+TEST_CASE("A pose carries measured only when asked: the visible markers' measurements in its units",
+          "[codec][measured]") {
+  DaemonConfig c = default_daemon_config();
+  Tracker tracker(c.tracker);
+  auto [measured, visible] = rest_measurements(tracker, {0.01, 0, 0}, {"RKNE", "LHEE"});
+  measured[2] = Eigen::Vector3d(NAN, 0.0, 0.0);  // not finite: not a measurement, though "visible"
+  const TrackResult& r = tracker.track(0.0, measured, visible);
+  const PoseHeader h{5, true, 0.0, false, 0.0};
+  std::string plain, off, on;
+  PoseEncoder(tracker, "mm", PayloadEncoding::json).encode(h, r, plain);
+  PoseEncoder(tracker, "mm", PayloadEncoding::json, false).encode(h, r, off, {measured, visible});
+  CHECK(off == plain);  // off: the pose is byte for byte what it was
+  CHECK_FALSE(json::parse(off).contains("measured"));
+  for (const char* units : {"mm", "m"})
+    for (auto enc : {PayloadEncoding::json, PayloadEncoding::msgpack}) {
+      CAPTURE(units, enc == PayloadEncoding::json);
+      PoseEncoder(tracker, units, enc, true).encode(h, r, on, {measured, visible});
+      const json pose = enc == PayloadEncoding::json ? json::parse(on) : json::from_msgpack(on);
+      REQUIRE(pose.contains("measured"));
+      const double scale = units == std::string("m") ? 1.0 : 1e3;
+      json expected = json::object();
+      for (std::size_t i = 0; i < measured.size(); ++i)
+        if (visible[i] && measured[i].allFinite()) expected[c.tracker.markers[i].marker] = true;
+      CHECK(pose["measured"].size() == expected.size());
+      CHECK(expected.size() == c.tracker.markers.size() - 3);
+      for (std::size_t i = 0; i < measured.size(); ++i) {
+        const std::string& name = c.tracker.markers[i].marker;
+        INFO(name);
+        REQUIRE(pose["measured"].contains(name) == expected.contains(name));
+        if (!expected.contains(name)) continue;
+        for (int k = 0; k < 3; ++k)
+          CHECK(pose["measured"][name][k].get<double>() ==
+                Approx(measured[i][k] * scale).margin(1e-6 * scale));
+      }
+      // The rest of the pose is unchanged by it.
+      json without = pose;
+      without.erase("measured");
+      const json before = json::parse(plain);
+      CHECK(without["markers"].size() == before["markers"].size());
+      CHECK(without["occluded"] == before["occluded"]);
+    }
+}
+
+TEST_CASE("The model message names exactly what the poses name, once, in both encodings",
+          "[codec][model]") {
+  DaemonConfig c = default_daemon_config();
+  // A stream name of its own for one marker, and one model marker not tracked: the message
+  // lists the markers the poses carry, not the model's marker points.
+  c.tracker.markers.front().marker = "Sub:" + c.tracker.markers.front().marker;
+  c.tracker.markers.pop_back();
+  // Two orientation sensors too, listed in the message.
+  c.tracker.sensors.sensors.push_back({"pelvis_imu", 0, 0, 1.0});
+  c.tracker.sensors.sensors.push_back({"torso_imu", 1, 0, 1.0});
+  Tracker tracker(c.tracker);
+  const auto [measured, visible] = rest_measurements(tracker, Eigen::Vector3d::Zero());
+  std::string pose_text;
+  PoseEncoder(tracker, "m", PayloadEncoding::json)
+      .encode({1, false, 0.0, false, 0.0}, tracker.track(0.0, measured, visible), pose_text);
+  const json pose = json::parse(pose_text);
+  const json model =
+      json::parse(encode_model(c.tracker, "my config.json", "m", PayloadEncoding::json));
+  const json packed =
+      json::from_msgpack(encode_model(c.tracker, "my config.json", "m", PayloadEncoding::msgpack));
+  CHECK(test::largest_difference(packed, model) < 1e-4);  // JSON's numbers have 4 decimals
+  test::check_model_matches_pose(model, pose);
+  CHECK(model["config"] == "my config.json");
+  CHECK(model["lab_axes"] == json::parse(R"({"up": [0, 1, 0], "forward": [1, 0, 0]})"));
+  CHECK(model["sensors"] == json::array({"pelvis_imu", "torso_imu"}));
+  // The built-in model: its bones, a segment's origin, a marker's segment, ranges.
+  const auto has_bone = [&](const char* a, const char* b) {
+    return std::count(model["bones"].begin(), model["bones"].end(), json::array({a, b})) == 1;
+  };
+  CHECK(has_bone("pelvis_origin", "r_hip"));
+  CHECK(has_bone("r_hip", "r_knee"));
+  CHECK(has_bone("lumbosacral", "neck"));
+  const auto entry = [&](const char* list, const std::string& name) {
+    for (const json& e : model[list])
+      if (e["name"] == name) return e;
+    FAIL("no " << name << " in " << list);
+    return json();
+  };
+  CHECK(entry("segments", "r_shank") ==
+        json::parse(R"({"name": "r_shank", "parent": "r_thigh", "origin": "r_knee"})"));
+  CHECK(entry("segments", "pelvis")["parent"].is_null());
+  CHECK(entry("markers", "RKNE")["segment"] == "r_thigh");
+  CHECK(entry("coordinates", "knee_angle_r") ==
+        json::parse(R"({"name": "knee_angle_r", "min_deg": -140.0, "max_deg": 5.0})"));
+  CHECK(entry("coordinates", "pelvis_tilt")["min_deg"].is_null());  // relative to the world
+  int ranged = 0;
+  for (const json& e : model["coordinates"])
+    ranged += e["min_deg"].is_number() && e["min_deg"].get<double>() < e["max_deg"].get<double>();
+  CHECK(ranged == static_cast<int>(model["coordinates"].size()) - 3);  // all but the pelvis'
+  // A coordinate's sign and offset turn its range (value = sign * (angle + offset)).
+  const Model& m = tracker.model();
+  Coordinate knee = m.coordinates[m.find_coordinate("knee_angle_r")];
+  knee.sign = -1.0;
+  knee.offset = 10.0 * 3.141592653589793 / 180.0;
+  const auto range = coordinate_range_deg(m, knee);
+  REQUIRE(range);
+  CHECK(range->first == Approx(-15.0));
+  CHECK(range->second == Approx(130.0));
+  knee.relative_to = -1;  // the same angle relative to the world: no joint limits it
+  CHECK_FALSE(coordinate_range_deg(m, knee));
 }
 
 namespace {

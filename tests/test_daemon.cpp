@@ -15,13 +15,16 @@
 #include <limits>
 #include <new>
 #include <random>
+#include <set>
 #include <thread>
 
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
+#include "model_message.hpp"
 #include "socket_client.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
+#include "transport/model_codec.hpp"
 #include "transport/socket_monitor.hpp"
 
 #include "sanitized.hpp"
@@ -187,6 +190,15 @@ zmq::socket_t real_time_subscriber(zmq::context_t& context, const std::string& e
   s.set(zmq::sockopt::rcvbuf, 4096);
   s.set(zmq::sockopt::linger, 0);
   s.set(zmq::sockopt::subscribe, topic);
+  s.connect(endpoint);
+  return s;
+}
+
+// A plain subscriber to `prefix`.
+zmq::socket_t subscriber(zmq::context_t& context, const std::string& endpoint, const char* prefix) {
+  zmq::socket_t s(context, zmq::socket_type::sub);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::subscribe, prefix);
   s.connect(endpoint);
   return s;
 }
@@ -1077,20 +1089,18 @@ TEST_CASE(
     "Subscriptions: a prefix of pose or stats is applied to the subscriber that sent it, "
     "any other is refused",
     "[daemon][limits]") {
-  for (const char* ok : {"", "p", "pose", "s", "sta", "stats"})
+  for (const char* ok : {"", "p", "pose", "s", "sta", "stats", "m", "mod", "model"})
     CHECK(wire::subscribes_to_our_topics(ok));
-  for (const char* no : {"posex", "pose ", "x", "statsx", "markers", "Pose"})
+  for (const char* no : {"posex", "pose ", "x", "statsx", "markers", "Pose", "modelx", "models"})
     CHECK_FALSE(wire::subscribes_to_our_topics(no));
+  for (const char* model : {"", "m", "mo", "model"}) CHECK(wire::subscribes_to_model(model));
+  for (const char* other : {"p", "pose", "stats", "modelx", "x"})
+    CHECK_FALSE(wire::subscribes_to_model(other));
   zmq::context_t context;
   RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
-  const auto subscriber = [&](const char* prefix) {
-    zmq::socket_t s(context, zmq::socket_type::sub);
-    s.set(zmq::sockopt::linger, 0);
-    s.set(zmq::sockopt::subscribe, prefix);
-    s.connect(d.daemon.output_endpoint());
-    return s;
-  };
-  zmq::socket_t stats_only = subscriber("stats"), refused = subscriber("posex");
+  const std::string output = d.daemon.output_endpoint();
+  zmq::socket_t stats_only = subscriber(context, output, "stats"),
+                refused = subscriber(context, output, "posex");
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   std::uint64_t frame = client.handshake();
   // Until the stats subscriber has had a stats message and the refusal is counted.
@@ -1141,4 +1151,154 @@ TEST_CASE(
   CHECK_FALSE(wire::connected_to(accepted, ours));  // closed (nothing opened since)
   close(client);
   close(listener);
+}
+
+namespace {
+
+// The next `model` message on `sub` (other topics skipped), decoded, or nothing by the deadline.
+std::optional<json> next_model(zmq::socket_t& sub, Clock::time_point deadline) {
+  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+  if (left.count() <= 0) return std::nullopt;
+  auto m = test::receive_topic(sub, "model", left);
+  if (!m) return std::nullopt;
+  return test::decode_payload(*m);
+}
+
+}  // namespace
+
+TEST_CASE(
+    "The model topic: each subscription that covers it gets the config's model, not refused, "
+    "and a reload sends the new one",
+    "[daemon][model]") {
+  zmq::context_t context;
+  const DaemonConfig base = config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*");
+  // The reloaded config: output in metres and MessagePack.
+  auto load = [base]() -> DaemonConfig {
+    DaemonConfig c = base;
+    c.output_units = "m";
+    c.output_m_per_unit = 1.0;
+    c.output_encoding = Encoding::msgpack;
+    return c;
+  };
+  RunningDaemon d(context, base, load);
+  const std::string output = d.daemon.output_endpoint();
+  const json expected = json::parse(wire::encode_model(base.tracker, "<embedded>/default.json",
+                                                       "mm", wire::PayloadEncoding::json));
+  // Exactly "model", a prefix of it: each gets the model when its subscription arrives.
+  zmq::socket_t model_only = subscriber(context, output, "model");
+  const auto first = next_model(model_only, Clock::now() + 5s);
+  REQUIRE(first);
+  CHECK(*first == expected);
+  zmq::socket_t prefix = subscriber(context, output, "mo");
+  REQUIRE(next_model(prefix, Clock::now() + 5s));
+  // Everything (""): the model, then poses that it names.
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  const auto from_all = client.receive("model");
+  REQUIRE(from_all);
+  CHECK(*from_all == expected);
+  std::uint64_t frame = client.handshake();
+  client.send_frame(++frame, rest_markers(base));
+  const auto pose = client.receive("pose");
+  REQUIRE(pose);
+  test::check_model_matches_pose(*from_all, *pose);
+  // A reload: every model subscriber gets the new config's model, in its encoding.
+  d.control.reload = true;
+  const auto reloaded = [&](zmq::socket_t& sub) {
+    const auto deadline = Clock::now() + 5s;
+    for (auto m = next_model(sub, deadline); m; m = next_model(sub, deadline))
+      if ((*m)["units"] == "m") return m;
+    return std::optional<json>();
+  };
+  const auto after = reloaded(model_only);
+  REQUIRE(after);
+  CHECK((*after)["joints"] == expected["joints"]);
+  CHECK(reloaded(prefix));
+  zmq::message_t raw;
+  for (auto m = client.receive_raw("model"); m; m = client.receive_raw("model", 500ms)) {
+    const auto first_byte = static_cast<const std::uint8_t*>(m->data())[0];
+    if (first_byte >= 0x80 && first_byte <= 0x8f) {  // a MessagePack map: the reloaded model
+      raw = std::move(*m);
+      break;
+    }
+  }
+  REQUIRE(raw.size() > 0);
+  CHECK(test::decode_payload(raw) == *after);
+  CHECK(d.daemon.counters().reloads == 1);
+  CHECK(d.daemon.counters().subscriptions_refused == 0);
+}
+
+TEST_CASE("A subscriber toggling a model subscription gets the model at most every 100 ms",
+          "[daemon][model]") {
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*"));
+  const std::string output = d.daemon.output_endpoint();
+  zmq::socket_t watcher = subscriber(context, output, "model");
+  REQUIRE(next_model(watcher, Clock::now() + 5s));  // connected
+  zmq::socket_t toggler = subscriber(context, output, "stats");
+  const Clock::time_point start = Clock::now();
+  int models = 0;
+  while (Clock::now() - start < 1s) {
+    toggler.set(zmq::sockopt::subscribe, "model");
+    toggler.set(zmq::sockopt::unsubscribe, "model");
+    if (test::receive_topic(watcher, "model", 1ms)) ++models;  // paces the loop too
+  }
+  // The last one asked for comes within the interval.
+  while (test::receive_topic(watcher, "model", 300ms)) ++models;
+  const double span_s = std::chrono::duration<double>(Clock::now() - start).count();
+  CAPTURE(models, span_s);
+  CHECK(models >= 1);
+  CHECK(models <= span_s / 0.1 + 3);
+  CHECK(d.run_error.empty());
+}
+
+TEST_CASE("Poses carry measured when the config asks: the frame's visible markers in output units",
+          "[daemon][measured]") {
+  zmq::context_t context;
+  // As a config file says it (the key is read), on ports of the test's own.
+  DaemonConfig on = load_daemon_config(
+      R"({"format": "fabrikd-config/1", "model": "models/fullbody.json",
+          "output": {"units": "m", "measured_markers": true}})",
+      "measured.json");
+  REQUIRE(on.output_measured_markers);
+  on.input = {"inproc://measured-markers", SocketMode::bind};
+  on.output = {"inproc://measured-poses", SocketMode::bind};
+  on.stats_interval_s = 0.05;
+  DaemonConfig off = config_on("inproc://plain-markers", "inproc://plain-poses");
+  CHECK_FALSE(off.output_measured_markers);  // the default
+  RunningDaemon with(context, on), without(context, off);
+  test::SocketClient a(context, with.daemon.input_endpoint(), with.daemon.output_endpoint());
+  test::SocketClient b(context, without.daemon.input_endpoint(), without.daemon.output_endpoint());
+  std::uint64_t frame = std::max(a.handshake(), b.handshake());
+  json sent = rest_markers(on);
+  sent["RKNE"] = nullptr;                  // occluded
+  sent.erase("LHEE");                      // absent
+  sent["RTOE"] = {0.0, 0.0, 0.0};          // zero: missing
+  sent["RASI"] = {1e9, 0.0, 0.0};          // beyond the plausible range
+  sent["NOT_A_MARKER"] = {1.0, 2.0, 3.0};  // unknown
+  ++frame;
+  a.send_frame(frame, sent);
+  b.send_frame(frame, sent);
+  const auto pose = a.receive("pose"), plain = b.receive("pose");
+  REQUIRE(pose);
+  REQUIRE(plain);
+  REQUIRE((*pose)["frame"] == frame);
+  CHECK_FALSE(plain->contains("measured"));
+  REQUIRE(pose->contains("measured"));
+  const json& measured = (*pose)["measured"];
+  std::set<std::string> expected;
+  for (const auto& [name, p] : sent.items())
+    if (!p.is_null() && name != "RTOE" && name != "RASI" && name != "NOT_A_MARKER")
+      expected.insert(name);
+  std::set<std::string> got;
+  for (const auto& [name, p] : measured.items()) got.insert(name);
+  CHECK(got == expected);
+  CHECK(expected.size() == on.tracker.markers.size() - 4);
+  for (const std::string& name : expected)
+    for (int k = 0; k < 3; ++k)
+      CHECK(measured[name][k].get<double>() ==
+            Approx(sent[name][k].get<double>() * 1e-3).margin(1e-7));
+  // The occluded ones are listed as such; every measured one is a pose marker too.
+  for (const char* name : {"RKNE", "LHEE", "RTOE", "RASI"})
+    CHECK(std::count((*pose)["occluded"].begin(), (*pose)["occluded"].end(), name) == 1);
+  for (const std::string& name : got) CHECK((*pose)["markers"].contains(name));
 }

@@ -215,6 +215,9 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   Tracker tracker(config.tracker);
   const wire::PoseEncoder encoder(tracker, "mm", wire::PayloadEncoding::json);
   const wire::PoseEncoder msgpack(tracker, "mm", wire::PayloadEncoding::msgpack);
+  // With output.measured_markers: the frame's measurements too.
+  const wire::PoseEncoder measured_json(tracker, "mm", wire::PayloadEncoding::json, true);
+  const wire::PoseEncoder measured_msgpack(tracker, "m", wire::PayloadEncoding::msgpack, true);
   std::vector<std::string> names;
   std::vector<int> points;
   for (const MarkerTarget& m : config.tracker.markers)
@@ -269,6 +272,10 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
     before = g_allocations.load();
     encoder.encode({frame.frame, true, t, false, 0.0}, r, out);
     msgpack.encode({frame.frame, true, t, false, 0.0}, r, out);
+    measured_json.encode({frame.frame, true, t, false, 0.0}, r, out,
+                         {frame.p_world_m, frame.visible});
+    measured_msgpack.encode({frame.frame, true, t, false, 0.0}, r, out,
+                            {frame.p_world_m, frame.visible});
     encode_allocations += g_allocations.load() - before;
     REQUIRE(ok);
   }

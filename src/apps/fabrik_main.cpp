@@ -6,6 +6,7 @@
 
 #include "bench/bench.hpp"
 #include "bench/latency_bench.hpp"
+#include "bench/view_bench.hpp"
 #include "calibrate_command.hpp"
 #include "cli_exit.hpp"
 #include "eval_command.hpp"
@@ -13,6 +14,7 @@
 #include "solve_command.hpp"
 #include "tools/tools.hpp"
 #include "version.hpp"
+#include "view_command.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"fabrik: prioritized FABRIK inverse kinematics for motion capture"};
@@ -97,10 +99,27 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"qtm", "natnet"}));
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
+  fabrik::bench::ViewBenchOptions view_bench;
+  bool view_json = false;
+  CLI::App* b_view = bench->add_subcommand(
+      "view", "fabrik view in-process at 1 kHz input: poses/s to 1 and 5 WebSocket clients, "
+              "latency, the view's CPU");
+  b_view->add_option("--input-hz", view_bench.input_hz, "Poses per second into the view")
+      ->capture_default_str();
+  b_view->add_option("--rate-hz", view_bench.rate_hz, "The view's per-client cap")
+      ->capture_default_str();
+  b_view->add_option("--seconds", view_bench.seconds, "Duration per client count")
+      ->capture_default_str();
+  b_view->add_option("--clients", view_bench.clients, "Client counts to run")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 64));
+  b_view->add_flag("--json", view_json, "Print one JSON object instead of a table");
+
   fabrik::apps::add_solve_command(app);
   fabrik::apps::add_info_command(app);
   fabrik::add_calibrate_command(app);
   fabrik::apps::add_eval_command(app);
+  fabrik::apps::add_view_command(app);
   fabrik::tools::add_tool_commands(app);  // run from their own callbacks
 
   try {
@@ -112,6 +131,9 @@ int main(int argc, char** argv) {
       if (b_latency->count("--rate") > 0) latency.source_rate_hz = latency.rate_hz;
       const auto r = fabrik::bench::run_latency(latency);
       std::cout << (latency_json ? r.dump(2) + "\n" : fabrik::bench::latency_table(r));
+    } else if (b_view->parsed()) {
+      const auto r = fabrik::bench::run_view_bench(view_bench);
+      std::cout << (view_json ? r.dump(2) + "\n" : fabrik::bench::view_bench_table(r));
     } else if (b_body->parsed()) {
       body.calibrated = !builtin_only;
       if (!body.config.empty()) {

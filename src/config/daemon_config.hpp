@@ -32,6 +32,8 @@ struct DaemonConfig {
   double output_m_per_unit = 1e-3;  // pose positions and residuals
   std::string output_units = "mm";
   Encoding output_encoding = Encoding::json;
+  // Poses also carry `measured`: each visible marker's measured position.
+  bool output_measured_markers = false;
   std::size_t max_payload_bytes = 1 << 20;
   // Input coordinates farther than this from the origin on any axis are not
   // plausible measurements: the marker is taken as occluded (and counted).

@@ -23,7 +23,8 @@ bool ends_with_ci(const std::string& s, const std::string& suffix) {
 
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress,
-                          const io::OrientationTable* orientations) {
+                          const io::OrientationTable* orientations,
+                          const TrackedFrameHook& on_frame) {
   Tracker tracker(config.tracker);
   const Model& model = tracker.model();
   const int n = tracker.marker_count();
@@ -105,6 +106,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
       }
     }
     const TrackResult& r = tracker.track(time_s, measured, visible, q_sensor, sensor_visible);
+    if (on_frame) on_frame(f, time_s, tracker, r);
     s.sensor_rms_rad.push_back(r.sensor_occluded_count < sensor_count ? r.sensor_rms_rad : NAN);
     s.sensors_measured.push_back(sensor_count - r.sensor_occluded_count);
     s.joints.positions_m.insert(s.joints.positions_m.end(), r.joints_world_m.begin(),

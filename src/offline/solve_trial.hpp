@@ -12,6 +12,7 @@
 #include "io/marker_trial.hpp"
 #include "io/opensim_table.hpp"
 #include "io/orientation_table.hpp"
+#include "tracking/tracker.hpp"
 
 namespace fabrik {
 
@@ -74,9 +75,14 @@ struct TrialSolution {
 // each marker frame takes the table's orientations at its file time
 // (MarkerTrial::file_time_s, interpolated). A trial without markers (no labels) is tracked
 // on the table's rows instead, at the table's times and rate.
+// `on_frame(f, time_s, tracker, result)` (may be empty) sees each frame's result as it is
+// tracked, as the daemon would publish it (`fabrik view --trial` encodes poses from it).
+using TrackedFrameHook =
+    std::function<void(std::size_t, double, const Tracker&, const TrackResult&)>;
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress = {},
-                          const io::OrientationTable* orientations = nullptr);
+                          const io::OrientationTable* orientations = nullptr,
+                          const TrackedFrameHook& on_frame = {});
 
 // Frames, residual RMS mean and max, worst marker, solve time quantiles. Frames without any
 // measured marker have no residual: they are left out of the residual figures and counted

@@ -25,13 +25,15 @@ extern "C" void on_signal(int) {
   g_stop.store(true);
 }
 
+}  // namespace
+
 // Ctrl-C (or SIGTERM) ends a replay or a watch cleanly, with its summary.
 void catch_stop_signals() {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
 }
 
-}  // namespace
+bool stop_signalled() { return g_stop.load(); }
 
 void add_replay_command(CLI::App& app) {
   struct Args {

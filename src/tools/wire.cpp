@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "config/endpoint_check.hpp"
+#include "transport/payload_document.hpp"
 
 namespace fabrik::tools {
 
@@ -18,26 +19,11 @@ const char* wire_encoding_name(WireEncoding encoding) {
 }
 
 WireEncoding detect_encoding(std::string_view payload) {
-  if (payload.empty()) throw std::runtime_error("empty payload");
-  const auto b = static_cast<unsigned char>(payload.front());
-  if (b == '{' || b == ' ' || b == '\t' || b == '\n' || b == '\r') return WireEncoding::json;
-  if ((b >= 0x80 && b <= 0x8f) || b == 0xde || b == 0xdf) return WireEncoding::msgpack;
-  char hex[8];
-  std::snprintf(hex, sizeof hex, "0x%02x", b);
-  throw std::runtime_error(std::string("payload starts with byte ") + hex +
-                           ": neither a JSON object nor a MessagePack map");
+  return wire::document_encoding(payload) == wire::PayloadEncoding::json ? WireEncoding::json
+                                                                         : WireEncoding::msgpack;
 }
 
-nlohmann::json decode_payload(std::string_view payload) {
-  const WireEncoding encoding = detect_encoding(payload);
-  try {
-    if (encoding == WireEncoding::json) return nlohmann::json::parse(payload);
-    return nlohmann::json::from_msgpack(payload.begin(), payload.end());
-  } catch (const nlohmann::json::exception& e) {
-    throw std::runtime_error(std::string("bad ") + wire_encoding_name(encoding) +
-                             " payload: " + e.what());
-  }
-}
+nlohmann::json decode_payload(std::string_view payload) { return wire::decode_document(payload); }
 
 std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding) {
   if (encoding == WireEncoding::json) return doc.dump();

@@ -17,6 +17,7 @@
 
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
+#include "model_codec.hpp"
 #include "socket_monitor.hpp"
 #include "wire_writer.hpp"
 
@@ -239,6 +240,7 @@ struct Daemon::State {
   std::unique_ptr<Tracker> tracker;
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
+  std::string model_out;  // the `model` payload of this config, made once
   MarkerFrame frame;  // decoded into, one at a time
   NameMismatchWatch names;  // does the stream use the config's marker names?
   // Messages waiting to be served, oldest first: [first, first + count) of a
@@ -273,14 +275,16 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
       PlausibleMarkers{config.max_abs_coordinate_m, config.zero_is_missing,
                        config.quaternion_tolerance},
       sensor_names);
-  s->encoder = std::make_unique<PoseEncoder>(*s->tracker, config.output_units,
-                                             config.output_encoding == Encoding::msgpack
-                                                 ? PayloadEncoding::msgpack
-                                                 : PayloadEncoding::json);
+  const PayloadEncoding encoding = config.output_encoding == Encoding::msgpack
+                                       ? PayloadEncoding::msgpack
+                                       : PayloadEncoding::json;
+  s->encoder = std::make_unique<PoseEncoder>(*s->tracker, config.output_units, encoding,
+                                             config.output_measured_markers);
   s->frame = s->decoder->make_frame();
   s->waiting.resize(static_cast<std::size_t>(config.max_backlog_frames));
   s->received_at.resize(s->waiting.size());
   s->config_name = safe_text(config.file);
+  s->model_out = encode_model(config.tracker, s->config_name, config.output_units, encoding);
   s->config = std::move(config);
   return s;
 }
@@ -534,7 +538,8 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
     r = &s.tracker->track(time_s, f.p_world_m, f.visible, f.q_sensor, f.sensor_visible);
     if (!all_finite(*r)) return;
   }
-  s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_);
+  s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_,
+                    {f.p_world_m, f.visible});
   counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
   counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
@@ -596,18 +601,24 @@ bool connected_to(int fd, std::string_view endpoint) {
 // publish, and any other message: on a bound socket, the connection that
 // sent it is shut down, which is what frees what ZeroMQ stored for it. A
 // connected output's peer is the operator's own (a proxy), so it is only
-// counted there.
+// counted there. A subscription that covers `model` has been applied by the
+// time the loop sees it, so the model published then reaches it (once per
+// batch of subscriptions, however many of them ask).
 void Daemon::read_subscriptions() {
   State& s = *state_;
   const bool bound = s.config.output.mode == SocketMode::bind;
   std::string endpoint;
   int shut[16];
   int n_shut = 0;
+  bool model_wanted = false;
   for (int n = 0; n < kMaxBatch; ++n) {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
     if (!m.empty() && m[0] == 0) continue;  // an unsubscription: nothing to hold
-    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1))) continue;
+    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1))) {
+      model_wanted = model_wanted || subscribes_to_model(m.substr(1));
+      continue;
+    }
     ++counters_.subscriptions_refused;
     // The deprecated ZMQ_SRCFD is the only way ZeroMQ names the connection.
     const int fd = zmq_msg_get(subscription_.handle(), ZMQ_SRCFD);
@@ -622,11 +633,27 @@ void Daemon::read_subscriptions() {
     char text[96];
     const std::size_t n_text = safe_text(m.substr(std::min<std::size_t>(1, m.size())), text, 64);
     subscriber_log_.warn(
-        "refused a subscription to '{}' on the output{}: fabrikd publishes only the topics pose "
-        "and stats (stats: subscriptions_refused)",
+        "refused a subscription to '{}' on the output{}: fabrikd publishes only the topics "
+        "pose, stats and model (stats: subscriptions_refused)",
         std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "");
   }
   update_snapshot();
+  if (model_wanted) want_model(Clock::now());
+}
+
+constexpr auto kModelInterval = std::chrono::milliseconds(100);
+
+void Daemon::want_model(Clock::time_point now) {
+  if (now - last_model_ >= kModelInterval)
+    publish_model();
+  else
+    model_pending_ = true;
+}
+
+void Daemon::publish_model() {
+  send("model", state_->model_out);
+  last_model_ = Clock::now();
+  model_pending_ = false;
 }
 
 void Daemon::publish_stats(double interval_s) {
@@ -690,9 +717,11 @@ void Daemon::start_reload(const std::function<DaemonConfig()>& load_config) {
 void Daemon::finish_reload() {
   std::shared_ptr<ReloadJob> job = std::move(reload_);
   job->thread.join();
+  bool reloaded = false;
   try {
     if (!job->state) throw std::runtime_error(job->error);
     switch_to(std::move(job->state));
+    reloaded = true;
   } catch (const std::exception& e) {
     ++counters_.reload_errors;
     char text[512];
@@ -700,6 +729,9 @@ void Daemon::finish_reload() {
     spdlog::error("reload failed, keeping the running config: {}", std::string_view(text, n));
   }
   update_snapshot();
+  // The subscribers' model changes with the config (after the counts: whoever
+  // has seen the new model sees the reload counted).
+  if (reloaded) publish_model();
 }
 
 void Daemon::wait_for_reload_at_stop() {
@@ -779,6 +811,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
       internal_error("on the input: ", e.what());
     }
     const Clock::time_point now = Clock::now();
+    if (model_pending_) want_model(now);  // the loop wakes at least every 100 ms
     if (now >= next_stats) {
       try {
         publish_stats(std::chrono::duration<double>(now - last_stats).count());

@@ -96,8 +96,13 @@ constexpr int kInputReceiveBufferBytes = 256 * 1024;
 // connection dropped. ZeroMQ keeps every subscription it is sent in a tree
 // (about 32 bytes per subscribed byte, never given back while connected), so
 // refusing them is what bounds a subscriber's memory.
-inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats"};
+inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats", "model"};
 bool subscribes_to_our_topics(std::string_view prefix);
+// Whether a subscription to `prefix` receives the topic `model` (sent to it
+// when the subscription arrives: Daemon::read_subscriptions).
+inline bool subscribes_to_model(std::string_view prefix) {
+  return std::string_view("model").starts_with(prefix);
+}
 // Whether `fd` is still a connection to the socket bound at `endpoint` (as
 // ZeroMQ reports it: tcp://host:port or ipc://path), and not a listener:
 // the descriptor a refused message came from may have been reused since.
@@ -159,6 +164,10 @@ class Daemon {
   void read_monitor();
   void read_subscriptions();
   void publish_stats(double interval_s);
+  void publish_model();
+  // Publishes the model now, or within kModelInterval of the last one: a
+  // subscriber toggling subscriptions cannot make the loop publish at will.
+  void want_model(std::chrono::steady_clock::time_point now);
   void send(const char* topic, const std::string& payload);
   void bad_input(std::string_view what, std::string_view detail,
                  std::string_view after = {}) noexcept;
@@ -176,6 +185,8 @@ class Daemon {
   mutable std::mutex snapshot_mutex_;  // counters() may be called from other threads
   DaemonCounters snapshot_;
   std::chrono::steady_clock::time_point started_;
+  bool model_pending_ = false;  // asked for within kModelInterval of the last one
+  std::chrono::steady_clock::time_point last_model_{};
   IntervalSamples solve_us_, queue_us_;
   std::uint64_t interval_frames_out_ = 0;
   FixedText<256> last_error_;  // never allocates: survives an out-of-memory error path

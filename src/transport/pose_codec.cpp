@@ -8,11 +8,13 @@ std::string_view wire_status(SolveStatus status) {
   return status == SolveStatus::stalled ? "converged" : to_string(status);
 }
 
-PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding)
+PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding,
+                         bool measured_markers)
     : units_(std::move(units)),
       scale_(units_ == "m" ? 1.0 : 1e3),
       decimals_(units_ == "m" ? 7 : 4),  // 0.1 micrometre either way
-      encoding_(encoding) {
+      encoding_(encoding),
+      measured_markers_(measured_markers) {
   for (const Joint& j : tracker.model().joints)
     joints_.push_back({j.name, JsonWriter::json_key(j.name)});
   for (const MarkerTarget& m : tracker.setup().markers)
@@ -29,13 +31,15 @@ PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncod
 }
 
 template <class Writer>
-void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& r) const {
+void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& r,
+                        MeasuredMarkers measured) const {
   auto vec = [&](const Eigen::Vector3d& p_m) {
     w.begin_array(3);
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
     w.end_array();
   };
-  w.begin_map(14 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
+  w.begin_map(14 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0) +
+              (measured_markers_ ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
   if (header.has_time) {
@@ -62,6 +66,23 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     vec(r.markers_world_m[i]);
   }
   w.end_map();
+  if (measured_markers_) {
+    // Addition: what this frame measured, where it measured it (visible markers only).
+    const auto seen = [&](std::size_t i) {
+      return i < measured.p_world_m.size() && i < measured.visible.size() && measured.visible[i] &&
+             measured.p_world_m[i].allFinite();
+    };
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < markers_.size(); ++i) n += seen(i) ? 1 : 0;
+    w.key("measured");
+    w.begin_map(n);
+    for (std::size_t i = 0; i < markers_.size(); ++i) {
+      if (!seen(i)) continue;
+      w.named_key(markers_[i].plain, markers_[i].json_key);
+      vec(measured.p_world_m[i]);
+    }
+    w.end_map();
+  }
   std::size_t held = 0;
   for (std::uint8_t h : r.held) held += h;
   w.key("occluded");
@@ -162,14 +183,14 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   w.end_map();
 }
 
-void PoseEncoder::encode(const PoseHeader& header, const TrackResult& result,
-                         std::string& out) const {
+void PoseEncoder::encode(const PoseHeader& header, const TrackResult& result, std::string& out,
+                         MeasuredMarkers measured) const {
   if (encoding_ == PayloadEncoding::json) {
     JsonWriter w(out, decimals_);
-    write(w, header, result);
+    write(w, header, result, measured);
   } else {
     MsgpackWriter w(out);
-    write(w, header, result);
+    write(w, header, result, measured);
   }
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -26,16 +27,28 @@ struct PoseHeader {
   double stamp_us = 0.0;
 };
 
+// The frame's own measurements, per marker of the tracker's setup (as
+// MarkerFrame holds them), for the pose's `measured` (an addition).
+struct MeasuredMarkers {
+  std::span<const Eigen::Vector3d> p_world_m;
+  std::span<const std::uint8_t> visible;
+};
+
 class PoseEncoder {
  public:
-  // Positions are written in `units` ("mm" or "m").
-  PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding);
-  void encode(const PoseHeader& header, const TrackResult& result, std::string& out) const;
+  // Positions are written in `units` ("mm" or "m"). With `measured_markers`
+  // (config output.measured_markers), each pose also carries `measured`: the
+  // visible markers' measured positions; without it, no such key.
+  PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding,
+              bool measured_markers = false);
+  void encode(const PoseHeader& header, const TrackResult& result, std::string& out,
+              MeasuredMarkers measured = {}) const;
   PayloadEncoding encoding() const { return encoding_; }
 
  private:
   template <class Writer>
-  void write(Writer& w, const PoseHeader& header, const TrackResult& result) const;
+  void write(Writer& w, const PoseHeader& header, const TrackResult& result,
+             MeasuredMarkers measured) const;
 
   struct Name {
     std::string plain, json_key;
@@ -50,6 +63,7 @@ class PoseEncoder {
   double scale_;  // output units per metre
   int decimals_;
   PayloadEncoding encoding_;
+  bool measured_markers_;
 };
 
 }  // namespace fabrik::wire

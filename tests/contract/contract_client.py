@@ -3,7 +3,7 @@
 
 Written from ../shared/wire-contract.md and proto/ only: it starts the daemon
 with a temporary config on free loopback ports, talks to it through pyzmq, and
-validates every pose and stats payload against proto/*.schema.json.
+validates every pose, stats and model payload against proto/*.schema.json.
 
     /usr/bin/python3 tests/contract/contract_client.py --fabrikd build/src/apps/fabrikd
 
@@ -116,7 +116,8 @@ def load_schema(name):
 class Daemon:
     """One fabrikd process with its config, log and sockets."""
 
-    def __init__(self, fabrikd, workdir, output_encoding="json", output_units="mm"):
+    def __init__(self, fabrikd, workdir, output_encoding="json", output_units="mm",
+                 measured_markers=False):
         self.in_ep = f"tcp://127.0.0.1:{free_port()}"
         self.out_ep = f"tcp://127.0.0.1:{free_port()}"
         self.output_units = output_units
@@ -134,7 +135,7 @@ class Daemon:
                       # every frame of a burst must be answered, none dropped as stale
                       "max_backlog_frames": 10000},
             "output": {"endpoint": self.out_ep, "mode": "bind", "encoding": output_encoding,
-                       "units": output_units},
+                       "units": output_units, "measured_markers": measured_markers},
             "stats_interval_s": STATS_INTERVAL_S,
             "log_level": "info",
         }
@@ -156,9 +157,12 @@ class Daemon:
         self.sub.setsockopt(zmq.RCVHWM, 100000)
         self.sub.setsockopt(zmq.SUBSCRIBE, b"pose")
         self.sub.setsockopt(zmq.SUBSCRIBE, b"stats")
+        self.sub.setsockopt(zmq.SUBSCRIBE, b"model")
         self.sub.connect(self.out_ep)
         self.pose_schema = load_schema("pose.schema.json")
         self.stats_schema = load_schema("stats.schema.json")
+        self.model_schema = load_schema("model.schema.json")
+        self.models = []  # every model message
         self.poses = {}  # frame -> list of poses
         self.stats = []  # (arrival time, stats)
         self.encodings = set()
@@ -172,7 +176,7 @@ class Daemon:
 
     def pump(self, timeout_s):
         """Receives for up to timeout_s (returns early on the first message);
-        validates and records every pose and stats."""
+        validates and records every pose, stats and model."""
         if not self.sub.poll(int(timeout_s * 1000)):
             self.check_running()
             return False
@@ -192,6 +196,10 @@ class Daemon:
                 errors = list(self.stats_schema.iter_errors(doc))
                 check(not errors, f"stats violates proto/stats.schema.json: {errors[:1]}")
                 self.stats.append((time.monotonic(), doc))
+            elif topic == b"model":
+                errors = list(self.model_schema.iter_errors(doc))
+                check(not errors, f"model violates proto/model.schema.json: {errors[:1]}")
+                self.models.append(doc)
             else:
                 raise CheckFailed(f"unexpected output topic {topic!r}")
             if not self.sub.poll(0):
@@ -322,6 +330,33 @@ def check_pose(pose, sent, frame, time_s, rest_joints_moved, model_markers, join
         check(res["worst"] is None, f"{where}: residual.worst {res['worst']} with count 0")
 
 
+def check_model(model, pose, units):
+    """The model message names exactly what the poses name, each once; its
+    bones and segments refer to joints and segments it lists."""
+    def names(entries):
+        out = [e if isinstance(e, str) else e["name"] for e in entries]
+        check(len(out) == len(set(out)), f"model: a name listed twice in {out}")
+        return set(out)
+    check(model["units"] == units, f"model: units {model['units']}, expected {units}")
+    for key, pose_key in (("joints", "joints"), ("segments", "segments"), ("markers", "markers"),
+                          ("coordinates", "angles")):
+        check(names(model[key]) == set(pose[pose_key]),
+              f"model.{key} differs from pose.{pose_key}: "
+              f"{sorted(names(model[key]) ^ set(pose[pose_key]))}")
+    joints, segments = set(model["joints"]), names(model["segments"])
+    for a, b in model["bones"]:
+        check(a in joints and b in joints and a != b, f"model: bone {a}-{b} is not two joints")
+    check(len(model["bones"]) == len(segments) - 1, "model: not one bone per non-root segment")
+    for s in model["segments"]:
+        check(s["parent"] is None or s["parent"] in segments, f"model: segment {s}")
+        check(s["origin"] in joints, f"model: segment {s} has no joint as origin")
+    for m in model["markers"]:
+        check(m["segment"] in segments, f"model: marker {m} on no segment of the model")
+    for c in model["coordinates"]:
+        lo, hi = c["min_deg"], c["max_deg"]
+        check((lo is None) == (hi is None) and (lo is None or lo <= hi), f"model: coordinate {c}")
+
+
 def stats_values(d):
     return {k: d[k] for k in ("frames_in", "frames_out", "decode_errors", "unknown_markers")}
 
@@ -381,6 +416,12 @@ def run_main(args, workdir, model_markers_rest, rest_joints, root):
     with Daemon(args.fabrikd, workdir) as d:
         d.join()
         print(f"contract: joined after {min(d.poses) - PROBE_BASE + 1} probe frame(s)")
+        d.wait_for(lambda: d.models, ANSWER_TIMEOUT_S, "the model message after subscribing")
+        check_model(d.models[0], d.poses[min(d.poses)][0], "mm")
+        check("measured" not in d.poses[min(d.poses)][0],
+              "pose carries measured while output.measured_markers is off")
+        print("contract: the model message on subscribing names exactly the poses' joints, "
+              "segments, markers and angles")
 
         # 1. N frames, alternating JSON and MessagePack, some in metres, some without units.
         frames = {}
@@ -590,19 +631,36 @@ def run_hostile(d, markers, frame):
 
 def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):
     """Output encoding msgpack and units m: poses come as MessagePack in metres."""
-    with Daemon(args.fabrikd, workdir, output_encoding="msgpack", output_units="m") as d:
+    with Daemon(args.fabrikd, workdir, output_encoding="msgpack", output_units="m",
+                measured_markers=True) as d:
         d.join()
+        hidden = sorted(model_markers_rest)[:3]
         for i in range(20):
             frame = 100 + i
             t = i / 100.0
             markers = moved(model_markers_rest, root, t)
-            d.send(json.dumps(marker_frame(frame, markers, t, "mm")).encode())
-            check_pose(d.wait_pose(frame), markers, frame, t, moved(rest_joints, root, t),
-                       set(model_markers_rest), set(rest_joints), units="m")
+            sent = {k: (None if k in hidden and i % 2 else v) for k, v in markers.items()}
+            d.send(json.dumps(marker_frame(frame, sent, t, "mm")).encode())
+            pose = d.wait_pose(frame)
+            check_pose(pose, markers, frame, t, moved(rest_joints, root, t),
+                       set(model_markers_rest), set(rest_joints), units="m",
+                       expect_occluded=[k for k, v in sent.items() if v is None])
+            # output.measured_markers: the visible markers as sent, in metres.
+            measured = pose.get("measured")
+            check(measured is not None, f"pose of frame {frame}: no measured")
+            visible = {k: v for k, v in sent.items() if v is not None}
+            check(set(measured) == set(visible),
+                  f"pose of frame {frame}: measured {sorted(measured)}, visible {sorted(visible)}")
+            for k, v in visible.items():
+                check(dist(measured[k], [c * 1e-3 for c in v]) <= 1e-9,
+                      f"pose of frame {frame}: measured {k} {measured[k]}, sent {v} mm")
         d.stats_after(time.monotonic())
+        check(d.models, "no model message after subscribing")
+        check_model(d.models[0], pose, "m")
         check(d.encodings == {"msgpack"}, f"output encodings seen: {d.encodings}")
         d.stop()
-        print("contract: output encoding msgpack, units m: poses and stats valid")
+        print("contract: output encoding msgpack, units m, measured_markers: poses (with "
+              "measured), stats and model valid")
 
 
 def main():

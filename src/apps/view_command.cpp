@@ -1,0 +1,93 @@
+#include "view_command.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <thread>
+#include <zmq.hpp>
+
+#include "common/safe_text.hpp"
+#include "offline/marker_match.hpp"
+#include "read_recording.hpp"
+#include "tools/run_command.hpp"
+#include "tools/tools.hpp"
+#include "view/view_server.hpp"
+#include "view/view_trial.hpp"
+
+namespace fabrik::apps {
+
+namespace {
+
+struct ViewArgs {
+  std::string pose = "tcp://127.0.0.1:5556", listen = "127.0.0.1:8080", web_root, trial, config;
+  double rate_hz = 60.0;
+  int max_clients = 16;
+};
+
+void run(const ViewArgs& a) {
+  view::ViewOptions o;
+  o.pose_endpoint = a.pose;
+  std::tie(o.listen_host, o.listen_port) = view::parse_listen(a.listen);
+  o.rate_hz = a.rate_hz;
+  o.max_clients = a.max_clients;
+  o.max_connections = a.max_clients + 48;  // room for page loads beside the WebSockets
+  o.web_root = a.web_root.empty() ? FABRIK_VIEW_WEB_ROOT : a.web_root;
+  if (!std::filesystem::is_regular_file(std::filesystem::path(o.web_root) / "index.html"))
+    std::fprintf(stderr, "fabrik view: warning: %s has no index.html: / answers 404\n",
+                 safe_lines(o.web_root).c_str());
+  if (a.trial.empty() && !a.config.empty())
+    throw std::invalid_argument("--config goes with --trial (a live view takes fabrikd's model)");
+  if (!a.trial.empty()) {
+    const DaemonConfig config =
+        a.config.empty() ? default_daemon_config() : load_daemon_config_file(a.config);
+    const io::MarkerTrial trial = read_trial_or_explain("view", a.trial, false);
+    require_shared_markers(config, trial, a.trial);
+    std::fprintf(stderr, "fabrik view: tracking %s (%zu frames) with %s\n",
+                 safe_lines(a.trial).c_str(), trial.frames(), safe_lines(config.file).c_str());
+    view::TrialView t = view::trial_view(config, trial);
+    o.trial_message = std::make_shared<const std::string>(std::move(t.message));
+    o.trial_note = "trial " + std::filesystem::path(a.trial).filename().string() + ": " +
+                   std::to_string(t.poses) + " poses";
+  }
+  zmq::context_t context(1);
+  view::ViewServer server(context, o);
+  tools::catch_stop_signals();
+  server.start();
+  std::printf("fabrik view: %s (%s)\n", server.url().c_str(),
+              o.trial_message ? o.trial_note.c_str() : ("poses from " + o.pose_endpoint).c_str());
+  if (o.listen_host != "127.0.0.1" && o.listen_host != "::1")
+    std::fprintf(stderr, "fabrik view: warning: listening on %s: other machines can connect\n",
+                 safe_lines(o.listen_host).c_str());
+  std::fflush(stdout);
+  while (!tools::stop_signalled()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  server.stop();
+  std::fprintf(stderr, "fabrik view: stopped by signal\n");
+}
+
+}  // namespace
+
+void add_view_command(CLI::App& app) {
+  auto a = std::make_shared<ViewArgs>();
+  CLI::App* c = app.add_subcommand(
+      "view", "A live 3D view of fabrikd's poses in the browser (or of a trial, --trial)");
+  c->add_option("--pose", a->pose, "fabrikd's pose/stats/model output, connected")
+      ->capture_default_str();
+  c->add_option("--listen", a->listen, "HTTP and WebSocket address, HOST:PORT (port 0: any)")
+      ->capture_default_str();
+  c->add_option("--rate-hz", a->rate_hz, "Poses per second per browser, at most (newest wins)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.1, 1000.0));
+  c->add_option("--max-clients", a->max_clients, "WebSocket clients at once; more get 503")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
+  c->add_option("--web-root", a->web_root, "The page's files (default: the source tree's)")
+      ->check(CLI::ExistingDirectory);
+  c->add_option("--trial", a->trial,
+                "Serve a recording (.trc, .c3d) tracked offline instead of a live stream")
+      ->check(CLI::ExistingFile);
+  c->add_option("--config", a->config, "Daemon config for --trial (default: the embedded one)");
+  c->callback([a] { tools::run_command("view", [&] { run(*a); }); });
+}
+
+}  // namespace fabrik::apps

@@ -1,0 +1,75 @@
+// The page's state: what arrived (model, poses, stats, status) and what was
+// drawn. One object, written by the modules that own each part; the test
+// reads it through snapshot() (window.fabrikView.state()).
+
+export const state = {
+  connected: false,
+  model: null,           // the last `model` message's data
+  labUp: null,           // the scene's up axis, from model.lab_axes
+  latest: null,          // newest live pose (newest wins)
+  latestAt: 0,           // performance.now() when it arrived
+  stats: null,           // last `stats` data
+  status: null,          // last `status` data (from fabrik view)
+  received: 0,           // pose messages received (live)
+  messages: 0,           // all messages received
+  garbage: 0,            // messages the page could not use
+  lastGarbage: null,     // what was wrong with the last one
+  painted: 0,            // frames painted with a pose not painted before
+  drawn: {frame: null, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0},
+  paintMs: [],           // recent arrival -> painted latencies (ms)
+  viewPaintMs: [],       // recent arrival at fabrik view -> painted latencies (ms)
+  lastPaintMs: null,
+  banner: null,          // error banner text, null when none
+  paused: false,
+  trial: null,           // {poses: [...], index} in trial mode
+  plots: {},             // coordinate -> samples held
+  history: {size: 0, index: null},
+};
+
+const PAINT_KEEP = 600;
+
+function keep(values, v) {
+  values.push(v);
+  if (values.length > PAINT_KEEP) values.splice(0, values.length - PAINT_KEEP);
+}
+
+export function notePaint(ms, viewMs) {
+  state.lastPaintMs = ms;
+  keep(state.paintMs, ms);
+  if (viewMs !== null) keep(state.viewPaintMs, viewMs);
+}
+
+function quantile(values, q) {
+  if (values.length === 0) return null;
+  const s = [...values].sort((a, b) => a - b);
+  return s[Math.min(s.length - 1, Math.floor(q * s.length))];
+}
+
+// A deep copy, so a caller cannot change the page through it.
+export function snapshot() {
+  const m = state.model;
+  return JSON.parse(JSON.stringify({
+    connected: state.connected,
+    model: m ? {config: m.config ?? null, bones: (m.bones || []).length,
+                markers: (m.markers || []).length, joints: (m.joints || []).length,
+                segments: (m.segments || []).length, coordinates: (m.coordinates || []).length,
+                sensors: (m.sensors || []).length} : null,
+    lab_up: state.labUp,
+    drawn: state.drawn,
+    received: state.received,
+    messages: state.messages,
+    garbage: state.garbage,
+    painted: state.painted,
+    plots: state.plots,
+    banner: state.banner,
+    paused: state.paused,
+    trial: state.trial ? {poses: state.trial.poses.length, index: state.trial.index} : null,
+    history: state.history,
+    stream: state.status ? state.status.stream : null,
+    last_paint_ms: state.lastPaintMs,
+    paint_ms: {n: state.paintMs.length, p50: quantile(state.paintMs, 0.5),
+               p95: quantile(state.paintMs, 0.95), max: quantile(state.paintMs, 1)},
+    view_to_paint_ms: {n: state.viewPaintMs.length, p50: quantile(state.viewPaintMs, 0.5),
+                       p95: quantile(state.viewPaintMs, 0.95), max: quantile(state.viewPaintMs, 1)},
+  }));
+}

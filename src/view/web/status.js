@@ -1,0 +1,95 @@
+// The status line (input rate, poses/s, latency, solve time, residual RMS,
+// fit quality, gaps open, frames dropped, config), the error banner, and the
+// lists of occluded markers and of sensors.
+
+import {state} from './state.js';
+
+const STALL_MS = 2000;  // no pose for this long: the stream stopped
+const GARBAGE_MS = 5000;  // an undecodable message keeps the banner this long
+
+const fmt = (v, digits = 0, unit = '') => (Number.isFinite(v) ? v.toFixed(digits) + unit : '-');
+
+export class StatusView {
+  constructor({line, banner, occludedList, sensorList}) {
+    Object.assign(this, {line, banner, occludedList, sensorList});
+    this.inputRate = null;
+    this.prevStats = null;
+    this.rateWindow = [];   // arrival times (ms) of poses in the last second
+    this.garbageSeen = 0;
+    this.garbageAt = -Infinity;
+    this.shownOccluded = '';
+  }
+
+  onStats(stats) {
+    const p = this.prevStats;
+    if (p && stats.uptime_s > p.uptime_s && stats.frames_in >= p.frames_in)
+      this.inputRate = (stats.frames_in - p.frames_in) / (stats.uptime_s - p.uptime_s);
+    this.prevStats = stats;
+  }
+
+  onPose(arrivedAt) {
+    this.rateWindow.push(arrivedAt);
+    while (this.rateWindow.length && this.rateWindow[0] < arrivedAt - 1000) this.rateWindow.shift();
+  }
+
+  setSensors(names) {
+    this.sensorList.replaceChildren(...(names.length ? names : ['none in this config']).map((n) => {
+      const li = document.createElement('li');
+      li.textContent = n;
+      return li;
+    }));
+  }
+
+  // The banner's text, or null: what is wrong, most serious first.
+  bannerText(now) {
+    if (state.garbage > this.garbageSeen) { this.garbageSeen = state.garbage; this.garbageAt = now; }
+    const st = state.status;
+    if (!state.connected) return state.messages ? 'Disconnected from fabrik view: reconnecting...' : null;
+    if (state.trial) return null;
+    if (st && st.stream === 'garbage') return `Garbage on the pose stream: ${st.message || 'undecodable poses'}`;
+    if (st && st.stream === 'stalled') return `The pose stream stopped: ${st.message || 'no pose from fabrikd'}`;
+    if (state.received > 0 && now - state.latestAt > STALL_MS)
+      return `The pose stream stopped: no pose for ${((now - state.latestAt) / 1000).toFixed(0)} s`;
+    if (now - this.garbageAt < GARBAGE_MS) return `Undecodable message from fabrik view: ${state.lastGarbage}`;
+    return null;
+  }
+
+  update(now, pose) {
+    state.banner = this.bannerText(now);
+    this.banner.hidden = state.banner === null;
+    if (state.banner !== null) this.banner.textContent = state.banner;
+
+    const s = state.stats || {}, st = state.status || {};
+    const r = pose && pose.residual ? pose.residual : {};
+    const units = pose && pose.units ? pose.units : 'mm';
+    while (this.rateWindow.length && this.rateWindow[0] < now - 1000) this.rateWindow.shift();
+    const parts = [
+      `input ${fmt(this.inputRate, 0, ' Hz')}`,
+      `fabrikd ${fmt(s.pose_rate_hz, 0, ' poses/s')}`,
+      `view ${fmt(st.poses_per_s, 0, ' poses/s')}`,
+      `page ${state.trial ? '-' : this.rateWindow.length + ' poses/s'}`,
+      `latency ${fmt(s.queue_latency_us && s.queue_latency_us.p50, 0)}/${fmt(s.queue_latency_us && s.queue_latency_us.p99, 0, ' us')} (p50/p99), paint ${fmt(state.lastPaintMs, 1, ' ms')}`,
+      `solve ${fmt(s.solve_us && s.solve_us.p50, 1, ' us')}`,
+      `residual RMS ${fmt(r.rms, 2, ' ' + units)}`,
+      `fit ${r.quality || '-'}`,
+      `gaps open ${pose ? pose.occluded.length : '-'}`,
+      `dropped ${fmt(s.frames_dropped)}`,
+      `config ${s.config || (state.model && state.model.config) || '-'}`,
+      `stream ${st.stream || (state.connected ? 'connected' : 'connecting')}`,
+    ];
+    this.line.textContent = parts.join(' | ');
+
+    const occluded = (pose ? pose.occluded.join(',') : '') + '@' + Math.floor(now / 250);
+    if (occluded !== this.shownOccluded) {
+      this.shownOccluded = occluded;
+      const gaps = (pose && pose.gap_s) || {};
+      const held = new Set((pose && pose.held) || []);
+      this.occludedList.replaceChildren(...(pose ? pose.occluded : []).map((n) => {
+        const li = document.createElement('li');
+        li.textContent = n + (held.has(n) ? ' (held)' : '') +
+          (Number.isFinite(gaps[n]) ? ` for ${gaps[n].toFixed(1)} s` : '');
+        return li;
+      }));
+    }
+  }
+}

@@ -1,0 +1,661 @@
+#!/usr/bin/python3
+"""The page of `fabrik view` (src/view/web) in headless Chromium, driven over
+the DevTools protocol with Debian's python3-websocket; every assert reads the
+page's own state (window.fabrikView.state()).
+
+    test_view_page.py --out-dir DIR                      # against the stub server
+    test_view_page.py --out-dir DIR --fabrik-view PATH --fabrikd PATH --fabrik PATH
+                                                         # fabrikd + fabrik replay + fabrik view
+
+Against the stub (tests/browser/stub_view_server.py: the same URLs and
+messages as `fabrik view`, a synthetic walk) it checks the page alone. With
+--fabrik-view it runs the real chain on subject01_walk1 (`fabrik view` being
+the program that has a `view` subcommand, usually the same as --fabrik).
+
+Asserts: the page received >= 95 % (and no more than the cap allows) of the
+poses it should at the server's capped rate; it draws exactly the model's
+bones and markers; the markers a pose lists as occluded are drawn occluded in
+that same frame; the angle plots hold data; pause and scrub show older poses
+while the stream goes on; the banner appears when the stream stops (and, with
+the stub, when it is garbage or silent) and goes when it is back; trial mode
+(stub) plays and scrubs; no uncaught exception in the page. Takes a
+screenshot into DIR (view_page.png, or view_subject01_walk1.png).
+
+Exit codes: 0 passed, 1 failed, 77 skipped (no chromium, no python3-websocket,
+no ../shared/data for the fabrikd chain), as registered with ctest's SKIP_RETURN_CODE.
+"""
+import argparse
+import base64
+import json
+import os
+import select
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import urllib.request
+
+SKIP = 77
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.normpath(os.path.join(HERE, '..', '..'))
+sys.path.insert(0, HERE)
+import stub_view_server as stub  # noqa: E402
+
+try:
+    import websocket  # Debian's python3-websocket (websocket-client)
+except ImportError:
+    websocket = None
+
+CHROMIUM_FLAGS = [
+    '--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync',
+    '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    '--disable-background-timer-throttling', '--disable-renderer-backgrounding',
+    '--disable-backgrounding-occluded-windows', '--window-size=1400,900',
+    '--remote-debugging-port=0', '--remote-allow-origins=*',
+]
+
+
+class Failed(Exception):
+    pass
+
+
+def check(cond, what):
+    if not cond:
+        raise Failed(what)
+    print('  ok  ' + what, flush=True)
+
+
+def wait_for(fn, timeout_s, what, interval_s=0.1):
+    """fn() until it returns something true; Failed after timeout_s."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = fn()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            raise Failed(f'timed out after {timeout_s:.0f} s waiting for {what} (last: {value!r})')
+        time.sleep(interval_s)
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+def read_line(proc, timeout_s, what):
+    """One line of a child's stdout, bounded."""
+    deadline = time.monotonic() + timeout_s
+    buf = b''
+    while time.monotonic() < deadline:
+        if proc.poll() is not None and not select.select([proc.stdout], [], [], 0)[0]:
+            raise Failed(f'{what} exited with code {proc.returncode} before printing its address')
+        r, _, _ = select.select([proc.stdout], [], [], 0.2)
+        if r:
+            c = os.read(proc.stdout.fileno(), 1)
+            if c == b'\n':
+                return buf.decode()
+            buf += c
+    raise Failed(f'timed out waiting for {what} to print its address')
+
+
+class Tab:
+    """One page target of a browser, spoken to over the DevTools protocol."""
+
+    def __init__(self, ws_url):
+        self.ws = websocket.create_connection(ws_url, timeout=30, suppress_origin=True)
+        self.next_id = 0
+        self.exceptions = []   # uncaught exceptions in the page
+        self.console = []      # console errors and warnings
+        self.call('Runtime.enable')
+        self.call('Page.enable')
+
+    def _event(self, msg):
+        if msg.get('method') == 'Runtime.exceptionThrown':
+            d = msg['params']['exceptionDetails']
+            self.exceptions.append((d.get('exception') or {}).get('description') or d.get('text'))
+        elif msg.get('method') == 'Runtime.consoleAPICalled' and msg['params']['type'] in ('error', 'warning'):
+            self.console.append(' '.join(str(a.get('value', a.get('description', '')))
+                                         for a in msg['params']['args']))
+
+    def call(self, method, timeout_s=30, **params):
+        self.next_id += 1
+        my_id = self.next_id
+        self.ws.settimeout(timeout_s)
+        self.ws.send(json.dumps({'id': my_id, 'method': method, 'params': params}))
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            msg = json.loads(self.ws.recv())
+            if msg.get('id') == my_id:
+                if 'error' in msg:
+                    raise Failed(f'{method}: {msg["error"]}')
+                return msg.get('result', {})
+            self._event(msg)
+        raise Failed(f'no answer to {method} within {timeout_s} s')
+
+    def eval(self, expression):
+        r = self.call('Runtime.evaluate', expression=expression, returnByValue=True, awaitPromise=True)
+        if 'exceptionDetails' in r:
+            raise Failed(f'{expression}: {r["exceptionDetails"].get("text")} '
+                         f'{(r["exceptionDetails"].get("exception") or {}).get("description", "")}')
+        return r['result'].get('value')
+
+    def state(self):
+        return self.eval('window.fabrikView ? window.fabrikView.state() : null')
+
+    def navigate(self, url):
+        self.call('Page.navigate', url=url)
+
+    def screenshot(self, path):
+        data = self.call('Page.captureScreenshot', timeout_s=60, format='png')['data']
+        with open(path, 'wb') as f:
+            f.write(base64.b64decode(data))
+        return path
+
+    def close_socket(self):
+        try:
+            self.ws.close()
+        except Exception:  # noqa: BLE001 - closing anyway
+            pass
+
+
+class Chromium(Tab):
+    """Headless Chromium, its first page being this Tab; new_tab() opens more."""
+
+    def __init__(self, url, workdir):
+        self.profile = tempfile.mkdtemp(prefix='chromium-profile-', dir=workdir)
+        self.log = open(os.path.join(workdir, 'chromium.log'), 'wb')
+        self.proc = subprocess.Popen(['/usr/bin/chromium', *CHROMIUM_FLAGS,
+                                      f'--user-data-dir={self.profile}', url],
+                                     stdout=self.log, stderr=subprocess.STDOUT, start_new_session=True)
+        port_file = os.path.join(self.profile, 'DevToolsActivePort')
+        wait_for(lambda: os.path.exists(port_file) and open(port_file).read().count('\n') >= 1
+                 or self.proc.poll() is not None, 60, 'chromium to open its DevTools port')
+        if self.proc.poll() is not None:
+            raise Failed(f'chromium exited with code {self.proc.returncode} (see {self.log.name})')
+        self.port = int(open(port_file).read().split()[0])
+
+        def page_target():
+            with urllib.request.urlopen(f'http://127.0.0.1:{self.port}/json/list', timeout=5) as r:
+                pages = [t for t in json.load(r) if t.get('type') == 'page']
+            return pages[0]['webSocketDebuggerUrl'] if pages else None
+        self.tabs = []
+        super().__init__(wait_for(page_target, 30, 'chromium\'s page target'))
+
+    def new_tab(self, url):
+        """Another page in a window of its own: a background tab would not paint."""
+        with urllib.request.urlopen(f'http://127.0.0.1:{self.port}/json/version', timeout=10) as r:
+            browser = Tab.__new__(Tab)  # the browser target: calls only, no page domains
+            browser.ws = websocket.create_connection(json.load(r)['webSocketDebuggerUrl'], timeout=30,
+                                                     suppress_origin=True)
+            browser.next_id, browser.exceptions, browser.console = 0, [], []
+        try:
+            target = browser.call('Target.createTarget', url=url, newWindow=True)['targetId']
+        finally:
+            browser.close_socket()
+
+        def page_ws():
+            with urllib.request.urlopen(f'http://127.0.0.1:{self.port}/json/list', timeout=5) as r:
+                return next((t['webSocketDebuggerUrl'] for t in json.load(r) if t.get('id') == target), None)
+        tab = Tab(wait_for(page_ws, 30, 'the new page target'))
+        self.tabs.append(tab)
+        return tab
+
+    def close(self):
+        for tab in self.tabs:
+            tab.close_socket()
+        self.close_socket()
+        stop(self.proc)
+        self.log.close()
+        shutil.rmtree(self.profile, ignore_errors=True)
+
+
+def stop(proc, timeout_s=5):
+    if proc is None or proc.poll() is not None:
+        return
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+    except (ProcessLookupError, PermissionError):
+        proc.terminate()
+    try:
+        proc.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            proc.kill()
+        proc.wait(timeout_s)
+
+
+# --- Checks shared by both modes. -------------------------------------------
+
+def check_loaded(page, bones, markers, timeout_s=60):
+    s = wait_for(lambda: (lambda s: s if s and s['connected'] and s['model'] and s['received'] > 0
+                          and s['painted'] > 0 else None)(page.state()),
+                 timeout_s, 'the page to connect, get the model and paint a pose')
+    check(page.eval('window.fabrikView.webglError()') is None, 'WebGL works (SwiftShader)')
+    check(s['model']['bones'] == bones and s['model']['markers'] == markers,
+          f'the page has the model: {bones} bones, {markers} markers')
+    return s
+
+
+class Reference:
+    """A second WebSocket client of the same server, in a thread of its own:
+    counts the poses the server sends a client that keeps up (the input may
+    run below the cap: a loaded machine, a replay that is late)."""
+
+    def __init__(self, url):
+        self.ws = websocket.create_connection(url.replace('http', 'ws', 1).rstrip('/') + '/ws',
+                                              timeout=5, suppress_origin=True)
+        self.times, self.stopped = [], threading.Event()
+        self.thread = threading.Thread(target=self.run, daemon=True)
+        self.thread.start()
+
+    def run(self):
+        while not self.stopped.is_set():
+            try:
+                text = self.ws.recv()
+            except websocket.WebSocketTimeoutException:
+                continue
+            except Exception:  # noqa: BLE001 - closed
+                return
+            if text.startswith('{"topic":"pose"') or text.startswith('{"topic": "pose"'):
+                self.times.append(time.monotonic())
+
+    def count(self, t0, t1):
+        return sum(1 for t in list(self.times) if t0 <= t < t1)
+
+    def close(self):
+        self.stopped.set()
+        try:
+            self.ws.close()
+        except Exception:  # noqa: BLE001 - closing anyway
+            pass
+        self.thread.join(10)
+
+
+def check_rate(page, rate_hz, reference, seconds=5.0):
+    t0, s0 = time.monotonic(), page.state()
+    time.sleep(seconds)
+    t1, s1 = time.monotonic(), page.state()
+    got, sent = s1['received'] - s0['received'], reference.count(t0, t1)
+    should = min(rate_hz * (t1 - t0), sent)
+    print(f'  ..  received {got} poses in {t1 - t0:.2f} s at a cap of {rate_hz:g}/s; a reference client got '
+          f'{sent}: the page should have {should:.0f}; painted {s1["painted"] - s0["painted"]}; '
+          f'arrival -> painted p50 {s1["paint_ms"]["p50"]:.1f} ms, p95 {s1["paint_ms"]["p95"]:.1f} ms')
+    check(got >= 0.95 * should, f'received >= 95 % of the poses it should ({got} of {should:.0f})')
+    check(got <= 1.05 * rate_hz * (t1 - t0) + 3,
+          f'received no more than the cap allows ({got} <= {1.05 * rate_hz * (t1 - t0) + 3:.0f})')
+    check(sent >= 0.5 * rate_hz * (t1 - t0), f'the server sent at least half its cap ({sent} poses)')
+    check(s1['painted'] > s0['painted'], 'painted new poses')
+
+
+def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0, segments=None,
+                require_measured=False):
+    """Each sample: what the page drew for frame F is the model's bones and
+    markers, and the occluded ones are exactly the pose's (of F) occluded."""
+    frames, with_occlusions, compared, last = set(), 0, 0, None
+    measured_shown = page.eval('window.fabrikView.state().drawn.measured > 0 || null')
+    if require_measured:
+        check(measured_shown, 'the poses carry measured markers and the page draws them')
+    for _ in range(samples):
+        d = page.state()['drawn']
+        last = d
+        check_quiet(d['bones'] == bones, f'frame {d["frame"]}: drew {d["bones"]} bones, the model has {bones}')
+        check_quiet(d['markers'] == markers, f'frame {d["frame"]}: drew {d["markers"]} markers, the model has {markers}')
+        expected = occluded_of(d['frame'])
+        if expected is not None:
+            compared += 1
+            check_quiet(sorted(d['occluded']) == sorted(expected),
+                        f'frame {d["frame"]}: drew occluded {sorted(d["occluded"])}, the pose says {sorted(expected)}')
+        if measured_shown is not None:  # the pose had `measured`: one dot and one line per visible marker
+            check_quiet(d['measured'] == markers - len(d['occluded']) == d['residual_lines'],
+                        f'frame {d["frame"]}: {d["measured"]} measured markers and {d["residual_lines"]} residual '
+                        f'lines drawn, {markers - len(d["occluded"])} markers visible')
+        if segments is not None:
+            check_quiet(d['frames'] == segments, f'frame {d["frame"]}: {d["frames"]} segment frames drawn, '
+                        f'the model has {segments}')
+        frames.add(d['frame'])
+        with_occlusions += bool(d['occluded'])
+        time.sleep(seconds / samples)
+    check(True, f'{samples} samples over {seconds:g} s ({len(frames)} frames): exactly {bones} bones '
+          f'and {markers} markers drawn each time')
+    check(compared >= samples // 2, f'occluded markers drawn occluded in the same frame ({compared} frames compared, '
+          f'{with_occlusions} with occlusions)')
+    if measured_shown:
+        check(True, 'a measured marker and a residual line for each visible marker')
+    if segments is not None:
+        check(True, f'{segments} segment frames drawn')
+    check(with_occlusions > 0, 'some samples had occluded markers')
+    check(len(frames) > samples // 4, 'the frames moved on between samples')
+    return last
+
+
+def check_quiet(cond, what):
+    if not cond:
+        raise Failed(what)
+
+
+def check_plots(page):
+    plots = page.state()['plots']
+    check(len(plots) >= 1 and all(n > 10 for n in plots.values()),
+          f'the angle plots hold data: {plots}')
+
+
+def check_pause_and_scrub(page):
+    page.eval("document.getElementById('pause').click()")
+    s0 = wait_for(lambda: (lambda s: s if s['paused'] else None)(page.state()), 5, 'the page to pause')
+    time.sleep(1.0)
+    s1 = page.state()
+    check(s1['drawn']['frame'] == s0['drawn']['frame'] and s1['received'] > s0['received'],
+          f'paused: frame {s0["drawn"]["frame"]} stays on screen while poses arrive '
+          f'({s1["received"] - s0["received"]} more)')
+    page.eval("(() => { const s = document.getElementById('scrub'); s.value = '0';"
+              " s.dispatchEvent(new Event('input')); })()")
+    s2 = wait_for(lambda: (lambda s: s if s['history']['index'] == 0 else None)(page.state()), 5,
+                  'the scrub to the oldest pose')
+    check(s2['drawn']['frame'] < s0['drawn']['frame'] and s2['history']['size'] > 1,
+          f'scrubbed back to frame {s2["drawn"]["frame"]} (of {s2["history"]["size"]} held)')
+    page.eval("document.getElementById('pause').click()")
+    s3 = wait_for(lambda: (lambda s: s if not s['paused'] and s['drawn']['frame'] > s0['drawn']['frame']
+                           else None)(page.state()), 5, 'the page to go live again')
+    check(True, f'live again at frame {s3["drawn"]["frame"]}')
+
+
+def check_banner(page, stop_stream, resume_stream, what, expect_words, timeout_s=10):
+    stop_stream()
+    s = wait_for(lambda: (lambda s: s if s['banner'] else None)(page.state()), timeout_s, f'the banner ({what})')
+    check(any(w in s['banner'] for w in expect_words), f'banner when {what}: "{s["banner"]}"')
+    resume_stream()
+    wait_for(lambda: page.state()['banner'] is None, timeout_s + 5, f'the banner to go ({what} over)')
+    check(True, f'banner gone when the stream is back after {what}')
+
+
+def check_no_exceptions(page):
+    if page.console:
+        print('  ..  console: ' + ' | '.join(page.console[:5]))
+    check(not page.exceptions, f'no uncaught exception in the page {page.exceptions[:3]}')
+
+
+# --- Against the stub. ------------------------------------------------------
+
+class Stub:
+    def __init__(self, *args):
+        self.proc = subprocess.Popen([sys.executable, os.path.join(HERE, 'stub_view_server.py'),
+                                      '--listen', '127.0.0.1:0', *args],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, start_new_session=True)
+        line = read_line(self.proc, 20, 'the stub server')
+        self.url = line.split()[-1]
+
+    def command(self, cmd):
+        self.proc.stdin.write((cmd + '\n').encode())
+        self.proc.stdin.flush()
+
+    def close(self):
+        try:
+            self.command('quit')
+        except OSError:
+            pass
+        stop(self.proc)
+
+
+def run_stub(out_dir):
+    rate = 60.0
+    model = stub.model()
+    bones, markers = len(model['bones']), len(model['markers'])
+    live = Stub('--rate-hz', str(rate))
+    trial = page = None
+    try:
+        print(f'stub server {live.url}; chromium on it', flush=True)
+        page = Chromium(live.url, out_dir)
+        check_loaded(page, bones, markers)
+        reference = Reference(live.url)
+        try:
+            check_rate(page, rate, reference)
+        finally:
+            reference.close()
+        check_drawn(page, bones, markers, stub.occluded_at, segments=len(model['segments']))
+        check_plots(page)
+        shot = page.screenshot(os.path.join(out_dir, 'view_page.png'))
+        print(f'  ..  screenshot {shot}')
+        check_pause_and_scrub(page)
+        check_banner(page, lambda: live.command('stall'), lambda: live.command('live'),
+                     'the stream stalls', ['stopped'])
+        check_banner(page, lambda: live.command('garbage'), lambda: live.command('live'),
+                     'the stream is garbage', ['arbage', 'ndecodable'])
+        check_banner(page, lambda: live.command('silent'), lambda: live.command('live'),
+                     'the server goes silent', ['stopped'])
+        check(page.state()['garbage'] > 0, 'the garbage was counted, the page carried on')
+        check_no_exceptions(page)
+
+        trial = Stub('--synthetic-trial', '4')
+        page.navigate(trial.url)
+        s = wait_for(lambda: (lambda s: s if s and s['trial'] and s['painted'] >= 0 and s['drawn']['frame']
+                              else None)(page.state()), 30, 'the trial to load')
+        check(s['trial']['poses'] == 200, f'trial mode: {s["trial"]["poses"]} poses')
+        i0 = s['trial']['index']
+        s1 = wait_for(lambda: (lambda s: s if s['trial']['index'] != i0 else None)(page.state()), 5,
+                      'the trial to play')
+        check(not s1['paused'] and s1['drawn']['bones'] == bones, f'the trial plays (index {i0} -> {s1["trial"]["index"]})')
+        page.eval("(() => { const s = document.getElementById('scrub'); s.value = '150';"
+                  " s.dispatchEvent(new Event('input')); })()")
+        s2 = wait_for(lambda: (lambda s: s if s['trial']['index'] == 150 else None)(page.state()), 5,
+                      'the time slider to index 150')
+        time.sleep(0.5)
+        s3 = page.state()
+        check(s2['paused'] and s3['trial']['index'] == 150 and s3['drawn']['frame'] == 151,
+              'the time slider shows pose 150 (frame 151) and holds it')
+        check(sorted(s3['drawn']['occluded']) == sorted(stub.occluded_at(151)),
+              'trial: occluded markers drawn occluded in that frame')
+        check(s3['banner'] is None, 'no banner in trial mode')
+
+        zup = Stub('--up', 'z')
+        try:
+            page.navigate(zup.url)
+            check_loaded(page, bones, markers, timeout_s=30)
+            check(page.state()['lab_up'] == [0, 0, 1], 'a Z-up lab: the scene\'s up is +z')
+            page.screenshot(os.path.join(out_dir, 'view_page_zup.png'))
+        finally:
+            zup.close()
+        check_no_exceptions(page)
+        return 0
+    finally:
+        for x in (page, live, trial):
+            if x:
+                x.close()
+
+
+# --- fabrikd + fabrik replay + fabrik view. ----------------------------------
+
+def has_view(fabrik_view):
+    try:
+        r = subprocess.run([fabrik_view, 'view', '--help'], capture_output=True, timeout=20)
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    # CLI11 answers `fabrik NOSUCH --help` with the main help and 0: look for
+    # the view's own option.
+    return r.returncode == 0 and b'--listen' in r.stdout
+
+
+def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
+    import zmq  # Debian's python3-zmq, as the contract test
+    data = os.path.normpath(os.path.join(ROOT, '..', 'shared', 'data'))
+    walk = os.path.join(data, 'subject01_walk1.trc')
+    if not os.path.exists(walk):
+        print(f'SKIP: {walk} is missing')
+        return SKIP
+    rate, procs, page, ctx = 60.0, [], None, zmq.Context()
+    logs = {n: open(os.path.join(out_dir, n + '.log'), 'wb') for n in ('calibrate', 'fabrikd', 'replay', 'view')}
+    config = os.path.join(out_dir, 'view_subject01.json')
+    try:
+        r = subprocess.run([fabrik, 'calibrate', '--template', os.path.join(ROOT, 'config', 'templates', 'gait2354.json'),
+                            '--static', os.path.join(data, 'subject01_static.trc'), '--output', config],
+                           stdout=logs['calibrate'], stderr=subprocess.STDOUT, timeout=120)
+        check(r.returncode == 0, 'fabrik calibrate: a subject01 config')
+        cfg = json.load(open(config))
+        cfg.setdefault('output', {})['measured_markers'] = True
+        in_ep, out_ep = f'tcp://127.0.0.1:{free_port()}', f'tcp://127.0.0.1:{free_port()}'
+        measured = os.path.join(out_dir, 'view_subject01_measured.json')
+        json.dump(cfg, open(measured, 'w'), indent=1)
+        daemon = subprocess.Popen([fabrikd, '--config', measured, '--input', in_ep, '--output', out_ep,
+                                   '--log-level', 'warn'], stdout=logs['fabrikd'], stderr=subprocess.STDOUT,
+                                  cwd=out_dir, start_new_session=True)
+        procs.append(daemon)
+        view_port = free_port()
+        view = subprocess.Popen([fabrik_view, 'view', '--pose', out_ep, '--listen', f'127.0.0.1:{view_port}',
+                                 '--rate-hz', str(int(rate))], stdout=logs['view'], stderr=subprocess.STDOUT,
+                                start_new_session=True)
+        procs.append(view)
+        url = f'http://127.0.0.1:{view_port}/'
+
+        def serving(u, proc):
+            def probe():
+                try:
+                    with urllib.request.urlopen(u, timeout=2) as r:
+                        return r.status == 200
+                except OSError:
+                    return proc.poll() is not None
+            return probe
+        wait_for(serving(url, view), 30, 'fabrik view to serve its page')
+        check(view.poll() is None, f'fabrik view serves {url}')
+
+        # Our own record of every pose, straight from fabrikd: frame -> occluded.
+        sub = ctx.socket(zmq.SUB)
+        sub.setsockopt(zmq.LINGER, 0)
+        sub.setsockopt(zmq.RCVHWM, 100000)
+        sub.setsockopt(zmq.SUBSCRIBE, b'pose')
+        sub.connect(out_ep)
+        occluded = {}
+
+        def pump():
+            while sub.poll(0):
+                topic, payload = sub.recv_multipart()
+                if payload[:1] in (b'{', b' '):
+                    doc = json.loads(payload)
+                    occluded[doc['frame']] = doc['occluded']
+
+        replay = subprocess.Popen([fabrik, 'replay', walk, '--to', in_ep, '--loop',
+                                   '--drop', 'R.Shank.Front:0.5:1.5', '--drop', 'L.Toe.Tip:1.0:2.0'],
+                                  stdout=logs['replay'], stderr=subprocess.STDOUT, start_new_session=True)
+        procs.append(replay)
+        # The model as the server sends it to any client (fabrikd publishes it to
+        # `fabrik view`'s subscription; a relay may know it only from a pose).
+        ws = websocket.create_connection(url.replace('http', 'ws') + 'ws', timeout=30, suppress_origin=True)
+        model = None
+        deadline = time.monotonic() + 30
+        try:
+            while model is None and time.monotonic() < deadline:
+                msg = json.loads(ws.recv())
+                if msg.get('topic') == 'model':
+                    model = msg['data']
+        except websocket.WebSocketTimeoutException:
+            pass
+        ws.close()
+        check(daemon.poll() is None, 'fabrikd runs (its log: fabrikd.log)')
+        check(model is not None, 'fabrik view sends the model fabrikd published on connect')
+        bones, markers = len(model['bones']), len(model['markers'])
+        check(not model.get('derived') and bones > 0 and markers > 0,
+              f'the model has bones ({bones}) and markers ({markers})')
+
+        page = Chromium(url, out_dir)
+        check_loaded(page, bones, markers)
+        pump()
+        reference = Reference(url)
+        try:
+            check_rate(page, rate, reference)
+        finally:
+            reference.close()
+        pump()
+        v = page.state()['view_to_paint_ms']
+        check(v['n'] > 0 and 0 < v['p50'] < 10000,
+              f'the page measures fabrik view -> painted from view_ms: p50 {v["p50"]:.1f} ms, '
+              f'p95 {v["p95"]:.1f} ms over {v["n"]} poses')
+
+        def occluded_of(frame):
+            pump()
+            return occluded.get(frame)
+        check_drawn(page, bones, markers, occluded_of, require_measured=True)
+        check_plots(page)
+        shot = page.screenshot(os.path.join(out_dir, 'view_subject01_walk1.png'))
+        print(f'  ..  screenshot {shot}')
+        check_pause_and_scrub(page)
+
+        stop(replay)
+        s = wait_for(lambda: (lambda s: s if s['banner'] else None)(page.state()), 15, 'the banner (the stream stopped)')
+        check('stop' in s['banner'] or 'stall' in s['banner'], f'banner when the replay stops: "{s["banner"]}"')
+        check_no_exceptions(page)
+
+        # Offline: the same trial solved by `fabrik view --trial`, one `trial` message.
+        trial_port = free_port()
+        trial = subprocess.Popen([fabrik_view, 'view', '--trial', walk, '--config', config,
+                                  '--listen', f'127.0.0.1:{trial_port}'], stdout=logs['view'],
+                                 stderr=subprocess.STDOUT, start_new_session=True)
+        procs.append(trial)
+        trial_url = f'http://127.0.0.1:{trial_port}/'
+        wait_for(serving(trial_url, trial), 60, 'fabrik view --trial to serve its page')
+        check(trial.poll() is None, f'fabrik view --trial serves {trial_url}')
+        page.navigate(trial_url)
+        s = wait_for(lambda: (lambda s: s if s and s['trial'] and s['drawn']['frame'] is not None
+                              else None)(page.state()), 60, 'the trial to load')
+        check(s['trial']['poses'] == 151, f'trial mode: {s["trial"]["poses"]} poses of subject01_walk1 (151 frames)')
+        check(s['drawn']['bones'] == s['model']['bones'] and s['drawn']['markers'] == s['model']['markers'],
+              'trial: the model\'s bones and markers drawn')
+        page.eval("(() => { const s = document.getElementById('scrub'); s.value = '75';"
+                  " s.dispatchEvent(new Event('input')); })()")
+        s = wait_for(lambda: (lambda s: s if s['trial']['index'] == 75 else None)(page.state()), 5,
+                     'the time slider to index 75')
+        check(s['paused'] and s['banner'] is None, f'the time slider shows pose 75 (frame {s["drawn"]["frame"]})')
+        check_no_exceptions(page)
+        return 0
+    finally:
+        if page:
+            page.close()
+        for p in reversed(procs):
+            stop(p)
+        ctx.destroy(linger=0)
+        for f in logs.values():
+            f.close()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    ap.add_argument('--out-dir', default=os.getcwd(), help='screenshots and logs go here')
+    ap.add_argument('--fabrik-view', help='the program with the `view` subcommand (fabrik)')
+    ap.add_argument('--fabrikd')
+    ap.add_argument('--fabrik')
+    args = ap.parse_args()
+    if not os.access('/usr/bin/chromium', os.X_OK):
+        print('SKIP: /usr/bin/chromium is missing (scripts/install-deps installs Debian\'s chromium)')
+        return SKIP
+    if websocket is None:
+        print('SKIP: python3-websocket is missing (scripts/install-deps installs it)')
+        return SKIP
+    os.makedirs(args.out_dir, exist_ok=True)
+    try:
+        if args.fabrik_view:
+            if not (args.fabrikd and args.fabrik):
+                ap.error('--fabrik-view needs --fabrikd and --fabrik')
+            for exe in (args.fabrikd, args.fabrik, args.fabrik_view):
+                if not os.access(exe, os.X_OK):
+                    raise Failed(f'{exe} is not built')
+            if not has_view(args.fabrik_view):
+                raise Failed(f'{args.fabrik_view} has no working `view` subcommand '
+                             f'(`{args.fabrik_view} view --help` does not list --listen)')
+            rc = run_fabrik(args.out_dir, args.fabrikd, args.fabrik, args.fabrik_view)
+        else:
+            rc = run_stub(args.out_dir)
+    except Failed as e:
+        print(f'FAIL: {e}', flush=True)
+        return 1
+    if rc == 0:
+        print('PASS', flush=True)
+    return rc
+
+
+if __name__ == '__main__':
+    sys.exit(main())

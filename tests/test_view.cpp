@@ -1,0 +1,525 @@
+// `fabrik view` (src/view/): the URL table and its security cases, the WebSocket's limits,
+// newest-pose-wins at the rate cap with a client that does not read, and the status message
+// (garbage, stalled). Real sockets on loopback (port 0), inproc ZeroMQ; every wait bounded.
+#include <catch2/catch.hpp>
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <thread>
+#include <zmq.hpp>
+#include <zmq_addon.hpp>
+
+#include "view/stream_status.hpp"
+#include "view/view_server.hpp"
+#include "view/view_trial.hpp"
+#include "view/web_files.hpp"
+#include "view/ws_client.hpp"
+#include "config/daemon_config.hpp"
+
+using namespace fabrik;
+using namespace fabrik::view::client;
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A web root with the page's files, a link out of it, a link to a file below it, a
+// subdirectory and a file next to the root (a traversal's target).
+struct WebRoot {
+  fs::path base, root;
+  WebRoot() {
+    base = fs::temp_directory_path() /
+           ("fabrik_view_test_" + std::to_string(::getpid()) + "_" +
+            std::to_string(Clock::now().time_since_epoch().count()));
+    root = base / "web";
+    fs::create_directories(root / "sub");
+    write(root / "index.html", "<!doctype html><title>t</title>");
+    write(root / "app.js", "export const x = 1;\n");
+    write(root / "style.css", "body {}\n");
+    write(root / "notes.txt", "not served\n");
+    write(root / "sub" / "deep.js", "deep\n");
+    write(base / "secret.js", "SECRET\n");
+    fs::create_symlink(base / "secret.js", root / "evil.js");
+    fs::create_symlink("/etc/passwd", root / "passwd.js");
+    fs::create_symlink(root / "sub" / "deep.js", root / "inside.js");
+    fs::create_symlink(root / "app.js", root / "alias.js");
+  }
+  ~WebRoot() {
+    std::error_code ec;
+    fs::remove_all(base, ec);
+  }
+  static void write(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+};
+
+bool has_three() {
+  return fs::exists("/usr/share/javascript/three/build/three.module.js") &&
+         fs::exists("/usr/share/javascript/three/examples/jsm/controls/OrbitControls.js");
+}
+
+// A view fed by an inproc PUB of the test's.
+struct LiveView {
+  zmq::context_t context{1};
+  zmq::socket_t pub{context, zmq::socket_type::pub};
+  std::unique_ptr<view::ViewServer> server;
+  explicit LiveView(view::ViewOptions o) {
+    pub.set(zmq::sockopt::sndhwm, 100000);
+    pub.bind("inproc://view_test_poses");
+    o.pose_endpoint = "inproc://view_test_poses";
+    o.listen_host = "127.0.0.1";
+    o.listen_port = 0;
+    server = std::make_unique<view::ViewServer>(context, o);
+    server->start();
+  }
+  ~LiveView() { server->stop(); }
+  unsigned short port() const { return server->port(); }
+  void send(const std::string& topic, const std::string& payload) {
+    zmq::message_t parts[] = {zmq::message_t(topic), zmq::message_t(payload)};
+    zmq::send_multipart(pub, parts);
+  }
+  void pose(std::uint64_t frame, const std::string& pad = "") {
+    json p = {{"frame", frame}, {"units", "mm"}, {"joints", {{"hip_r", {1, 2, 3}}}}};
+    if (!pad.empty()) p["pad"] = pad;
+    send("pose", p.dump());
+  }
+  // Publishes poses until the view has seen one (the subscription is asynchronous).
+  void until_subscribed() {
+    const auto deadline = Clock::now() + std::chrono::seconds(5);
+    std::uint64_t f = 0;
+    while (Clock::now() < deadline && server->counters().poses == 0) {
+      pose(++f);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing, not sync
+    }
+    REQUIRE(server->counters().poses > 0);
+  }
+};
+
+view::ViewOptions options_for(const WebRoot& web) {
+  view::ViewOptions o;
+  o.web_root = web.root.string();
+  o.listen_port = 0;
+  return o;
+}
+
+// A web root and a view fed by the test (options tuned by `tune`), already receiving poses.
+struct FedView {
+  WebRoot web;
+  view::ViewOptions o;
+  std::unique_ptr<LiveView> live;
+  explicit FedView(const std::function<void(view::ViewOptions&)>& tune) : o(options_for(web)) {
+    tune(o);
+    live = std::make_unique<LiveView>(o);
+    live->until_subscribed();
+  }
+};
+
+// Reads messages until one of `topic` for which `pred(data)` holds, or the deadline.
+template <class Pred>
+std::optional<json> read_until(WsClient& c, const std::string& topic, Pred pred,
+                               std::chrono::milliseconds within = std::chrono::milliseconds(5000)) {
+  const auto deadline = Clock::now() + within;
+  while (Clock::now() < deadline) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
+    const auto text = c.read(std::max(left, std::chrono::milliseconds(1)));
+    if (!text) return std::nullopt;
+    const json m = json::parse(*text);
+    if (m.at("topic") == topic && pred(m.at("data"))) return m.at("data");
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+TEST_CASE("view web files: the URL table and nothing else") {
+  WebRoot web;
+  const view::WebFiles files(web.root, "/usr/share/javascript/three");
+  CHECK(files.resolve("/")->content_type == std::string("text/html; charset=utf-8"));
+  CHECK(files.resolve("/index.html")->cache_control == std::string("no-store"));
+  CHECK(files.resolve("/app/app.js")->content_type == std::string("text/javascript; charset=utf-8"));
+  CHECK(files.resolve("/app/app.js?v=2"));
+  CHECK(files.resolve("/app/style.css")->content_type == std::string("text/css; charset=utf-8"));
+  CHECK(files.resolve("/app/alias.js"));  // a link to a file of the root itself
+  for (const char* target :
+       {"/app/notes.txt", "/app/index.html", "/app/sub/deep.js", "/app/inside.js", "/app/evil.js",
+        "/app/passwd.js", "/app/../secret.js", "/app/..%2fsecret.js", "/app/%2e%2e/secret.js",
+        "/app/%252e%252e/secret.js", "/../secret.js", "/%2e%2e/secret.js", "/etc/passwd",
+        "//etc/passwd", "/app//etc/passwd", "/app/.js", "/app/a.b.js", "/app/app.js/",
+        "/app/app.JS", "/app/", "/app", "http://127.0.0.1/index.html", "index.html", "",
+        "/three/build/three.js", "/three/../../../../etc/passwd", "/three/build/../../../etc/passwd",
+        "/app/app.js%00.css", "/index.html/", "/INDEX.HTML"}) {
+    INFO(target);
+    CHECK_FALSE(files.resolve(target));
+  }
+  if (has_three()) {
+    CHECK(files.resolve("/three/build/three.module.js"));
+    CHECK(files.resolve("/three/examples/jsm/controls/OrbitControls.js"));
+  }
+  CHECK(view::is_page_asset_name("scene_3d-v2.js"));
+  CHECK_FALSE(view::is_page_asset_name("a b.js"));
+}
+
+TEST_CASE("view http: each security case and the status it returns") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  LiveView v(o);
+  const unsigned short port = v.port();
+  SECTION("the table") {
+    const HttpAnswer index = get(port, "/");
+    CHECK(index.status == 200);
+    CHECK(index.content_type == "text/html; charset=utf-8");
+    CHECK(index.cache_control == "no-store");
+    CHECK(index.body.find("<title>t</title>") != std::string::npos);
+    const HttpAnswer js = get(port, "/app/app.js");
+    CHECK(js.status == 200);
+    CHECK(js.content_type == "text/javascript; charset=utf-8");
+    CHECK(js.cache_control == "no-store");
+    CHECK(get(port, "/app/style.css").content_type == "text/css; charset=utf-8");
+    const HttpAnswer head = get(port, "/app/app.js", "HEAD");
+    CHECK(head.status == 200);
+    CHECK(head.content_length == std::to_string(std::string("export const x = 1;\n").size()));
+    CHECK(head.body.empty());
+    if (has_three()) {
+      const HttpAnswer three = get(port, "/three/build/three.module.js");
+      CHECK(three.status == 200);
+      CHECK(three.content_type == "text/javascript; charset=utf-8");
+      CHECK(three.body.size() > 100000);
+      CHECK(get(port, "/three/examples/jsm/controls/OrbitControls.js").status == 200);
+    }
+  }
+  SECTION("traversal, encoded dots, absolute paths, links out: 404") {
+    for (const char* target :
+         {"/../secret.js", "/app/../secret.js", "/app/..%2fsecret.js", "/app/%2e%2e/secret.js",
+          "/%2e%2e/%2e%2e/etc/passwd", "/app/%252e%252e/secret.js", "/app/%2e%2e%2fsecret.js",
+          "/etc/passwd", "//etc/passwd", "http://127.0.0.1/etc/passwd", "/app/evil.js",
+          "/app/passwd.js", "/app/sub/deep.js", "/app/inside.js", "/app/notes.txt",
+          "/three/../../../../etc/passwd", "/three/build/three.js", "/app/..\\secret.js"}) {
+      INFO(target);
+      const HttpAnswer a = get(port, target);
+      CHECK(a.status == 404);
+      CHECK(a.body.find("SECRET") == std::string::npos);
+      CHECK(a.body.find("root:") == std::string::npos);
+    }
+  }
+  SECTION("methods other than GET and HEAD: 405") {
+    for (const char* method : {"POST", "PUT", "DELETE", "OPTIONS", "PATCH"}) {
+      INFO(method);
+      CHECK(get(port, "/", method).status == 405);
+    }
+    CHECK(raw_request(port, "POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 3\r\n\r\nabc")
+              .status == 405);
+  }
+  SECTION("a request header above 8 KiB: 431") {
+    const std::string big(9000, 'a');
+    CHECK(raw_request(port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + big + "\r\n\r\n")
+              .status == 431);
+    const std::string fits(7000, 'a');
+    CHECK(raw_request(port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + fits +
+                                "\r\nConnection: close\r\n\r\n")
+              .status == 200);
+  }
+  SECTION("another host or origin while bound to loopback: 403; /ws without upgrade: 426") {
+    CHECK(raw_request(port, "GET / HTTP/1.1\r\nHost: evil.example\r\nConnection: close\r\n\r\n")
+              .status == 403);
+    CHECK(raw_request(port, "GET / HTTP/1.1\r\nHost: localhost:8080\r\nConnection: close\r\n\r\n")
+              .status == 200);
+    CHECK(get(port, "/ws").status == 426);
+    WsClient evil(port, "http://evil.example");
+    CHECK_FALSE(evil.connected());
+    CHECK(evil.handshake_status() == 403);
+    WsClient same(port, "http://127.0.0.1:" + std::to_string(port));
+    CHECK(same.connected());
+  }
+  SECTION("garbage instead of HTTP: 400 or closed, and the server goes on") {
+    const HttpAnswer a = raw_request(port, "\x16\x03\x01garbage\r\n\r\n");
+    CHECK((a.status == 400 || a.status == 0));
+    CHECK(get(port, "/").status == 200);
+  }
+}
+
+TEST_CASE("view websocket: more clients than --max-clients get 503") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  o.max_clients = 2;
+  LiveView v(o);
+  auto a = std::make_unique<WsClient>(v.port());
+  WsClient b(v.port());
+  REQUIRE(a->connected());
+  REQUIRE(b.connected());
+  WsClient c(v.port());
+  CHECK_FALSE(c.connected());
+  CHECK(c.handshake_status() == 503);
+  CHECK(v.server->counters().rejected_clients == 1);
+  a.reset();  // a slot frees when a client goes
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  bool again = false;
+  while (!again && Clock::now() < deadline) {
+    WsClient d(v.port());
+    again = d.connected();
+  }
+  CHECK(again);
+}
+
+TEST_CASE("view websocket: an inbound message above 4 KiB closes that client") {
+  WebRoot web;
+  LiveView v(options_for(web));
+  WsClient small(v.port()), big(v.port());
+  REQUIRE(small.connected());
+  REQUIRE(big.connected());
+  CHECK(small.write(std::string(100, 'x')));
+  CHECK(big.write(std::string(5000, 'x')));
+  // The big one is closed (1009, message too big); the small one still gets statuses.
+  bool closed = false;
+  for (int i = 0; i < 20 && !closed; ++i) closed = !big.read(std::chrono::milliseconds(3000));
+  CHECK(closed);
+  CAPTURE(big.last_error().message());
+  CHECK_FALSE(big.last_error() == boost::beast::error::timeout);  // closed by the view, not silent
+  CHECK(read_until(small, "status", [](const json&) { return true; }));
+}
+
+TEST_CASE("view websocket: newest pose wins at the rate cap and a client that does not read costs the others nothing") {
+  FedView fed([](view::ViewOptions& o) { o.rate_hz = 50.0; });
+  LiveView& v = *fed.live;
+  const view::ViewOptions& o = fed.o;
+  // The stuck client reads nothing, with a tiny receive buffer: its writes stop completing.
+  WsClient stuck(v.port(), "", 4096);
+  REQUIRE(stuck.connected());
+  std::atomic<bool> run{true};
+  std::atomic<std::uint64_t> published{0};
+  const std::string pad(32 * 1024, 'p');  // fills the stuck client's buffers quickly
+  std::thread publisher([&] {
+    auto next = Clock::now();
+    std::uint64_t f = 1000;
+    while (run.load()) {
+      v.pose(++f, pad);
+      published.store(f);
+      next += std::chrono::milliseconds(1);
+      std::this_thread::sleep_until(next);  // 1 kHz pacing
+    }
+  });
+  std::vector<std::unique_ptr<WsClient>> readers;
+  for (int i = 0; i < 2; ++i) readers.push_back(std::make_unique<WsClient>(v.port()));
+  const double seconds = 2.0;
+  std::vector<std::vector<std::uint64_t>> frames(readers.size());
+  const auto start = Clock::now();
+  const auto end = start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(seconds));
+  std::vector<std::thread> threads;
+  for (std::size_t i = 0; i < readers.size(); ++i)
+    threads.emplace_back([&, i] {
+      while (Clock::now() < end) {
+        const auto text = readers[i]->read(std::chrono::milliseconds(2000));
+        if (!text) break;
+        const json m = json::parse(*text);
+        if (m["topic"] == "pose") frames[i].push_back(m["data"]["frame"].get<std::uint64_t>());
+      }
+    });
+  for (auto& t : threads) t.join();
+  const view::ViewCounters first = v.server->counters();
+  // Drops of the stuck client keep growing while poses arrive.
+  const auto grow_deadline = Clock::now() + std::chrono::seconds(3);
+  view::ViewCounters later = first;
+  auto stuck_drops = [](const view::ViewCounters& c) {
+    std::uint64_t most = 0;
+    for (const auto& k : c.clients) most = std::max(most, k.dropped);
+    return most;
+  };
+  while (Clock::now() < grow_deadline && stuck_drops(later) <= stuck_drops(first))
+    later = v.server->counters();
+  run = false;
+  publisher.join();
+  for (std::size_t i = 0; i < readers.size(); ++i) {
+    INFO("reader " << i << " got " << frames[i].size() << " poses in " << seconds << " s");
+    // At most the rate (plus the first one at once), and no less than 80 % of it.
+    CHECK(frames[i].size() <= static_cast<std::size_t>(o.rate_hz * seconds) + 2);
+    CHECK(frames[i].size() >= static_cast<std::size_t>(0.8 * o.rate_hz * seconds));
+    // Newest wins: strictly increasing, about 1000 / 50 = 20 frames apart.
+    for (std::size_t k = 1; k < frames[i].size(); ++k) CHECK(frames[i][k] > frames[i][k - 1]);
+    if (frames[i].size() > 10) {
+      const double gap = static_cast<double>(frames[i].back() - frames[i].front()) /
+                         static_cast<double>(frames[i].size() - 1);
+      CHECK(gap > 10.0);
+    }
+  }
+  INFO("stuck client drops " << stuck_drops(first) << " then " << stuck_drops(later));
+  CHECK(stuck_drops(first) > 0);
+  CHECK(stuck_drops(later) > stuck_drops(first));
+  // Memory: at most one message in flight per client, whatever the stuck one missed.
+  REQUIRE(later.clients.size() == 3);
+  for (const auto& c : later.clients) CHECK(c.in_flight_bytes <= pad.size() + 1024);
+}
+
+TEST_CASE("view status: garbage on the pose topic gives status garbage, not a crash") {
+  FedView fed([](view::ViewOptions& o) { o.stall_after_s = 0.5; });
+  LiveView& v = *fed.live;
+  WsClient c(v.port());
+  REQUIRE(c.connected());
+  REQUIRE(read_until(c, "status", [](const json& d) { return d["stream"] == "ok"; }));
+  std::string truncated_msgpack;
+  json::to_msgpack(json{{"frame", 1}, {"joints", {{"a", {1, 2, 3}}}}}, truncated_msgpack);
+  truncated_msgpack.resize(truncated_msgpack.size() / 2);
+  for (const std::string& garbage :
+       {std::string("\xc1\x00garbage", 9), std::string("[1, 2, 3]"), std::string("{\"frame\": "),
+        truncated_msgpack, std::string("{\"no_frame\": 1}"), std::string(),
+        std::string("{\"frame\": 1, \"s\": \"\xff\xfe\"}")})
+    v.send("pose", garbage);
+  {
+    zmq::message_t parts[] = {zmq::message_t(std::string("pose"))};
+    zmq::send_multipart(v.pub, parts);  // one part only
+  }
+  const auto g = read_until(c, "status", [](const json& d) { return d["stream"] == "garbage"; });
+  REQUIRE(g);
+  // Caught on arrival: all but the one with bytes that are not UTF-8, which looks like a
+  // pose until it is parsed, when a client is due it.
+  CHECK((*g)["undecodable"].get<int>() >= 6);
+  CHECK((*g)["message"].get<std::string>().find("undecodable") != std::string::npos);
+  // Good poses again: ok once the garbage is older than the window.
+  std::atomic<bool> run{true};
+  std::thread publisher([&] {
+    std::uint64_t f = 5000;
+    while (run.load()) {
+      v.pose(++f);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing
+    }
+  });
+  const auto ok = read_until(c, "status", [](const json& d) { return d["stream"] == "ok"; });
+  run = false;
+  publisher.join();
+  CHECK(ok);
+  // A JSON pose nested 100000 deep passes the cheap check; the full one (before sending)
+  // finds it, without recursing.
+  const int before = (*g)["undecodable"].get<int>();
+  v.send("pose", "{\"frame\": 1, \"deep\": " + std::string(100000, '[') +
+                     std::string(100000, ']') + "}");
+  const auto deep = read_until(c, "status", [&](const json& d) {
+    return d["stream"] == "garbage" && d["undecodable"].get<int>() > before;
+  });
+  REQUIRE(deep);
+  CHECK((*deep)["message"].get<std::string>().find("nested deeper") != std::string::npos);
+  CHECK(get(v.port(), "/").status == 200);
+}
+
+TEST_CASE("view status: no pose for the stall time gives status stalled, waiting before any") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  o.stall_after_s = 0.3;
+  LiveView v(o);
+  WsClient c(v.port());
+  REQUIRE(c.connected());
+  CHECK(read_until(c, "status", [](const json& d) { return d["stream"] == "waiting"; }));
+  v.until_subscribed();
+  CHECK(read_until(c, "status", [](const json& d) { return d["stream"] == "ok"; }));
+  const auto stalled = read_until(c, "status", [](const json& d) { return d["stream"] == "stalled"; });
+  REQUIRE(stalled);
+  CHECK((*stalled)["message"].get<std::string>().find("no pose for") != std::string::npos);
+}
+
+TEST_CASE("view websocket: the model on connect and when it changes, stats forwarded, MessagePack as JSON") {
+  WebRoot web;
+  LiveView v(options_for(web));
+  v.until_subscribed();
+  v.send("model", json{{"joints", {"a"}}}.dump());
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  // The model arrives asynchronously: connect until a client gets it first thing.
+  std::optional<json> model;
+  while (!model && Clock::now() < deadline) {
+    WsClient c(v.port());
+    const auto text = c.read();
+    REQUIRE(text);
+    const json m = json::parse(*text);
+    if (m["topic"] == "model") model = m["data"];
+  }
+  REQUIRE(model);
+  CHECK((*model)["joints"] == json{"a"});
+  WsClient c(v.port());
+  CHECK(read_until(c, "model", [](const json&) { return true; }));
+  std::string packed;
+  json::to_msgpack(json{{"joints", {"b"}}}, packed);
+  v.send("model", packed);  // MessagePack in, JSON out
+  CHECK(read_until(c, "model", [](const json& d) { return d["joints"] == json{"b"}; }));
+  std::string packed_pose;
+  json::to_msgpack(json{{"frame", 777}, {"joints", {{"hip_r", {1.5, 2, 3}}}}}, packed_pose);
+  v.send("pose", packed_pose);
+  const auto pose = read_until(c, "pose", [](const json& d) { return d["frame"] == 777; });
+  REQUIRE(pose);
+  CHECK((*pose)["joints"]["hip_r"][0] == 1.5);
+  v.send("stats", json{{"pose_rate_hz", 99.0}}.dump());
+  CHECK(read_until(c, "stats", [](const json& d) { return d["pose_rate_hz"] == 99.0; }));
+}
+
+TEST_CASE("view websocket: a pose's envelope says when it reached the view (view_ms, wall clock)") {
+  WebRoot web;
+  LiveView v(options_for(web));
+  WsClient c(v.port());
+  REQUIRE(c.connected());
+  auto unix_ms = [] {
+    return std::chrono::duration<double, std::milli>(
+               std::chrono::system_clock::now().time_since_epoch())
+        .count();
+  };
+  v.until_subscribed();
+  // A read that times out closes the client: each read waits past the 1 s status period.
+  const double sent_ms = unix_ms();
+  v.pose(1000000);
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  std::optional<json> envelope;
+  while (!envelope && Clock::now() < deadline) {
+    const auto text = c.read(std::chrono::milliseconds(3000));
+    if (!text) break;
+    json m = json::parse(*text);
+    if (m["topic"] == "pose" && m["data"]["frame"] == 1000000) envelope = std::move(m);
+  }
+  const double read_ms = unix_ms();
+  REQUIRE(envelope);
+  REQUIRE((*envelope)["view_ms"].is_number());
+  const double view_ms = (*envelope)["view_ms"].get<double>();
+  CHECK(view_ms >= sent_ms - 1.0);
+  CHECK(view_ms <= read_ms + 1.0);
+}
+
+TEST_CASE("view stream status: states from arrivals") {
+  view::StreamStatus s(2.0, "tcp://x");
+  CHECK(s.status(0.0, 0)["stream"] == "waiting");
+  s.add_pose(1.0);
+  s.add_pose(1.5);
+  const json ok = s.status(2.0, 3);
+  CHECK(ok["stream"] == "ok");
+  CHECK(ok["poses_per_s"].get<double>() == Approx(1.0));
+  CHECK(ok["clients"] == 3);
+  CHECK(s.status(3.6, 0)["stream"] == "stalled");
+  s.add_undecodable(4.0, "pose", std::string("bad \x01 bytes"));
+  const json g = s.status(4.5, 0);
+  CHECK(g["stream"] == "garbage");
+  CHECK(g["message"].get<std::string>().find("\\x01") != std::string::npos);
+  CHECK(s.status(6.1, 0)["stream"] == "stalled");
+}
+
+TEST_CASE("view trial: every frame as the daemon's pose, with a model") {
+  const DaemonConfig config = default_daemon_config();
+  io::MarkerTrial trial;
+  trial.rate_hz = 100.0;
+  for (const MarkerTarget& m : config.tracker.markers) trial.labels.push_back(m.marker);
+  const std::size_t frames = 5;
+  // Any positions will do: the test is of the message, not of the tracking.
+  for (std::size_t f = 0; f < frames; ++f)
+    for (std::size_t i = 0; i < trial.labels.size(); ++i)
+      trial.positions_m.emplace_back(0.01 * static_cast<double>(i), 1.0 + 0.001 * static_cast<double>(f), 0.2);
+  const view::TrialView t = view::trial_view(config, trial);
+  CHECK(t.poses == frames);
+  const json m = json::parse(t.message);
+  CHECK(m["topic"] == "trial");
+  CHECK(m["data"]["poses"].size() == frames);
+  CHECK(m["data"]["poses"][0]["frame"] == 1);
+  CHECK(m["data"]["model"]["joints"].size() == config.tracker.model->joints.size());
+  CHECK(m["data"]["model"]["markers"].size() == config.tracker.markers.size());
+  CHECK(m["data"]["poses"][0]["joints"].size() == config.tracker.model->joints.size());
+}
+
+TEST_CASE("view listen addresses") {
+  CHECK(view::parse_listen("127.0.0.1:8080") == std::pair<std::string, unsigned short>{"127.0.0.1", 8080});
+  CHECK(view::parse_listen("[::1]:0") == std::pair<std::string, unsigned short>{"::1", 0});
+  CHECK_THROWS_AS(view::parse_listen("127.0.0.1"), std::invalid_argument);
+  CHECK_THROWS_AS(view::parse_listen("127.0.0.1:65536"), std::invalid_argument);
+  CHECK_THROWS_AS(view::parse_listen(":80"), std::invalid_argument);
+  CHECK_THROWS_AS(view::parse_listen("h:8x"), std::invalid_argument);
+}
