@@ -114,10 +114,30 @@ class SocketClient {
     }
   }
 
-  // Probes until a pose answers; returns the frame number after the probes.
+  // The next pose of frame `frame`, skipping poses of other frames (another
+  // input's, such as a vendor source's), or nothing after `timeout`.
+  std::optional<nlohmann::json> pose_of(std::uint64_t frame,
+                                        std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      auto pose = receive("pose", left);
+      if (pose && (*pose)["frame"] == frame) return pose;
+    }
+  }
+
+  // Probes until a pose of a probe answers (poses of other inputs' frames do
+  // not count); returns the frame number after the probes.
   // Up to 600 probes, 30 s: a CI machine starved of CPU has taken over 10 s
   // to join a fresh daemon's tcp sockets. On failure the message says what
   // did come back, so a dead daemon, a dead output and a dead input differ.
+  static bool is_probe(const nlohmann::json& pose, std::uint64_t probe_frame) {
+    const nlohmann::json* frame = pose.is_object() && pose.contains("frame") ? &pose["frame"] : nullptr;
+    return frame && frame->is_number_unsigned() && frame->get<std::uint64_t>() >= probe_frame &&
+           frame->get<std::uint64_t>() < probe_frame + 1000;
+  }
   std::uint64_t handshake(std::uint64_t probe_frame = 1000000) {
     int stats_seen = 0;
     nlohmann::json last_stats;
@@ -133,7 +153,7 @@ class SocketClient {
         if (message->first == "stats") {
           ++stats_seen;
           last_stats = std::move(message->second);
-        } else if (message->first == "pose") {
+        } else if (message->first == "pose" && is_probe(message->second, probe_frame)) {
           // Collect the answers to probes still in flight.
           while (receive("pose", std::chrono::milliseconds(100))) {
           }
