@@ -640,8 +640,8 @@ void ViewServer::Impl::tick_status() {
     last_status_sent = now;
     for (WsSession* s : std::vector<WsSession*>(sessions.begin(), sessions.end())) s->on_news();
   }
-  const double tick = std::clamp(std::min(o.status_period_s, o.stall_after_s) / 4, 0.01, 0.25);
-  status_timer.expires_after(seconds(tick));
+  const double tick_s = std::clamp(std::min(o.status_period_s, o.stall_after_s) / 4, 0.01, 0.25);
+  status_timer.expires_after(seconds(tick_s));
   status_timer.async_wait([this](beast::error_code ec) {
     if (!ec) tick_status();
   });
