@@ -570,22 +570,22 @@ Text ViewServer::Impl::pose_message(std::uint64_t& seq) {
   return pose_text;
 }
 
-void check_document(std::string_view payload, bool msgpack) {
+// The depth-bounded SAX pass both checks share; throws with the reason.
+PoseCheck checked_document(std::string_view payload, bool msgpack) {
   PoseCheck check;
   if (!json::sax_parse(payload.begin(), payload.end(), &check,
                        msgpack ? json::input_format_t::msgpack : json::input_format_t::json))
     throw std::runtime_error(std::string("bad ") + (msgpack ? "msgpack" : "json") +
                              " payload: " + check.error);
+  return check;
+}
+
+void check_document(std::string_view payload, bool msgpack) {
+  (void)checked_document(payload, msgpack);
 }
 
 std::optional<std::uint64_t> check_pose(std::string_view payload, bool msgpack) {
-  PoseCheck check;
-  const bool ok =
-      json::sax_parse(payload.begin(), payload.end(), &check,
-                      msgpack ? json::input_format_t::msgpack : json::input_format_t::json);
-  if (!ok)
-    throw std::runtime_error(std::string("bad ") + (msgpack ? "msgpack" : "json") +
-                             " payload: " + check.error);
+  const PoseCheck check = checked_document(payload, msgpack);
   if (!check.frame) throw std::runtime_error("a pose without a frame number");
   return check.frame;
 }
