@@ -32,10 +32,21 @@ namespace {
 const std::string kFabrikd =
     std::getenv("FABRIKD_UNDER_TEST") ? std::getenv("FABRIKD_UNDER_TEST") : FABRIKD_PATH;
 
+// This process's scratch folder, removed when the process ends (spawned
+// children exec at once, so they never run this destructor).
+struct ScratchDir {
+  std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("fabrikd-test-" + std::to_string(getpid()));
+  ~ScratchDir() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path, ignored);
+  }
+};
+
 std::filesystem::path temp_dir() {
-  auto dir = std::filesystem::temp_directory_path() / ("fabrikd-test-" + std::to_string(getpid()));
-  std::filesystem::create_directories(dir);
-  return dir;
+  static const ScratchDir dir;
+  std::filesystem::create_directories(dir.path);
+  return dir.path;
 }
 
 std::string write_file(const std::string& name, const std::string& text) {

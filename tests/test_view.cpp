@@ -391,11 +391,21 @@ TEST_CASE("view status: garbage on the pose topic gives status garbage, not a cr
   const int before = (*g)["undecodable"].get<int>();
   v.send("pose", "{\"frame\": 1, \"deep\": " + std::string(100000, '[') +
                      std::string(100000, ']') + "}");
-  const auto deep = read_until(c, "status", [&](const json& d) {
+  auto deep = read_until(c, "status", [&](const json& d) {
     return d["stream"] == "garbage" && d["undecodable"].get<int>() > before;
   });
   REQUIRE(deep);
   CHECK((*deep)["message"].get<std::string>().find("nested deeper") != std::string::npos);
+  // Stats and model are decoded whole (MessagePack recursively): the same bound comes first.
+  for (const char* topic : {"stats", "model"}) {
+    const int seen = (*deep)["undecodable"].get<int>();
+    v.send(topic, "\x81\xa1" "a" + std::string(500000, '\x91') + '\xc0');  // MessagePack arrays
+    const auto refused = read_until(c, "status", [&](const json& d) {
+      return d["undecodable"].get<int>() > seen;
+    });
+    REQUIRE(refused);  // counted as undecodable; without the bound, a stack overflow
+    deep = refused;
+  }
   CHECK(get(v.port(), "/").status == 200);
 }
 

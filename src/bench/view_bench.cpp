@@ -128,15 +128,15 @@ json run_once(const ViewBenchOptions& o, int clients, PoseSource& source) {
       }
     });
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // warm-up, clients connected
-  const double cpu0 = server.cpu_seconds();
+  const double cpu0_s = server.cpu_seconds();
   const std::uint64_t sent0 = sent.load();
   const auto t0 = Clock::now();
   measuring = true;
   std::this_thread::sleep_until(t0 + std::chrono::duration_cast<Clock::duration>(
                                          std::chrono::duration<double>(o.seconds)));
   measuring = false;
-  const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
-  const double cpu = server.cpu_seconds() - cpu0;
+  const double wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const double cpu_s = server.cpu_seconds() - cpu0_s;
   const std::uint64_t sent1 = sent.load();
   const view::ViewCounters counters = server.counters();
   reading = false;
@@ -149,21 +149,21 @@ json run_once(const ViewBenchOptions& o, int clients, PoseSource& source) {
   double min_rate = 1e300, sum_rate = 0.0;
   for (int i = 0; i < clients; ++i) {
     all.insert(all.end(), latency_ms[i].begin(), latency_ms[i].end());
-    const double r = static_cast<double>(received[i]) / wall;
+    const double r = static_cast<double>(received[i]) / wall_s;
     min_rate = std::min(min_rate, r);
     sum_rate += r;
   }
   std::uint64_t dropped = 0;
   for (const auto& c : counters.clients) dropped += c.dropped;
   return {{"clients", clients},
-          {"input_hz", static_cast<double>(sent1 - sent0) / wall},
+          {"input_hz", static_cast<double>(sent1 - sent0) / wall_s},
           {"poses_per_s_per_client", {{"mean", sum_rate / clients}, {"min", min_rate}}},
           {"latency_ms",
            {{"p50", quantile(all, 0.5)}, {"p95", quantile(all, 0.95)}, {"p99", quantile(all, 0.99)},
             {"samples", all.size()}}},
-          {"view_cpu_percent", 100.0 * cpu / wall},
+          {"view_cpu_percent", 100.0 * cpu_s / wall_s},
           {"dropped_slow", dropped},
-          {"seconds", wall}};
+          {"seconds", wall_s}};
 }
 
 }  // namespace

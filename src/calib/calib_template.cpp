@@ -400,7 +400,7 @@ struct Loader {
 }  // namespace
 
 CalibTemplate load_template(const nlohmann::json& doc, const std::string& file) {
-  Loader l{JsonReader(doc, file), {}, 1e-3, {}, {}, {}};
+  Loader l{JsonReader(doc, file), {}, 1e-3, {}, {}, {}, {}};
   l.t.file = file;
   l.load();
   return std::move(l.t);

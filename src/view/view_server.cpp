@@ -570,22 +570,22 @@ Text ViewServer::Impl::pose_message(std::uint64_t& seq) {
   return pose_text;
 }
 
-void check_document(std::string_view payload, bool msgpack) {
+// The depth-bounded SAX pass both checks share; throws with the reason.
+PoseCheck checked_document(std::string_view payload, bool msgpack) {
   PoseCheck check;
   if (!json::sax_parse(payload.begin(), payload.end(), &check,
                        msgpack ? json::input_format_t::msgpack : json::input_format_t::json))
     throw std::runtime_error(std::string("bad ") + (msgpack ? "msgpack" : "json") +
                              " payload: " + check.error);
+  return check;
+}
+
+void check_document(std::string_view payload, bool msgpack) {
+  (void)checked_document(payload, msgpack);
 }
 
 std::optional<std::uint64_t> check_pose(std::string_view payload, bool msgpack) {
-  PoseCheck check;
-  const bool ok =
-      json::sax_parse(payload.begin(), payload.end(), &check,
-                      msgpack ? json::input_format_t::msgpack : json::input_format_t::json);
-  if (!ok)
-    throw std::runtime_error(std::string("bad ") + (msgpack ? "msgpack" : "json") +
-                             " payload: " + check.error);
+  const PoseCheck check = checked_document(payload, msgpack);
   if (!check.frame) throw std::runtime_error("a pose without a frame number");
   return check.frame;
 }
@@ -640,8 +640,8 @@ void ViewServer::Impl::tick_status() {
     last_status_sent = now;
     for (WsSession* s : std::vector<WsSession*>(sessions.begin(), sessions.end())) s->on_news();
   }
-  const double tick = std::clamp(std::min(o.status_period_s, o.stall_after_s) / 4, 0.01, 0.25);
-  status_timer.expires_after(seconds(tick));
+  const double tick_s = std::clamp(std::min(o.status_period_s, o.stall_after_s) / 4, 0.01, 0.25);
+  status_timer.expires_after(seconds(tick_s));
   status_timer.async_wait([this](beast::error_code ec) {
     if (!ec) tick_status();
   });

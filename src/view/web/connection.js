@@ -1,7 +1,7 @@
 // The WebSocket to `fabrik view` (/ws): JSON text messages
 // {"topic": "model"|"pose"|"stats"|"status"|"trial", "data": ...}.
 // Checks each message's shape, hands good ones to onMessage(topic, data,
-// arrivedAt) and counts the rest as garbage. Reconnects with a backoff.
+// arrivedAtMs) and counts the rest as garbage. Reconnects with a backoff.
 
 import {state} from './state.js';
 
@@ -38,19 +38,19 @@ export function problem(topic, data) {
 
 export function connect(onMessage, onChange) {
   const url = `${location.protocol === 'https:' ? 'wss' : 'ws'}://${location.host}/ws`;
-  let delay = 250;
+  let delayMs = 250;
 
   function open() {
     const ws = new WebSocket(url);
-    ws.onopen = () => { state.connected = true; delay = 250; onChange(); };
+    ws.onopen = () => { state.connected = true; delayMs = 250; onChange(); };
     ws.onclose = () => {
       state.connected = false;
       onChange();
-      setTimeout(open, delay);
-      delay = Math.min(delay * 2, 4000);
+      setTimeout(open, delayMs);
+      delayMs = Math.min(delayMs * 2, 4000);
     };
     ws.onmessage = (event) => {
-      const arrivedAt = performance.now();
+      const arrivedAtMs = performance.now();
       state.messages++;
       let msg = null;
       try { msg = JSON.parse(event.data); } catch (e) { /* counted below */ }
@@ -63,8 +63,8 @@ export function connect(onMessage, onChange) {
         return;
       }
       // view_ms: when the pose reached `fabrik view` (wall clock, this machine), on this page's clock.
-      const viewAt = Number.isFinite(msg.view_ms) ? msg.view_ms - performance.timeOrigin : null;
-      onMessage(msg.topic, msg.data, arrivedAt, viewAt);
+      const viewAtMs = Number.isFinite(msg.view_ms) ? msg.view_ms - performance.timeOrigin : null;
+      onMessage(msg.topic, msg.data, arrivedAtMs, viewAtMs);
     };
   }
   open();

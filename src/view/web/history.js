@@ -5,7 +5,7 @@
 export class History {
   constructor(seconds = 30) {
     this.seconds = seconds;
-    this.entries = [];     // {seq, pose, t (s), arrivedAt (ms), viewAt (ms, when it reached fabrik view)}
+    this.entries = [];     // {seq, pose, t (s), arrivedAtMs, viewAtMs (when it reached fabrik view)}
     this.nextSeq = 0;
     this.paused = false;
     this.viewSeq = null;   // the entry shown while paused
@@ -14,10 +14,10 @@ export class History {
 
   get live() { return this.trial === null; }
 
-  push(pose, arrivedAt, viewAt = null) {
+  push(pose, arrivedAtMs, viewAtMs = null) {
     if (!this.live) return;
-    this.entries.push({seq: this.nextSeq++, pose, t: arrivedAt / 1000, arrivedAt, viewAt});
-    const oldest = arrivedAt / 1000 - this.seconds;
+    this.entries.push({seq: this.nextSeq++, pose, t: arrivedAtMs / 1000, arrivedAtMs, viewAtMs});
+    const oldest = arrivedAtMs / 1000 - this.seconds;
     let drop = 0;
     while (drop < this.entries.length - 1 && this.entries[drop].t < oldest) drop++;
     if (drop > 0) this.entries.splice(0, drop);
@@ -26,7 +26,7 @@ export class History {
   setTrial(poses) {
     const dt = 0.01;  // when a pose has no time
     this.entries = poses.map((pose, i) => ({seq: i, pose,
-      t: Number.isFinite(pose.time) ? pose.time : i * dt, arrivedAt: null, viewAt: null}));
+      t: Number.isFinite(pose.time) ? pose.time : i * dt, arrivedAtMs: null, viewAtMs: null}));
     this.nextSeq = poses.length;
     this.trial = {playing: true, startedAt: performance.now(), startT: this.entries.length ? this.entries[0].t : 0};
     this.paused = false;

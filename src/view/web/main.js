@@ -44,15 +44,15 @@ function setModel(model) {
   dirty = true;
 }
 
-function onMessage(topic, data, arrivedAt, viewAt) {
+function onMessage(topic, data, arrivedAtMs, viewAtMs) {
   switch (topic) {
     case 'model': setModel(data); break;
     case 'pose':
       state.received++;
       state.latest = data;
-      state.latestAt = arrivedAt;
-      status.onPose(arrivedAt);
-      history.push(data, arrivedAt, viewAt);
+      state.latestAtMs = arrivedAtMs;
+      status.onPose(arrivedAtMs);
+      history.push(data, arrivedAtMs, viewAtMs);
       break;
     case 'stats': state.stats = data; status.onStats(data); break;
     case 'status': state.status = data; break;
@@ -73,10 +73,10 @@ function paint(now) {
     state.drawn = scene.draw(entry.pose);
     state.plots = plots.draw(history.window(entry, WINDOW_S));
     scene.render();
-    if (entry !== painted && entry.arrivedAt !== null && !history.isPaused()) {
+    if (entry !== painted && entry.arrivedAtMs !== null && !history.isPaused()) {
       state.painted++;
       const now = performance.now();
-      notePaint(now - entry.arrivedAt, entry.viewAt !== null ? now - entry.viewAt : null);
+      notePaint(now - entry.arrivedAtMs, entry.viewAtMs !== null ? now - entry.viewAtMs : null);
     }
     painted = entry;
     dirty = false;

@@ -7,7 +7,7 @@ export const state = {
   model: null,           // the last `model` message's data
   labUp: null,           // the scene's up axis, from model.lab_axes
   latest: null,          // newest live pose (newest wins)
-  latestAt: 0,           // performance.now() when it arrived
+  latestAtMs: 0,         // performance.now() when it arrived
   stats: null,           // last `stats` data
   status: null,          // last `status` data (from fabrik view)
   received: 0,           // pose messages received (live)

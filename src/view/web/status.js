@@ -27,9 +27,9 @@ export class StatusView {
     this.prevStats = stats;
   }
 
-  onPose(arrivedAt) {
-    this.rateWindow.push(arrivedAt);
-    while (this.rateWindow.length && this.rateWindow[0] < arrivedAt - 1000) this.rateWindow.shift();
+  onPose(arrivedAtMs) {
+    this.rateWindow.push(arrivedAtMs);
+    while (this.rateWindow.length && this.rateWindow[0] < arrivedAtMs - 1000) this.rateWindow.shift();
   }
 
   setSensors(names) {
@@ -48,8 +48,8 @@ export class StatusView {
     if (state.trial) return null;
     if (st && st.stream === 'garbage') return `Garbage on the pose stream: ${st.message || 'undecodable poses'}`;
     if (st && st.stream === 'stalled') return `The pose stream stopped: ${st.message || 'no pose from fabrikd'}`;
-    if (state.received > 0 && now - state.latestAt > STALL_MS)
-      return `The pose stream stopped: no pose for ${((now - state.latestAt) / 1000).toFixed(0)} s`;
+    if (state.received > 0 && now - state.latestAtMs > STALL_MS)
+      return `The pose stream stopped: no pose for ${((now - state.latestAtMs) / 1000).toFixed(0)} s`;
     if (now - this.garbageAt < GARBAGE_MS) return `Undecodable message from fabrik view: ${state.lastGarbage}`;
     return null;
   }
