@@ -91,10 +91,21 @@ bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
 
 bool StopRule::may_still_converge(int iteration, double worst_m, double worst_before_m,
                                   int back) const {
-  if (back == 0) return false;
-  const double pace_m = (worst_before_m - worst_m) / back;  // per iteration
-  return pace_m > 0.0 &&
-         worst_m - pace_m * (options_.max_iterations - iteration) <= options_.tolerance_m;
+  if (back < kWindow) return false;
+  // The pace of the worst distance over the newer and the older half of the window, and from
+  // them its rate (per iteration): it falls by pace * rate / (1 - rate) from now on, or by
+  // the pace over every iteration left when it does not slow down.
+  const double mid_m = worst_m_[(checks_ - 1 - kWindow / 2) % kWindow];
+  const double pace_m = (mid_m - worst_m) / (kWindow / 2);
+  const double older_m = (worst_before_m - mid_m) / (kWindow / 2);
+  if (!(pace_m > 0.0)) return false;
+  const double left = options_.max_iterations - iteration;
+  double fall_m = pace_m * left;
+  if (older_m > pace_m) {
+    const double rate = std::pow(pace_m / older_m, 1.0 / (kWindow / 2));
+    fall_m = std::min(fall_m, pace_m * rate / (1.0 - rate));
+  }
+  return worst_m - fall_m <= options_.tolerance_m;
 }
 
 }  // namespace fabrik

@@ -88,13 +88,14 @@ SolveResult TargetSet::measure_with(PointOf point_of,
 // convergence: remaining = change * rate / (1 - rate). A fast solver stops
 // soon after it has converged, a slowly creeping one keeps going.
 // That estimate is held back while the solve may still meet the tolerance:
-// when the worst distance, falling on at its pace over the last kWindow
-// checks, would reach the tolerance within the iterations left. On a tree of
-// many end effectors the per-target changes can drop for an iteration while
-// the worst target still closes in (stars of 50 stopped 1-3 mm short in
-// 36-47 % of their solves: docs/convergence.md); out of reach, or on noisy
-// markers, the worst distance stays far above the tolerance and barely moves,
-// which its pace cannot cover: such solves stop as early as before.
+// when the worst distance, falling on as it fell over the last kWindow checks
+// (geometrically at the rate of the window's two halves, or linearly over the
+// iterations left if it does not slow down), would reach the tolerance. On a
+// tree of many end effectors the arms settle fast and the sub-base creeps: the
+// fast mode's rate predicted no change left, and stars of 20-50 stopped up to
+// 17 % of their solves 0.1-0.5 mm short (docs/convergence.md). Out of reach,
+// or on noisy markers, the worst distance stays far above the tolerance or
+// stops falling: such solves stop as early as before.
 class StopRule {
  public:
   explicit StopRule(const SolverOptions& options) : options_(options) {}
@@ -106,11 +107,11 @@ class StopRule {
   void jumped() { after_jump_ = true; }
 
  private:
-  // Whether the worst distance, at its pace since worst_before_m (`back` checks ago), would
-  // reach the tolerance in the iterations left after `iteration`.
+  // Whether the worst distance, at its pace since worst_before_m (`back` checks ago) and in the
+  // ring, would reach the tolerance in the iterations left after `iteration`.
   bool may_still_converge(int iteration, double worst_m, double worst_before_m, int back) const;
 
-  static constexpr int kWindow = 4;
+  static constexpr int kWindow = 8;
   const SolverOptions& options_;
   double last_change_m_ = 0.0;
   bool after_jump_ = false;
