@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "bench/convergence_bench.hpp"
 #include "bench/latency_bench.hpp"
 #include "bench/view_bench.hpp"
 #include "calibrate_command.hpp"
@@ -115,6 +116,37 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   b_view->add_flag("--json", view_json, "Print one JSON object instead of a table");
 
+  fabrik::bench::ConvergenceOptions convergence;
+  bool convergence_json = false;
+  CLI::App* b_convergence = bench->add_subcommand(
+      "convergence",
+      "Convergence on reachable targets: stars of 10-50 end effectors, chains of 100-200 "
+      "segments, cold and warm");
+  b_convergence->add_option("--solves", convergence.solves, "Solves per case and start")
+      ->check(CLI::Range(1, 10000000))
+      ->capture_default_str();
+  b_convergence->add_option("--seed", convergence.seed, "Pose seed")->capture_default_str();
+  b_convergence
+      ->add_option("--stall-ratio", convergence.stall_ratio,
+                   "Stall tolerance as a fraction of the tolerance")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  b_convergence
+      ->add_option("--max-turn", convergence.max_turn_rad,
+                   "Each joint of a target posture turned by up to this from rest (rad; "
+                   "default 0.1 for stars, 0.4 for chains)")
+      ->check(CLI::Range(0.0, 3.2));
+  b_convergence
+      ->add_option("--max-iterations", convergence.max_iterations,
+                   "Iteration budget (default: the solver's)")
+      ->check(CLI::Range(1, 1000000));
+  b_convergence
+      ->add_option("--case", convergence.cases,
+                   "Only these cases (star10 star20 star50 chain100 chain100_10um chain200 "
+                   "chain200_10um)")
+      ->delimiter(',');
+  b_convergence->add_flag("--json", convergence_json, "Print one JSON object instead of a table");
+
   fabrik::apps::add_solve_command(app);
   fabrik::apps::add_info_command(app);
   fabrik::add_calibrate_command(app);
@@ -131,6 +163,9 @@ int main(int argc, char** argv) {
       if (b_latency->count("--rate") > 0) latency.source_rate_hz = latency.rate_hz;
       const auto r = fabrik::bench::run_latency(latency);
       std::cout << (latency_json ? r.dump(2) + "\n" : fabrik::bench::latency_table(r));
+    } else if (b_convergence->parsed()) {
+      const auto r = fabrik::bench::run_convergence(convergence);
+      std::cout << (convergence_json ? r.dump(2) + "\n" : fabrik::bench::convergence_table(r));
     } else if (b_view->parsed()) {
       const auto r = fabrik::bench::run_view_bench(view_bench);
       std::cout << (view_json ? r.dump(2) + "\n" : fabrik::bench::view_bench_table(r));
