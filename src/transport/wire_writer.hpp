@@ -12,6 +12,8 @@
 #include <string>
 #include <string_view>
 
+#include "fixed_decimals.hpp"
+
 namespace fabrik::wire {
 
 // JSON: maps and arrays need separators, so it tracks nesting; sizes given
@@ -63,7 +65,7 @@ class JsonWriter {
       return;
     }
     char buf[64];
-    auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
+    auto r = to_fixed_chars(buf, buf + sizeof buf, v, decimals);
     if (r.ec != std::errc()) r = std::to_chars(buf, buf + sizeof buf, v);
     out_.append(buf, r.ptr);
   }
