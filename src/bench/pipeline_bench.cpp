@@ -46,8 +46,11 @@ struct Run {
   int lost = 0;
 };
 
-std::unique_ptr<Run> make_run(zmq::context_t& context, DaemonConfig config, std::string name,
-                              const PipelineOptions& o, int k) {
+// The daemon and its subscriber have contexts (I/O threads) of their own, as
+// fabrikd and its clients in their own processes.
+std::unique_ptr<Run> make_run(zmq::context_t& daemon_context, zmq::context_t& client_context,
+                              DaemonConfig config, std::string name, const PipelineOptions& o,
+                              int k) {
   auto run = std::make_unique<Run>();
   run->name = std::move(name);
   config.input = {"inproc://fabrik-bench-pipeline-in-" + std::to_string(k), SocketMode::bind};
@@ -71,8 +74,8 @@ std::unique_ptr<Run> make_run(zmq::context_t& context, DaemonConfig config, std:
   run->p_m.resize(run->names.size());
   run->visible.assign(run->names.size(), 1);
   run->payload.reserve(1 << 16);
-  run->daemon = std::make_unique<wire::Daemon>(context, std::move(config));
-  run->sub = zmq::socket_t(context, zmq::socket_type::sub);
+  run->daemon = std::make_unique<wire::Daemon>(daemon_context, std::move(config));
+  run->sub = zmq::socket_t(client_context, zmq::socket_type::sub);
   run->sub.set(zmq::sockopt::linger, 0);
   run->sub.set(zmq::sockopt::rcvhwm, 0);
   run->sub.set(zmq::sockopt::subscribe, "pose");
@@ -115,12 +118,12 @@ json quantiles(const std::vector<double>& v) {
 json run_pipeline(const PipelineOptions& o) {
   if (o.encoding != "json" && o.encoding != "msgpack")
     throw std::invalid_argument("unknown encoding '" + o.encoding + "' (use json or msgpack)");
-  zmq::context_t context(1);
+  zmq::context_t daemon_context(1), client_context(1);
   std::vector<std::unique_ptr<Run>> runs;
-  runs.push_back(make_run(context, default_daemon_config(), "default", o, 0));
+  runs.push_back(make_run(daemon_context, client_context, default_daemon_config(), "default", o, 0));
   for (const std::string& file : o.configs)
-    runs.push_back(
-        make_run(context, load_daemon_config_file(file), file, o, static_cast<int>(runs.size())));
+    runs.push_back(make_run(daemon_context, client_context, load_daemon_config_file(file), file, o,
+                            static_cast<int>(runs.size())));
 
   // Until the subscriber's subscription has reached the daemon, poses are
   // published to no one: serve frames until one comes back.
