@@ -7,6 +7,7 @@
 #include "bench/bench.hpp"
 #include "bench/convergence_bench.hpp"
 #include "bench/latency_bench.hpp"
+#include "bench/pipeline_bench.hpp"
 #include "bench/view_bench.hpp"
 #include "calibrate_command.hpp"
 #include "cli_exit.hpp"
@@ -100,6 +101,29 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"qtm", "natnet"}));
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
+  fabrik::bench::PipelineOptions pipeline;
+  bool pipeline_json = false;
+  CLI::App* b_pipeline = bench->add_subcommand(
+      "pipeline", "The daemon's frame path in-process: decode, solve, encode and send per frame");
+  b_pipeline
+      ->add_option("--config", pipeline.configs,
+                   "Daemon configs to measure beside the default one (as `fabrik calibrate` "
+                   "writes them; repeatable)")
+      ->check(CLI::ExistingFile);
+  b_pipeline->add_option("--frames", pipeline.frames, "Frames measured per config")
+      ->check(CLI::Range(10, 10000000))
+      ->capture_default_str();
+  b_pipeline->add_option("--rate", pipeline.rate_hz, "Sampling rate of the synthetic motion (Hz)")
+      ->check(CLI::Range(1.0, 100000.0))
+      ->capture_default_str();
+  b_pipeline->add_option("--transport", pipeline.transport, "The output's: tcp or ipc")
+      ->check(CLI::IsMember({"tcp", "ipc"}))
+      ->capture_default_str();
+  b_pipeline->add_option("--encoding", pipeline.encoding, "json or msgpack, in and out")
+      ->check(CLI::IsMember({"json", "msgpack"}))
+      ->capture_default_str();
+  b_pipeline->add_flag("--json", pipeline_json, "Print one JSON object instead of a table");
+
   fabrik::bench::ViewBenchOptions view_bench;
   bool view_json = false;
   CLI::App* b_view = bench->add_subcommand(
@@ -166,6 +190,9 @@ int main(int argc, char** argv) {
     } else if (b_convergence->parsed()) {
       const auto r = fabrik::bench::run_convergence(convergence);
       std::cout << (convergence_json ? r.dump(2) + "\n" : fabrik::bench::convergence_table(r));
+    } else if (b_pipeline->parsed()) {
+      const auto r = fabrik::bench::run_pipeline(pipeline);
+      std::cout << (pipeline_json ? r.dump(2) + "\n" : fabrik::bench::pipeline_table(r));
     } else if (b_view->parsed()) {
       const auto r = fabrik::bench::run_view_bench(view_bench);
       std::cout << (view_json ? r.dump(2) + "\n" : fabrik::bench::view_bench_table(r));
