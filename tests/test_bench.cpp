@@ -12,6 +12,9 @@
 #include "io/marker_trial.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "temp_file.hpp"
+#ifdef FABRIK_PATH
+#include "run_fabrik.hpp"
+#endif
 
 using namespace fabrik;
 
@@ -72,7 +75,7 @@ TEST_CASE("The figure users get: the shipped gait2354 calibrated on a generated 
   REQUIRE(r["runs"].size() == 1);
   const nlohmann::json& run = r["runs"][0];
   REQUIRE(run.contains("without_carry"));
-  CHECK(run["carry_cost_ratio"].get<double>() > 0.0);
+  CHECK(run["carry"]["median_ratio"].get<double>() > 0.0);
   for (const char* key : {"as_configured", "without_carry"}) {
     const nlohmann::json& t = run[key];
     CAPTURE(key);
@@ -88,15 +91,24 @@ TEST_CASE("The figure users get: the shipped gait2354 calibrated on a generated 
   CHECK(t["joint_centre_error_mm"]["rms_mean"].get<double>() < 8.0);
 }
 
-TEST_CASE("bench fullbody --config replays a recorded trial forward and back, every k-th frame",
-          "[bench]") {
-  // A config as `fabrik calibrate` writes it, and a short trial of its model's markers.
+namespace {
+
+// The shipped gait2354 as `fabrik calibrate` writes it, calibrated on the generated static trial.
+void write_calibrated_gait2354(const std::string& path) {
   const calib::CalibTemplate tmpl =
       calib::load_template_file(std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json");
   const calib::CalibrationResult cal =
       calib::calibrate(tmpl, bench::generic_gait2354_static(), "generic.trc");
+  std::ofstream(path) << cal.config.dump();
+}
+
+}  // namespace
+
+TEST_CASE("bench fullbody --config replays a recorded trial forward and back, every k-th frame",
+          "[bench]") {
+  // A config as `fabrik calibrate` writes it, and a short trial of its model's markers.
   test::TempFile config(".json"), trc(".trc");
-  std::ofstream(config.path()) << cal.config.dump();
+  write_calibrated_gait2354(config.path());
   const DaemonConfig loaded = load_daemon_config_file(config.path());
   const Model& m = *loaded.tracker.model;
   SyntheticMotion motion(m, MotionSettings{});
@@ -133,6 +145,44 @@ TEST_CASE("bench fullbody --config replays a recorded trial forward and back, ev
     CHECK(run["as_configured"]["marker_residual_mm"]["rms_mean"].get<double>() < 2.0);
   }
 }
+
+#ifdef FABRIK_PATH
+TEST_CASE("fabrik bench fullbody --config tracks that config's model and prints the carry's cost",
+          "[bench]") {
+  // A calibrated gait2354 (the carry on, as calibrate writes it) and the embedded default
+  // (the built-in model, the carry off): each run reports the other setting beside it.
+  test::TempFile calibrated(".json"), out(".json");
+  write_calibrated_gait2354(calibrated.path());
+  for (const std::string& path :
+       {calibrated.path(), std::string(FABRIK_SOURCE_DIR) + "/config/default.json"}) {
+    CAPTURE(path);
+    const DaemonConfig config = load_daemon_config_file(path);
+    const auto [code, err] = test::run_fabrik(
+        {"bench", "fullbody", "--config", path, "--frames", "30", "--speed", "1", "--json"},
+        out.path());
+    CAPTURE(err);
+    REQUIRE(code == 0);
+    const nlohmann::json r = nlohmann::json::parse(test::slurp(out.path()));
+    CAPTURE(r.dump(1));
+    // That config's model, not the built-in one or the shipped template's.
+    const Model& m = *config.tracker.model;
+    CHECK(r["model"]["markers"].get<std::size_t>() == config.tracker.markers.size());
+    REQUIRE(r["model"]["segment_names"].size() == m.segments.size());
+    for (std::size_t i = 0; i < m.segments.size(); ++i)
+      CHECK(r["model"]["segment_names"][i] == m.segments[i].name);
+    const double carry = config.tracker.solver.subtree_carry;
+    CHECK(r["solver"]["subtree_carry"].get<double>() == carry);
+    // The carry's cost in every run, against the setting the config does not have.
+    REQUIRE(r["runs"].size() >= 1);
+    for (const nlohmann::json& run : r["runs"]) {
+      CHECK(run.contains(carry > 0.0 ? "without_carry" : "with_carry"));
+      CHECK(run["carry"]["subtree_carry"].get<double>() == (carry > 0.0 ? carry : 0.5));
+      CHECK(run["carry"]["median_ratio"].get<double>() > 0.0);
+      CHECK(run["carry"]["iterations_ratio"].get<double>() > 0.0);
+    }
+  }
+}
+#endif
 
 TEST_CASE("bench latency --source: QTM and NatNet frames and ZeroMQ frames all come back as poses",
           "[bench][latency][source]") {

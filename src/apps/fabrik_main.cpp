@@ -52,8 +52,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
   b_body->add_option("--config", body.config,
-                     "Measure this daemon config alone (as `fabrik calibrate` writes it) instead "
-                     "of the built-in model and the calibrated shipped template");
+                     "Measure this daemon config alone (as `fabrik calibrate` writes it: its "
+                     "model, ranges and solver options), with the subtree carry on and off in "
+                     "alternate frames, instead of the built-in model and the calibrated "
+                     "shipped template");
   b_body->add_option("--template", body.template_path,
                      "Template calibrated for the figure users get (default: the shipped "
                      "config/templates/gait2354.json)");
