@@ -162,7 +162,7 @@ TEST_CASE("bench latency --source: QTM and NatNet frames and ZeroMQ frames all c
   }
 }
 
-TEST_CASE("bench latency reports the daemon and the floor for each transport, and the differences",
+TEST_CASE("bench latency reports the daemon and the floor for each transport and their differences",
           "[bench][latency]") {
   bench::LatencyOptions o;
   o.seconds = 0.5;        // 500 frames each at 1 kHz: the report, not the times
