@@ -82,11 +82,24 @@ int main(int argc, char** argv) {
   fabrik::bench::LatencyOptions latency;
   bool latency_json = false;
   CLI::App* b_latency = bench->add_subcommand(
-      "latency", "End-to-end latency of the daemon pipeline over loopback tcp and ipc");
+      "latency",
+      "End-to-end latency of the daemon pipeline over loopback tcp and ipc, against a bare "
+      "ZeroMQ echo of the same sizes run alternately");
   b_latency->add_option("--rate", latency.rate_hz, "Marker frames per second")
       ->check(CLI::Range(1.0, 100000.0));
-  b_latency->add_option("--seconds", latency.seconds, "Duration per transport")
+  b_latency
+      ->add_option("--seconds", latency.seconds,
+                   "Duration per transport, for the daemon and for the floor each")
       ->check(CLI::Range(0.1, 3600.0));
+  b_latency
+      ->add_option("--block-seconds", latency.block_seconds,
+                   "The daemon and the floor take turns in blocks this long")
+      ->check(CLI::Range(0.001, 3600.0));
+  b_latency
+      ->add_option("--config", latency.config,
+                   "Daemon config to run (as `fabrik calibrate` writes it; default: the "
+                   "built-in one); its model's synthetic motion makes the frames")
+      ->check(CLI::ExistingFile);
   b_latency->add_option("--transport", latency.transports, "tcp and/or ipc")
       ->check(CLI::IsMember({"tcp", "ipc"}));
   b_latency->add_option("--encoding", latency.encoding, "json or msgpack")
