@@ -7,11 +7,16 @@
 #include "bench/bench.hpp"
 #include "bench/generic_static.hpp"
 #include "bench/latency_bench.hpp"
+#include "bench/zmq_floor.hpp"
 #include "calib/calibrate.hpp"
 #include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "temp_file.hpp"
+#ifdef FABRIK_PATH
+#include "run_fabrik.hpp"
+#endif
+#include "transport/marker_codec.hpp"
 
 using namespace fabrik;
 
@@ -72,7 +77,7 @@ TEST_CASE("The figure users get: the shipped gait2354 calibrated on a generated 
   REQUIRE(r["runs"].size() == 1);
   const nlohmann::json& run = r["runs"][0];
   REQUIRE(run.contains("without_carry"));
-  CHECK(run["carry_cost_ratio"].get<double>() > 0.0);
+  CHECK(run["carry"]["median_ratio"].get<double>() > 0.0);
   for (const char* key : {"as_configured", "without_carry"}) {
     const nlohmann::json& t = run[key];
     CAPTURE(key);
@@ -88,15 +93,24 @@ TEST_CASE("The figure users get: the shipped gait2354 calibrated on a generated 
   CHECK(t["joint_centre_error_mm"]["rms_mean"].get<double>() < 8.0);
 }
 
-TEST_CASE("bench fullbody --config replays a recorded trial forward and back, every k-th frame",
-          "[bench]") {
-  // A config as `fabrik calibrate` writes it, and a short trial of its model's markers.
+namespace {
+
+// The shipped gait2354 as `fabrik calibrate` writes it, calibrated on the generated static trial.
+void write_calibrated_gait2354(const std::string& path) {
   const calib::CalibTemplate tmpl =
       calib::load_template_file(std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json");
   const calib::CalibrationResult cal =
       calib::calibrate(tmpl, bench::generic_gait2354_static(), "generic.trc");
+  std::ofstream(path) << cal.config.dump();
+}
+
+}  // namespace
+
+TEST_CASE("bench fullbody --config replays a recorded trial forward and back, every k-th frame",
+          "[bench]") {
+  // A config as `fabrik calibrate` writes it, and a short trial of its model's markers.
   test::TempFile config(".json"), trc(".trc");
-  std::ofstream(config.path()) << cal.config.dump();
+  write_calibrated_gait2354(config.path());
   const DaemonConfig loaded = load_daemon_config_file(config.path());
   const Model& m = *loaded.tracker.model;
   SyntheticMotion motion(m, MotionSettings{});
@@ -134,6 +148,44 @@ TEST_CASE("bench fullbody --config replays a recorded trial forward and back, ev
   }
 }
 
+#ifdef FABRIK_PATH
+TEST_CASE("fabrik bench fullbody --config tracks that config's model and prints the carry's cost",
+          "[bench]") {
+  // A calibrated gait2354 (the carry on, as calibrate writes it) and the embedded default
+  // (the built-in model, the carry off): each run reports the other setting beside it.
+  test::TempFile calibrated(".json"), out(".json");
+  write_calibrated_gait2354(calibrated.path());
+  for (const std::string& path :
+       {calibrated.path(), std::string(FABRIK_SOURCE_DIR) + "/config/default.json"}) {
+    CAPTURE(path);
+    const DaemonConfig config = load_daemon_config_file(path);
+    const auto [code, err] = test::run_fabrik(
+        {"bench", "fullbody", "--config", path, "--frames", "30", "--speed", "1", "--json"},
+        out.path());
+    CAPTURE(err);
+    REQUIRE(code == 0);
+    const nlohmann::json r = nlohmann::json::parse(test::slurp(out.path()));
+    CAPTURE(r.dump(1));
+    // That config's model, not the built-in one or the shipped template's.
+    const Model& m = *config.tracker.model;
+    CHECK(r["model"]["markers"].get<std::size_t>() == config.tracker.markers.size());
+    REQUIRE(r["model"]["segment_names"].size() == m.segments.size());
+    for (std::size_t i = 0; i < m.segments.size(); ++i)
+      CHECK(r["model"]["segment_names"][i] == m.segments[i].name);
+    const double carry = config.tracker.solver.subtree_carry;
+    CHECK(r["solver"]["subtree_carry"].get<double>() == carry);
+    // The carry's cost in every run, against the setting the config does not have.
+    REQUIRE(r["runs"].size() >= 1);
+    for (const nlohmann::json& run : r["runs"]) {
+      CHECK(run.contains(carry > 0.0 ? "without_carry" : "with_carry"));
+      CHECK(run["carry"]["subtree_carry"].get<double>() == (carry > 0.0 ? carry : 0.5));
+      CHECK(run["carry"]["median_ratio"].get<double>() > 0.0);
+      CHECK(run["carry"]["iterations_ratio"].get<double>() > 0.0);
+    }
+  }
+}
+#endif
+
 TEST_CASE("bench latency --source: QTM and NatNet frames and ZeroMQ frames all come back as poses",
           "[bench][latency][source]") {
   bench::LatencyOptions o;
@@ -158,4 +210,87 @@ TEST_CASE("bench latency --source: QTM and NatNet frames and ZeroMQ frames all c
     CHECK(run["daemon_decode_errors"] == 0);
     CHECK(run["daemon_unknown_markers"] == 0);
   }
+}
+
+TEST_CASE("bench latency reports the daemon and the floor for each transport and their differences",
+          "[bench][latency]") {
+  bench::LatencyOptions o;
+  o.seconds = 0.5;        // 500 frames each at 1 kHz: the report, not the times
+  o.block_seconds = 0.1;  // several turns each
+  const nlohmann::json r = bench::run_latency(o);
+  REQUIRE(r["runs"].size() == 2);
+  CHECK(r["runs"][0]["transport"] == "tcp");
+  CHECK(r["runs"][1]["transport"] == "ipc");
+  for (const nlohmann::json& run : r["runs"]) {
+    CAPTURE(run.dump());
+    for (const char* path : {"daemon", "floor"}) {
+      CAPTURE(path);
+      REQUIRE(run.contains(path));
+      const nlohmann::json& x = run[path];
+      CHECK(x["frames_sent"] == 500);
+      // Some of each (a loaded machine's stall may make the daemon drop a
+      // backlog, which is not what this checks).
+      CHECK(x["poses_received"].get<int>() > 0);
+      CHECK(x["latency_us"]["p50"].get<double>() > 0.0);
+      CHECK(x["latency_us"]["p99"].get<double>() >= x["latency_us"]["p50"].get<double>());
+    }
+    const nlohmann::json& d = run["daemon"];
+    const nlohmann::json& f = run["floor"];
+    CHECK(run["daemon_minus_floor_us"]["p50"].get<double>() ==
+          Approx(d["latency_us"]["p50"].get<double>() - f["latency_us"]["p50"].get<double>()));
+    CHECK(run["daemon_minus_floor_us"]["p99"].get<double>() ==
+          Approx(d["latency_us"]["p99"].get<double>() - f["latency_us"]["p99"].get<double>()));
+    CHECK(run["goals"]["p50_met"].is_boolean());
+    CHECK(run["goals"]["p99_met"].is_boolean());
+    // The floor answers with the daemon's pose size (the poses' numbers vary by a few digits).
+    CHECK(f["pose_bytes"].get<double>() ==
+          Approx(d["pose_bytes_mean"].get<double>()).epsilon(0.02));
+    CHECK(d["decode_errors"] == 0);
+  }
+}
+
+TEST_CASE("bench latency --config runs that config's model against the floor", "[bench][latency]") {
+  const calib::CalibTemplate tmpl =
+      calib::load_template_file(std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json");
+  const calib::CalibrationResult cal =
+      calib::calibrate(tmpl, bench::generic_gait2354_static(), "generic.trc");
+  test::TempFile config(".json");
+  std::ofstream(config.path()) << cal.config.dump();
+  const DaemonConfig loaded = load_daemon_config_file(config.path());
+  bench::LatencyOptions o;
+  o.config = config.path();
+  o.transports = {"tcp"};
+  o.seconds = 0.2;
+  const nlohmann::json r = bench::run_latency(o);
+  CAPTURE(r.dump());
+  CHECK(r["model"]["markers"] == loaded.tracker.markers.size());
+  REQUIRE(r["runs"].size() == 1);
+  const nlohmann::json& run = r["runs"][0];
+  CHECK(run["daemon"]["poses_received"].get<int>() > 0);
+  CHECK(run["floor"]["poses_received"].get<int>() > 0);
+  CHECK(run["daemon"]["decode_errors"] == 0);
+  // The source sends the config's markers: the daemon knows every one.
+  CHECK(run["daemon"]["unknown_markers"] == 0);
+}
+
+TEST_CASE("The floor finds a frame number where both encoders write it", "[bench][latency]") {
+  const std::vector<std::string> names = {"A"};
+  const std::vector<Eigen::Vector3d> p_m = {Eigen::Vector3d(0.1, 0.2, 0.3)};
+  const std::vector<std::uint8_t> visible = {1};
+  std::string out;
+  for (auto encoding : {wire::PayloadEncoding::json, wire::PayloadEncoding::msgpack})
+    for (std::uint64_t frame : {std::uint64_t{5}, std::uint64_t{1234567}}) {
+      const double t_s = 1.5;
+      wire::encode_marker_frame(frame, &t_s, names, p_m, visible, "mm", encoding, out);
+      const auto n =
+          bench::frame_number({reinterpret_cast<const std::uint8_t*>(out.data()), out.size()});
+      CAPTURE(out, frame);
+      REQUIRE(n.has_value());
+      CHECK(*n == frame);
+    }
+  // A MessagePack map of 16 entries or more has a 3-byte header (a pose with all its parts).
+  const std::vector<std::uint8_t> map16 = {0xde, 0x00, 0x10, 0xa5, 'f', 'r', 'a', 'm', 'e',
+                                           0xcf, 0,    0,    0,    0,   0,   1,   0,   2};
+  CHECK(bench::frame_number(map16) == std::uint64_t{65538});
+  CHECK_FALSE(bench::frame_number(std::vector<std::uint8_t>{'{', '}'}).has_value());
 }

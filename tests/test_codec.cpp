@@ -1,6 +1,7 @@
 // The wire codecs without sockets: marker frames in (JSON and MessagePack),
 // poses out, and every kind of bad payload refused with its own message.
 #include <catch2/catch.hpp>
+#include <charconv>
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -9,6 +10,7 @@
 #include "config/daemon_config.hpp"
 #include "daemon_thread.hpp"
 #include "model_message.hpp"
+#include "transport/fixed_decimals.hpp"
 #include "transport/json_sax_reader.hpp"
 #include "transport/marker_codec.hpp"
 #include "transport/model_codec.hpp"
@@ -314,6 +316,44 @@ struct AcceptAll {
   bool end_array() { return true; }
 };
 }  // namespace
+
+TEST_CASE("to_fixed_chars writes what to_chars writes with fixed decimals", "[codec][numbers]") {
+  const auto both = [](double v, int decimals) {
+    char a[400], b[400];  // room for 1e300 in full
+    const auto fast = to_fixed_chars(a, a + sizeof a, v, decimals);
+    const auto slow = std::to_chars(b, b + sizeof b, v, std::chars_format::fixed, decimals);
+    return std::pair{std::string(a, fast.ptr), std::string(b, slow.ptr)};
+  };
+  // Ties in binary (k/8) round to even, signs of zero and of small negatives stay.
+  std::vector<double> edge = {0.0,    -0.0,        0.125,  0.375,   -0.375,   2.5,   3.5,
+                              -2.5,   1e-12,       -1e-12, 0.99995, -0.00005, 1e11,  0x1p40,
+                              0x1p53, 1.7e15,      1e300,  -1e300,  5e-324,   0.5,   1.5,
+                              std::numeric_limits<double>::infinity(),
+                              std::numeric_limits<double>::quiet_NaN()};
+  for (double v : edge)
+    for (int d = 0; d <= 10; ++d) {
+      const auto [fast, exact] = both(v, d);
+      INFO(v << " with " << d << " decimals");
+      CHECK(fast == exact);
+    }
+  // Random magnitudes from 1e-9 to 1e13; quarters of integers over 10^d
+  // (within a rounding of a tie); k / 2^(d+1), exact ties for odd k.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> exponent(-9.0, 13.0), unit(-1.0, 1.0);
+  std::uniform_int_distribution<int> decimals(0, 9), quarters(-4000, 4000);
+  int mismatches = 0;
+  std::string first_mismatch;
+  for (int i = 0; i < 400000; ++i) {
+    const int d = decimals(rng);
+    const double v = i % 4 == 0   ? quarters(rng) / 4.0 / std::pow(10.0, d)
+                     : i % 4 == 1 ? std::ldexp(quarters(rng), -(d + 1))
+                                  : unit(rng) * std::pow(10.0, exponent(rng));
+    const auto [fast, exact] = both(v, d);
+    if (fast != exact && mismatches++ == 0) first_mismatch = fast + " != " + exact;
+  }
+  INFO(first_mismatch);
+  CHECK(mismatches == 0);
+}
 
 TEST_CASE("The JSON reader accepts exactly what nlohmann::json accepts", "[codec][json]") {
   wire::JsonSaxReader reader;

@@ -1,11 +1,15 @@
 // How fast the solve converges, and what that may not cost: the extrapolation of the
 // convergence loop (SolverOptions::extrapolate, fabrik_extrapolation.cpp), the stopping rule
-// around its jumps, and the velocity warm start (solver/warm_start.hpp).
+// around its jumps, the stall rule on trees of many end effectors, and the velocity warm start
+// (solver/warm_start.hpp).
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <vector>
 
 #include "solver/fabrik_solver.hpp"
 #include "solver/warm_start.hpp"
+#include "synth/reach_problems.hpp"
 #include "test_models.hpp"
 
 using namespace fabrik;
@@ -43,7 +47,97 @@ struct StopSequence {
   }
 };
 
+// Solves of a reach problem, cold (from rest, a new posture's targets each time) or warm
+// (from the last solve, the targets moved on a little), with how many ended within
+// tolerance and the worst of their final distances.
+struct ReachRuns {
+  int within = 0;
+  int stalled = 0;
+  int max_iterations = 0;
+  double worst_m = 0.0;
+};
+
+// A 1 mm tolerance, stall tolerance tol / 100: the settings.
+SolverOptions reach_options() {
+  SolverOptions o;
+  o.tolerance_m = 1e-3;
+  o.stall_tolerance_m = o.tolerance_m / 100;
+  return o;
+}
+
+ReachRuns reach_runs(const ReachProblem& problem, const SolverOptions& o, bool warm, int solves,
+                     unsigned seed) {
+  FabrikSolver solver(problem.model, problem.targets, o);
+  ReachPoses poses(problem, seed, 0.1);
+  std::vector<Eigen::Vector3d> target_m(problem.targets.size());
+  const std::vector<std::uint8_t> visible(problem.targets.size(), 1);
+  const Posture rest = Posture::rest(*problem.model);
+  Posture posture = rest;
+  if (warm) {
+    poses.draw(target_m);
+    solver.solve(target_m, visible, posture);
+  }
+  ReachRuns runs;
+  for (int i = 0; i < solves; ++i) {
+    if (warm) {
+      poses.step(target_m);
+    } else {
+      poses.draw(target_m);
+      posture = rest;
+    }
+    const SolveResult r = solver.solve(target_m, visible, posture);
+    runs.within += r.max_m <= o.tolerance_m ? 1 : 0;
+    runs.stalled += r.status == SolveStatus::stalled ? 1 : 0;
+    runs.max_iterations += r.status == SolveStatus::max_iterations ? 1 : 0;
+    runs.worst_m = std::max(runs.worst_m, r.max_m);
+  }
+  return runs;
+}
+
 }  // namespace
+
+TEST_CASE("A star of 50 end effectors with reachable targets converges in every solve",
+          "[convergence][stall]") {
+  // The targets come from postures of the same model (joints turned by up to 0.1 rad), so
+  // every solve can end within tolerance. With a stall tolerance of tol / 100, the rule from
+  // two changes alone stopped some of these solves 0.2-0.3 mm short while the worst target
+  // was still closing in. The budget is the one cold solves of this star need with the
+  // stall stop off (64 is too few: docs/convergence.md).
+  const ReachProblem star = star_problem(50);
+  SolverOptions o = reach_options();
+  o.max_iterations = 300;
+  constexpr int kSolves = 40;
+  for (bool warm : {false, true}) {
+    const ReachRuns runs = reach_runs(star, o, warm, kSolves, 7);
+    CAPTURE(warm, runs.within, runs.stalled, runs.max_iterations, runs.worst_m);
+    CHECK(runs.within == kSolves);
+  }
+}
+
+TEST_CASE("A star whose targets are out of reach still stops as stalled, in a few iterations",
+          "[convergence][stall]") {
+  // Held back only while the worst distance may still reach the tolerance, the stall stop
+  // ends a solve that cannot as early as the rule from two changes alone did.
+  const ReachProblem star = star_problem(20);
+  FabrikSolver solver(star.model, star.targets, reach_options());
+  ReachPoses poses(star, 3);
+  std::vector<Eigen::Vector3d> target_m(star.targets.size());
+  const std::vector<std::uint8_t> visible(target_m.size(), 1);
+  const int hub = star.model->find_point("hub0");
+  constexpr int kOutOfReachIterations = 20;
+  for (int i = 0; i < 10; ++i) {
+    poses.draw(target_m);
+    // Every target 1 m further out from the hub than a posture of the model puts it: the
+    // arms (0.3 m) and the trunk (0.4 m) cannot follow.
+    const Eigen::Vector3d hub_m = poses.posture().point_world_m(*star.model, hub);
+    for (Eigen::Vector3d& t : target_m) t += (t - hub_m).normalized();
+    Posture posture = Posture::rest(*star.model);
+    const SolveResult r = solver.solve(target_m, visible, posture);
+    CAPTURE(i, r.iterations, r.max_m, to_string(r.status));
+    CHECK(r.status == SolveStatus::stalled);
+    CHECK(r.iterations <= kOutOfReachIterations);
+  }
+}
 
 TEST_CASE("Extrapolation: the subtree carry's valley is crossed in half the iterations",
           "[convergence]") {

@@ -11,6 +11,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <future>
 #include <limits>
 #include <new>
@@ -609,6 +610,47 @@ TEST_CASE("Stats arrive every interval with values that match the traffic", "[da
   std::vector<std::string> bad;
   non_numbers(*busy, "", bad);
   CHECK(bad.empty());
+}
+
+TEST_CASE("Stats time each stage of the frame path as the schema describes", "[daemon]") {
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("inproc://markers-stages", "inproc://poses-stages"));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  for (int i = 0; i < 10; ++i) {
+    client.send_frame(++frame, rest_markers(d.daemon.config()));
+    REQUIRE(client.receive("pose"));
+  }
+  const auto busy = client.stats_until([](const json& s) { return s["pose_rate_hz"] > 0.0; });
+  REQUIRE(busy);
+  const json& stages = (*busy)["stages_us"];
+  // The block is what proto/stats.schema.json says, key for key.
+  std::ifstream schema_file(std::string(FABRIK_SOURCE_DIR) + "/proto/stats.schema.json");
+  const json schema = json::parse(schema_file);
+  const auto keys = [](const json& object) {
+    std::set<std::string> k;
+    for (const auto& [key, value] : object.items()) k.insert(key);
+    return k;
+  };
+  const json& block = schema["properties"]["stages_us"];
+  CHECK(keys(stages) == keys(block["properties"]));
+  std::set<std::string> required;
+  for (const json& k : block["required"]) required.insert(k.get<std::string>());
+  CHECK(keys(stages) == required);
+  const json& stage = schema["$defs"]["stage"];
+  for (const auto& [name, q] : stages.items()) {
+    INFO(name);
+    CHECK(keys(q) == keys(stage["properties"]));
+    // Every stage took time, within the frame's time in the daemon (each
+    // frame's stages lie inside its queue latency, so their quantiles do too).
+    CHECK(q["p50"].get<double>() > 0.0);
+    CHECK(q["max"].get<double>() >= q["p99"].get<double>());
+    CHECK(q["p50"].get<double>() <= (*busy)["queue_latency_us"]["p50"].get<double>());
+    CHECK(q["max"].get<double>() <= (*busy)["queue_latency_us"]["max"].get<double>());
+  }
+  // The tracker's work holds the solver's.
+  CHECK(stages["solve"]["p50"].get<double>() >= (*busy)["solve_us"]["p50"].get<double>());
+  CHECK(stages["solve"]["max"].get<double>() >= (*busy)["solve_us"]["max"].get<double>());
 }
 
 TEST_CASE("MessagePack output carries the same pose and stats", "[daemon]") {

@@ -5,7 +5,9 @@
 #include <iostream>
 
 #include "bench/bench.hpp"
+#include "bench/convergence_bench.hpp"
 #include "bench/latency_bench.hpp"
+#include "bench/pipeline_bench.hpp"
 #include "bench/view_bench.hpp"
 #include "calibrate_command.hpp"
 #include "cli_exit.hpp"
@@ -50,8 +52,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"paper", "rigid"}));
   b_body->add_flag("--json", body_json, "Print one JSON object instead of a table");
   b_body->add_option("--config", body.config,
-                     "Measure this daemon config alone (as `fabrik calibrate` writes it) instead "
-                     "of the built-in model and the calibrated shipped template");
+                     "Measure this daemon config alone (as `fabrik calibrate` writes it: its "
+                     "model, ranges and solver options), with the subtree carry on and off in "
+                     "alternate frames, instead of the built-in model and the calibrated "
+                     "shipped template");
   b_body->add_option("--template", body.template_path,
                      "Template calibrated for the figure users get (default: the shipped "
                      "config/templates/gait2354.json)");
@@ -78,11 +82,24 @@ int main(int argc, char** argv) {
   fabrik::bench::LatencyOptions latency;
   bool latency_json = false;
   CLI::App* b_latency = bench->add_subcommand(
-      "latency", "End-to-end latency of the daemon pipeline over loopback tcp and ipc");
+      "latency",
+      "End-to-end latency of the daemon pipeline over loopback tcp and ipc, against a bare "
+      "ZeroMQ echo of the same sizes run alternately");
   b_latency->add_option("--rate", latency.rate_hz, "Marker frames per second")
       ->check(CLI::Range(1.0, 100000.0));
-  b_latency->add_option("--seconds", latency.seconds, "Duration per transport")
+  b_latency
+      ->add_option("--seconds", latency.seconds,
+                   "Duration per transport, for the daemon and for the floor each")
       ->check(CLI::Range(0.1, 3600.0));
+  b_latency
+      ->add_option("--block-seconds", latency.block_seconds,
+                   "The daemon and the floor take turns in blocks this long")
+      ->check(CLI::Range(0.001, 3600.0));
+  b_latency
+      ->add_option("--config", latency.config,
+                   "Daemon config to run (as `fabrik calibrate` writes it; default: the "
+                   "built-in one); its model's synthetic motion makes the frames")
+      ->check(CLI::ExistingFile);
   b_latency->add_option("--transport", latency.transports, "tcp and/or ipc")
       ->check(CLI::IsMember({"tcp", "ipc"}));
   b_latency->add_option("--encoding", latency.encoding, "json or msgpack")
@@ -98,6 +115,29 @@ int main(int argc, char** argv) {
       ->delimiter(',')
       ->check(CLI::IsMember({"qtm", "natnet"}));
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
+
+  fabrik::bench::PipelineOptions pipeline;
+  bool pipeline_json = false;
+  CLI::App* b_pipeline = bench->add_subcommand(
+      "pipeline", "The daemon's frame path in-process: decode, solve, encode and send per frame");
+  b_pipeline
+      ->add_option("--config", pipeline.configs,
+                   "Daemon configs to measure beside the default one (as `fabrik calibrate` "
+                   "writes them; repeatable)")
+      ->check(CLI::ExistingFile);
+  b_pipeline->add_option("--frames", pipeline.frames, "Frames measured per config")
+      ->check(CLI::Range(10, 10000000))
+      ->capture_default_str();
+  b_pipeline->add_option("--rate", pipeline.rate_hz, "Sampling rate of the synthetic motion (Hz)")
+      ->check(CLI::Range(1.0, 100000.0))
+      ->capture_default_str();
+  b_pipeline->add_option("--transport", pipeline.transport, "The output's: tcp or ipc")
+      ->check(CLI::IsMember({"tcp", "ipc"}))
+      ->capture_default_str();
+  b_pipeline->add_option("--encoding", pipeline.encoding, "json or msgpack, in and out")
+      ->check(CLI::IsMember({"json", "msgpack"}))
+      ->capture_default_str();
+  b_pipeline->add_flag("--json", pipeline_json, "Print one JSON object instead of a table");
 
   fabrik::bench::ViewBenchOptions view_bench;
   bool view_json = false;
@@ -115,6 +155,37 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 64));
   b_view->add_flag("--json", view_json, "Print one JSON object instead of a table");
 
+  fabrik::bench::ConvergenceOptions convergence;
+  bool convergence_json = false;
+  CLI::App* b_convergence = bench->add_subcommand(
+      "convergence",
+      "Convergence on reachable targets: stars of 10-50 end effectors, chains of 100-200 "
+      "segments, cold and warm");
+  b_convergence->add_option("--solves", convergence.solves, "Solves per case and start")
+      ->check(CLI::Range(1, 10000000))
+      ->capture_default_str();
+  b_convergence->add_option("--seed", convergence.seed, "Pose seed")->capture_default_str();
+  b_convergence
+      ->add_option("--stall-ratio", convergence.stall_ratio,
+                   "Stall tolerance as a fraction of the tolerance")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  b_convergence
+      ->add_option("--max-turn", convergence.max_turn_rad,
+                   "Each joint of a target posture turned by up to this from rest (rad; "
+                   "default 0.1 for stars, 0.4 for chains)")
+      ->check(CLI::Range(0.0, 3.2));
+  b_convergence
+      ->add_option("--max-iterations", convergence.max_iterations,
+                   "Iteration budget (default: the solver's)")
+      ->check(CLI::Range(1, 1000000));
+  b_convergence
+      ->add_option("--case", convergence.cases,
+                   "Only these cases (star10 star20 star50 chain100 chain100_10um chain200 "
+                   "chain200_10um)")
+      ->delimiter(',');
+  b_convergence->add_flag("--json", convergence_json, "Print one JSON object instead of a table");
+
   fabrik::apps::add_solve_command(app);
   fabrik::apps::add_info_command(app);
   fabrik::add_calibrate_command(app);
@@ -131,6 +202,12 @@ int main(int argc, char** argv) {
       if (b_latency->count("--rate") > 0) latency.source_rate_hz = latency.rate_hz;
       const auto r = fabrik::bench::run_latency(latency);
       std::cout << (latency_json ? r.dump(2) + "\n" : fabrik::bench::latency_table(r));
+    } else if (b_convergence->parsed()) {
+      const auto r = fabrik::bench::run_convergence(convergence);
+      std::cout << (convergence_json ? r.dump(2) + "\n" : fabrik::bench::convergence_table(r));
+    } else if (b_pipeline->parsed()) {
+      const auto r = fabrik::bench::run_pipeline(pipeline);
+      std::cout << (pipeline_json ? r.dump(2) + "\n" : fabrik::bench::pipeline_table(r));
     } else if (b_view->parsed()) {
       const auto r = fabrik::bench::run_view_bench(view_bench);
       std::cout << (view_json ? r.dump(2) + "\n" : fabrik::bench::view_bench_table(r));

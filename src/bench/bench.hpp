@@ -31,8 +31,9 @@ struct FullbodyOptions {
   // The figure users get (template_bench.cpp): a daemon config as `fabrik calibrate` writes
   // it. `config` names one; empty: `template_path` calibrated on `static_trial` (a generated
   // static trial when that file is absent). Tracked on synthetic motion at each of `speeds`
-  // (times the default cycle frequency) and on each of `trials` that exists, every `steps`-th
-  // frame. `calibrated` false skips it.
+  // (times the default cycle frequency) and on each of `trials` that exists and has at least
+  // half the config's markers, every `steps`-th frame; each with the subtree carry on and off
+  // in alternate frames (the carry's cost). `calibrated` false skips it.
   bool calibrated = true;
   std::string config;
   std::string template_path = "config/templates/gait2354.json";

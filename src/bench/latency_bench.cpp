@@ -3,12 +3,12 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
-#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
-#include <cstring>
 #include <deque>
 #include <filesystem>
 #include <limits>
@@ -25,6 +25,7 @@
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
 #include "transport/marker_codec.hpp"
+#include "zmq_floor.hpp"
 
 namespace fabrik::bench {
 
@@ -33,41 +34,36 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
 
-// The frame number of a pose without decoding all of it: the encoder writes
-// "frame" first (JSON: {"frame":N; MessagePack: map, "frame", uint).
+// Issue 22's goals against the floor: the daemon's p50 at most this far
+// above the floor's p50, its p99 at most this far above the floor's p99.
+constexpr double kGoalP50Us = 15.0;
+constexpr double kGoalP99Us = 50.0;
+
+// The frame number of a pose, without decoding the rest of it.
 bool pose_frame(const zmq::message_t& m, std::uint64_t& frame) {
-  const auto* b = static_cast<const std::uint8_t*>(m.data());
-  const std::size_t n = m.size();
-  constexpr std::string_view json_prefix = "{\"frame\":";
-  if (n > json_prefix.size() &&
-      std::string_view(reinterpret_cast<const char*>(b), json_prefix.size()) == json_prefix) {
-    const char* p = reinterpret_cast<const char*>(b) + json_prefix.size();
-    return std::from_chars(p, reinterpret_cast<const char*>(b) + n, frame).ec == std::errc();
-  }
-  if (n > 16 && b[1] == 0xa5 && std::memcmp(b + 2, "frame", 5) == 0) {
-    if (b[7] < 0x80) return frame = b[7], true;
-    if (b[7] != 0xcf) return false;
-    frame = 0;
-    for (int i = 0; i < 8; ++i) frame = (frame << 8) | b[8 + i];
-    return true;
-  }
-  return false;
+  const std::optional<std::uint64_t> f =
+      frame_number({static_cast<const std::uint8_t*>(m.data()), m.size()});
+  if (f) frame = *f;
+  return f.has_value();
 }
 
-// The bench's side of a daemon: a PUB on its marker input, a SUB on its poses.
-struct DaemonPeer {
+// The bench's side of a daemon or of the floor: a PUB on its marker input,
+// a SUB on its poses.
+struct Peer {
   zmq::socket_t pub, sub;
   zmq::message_t topic, body;
 
-  DaemonPeer(zmq::context_t& context, wire::Daemon& daemon)
+  Peer(zmq::context_t& context, const std::string& input, const std::string& output)
       : pub(context, zmq::socket_type::pub), sub(context, zmq::socket_type::sub) {
     pub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::subscribe, "pose");
     sub.set(zmq::sockopt::rcvhwm, 0);
-    pub.connect(daemon.input_endpoint());
-    sub.connect(daemon.output_endpoint());
+    pub.connect(input);
+    sub.connect(output);
   }
+  Peer(zmq::context_t& context, wire::Daemon& daemon)
+      : Peer(context, daemon.input_endpoint(), daemon.output_endpoint()) {}
   void send(const std::string& payload) {
     pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
     pub.send(zmq::buffer(payload));
@@ -76,32 +72,112 @@ struct DaemonPeer {
   bool receive(int timeout_ms, std::uint64_t& frame) {
     zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
     if (zmq::poll(items, 1, std::chrono::milliseconds(timeout_ms)) <= 0) return false;
-    (void)sub.recv(topic);
-    if (!topic.more()) return false;
+    return read(frame);
+  }
+  // A pose that has arrived (the socket polled readable): true with its frame number.
+  bool read(std::uint64_t& frame) {
+    if (!sub.recv(topic, zmq::recv_flags::dontwait) || !topic.more()) return false;
     (void)sub.recv(body);
     return pose_frame(body, frame);
   }
+  std::string body_text() const { return {static_cast<const char*>(body.data()), body.size()}; }
 };
 
-json run_one(const LatencyOptions& o, const std::string& transport) {
-  DaemonConfig config = default_daemon_config();
-  std::filesystem::path ipc_base;
+// The daemon's loop on a thread, stopped and joined however the scope ends.
+struct DaemonThread {
+  wire::DaemonControl control;
+  std::thread thread;
+  explicit DaemonThread(wire::Daemon& daemon) : thread([this, &daemon] { daemon.run(control); }) {}
+  ~DaemonThread() {
+    control.stop = true;
+    if (thread.joinable()) thread.join();
+  }
+};
+
+// ipc endpoints' files, removed however the scope ends.
+struct IpcFiles {
+  std::vector<std::filesystem::path> paths;
+  ~IpcFiles() {
+    std::error_code ignored;
+    for (const auto& p : paths) std::filesystem::remove(p, ignored);
+  }
+};
+
+// p50, p90, p99 and max of one input's frames; sent[i] unset: not sent.
+json input_figures(const std::vector<Clock::time_point>& sent_at,
+                   const std::vector<std::uint8_t>& sent,
+                   const std::vector<Clock::time_point>& received_at,
+                   const std::vector<std::uint8_t>& received) {
+  std::vector<double> latency_us;
+  int n_sent = 0;
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    if (!sent[i]) continue;
+    ++n_sent;
+    if (received[i])
+      latency_us.push_back(
+          std::chrono::duration<double, std::micro>(received_at[i] - sent_at[i]).count());
+  }
+  const int n_received = static_cast<int>(latency_us.size());
+  return {{"frames_sent", n_sent},
+          {"poses_received", n_received},
+          {"lost", n_sent - n_received},
+          {"latency_us",
+           {{"p50", quantile(latency_us, 0.5)},
+            {"p90", quantile(latency_us, 0.9)},
+            {"p99", quantile(latency_us, 0.99)},
+            {"max", quantile(latency_us, 1.0)}}}};
+}
+
+// Who gets the k-th frame of a run: blocks of `block` frames, daemon and
+// floor in turn as D F F D D F F D ..., so each goes first as often and
+// a drift in the machine's state falls on both alike.
+struct Slot {
+  int path;   // kDaemon or kFloor
+  int index;  // the path's own frame count
+};
+constexpr int kDaemon = 0, kFloor = 1;
+std::vector<Slot> alternate_blocks(int n, int block) {
+  std::vector<Slot> schedule;
+  schedule.reserve(2 * static_cast<std::size_t>(n));
+  int next[2] = {0, 0};
+  for (int b = 0; next[kDaemon] < n || next[kFloor] < n; ++b) {
+    int path = (b % 4 == 0 || b % 4 == 3) ? kDaemon : kFloor;
+    if (next[path] >= n) path = 1 - path;
+    for (int k = 0; k < block && next[path] < n; ++k) schedule.push_back({path, next[path]++});
+  }
+  return schedule;
+}
+
+// One transport: the daemon and the floor (zmq_floor.hpp), both up for the
+// whole run, fed the same marker frames at `rate_hz` in alternating blocks.
+// Latency: from just before the source's send (the frame already encoded)
+// to the subscriber's receive of its pose, matched by frame number.
+json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& transport) {
+  std::string floor_in, floor_out;
+  IpcFiles ipc_files;
   if (transport == "tcp") {
     config.input = {"tcp://127.0.0.1:*", SocketMode::bind};
     config.output = {"tcp://127.0.0.1:*", SocketMode::bind};
+    floor_in = floor_out = "tcp://127.0.0.1:*";
   } else if (transport == "ipc") {
-    ipc_base =
-        std::filesystem::temp_directory_path() / ("fabrik-bench-" + std::to_string(getpid()));
-    config.input = {"ipc://" + ipc_base.string() + "-in", SocketMode::bind};
-    config.output = {"ipc://" + ipc_base.string() + "-out", SocketMode::bind};
+    const std::string base =
+        (std::filesystem::temp_directory_path() / ("fabrik-bench-" + std::to_string(getpid())))
+            .string();
+    for (const char* end : {"-in", "-out", "-floor-in", "-floor-out"})
+      ipc_files.paths.emplace_back(base + end);
+    config.input = {"ipc://" + base + "-in", SocketMode::bind};
+    config.output = {"ipc://" + base + "-out", SocketMode::bind};
+    floor_in = "ipc://" + base + "-floor-in";
+    floor_out = "ipc://" + base + "-floor-out";
   } else {
     throw std::invalid_argument("unknown transport '" + transport + "' (use tcp or ipc)");
   }
+  config.source = {};  // the ZeroMQ input alone
   config.output_encoding = o.encoding == "msgpack" ? Encoding::msgpack : Encoding::json;
   const wire::PayloadEncoding in_encoding =
       o.encoding == "msgpack" ? wire::PayloadEncoding::msgpack : wire::PayloadEncoding::json;
 
-  // Marker frames of one second of synthetic motion, encoded on the fly.
+  // Marker frames of one second of synthetic motion of the config's model.
   const Model& model = *config.tracker.model;
   std::vector<std::string> names;
   std::vector<int> points;
@@ -142,122 +218,125 @@ json run_one(const LatencyOptions& o, const std::string& transport) {
   const std::vector<std::uint8_t> visible(names.size(), 1);
   const std::vector<std::uint8_t> q_visible(sensor_names.size(), 1);
 
+  // Frame `frame`, at step i of the motion, into `payload`. The second of
+  // motion is played forward and back, so the markers never jump (a jump
+  // would cost the daemon a cold solve, which is not what is measured).
+  std::string payload;
+  auto encode = [&](std::uint64_t frame, int i) {
+    const int k = cycle > 1 ? i % (2 * cycle - 2) : 0;
+    const int at = k < cycle ? k : 2 * cycle - 2 - k;
+    const double t_s = static_cast<double>(i) / o.rate_hz;
+    const wire::SensorSamples sensors{sensor_names, frames_q[at], q_visible};
+    wire::encode_marker_frame(
+        frame, &t_s, names, std::span<const Eigen::Vector3d>(frames_m[at]).first(names.size()),
+        visible, "mm", in_encoding, payload, nullptr, with_sensors ? &sensors : nullptr);
+  };
+  // Connected both ways: probe until a pose comes back, then let the probes
+  // in flight drain.
+  auto connect = [&](Peer& peer, const std::string& what) {
+    std::uint64_t frame = 0;
+    bool connected = false;
+    for (int i = 0; i < 400 && !connected; ++i) {
+      encode(static_cast<std::uint64_t>(i), i);
+      peer.send(payload);
+      connected = peer.receive(25, frame);
+    }
+    if (!connected)
+      throw std::runtime_error("no pose came back from " + what + " over " + transport);
+    while (peer.receive(200, frame)) {
+    }
+  };
+
   zmq::context_t daemon_context(1), client_context(1);
   wire::Daemon daemon(daemon_context, config);
-  wire::DaemonControl control;
-  std::thread daemon_thread([&] { daemon.run(control); });
-
-  DaemonPeer peer(client_context, daemon);
-
-  std::string payload;
-  auto send = [&](std::uint64_t frame, int i) {
-    const double t_s = static_cast<double>(frame) / o.rate_hz;
-    const wire::SensorSamples sensors{sensor_names, frames_q[i % cycle], q_visible};
-    wire::encode_marker_frame(frame, &t_s, names,
-                              std::span<const Eigen::Vector3d>(frames_m[i % cycle]).first(names.size()),
-                              visible, "mm", in_encoding, payload, nullptr,
-                              with_sensors ? &sensors : nullptr);
-    peer.send(payload);
-  };
-  auto receive = [&](int timeout_ms, std::uint64_t& frame) { return peer.receive(timeout_ms, frame); };
-
-  // Connect both ways before measuring: probe until a pose comes back, then
-  // let the probes in flight drain.
-  std::uint64_t frame = 0;
-  bool connected = false;
-  for (int i = 0; i < 400 && !connected; ++i) {
-    send(static_cast<std::uint64_t>(i), i);
-    connected = receive(25, frame);
-  }
-  if (!connected) throw std::runtime_error("no pose came back over " + transport);
-  while (receive(200, frame)) {
-  }
+  DaemonThread daemon_thread(daemon);
+  Peer daemon_peer(client_context, daemon);
+  connect(daemon_peer, "the daemon");
+  // The floor answers with a pose of the daemon's, renumbered.
+  ZmqFloor floor(config, floor_in, floor_out, daemon_peer.body_text());
+  Peer floor_peer(client_context, floor.input_endpoint(), floor.output_endpoint());
+  connect(floor_peer, "the floor");
 
   const wire::DaemonCounters before = daemon.counters();
-  const int n = static_cast<int>(o.rate_hz * o.seconds);
+  const std::uint64_t floor_before = floor.answered();
+  const int n = std::max(1, static_cast<int>(std::lround(o.rate_hz * o.seconds)));  // per path
+  const int block = std::clamp(static_cast<int>(std::lround(o.rate_hz * o.block_seconds)), 1, n);
+  const std::vector<Slot> schedule = alternate_blocks(n, block);
   const std::uint64_t first = 1000000;
-  std::vector<Clock::time_point> sent_at(n), received_at(n);
-  std::vector<std::uint8_t> got(n, 0);
+  Peer* peers[2] = {&daemon_peer, &floor_peer};
+  std::vector<Clock::time_point> sent_at[2], received_at[2];
+  std::vector<std::uint8_t> sent[2], got[2];
+  for (int p : {kDaemon, kFloor}) {
+    sent_at[p].resize(n), received_at[p].resize(n);
+    sent[p].assign(n, 0), got[p].assign(n, 0);
+  }
+  double marker_bytes = 0.0, pose_bytes = 0.0;  // sums
   std::atomic<bool> sending_done{false};
   std::thread sender([&] {
     const auto period =
         std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.rate_hz));
     const Clock::time_point start = Clock::now() + std::chrono::milliseconds(10);
-    for (int i = 0; i < n; ++i) {
-      std::this_thread::sleep_until(start + i * period);  // deadlines: no drift
-      sent_at[i] = Clock::now();
-      send(first + static_cast<std::uint64_t>(i), i);
+    for (std::size_t k = 0; k < schedule.size(); ++k) {
+      const Slot s = schedule[k];
+      encode(first + static_cast<std::uint64_t>(s.index), s.index);  // not the pipeline's cost
+      std::this_thread::sleep_until(start + static_cast<int>(k) * period);  // deadlines: no drift
+      sent_at[s.path][s.index] = Clock::now();
+      sent[s.path][s.index] = 1;
+      peers[s.path]->send(payload);
+      marker_bytes += static_cast<double>(payload.size());
     }
     sending_done = true;
   });
-  int received = 0, stray = 0;
-  for (;;) {
-    std::uint64_t f = 0;
-    if (receive(sending_done ? 500 : 1000, f)) {
+  int received = 0;
+  zmq::pollitem_t items[] = {{daemon_peer.sub.handle(), 0, ZMQ_POLLIN, 0},
+                             {floor_peer.sub.handle(), 0, ZMQ_POLLIN, 0}};
+  while (received < 2 * n) {
+    // Nothing for half a second after the last frame: the rest is lost.
+    const bool done = sending_done;
+    if (zmq::poll(items, 2, std::chrono::milliseconds(done ? 500 : 1000)) <= 0) {
+      if (done) break;
+      continue;
+    }
+    for (int p : {kDaemon, kFloor}) {
+      std::uint64_t f = 0;
+      if (!(items[p].revents & ZMQ_POLLIN) || !peers[p]->read(f)) continue;
       const Clock::time_point now = Clock::now();
-      if (f >= first && f < first + static_cast<std::uint64_t>(n) && !got[f - first]) {
-        got[f - first] = 1;
-        received_at[f - first] = now;
-        if (++received == n) break;
-      } else {
-        ++stray;
-      }
-    } else if (sending_done) {
-      break;  // nothing for half a second after the last frame: the rest is lost
+      if (f < first || f >= first + static_cast<std::uint64_t>(n) || got[p][f - first]) continue;
+      got[p][f - first] = 1;
+      received_at[p][f - first] = now;
+      ++received;
+      if (p == kDaemon) pose_bytes += static_cast<double>(peers[p]->body.size());
     }
   }
   sender.join();
-  control.stop = true;
-  daemon_thread.join();
   const wire::DaemonCounters after = daemon.counters();
-  if (!ipc_base.empty()) {
-    std::filesystem::remove(ipc_base.string() + "-in");
-    std::filesystem::remove(ipc_base.string() + "-out");
-  }
 
-  std::vector<double> latency_us;
-  latency_us.reserve(n);
-  for (int i = 0; i < n; ++i)
-    if (got[i])
-      latency_us.push_back(
-          std::chrono::duration<double, std::micro>(received_at[i] - sent_at[i]).count());
+  json d = input_figures(sent_at[kDaemon], sent[kDaemon], received_at[kDaemon], got[kDaemon]);
+  json f = input_figures(sent_at[kFloor], sent[kFloor], received_at[kFloor], got[kFloor]);
+  const int d_received = d["poses_received"].get<int>();
+  d["pose_bytes_mean"] = d_received > 0 ? pose_bytes / d_received : 0.0;
+  d["frames_dropped"] = after.frames_dropped - before.frames_dropped;
+  d["decode_errors"] = after.decode_errors - before.decode_errors;
+  d["poor_frames"] = after.poor_frames - before.poor_frames;
+  d["unknown_markers"] = after.unknown_markers - before.unknown_markers;
+  f["pose_bytes"] = floor.pose_bytes();
+  f["answered"] = floor.answered() - floor_before;
+  const double p50_us = d["latency_us"]["p50"].get<double>() - f["latency_us"]["p50"].get<double>();
+  const double p99_us = d["latency_us"]["p99"].get<double>() - f["latency_us"]["p99"].get<double>();
+  const bool measured = d_received > 0 && f["poses_received"].get<int>() > 0;
   return {{"transport", transport},
-          {"frames_sent", n},
-          {"poses_received", received},
-          {"lost", n - received},
-          {"daemon_frames_dropped", after.frames_dropped - before.frames_dropped},
-          {"daemon_decode_errors", after.decode_errors - before.decode_errors},
-          {"latency_us",
-           {{"p50", quantile(latency_us, 0.5)},
-            {"p99", quantile(latency_us, 0.99)},
-            {"max", quantile(latency_us, 1.0)}}}};
+          {"frames_each", n},
+          {"block_frames", block},
+          {"marker_frame_bytes_mean", marker_bytes / static_cast<double>(schedule.size())},
+          {"daemon", d},
+          {"floor", f},
+          {"daemon_minus_floor_us", {{"p50", p50_us}, {"p99", p99_us}}},
+          {"goals",
+           {{"p50_within_us", kGoalP50Us},
+            {"p99_within_us", kGoalP99Us},
+            {"p50_met", measured && p50_us <= kGoalP50Us},
+            {"p99_met", measured && p99_us <= kGoalP99Us}}}};
 }
-
-// p50, p90, p99 and max of one input's frames; sent[i] unset: not sent.
-json input_figures(const std::vector<Clock::time_point>& sent_at,
-                   const std::vector<std::uint8_t>& sent,
-                   const std::vector<Clock::time_point>& received_at,
-                   const std::vector<std::uint8_t>& received) {
-  std::vector<double> latency_us;
-  int n_sent = 0;
-  for (std::size_t i = 0; i < sent.size(); ++i) {
-    if (!sent[i]) continue;
-    ++n_sent;
-    if (received[i])
-      latency_us.push_back(
-          std::chrono::duration<double, std::micro>(received_at[i] - sent_at[i]).count());
-  }
-  const int n_received = static_cast<int>(latency_us.size());
-  return {{"frames_sent", n_sent},
-          {"poses_received", n_received},
-          {"lost", n_sent - n_received},
-          {"latency_us",
-           {{"p50", quantile(latency_us, 0.5)},
-            {"p90", quantile(latency_us, 0.9)},
-            {"p99", quantile(latency_us, 0.99)},
-            {"max", quantile(latency_us, 1.0)}}}};
-}
-
 // One daemon with two inputs: its ZeroMQ SUB (tcp loopback) and a vendor
 // source, a simulated QTM or NatNet server on loopback that fabrikd's own
 // client (make_source_client) connects to and decodes. The inputs take
@@ -267,10 +346,10 @@ json input_figures(const std::vector<Clock::time_point>& sent_at,
 // frame was handed over (just before the server's send to the socket, via
 // on_frame_sent; just before the PUB's send) to the subscriber's receive
 // of its pose, matched by frame number.
-json run_source(const LatencyOptions& o, const std::string& source) {
+json run_source(const LatencyOptions& o, DaemonConfig config, const std::string& source) {
   if (source != "qtm" && source != "natnet")
     throw std::invalid_argument("unknown source '" + source + "' (use qtm or natnet)");
-  DaemonConfig config = default_daemon_config();
+  config.source = {};  // the simulated server's, below
   config.input = {"tcp://127.0.0.1:*", SocketMode::bind};
   config.output = {"tcp://127.0.0.1:*", SocketMode::bind};
   config.output_encoding = o.encoding == "msgpack" ? Encoding::msgpack : Encoding::json;
@@ -365,7 +444,7 @@ json run_source(const LatencyOptions& o, const std::string& source) {
     else natnet_server->run(stop);
   });
 
-  DaemonPeer peer(client_context, daemon);
+  Peer peer(client_context, daemon);
 
   // ZeroMQ frames are numbered far above any the server reaches in a run,
   // so a pose's frame number says which input it came from.
@@ -523,15 +602,25 @@ json run_source(const LatencyOptions& o, const std::string& source) {
 
 json run_latency(const LatencyOptions& o) {
   spdlog::set_level(spdlog::level::warn);
+  const DaemonConfig config =
+      o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
+  const Model& m = *config.tracker.model;
   json out = {{"benchmark", "latency"},
               {"rate_hz", o.rate_hz},
               {"seconds", o.seconds},
+              {"block_seconds", o.block_seconds},
               {"encoding", o.encoding},
               {"orientations", o.orientations},
-              {"model", "models/fullbody.json (45 markers, 15 segments)"},
+              {"config", o.config.empty() ? "built-in default (config/default.json)" : o.config},
+              {"model",
+               {{"name", m.name},
+                {"markers", config.tracker.markers.size()},
+                {"segments", m.segments.size()}}},
               {"measured",
-               "marker frame sent by the source -> pose received by the subscriber, one process, "
-               "steady clock"},
+               "marker frame sent by the source (already encoded) -> pose received by the "
+               "subscriber, one process, steady clock; the daemon and the floor (a bare ZeroMQ "
+               "echo: same sockets and options, same marker frames, answers the daemon's pose "
+               "size) alternate in blocks"},
               {"runs", json::array()}};
   if (!o.sources.empty()) {
     // A source comparison replaces the transport runs: one daemon per source.
@@ -541,24 +630,42 @@ json run_latency(const LatencyOptions& o) {
         "TCP/UDP send) -> pose "
         "received by the subscriber, one daemon fed by both inputs alternately, one process, "
         "steady clock";
+    out.erase("block_seconds");
     out["source_runs"] = json::array();
-    for (const std::string& s : o.sources) out["source_runs"].push_back(run_source(o, s));
+    for (const std::string& s : o.sources) out["source_runs"].push_back(run_source(o, config, s));
     return out;
   }
-  for (const std::string& t : o.transports) out["runs"].push_back(run_one(o, t));
+  for (const std::string& t : o.transports) out["runs"].push_back(run_one(o, config, t));
   return out;
 }
 
+namespace {
+
+std::string model_text(const json& r) {
+  const json& m = r["model"];
+  const auto markers = m["markers"].get<std::size_t>(), segments = m["segments"].get<std::size_t>();
+  const std::string name = m["name"].get<std::string>();
+  if (r["orientations"] == "mixed")
+    return name + " (" + std::to_string(markers) + " markers and " + std::to_string(segments) +
+           " orientation sensors)";
+  if (r["orientations"] == "only")
+    return name + " (" + std::to_string(segments) + " orientation sensors, no markers)";
+  return name + " (" + std::to_string(markers) + " markers, " + std::to_string(segments) +
+         " segments)";
+}
+
+}  // namespace
+
 std::string latency_table(const json& r) {
   std::string s;
-  char buf[512];
+  char buf[640];
   if (r.contains("source_runs")) {
     for (const json& run : r["source_runs"]) {
       std::snprintf(buf, sizeof buf,
                     "Source vs ZeroMQ input: one daemon, %g Hz on each input alternately, %g s, "
-                    "%s ZeroMQ frames and poses, full-body model (45 markers)\n",
+                    "%s ZeroMQ frames and poses, %s\n",
                     run["rate_hz_per_input"].get<double>(), r["seconds"].get<double>(),
-                    r["encoding"].get<std::string>().c_str());
+                    r["encoding"].get<std::string>().c_str(), model_text(r).c_str());
       s += buf;
       s += "  input        sent   received   lost   p50 us   p90 us   p99 us   max us\n";
       for (const json& in : run["inputs"]) {
@@ -585,22 +692,40 @@ std::string latency_table(const json& r) {
     return s;
   }
   std::snprintf(buf, sizeof buf,
-                "End-to-end latency: %g Hz for %g s, %s, full-body model (%s)\n",
+                "End-to-end latency against the ZeroMQ floor: %g Hz, %g s each, %s, %s;\n"
+                "  config %s; daemon and floor alternate in %g s blocks\n",
                 r["rate_hz"].get<double>(), r["seconds"].get<double>(),
-                r["encoding"].get<std::string>().c_str(),
-                r["orientations"] == "mixed"  ? "45 markers and 15 orientation sensors"
-                : r["orientations"] == "only" ? "15 orientation sensors, no markers"
-                                              : "45 markers");
+                r["encoding"].get<std::string>().c_str(), model_text(r).c_str(),
+                r["config"].get<std::string>().c_str(), r["block_seconds"].get<double>());
   s += buf;
-  s += "  transport     sent   received   lost  dropped   p50 us   p99 us   max us\n";
+  s += "  transport  path      sent  received  lost  dropped   p50 us   p99 us   max us  bytes "
+       "in/out\n";
   for (const json& run : r["runs"]) {
-    std::snprintf(
-        buf, sizeof buf, "  %-9s %8d %10d %6d %8llu %8.1f %8.1f %8.1f\n",
-        run["transport"].get<std::string>().c_str(), run["frames_sent"].get<int>(),
-        run["poses_received"].get<int>(), run["lost"].get<int>(),
-        static_cast<unsigned long long>(run["daemon_frames_dropped"].get<std::uint64_t>()),
-        run["latency_us"]["p50"].get<double>(), run["latency_us"]["p99"].get<double>(),
-        run["latency_us"]["max"].get<double>());
+    const json& d = run["daemon"];
+    const json& f = run["floor"];
+    auto row = [&](const char* transport, const char* path, const json& x, double out_bytes,
+                   std::uint64_t dropped) {
+      std::snprintf(buf, sizeof buf,
+                    "  %-9s  %-6s %7d %9d %5d %8llu %8.1f %8.1f %8.1f  %.0f/%.0f\n", transport,
+                    path, x["frames_sent"].get<int>(), x["poses_received"].get<int>(),
+                    x["lost"].get<int>(), static_cast<unsigned long long>(dropped),
+                    x["latency_us"]["p50"].get<double>(), x["latency_us"]["p99"].get<double>(),
+                    x["latency_us"]["max"].get<double>(),
+                    run["marker_frame_bytes_mean"].get<double>(), out_bytes);
+      s += buf;
+    };
+    row(run["transport"].get<std::string>().c_str(), "daemon", d,
+        d["pose_bytes_mean"].get<double>(), d["frames_dropped"].get<std::uint64_t>());
+    row("", "floor", f, f["pose_bytes"].get<double>(), 0);
+    const json& diff = run["daemon_minus_floor_us"];
+    const json& goals = run["goals"];
+    std::snprintf(buf, sizeof buf,
+                  "  %-9s  daemon - floor:                  %+8.1f %+8.1f   goals (<= %g, <= %g "
+                  "us): p50 %s, p99 %s\n",
+                  "", diff["p50"].get<double>(), diff["p99"].get<double>(),
+                  goals["p50_within_us"].get<double>(), goals["p99_within_us"].get<double>(),
+                  goals["p50_met"].get<bool>() ? "met" : "NOT met",
+                  goals["p99_met"].get<bool>() ? "met" : "NOT met");
     s += buf;
   }
   return s;

@@ -1,7 +1,9 @@
 // `fabrik bench latency`: the daemon pipeline (decode, solve, encode,
 // publish) on its own thread, fed by a marker source at a fixed rate over
 // loopback tcp and ipc; end-to-end latency from the source's send to the
-// subscriber's receive, on one steady clock. With sources: the same for a
+// subscriber's receive, on one steady clock, against the floor: a bare
+// ZeroMQ echo of the same sizes (zmq_floor.hpp), fed in alternating blocks
+// in the same run. With sources: the same for a
 // frame from a simulated QTM or NatNet server, which fabrikd's own client
 // decodes, against frames on the ZeroMQ input of the same daemon.
 #pragma once
@@ -14,7 +16,12 @@ namespace fabrik::bench {
 
 struct LatencyOptions {
   double rate_hz = 1000.0;
-  double seconds = 10.0;
+  double seconds = 10.0;  // per transport, for the daemon and for the floor each
+  // The daemon and the floor take turns in blocks this long.
+  double block_seconds = 0.25;
+  // A daemon config file (as `fabrik calibrate` writes it); empty: the
+  // built-in default. Its model's synthetic motion makes the marker frames.
+  std::string config;
   std::vector<std::string> transports = {"tcp", "ipc"};
   std::string encoding = "json";  // of the marker frames and poses
   // "none"; "mixed": markers plus an orientation sensor on every segment;

@@ -3,8 +3,10 @@
 // tracked through the Tracker as fabrikd and `fabrik solve` track, on synthetic motion of the
 // calibrated model and on recorded trials replayed at their own speed and faster (every k-th
 // frame: bigger steps between frames, as in running). Each source is tracked with the config's
-// solver options and with the subtree carry off, the two trackers interleaved frame by frame
-// (in alternating order) so both see the same machine load: their ratio is the carry's cost.
+// solver options and with the subtree carry toggled (off when the config carries, calibrate's
+// 0.5 when it does not), the two trackers interleaved frame by frame (in alternating order) so
+// both see the same frames and the same machine load: their ratios are the carry's cost.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
@@ -33,6 +35,9 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kShippedTemplate = "config/templates/gait2354.json";
+// The carry compared with when a config has none: what `fabrik calibrate` writes for a
+// template with joint limits (calibrate.cpp).
+constexpr double kCalibrateCarry = 0.5;
 
 // Per frame the measured markers (metres) and their visibility, in the config's marker order.
 struct FrameSource {
@@ -78,6 +83,21 @@ json figures_json(const Figures& f) {
     j["joint_centre_error_mm"] = {{"rms_mean", mean(f.joint_err_mm)},
                                   {"p99", quantile(f.joint_err_mm, 0.99)}};
   return j;
+}
+
+// The carry's cost: ratios of the tracker with the carry to the one without, from one
+// interleaved run (the same frames under the same load).
+json carry_cost(const Figures& on, const Figures& off, double carry) {
+  auto ratio = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
+  return {{"subtree_carry", carry},
+          {"median_ratio", ratio(quantile(on.solve_us, 0.5), quantile(off.solve_us, 0.5))},
+          {"p99_ratio", ratio(quantile(on.solve_us, 0.99), quantile(off.solve_us, 0.99))},
+          {"cpu_median_ratio",
+           ratio(quantile(on.track_cpu_us, 0.5), quantile(off.track_cpu_us, 0.5))},
+          // Preemptions set the wall-time p99 on a busy machine; the cpu time's is steadier.
+          {"cpu_p99_ratio",
+           ratio(quantile(on.track_cpu_us, 0.99), quantile(off.track_cpu_us, 0.99))},
+          {"iterations_ratio", ratio(mean(on.iterations), mean(off.iterations))}};
 }
 
 // Tracks `source` with one Tracker per setup, interleaved frame by frame. The first frame is
@@ -186,6 +206,13 @@ FrameSource replay_source(const DaemonConfig& config, std::shared_ptr<const io::
   return s;
 }
 
+// How many of the config's markers the trial has.
+int markers_found(const DaemonConfig& config, const io::MarkerTrial& trial) {
+  int found = 0;
+  for (const MarkerTarget& t : config.tracker.markers) found += trial.find(t.marker) >= 0;
+  return found;
+}
+
 // The config to measure: the given file, or the shipped template calibrated on the static
 // trial (a generated one when the file is absent).
 DaemonConfig bench_config(const FullbodyOptions& options, std::string& origin) {
@@ -220,17 +247,24 @@ DaemonConfig bench_config(const FullbodyOptions& options, std::string& origin) {
 json run_calibrated(const FullbodyOptions& options) {
   std::string origin;
   const DaemonConfig config = bench_config(options, origin);
-  std::vector<TrackerSetup> setups = {config.tracker};
+  // The config as it is, and the same with the carry toggled: every config gets the carry's
+  // cost, including one that does not carry (the embedded default).
   const double carry = config.tracker.solver.subtree_carry;
-  if (carry > 0.0) {
-    setups.push_back(config.tracker);
-    setups.back().solver.subtree_carry = 0.0;
-  }
+  std::vector<TrackerSetup> setups = {config.tracker, config.tracker};
+  setups[1].solver.subtree_carry = carry > 0.0 ? 0.0 : kCalibrateCarry;
+  const std::size_t on = carry > 0.0 ? 0 : 1;  // the setup that carries
   std::vector<FrameSource> sources;
   for (double speed : options.speeds) sources.push_back(synthetic_source(config, options, speed));
+  json skipped = json::array();
   for (const std::string& file : options.trials) {
     if (!std::filesystem::exists(file)) continue;
     auto trial = std::make_shared<const io::MarkerTrial>(io::read_trial(file));
+    const int found = markers_found(config, *trial);
+    const int wanted = static_cast<int>(config.tracker.markers.size());
+    if (2 * found < wanted) {  // another model's trial: its timings would mean nothing
+      skipped.push_back({{"trial", file}, {"markers_found", found}, {"markers", wanted}});
+      continue;
+    }
     for (int step : options.steps)
       sources.push_back(replay_source(config, trial, file, step, options.frames));
   }
@@ -238,20 +272,21 @@ json run_calibrated(const FullbodyOptions& options) {
   for (const FrameSource& s : sources) {
     const std::vector<Figures> f = track_interleaved(setups, s);
     json run = {{"source", s.name}, {"rate_hz", s.rate_hz}, {"as_configured", figures_json(f[0])}};
-    if (f.size() > 1) {
-      run["without_carry"] = figures_json(f[1]);
-      const double a = quantile(f[0].solve_us, 0.5), b = quantile(f[1].solve_us, 0.5);
-      run["carry_cost_ratio"] = b > 0.0 ? a / b : 0.0;
-    }
+    run[carry > 0.0 ? "without_carry" : "with_carry"] = figures_json(f[1]);
+    run["carry"] = carry_cost(f[on], f[1 - on], setups[on].solver.subtree_carry);
     runs.push_back(run);
   }
   const Model& m = *config.tracker.model;
+  json segment_names = json::array();
+  for (const Segment& seg : m.segments) segment_names.push_back(seg.name);
   return {{"config", origin},
           {"model",
            {{"name", m.name},
             {"segments", m.segments.size()},
+            {"segment_names", segment_names},
             {"markers", config.tracker.markers.size()},
             {"joint_limits", m.has_joint_limits()}}},
+          {"skipped_trials", skipped},
           {"solver",
            {{"subtree_carry", carry},
             {"max_iterations", config.tracker.solver.max_iterations},
@@ -292,18 +327,43 @@ std::string calibrated_table(const json& r) {
                 r["solver"]["max_iterations"].get<int>(),
                 r["solver"]["stall_tolerance_mm"].get<double>());
   std::string out = head;
+  for (const json& s : r["skipped_trials"]) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf, "skipped %s: it has %d of the config's %d markers\n",
+                  s["trial"].get<std::string>().c_str(), s["markers_found"].get<int>(),
+                  s["markers"].get<int>());
+    out += buf;
+  }
   for (const json& run : r["runs"]) {
     out += run["source"].get<std::string>() + ", " +
            std::to_string(static_cast<int>(run["as_configured"]["frames"].get<int>())) +
            " frames\n";
     out += line("as configured", run["as_configured"]);
-    if (run.contains("without_carry")) {
-      out += line("carry off", run["without_carry"]);
-      char buf[96];
-      std::snprintf(buf, sizeof buf, "  median time with the carry / without: %.2f\n",
-                    run["carry_cost_ratio"].get<double>());
-      out += buf;
-    }
+    const json& c = run["carry"];
+    char title[32];
+    std::snprintf(title, sizeof title, "carry %g", c["subtree_carry"].get<double>());
+    out += run.contains("without_carry") ? line("carry off", run["without_carry"])
+                                         : line(title, run["with_carry"]);
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "  the carry's cost (%g against 0, same frames): median %.2fx, p99 %.2fx, "
+                  "track cpu median %.2fx, p99 %.2fx, iterations %.2fx\n",
+                  c["subtree_carry"].get<double>(), c["median_ratio"].get<double>(),
+                  c["p99_ratio"].get<double>(), c["cpu_median_ratio"].get<double>(),
+                  c["cpu_p99_ratio"].get<double>(), c["iterations_ratio"].get<double>());
+    out += buf;
+  }
+  double lo = 0.0, hi = 0.0;
+  for (const json& run : r["runs"]) {
+    const double x = run["carry"]["median_ratio"].get<double>();
+    lo = lo > 0.0 ? std::min(lo, x) : x;
+    hi = std::max(hi, x);
+  }
+  if (r["runs"].size() > 1) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "The carry's cost over the %zu sources: median %.2f-%.2fx\n",
+                  r["runs"].size(), lo, hi);
+    out += buf;
   }
   return out;
 }

@@ -55,6 +55,12 @@ bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
     result.status = SolveStatus::converged;
     return true;
   }
+  // The worst distance kWindow checks ago (or at the first check), before this one takes its
+  // place in the ring.
+  const int back = std::min(checks_, kWindow);
+  const double worst_before_m = worst_m_[checks_ < kWindow ? 0 : checks_ % kWindow];
+  worst_m_[checks_ % kWindow] = result.max_m;
+  ++checks_;
   if (iteration > 0) {
     double change_m = 0.0;
     for (std::size_t i = 0; i < distances_m.size(); ++i)
@@ -62,7 +68,7 @@ bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
         change_m = std::max(change_m, std::abs(distances_m[i] - previous_m[i]));
     double remaining_m = change_m;
     if (after_jump_) {
-      after_jump_ = 0;  // the first change after a jump: no rate yet
+      after_jump_ = false;  // the first change after a jump: no rate yet
     } else if (iteration > 2 && change_m < last_change_m_) {
       const double rate = change_m / last_change_m_;
       remaining_m = change_m * rate / (1.0 - rate);
@@ -70,7 +76,8 @@ bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
       remaining_m = change_m * 1e6;  // not contracting: only a tiny change itself may stop
     }
     last_change_m_ = change_m;
-    if (change_m <= options_.stall_tolerance_m || remaining_m <= options_.stall_tolerance_m) {
+    if ((change_m <= options_.stall_tolerance_m || remaining_m <= options_.stall_tolerance_m) &&
+        !may_still_converge(iteration, result.max_m, worst_before_m, back)) {
       result.status = SolveStatus::stalled;
       return true;
     }
@@ -80,6 +87,25 @@ bool StopRule::should_stop(int iteration, std::span<const double> distances_m,
     return true;
   }
   return false;
+}
+
+bool StopRule::may_still_converge(int iteration, double worst_m, double worst_before_m,
+                                  int back) const {
+  if (back < kWindow) return false;
+  // The pace of the worst distance over the newer and the older half of the window, and from
+  // them its rate (per iteration): it falls by pace * rate / (1 - rate) from now on, or by
+  // the pace over every iteration left when it does not slow down.
+  const double mid_m = worst_m_[(checks_ - 1 - kWindow / 2) % kWindow];
+  const double pace_m = (mid_m - worst_m) / (kWindow / 2);
+  const double older_m = (worst_before_m - mid_m) / (kWindow / 2);
+  if (!(pace_m > 0.0)) return false;
+  const double left = options_.max_iterations - iteration;
+  double fall_m = pace_m * left;
+  if (older_m > pace_m) {
+    const double rate = std::pow(pace_m / older_m, 1.0 / (kWindow / 2));
+    fall_m = std::min(fall_m, pace_m * rate / (1.0 - rate));
+  }
+  return worst_m - fall_m <= options_.tolerance_m;
 }
 
 }  // namespace fabrik

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -86,6 +87,15 @@ SolveResult TargetSet::measure_with(PointOf point_of,
 // estimated from the last two changes assuming linear (geometric)
 // convergence: remaining = change * rate / (1 - rate). A fast solver stops
 // soon after it has converged, a slowly creeping one keeps going.
+// That estimate is held back while the solve may still meet the tolerance:
+// when the worst distance, falling on as it fell over the last kWindow checks
+// (geometrically at the rate of the window's two halves, or linearly over the
+// iterations left if it does not slow down), would reach the tolerance. On a
+// tree of many end effectors the arms settle fast and the sub-base creeps: the
+// fast mode's rate predicted no change left, and stars of 20-50 stopped up to
+// 17 % of their solves 0.1-0.5 mm short (docs/convergence.md). Out of reach,
+// or on noisy markers, the worst distance stays far above the tolerance or
+// stops falling: such solves stop as early as before.
 class StopRule {
  public:
   explicit StopRule(const SolverOptions& options) : options_(options) {}
@@ -97,9 +107,16 @@ class StopRule {
   void jumped() { after_jump_ = true; }
 
  private:
+  // Whether the worst distance, at its pace since worst_before_m (`back` checks ago) and in the
+  // ring, would reach the tolerance in the iterations left after `iteration`.
+  bool may_still_converge(int iteration, double worst_m, double worst_before_m, int back) const;
+
+  static constexpr int kWindow = 8;
   const SolverOptions& options_;
   double last_change_m_ = 0.0;
   bool after_jump_ = false;
+  std::array<double, kWindow> worst_m_{};  // ring: the worst distance at the last checks
+  int checks_ = 0;
 };
 
 }  // namespace fabrik

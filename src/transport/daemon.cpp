@@ -130,6 +130,7 @@ struct StatsFields {
   double uptime_s, interval_s, pose_rate_hz;
   const DaemonCounters& c;
   IntervalSamples &solve_us, &queue_us;
+  StageSamples& stages_us;
   std::string_view last_error, config;  // both already safe (safe_text)
   const SourceInput* source = nullptr;  // null: the config names no source
 };
@@ -183,7 +184,7 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  w.begin_map(s.source ? 27 : 26);  // MessagePack needs the exact count of the keys below
+  w.begin_map(s.source ? 28 : 27);  // MessagePack needs the exact count of the keys below
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -220,6 +221,10 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("outliers", s.c.outliers);
   count("poor_frames", s.c.poor_frames);
   count("subscriptions_refused", s.c.subscriptions_refused);
+  w.key("stages_us");
+  w.begin_map(kStageNames.size());
+  for (std::size_t k = 0; k < kStageNames.size(); ++k) quantiles(kStageNames[k], s.stages_us[k]);
+  w.end_map();
   if (s.source) {
     w.key("source");
     write_source_stats(w, *s.source);
@@ -461,7 +466,8 @@ void Daemon::serve_input(zmq::socket_t& in) {
     --s.count;
     s.bytes -= s.waiting[slot].size();
     try {
-      serve_frame(slot);
+      const zmq::message_t& m = s.waiting[slot];
+      serve_frame({static_cast<const std::uint8_t*>(m.data()), m.size()}, s.received_at[slot]);
     } catch (const std::exception& e) {
       internal_error("while serving a frame: ", e.what());
     } catch (...) {
@@ -472,11 +478,15 @@ void Daemon::serve_input(zmq::socket_t& in) {
   update_snapshot();
 }
 
-void Daemon::serve_frame(int slot) {
+FrameStages Daemon::serve_payload(std::span<const std::uint8_t> payload) {
+  serve_frame(payload, Clock::now());
+  return last_stages_;
+}
+
+void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_point received) {
   State& s = *state_;
-  const zmq::message_t& m = s.waiting[slot];
-  const std::span<const std::uint8_t> payload(static_cast<const std::uint8_t*>(m.data()),
-                                              m.size());
+  last_stages_ = {};
+  const Clock::time_point decode_start = Clock::now();
   if (!s.decoder->decode(payload, s.frame, decode_error_)) {
     bad_input("bad marker frame: ", decode_error_);
     return;
@@ -490,7 +500,7 @@ void Daemon::serve_frame(int slot) {
   if (f.known_count == 0 && f.unknown_count > 0) ++counters_.unmatched_frames;
   const bool warn_mismatch = s.names.observe(f.known_count, f.unknown_count);
   counters_.config_mismatch = s.names.mismatched();
-  publish_pose(f, s.received_at[slot]);
+  publish_pose(f, received, decode_start);
   try {
     // Look up first: only a name not seen before costs an allocation.
     const auto report_once = [&](const std::string& name, const char* what) {
@@ -525,8 +535,12 @@ void Daemon::warn_config_mismatch(const MarkerFrame& f) {
       names_beside(config_names, "stream:", stream_names));
 }
 
-void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
+void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
+                          Clock::time_point decode_start) {
   State& s = *state_;
+  FrameStages stages;
+  const Clock::time_point solve_start = Clock::now();
+  stages[Stage::decode] = us_between(decode_start, solve_start);
   const double time_s = f.has_time ? f.time_s
                                    : std::chrono::duration<double>(received - started_).count();
   const TrackResult* r =
@@ -538,16 +552,24 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received) {
     r = &s.tracker->track(time_s, f.p_world_m, f.visible, f.q_sensor, f.sensor_visible);
     if (!all_finite(*r)) return;
   }
+  const Clock::time_point encode_start = Clock::now();
   s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_,
                     {f.p_world_m, f.visible});
+  const Clock::time_point send_start = Clock::now();
   counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
   counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
   ++interval_frames_out_;
   update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it
   send("pose", out_);
+  const Clock::time_point sent = Clock::now();
+  stages[Stage::solve] = us_between(solve_start, encode_start);
+  stages[Stage::encode] = us_between(encode_start, send_start);
+  stages[Stage::send] = us_between(send_start, sent);
   solve_us_.add(r->solve_us);
-  queue_us_.add(us_between(received, Clock::now()));
+  queue_us_.add(us_between(received, sent));
+  stages_us_.add(stages);
+  last_stages_ = stages;
 }
 
 void Daemon::read_monitor() {
@@ -665,6 +687,7 @@ void Daemon::publish_stats(double interval_s) {
       counters_,
       solve_us_,
       queue_us_,
+      stages_us_,
       last_error_.view(),
       s.config_name,
       s.source.get()};
@@ -677,6 +700,7 @@ void Daemon::publish_stats(double interval_s) {
   }
   solve_us_.clear();
   queue_us_.clear();
+  stages_us_.clear();
   interval_frames_out_ = 0;
   send("stats", stats_out_);
 }

@@ -19,12 +19,14 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <unordered_set>
 #include <vector>
 #include <zmq.hpp>
 
 #include "config/daemon_config.hpp"
+#include "frame_stages.hpp"
 #include "interval_stats.hpp"
 #include "marker_codec.hpp"
 #include "name_mismatch.hpp"
@@ -142,6 +144,11 @@ class Daemon {
   DaemonCounters counters() const;
   // The running config; not to be used across a reload.
   const DaemonConfig& config() const;
+  // The frame path alone, for benchmarks: serves `payload` as if it had just
+  // been taken off the input (decode, solve, encode, publish, counted in
+  // stats) and returns its stages, all zero when it was refused. Only while
+  // run() is not running.
+  FrameStages serve_payload(std::span<const std::uint8_t> payload);
   // run() returned while a reload was still being read (it waits a little
   // for it): that thread was left running with data of its own; end the
   // process without unwinding (std::_Exit) rather than returning from main.
@@ -159,8 +166,10 @@ class Daemon {
 
   void serve_input(zmq::socket_t& in);
   int drain_input(zmq::socket_t& in, int budget);
-  void serve_frame(int slot);
-  void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received);
+  void serve_frame(std::span<const std::uint8_t> payload,
+                   std::chrono::steady_clock::time_point received);
+  void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received,
+                    std::chrono::steady_clock::time_point decoded);
   void read_monitor();
   void read_subscriptions();
   void publish_stats(double interval_s);
@@ -188,6 +197,8 @@ class Daemon {
   bool model_pending_ = false;  // asked for within kModelInterval of the last one
   std::chrono::steady_clock::time_point last_model_{};
   IntervalSamples solve_us_, queue_us_;
+  StageSamples stages_us_;
+  FrameStages last_stages_;  // the latest frame's, zero when it was refused
   std::uint64_t interval_frames_out_ = 0;
   FixedText<256> last_error_;  // never allocates: survives an out-of-memory error path
   std::unordered_set<std::string> unknown_seen_;

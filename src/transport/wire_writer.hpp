@@ -12,6 +12,8 @@
 #include <string>
 #include <string_view>
 
+#include "fixed_decimals.hpp"
+
 namespace fabrik::wire {
 
 // JSON: maps and arrays need separators, so it tracks nesting; sizes given
@@ -63,7 +65,7 @@ class JsonWriter {
       return;
     }
     char buf[64];
-    auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::fixed, decimals);
+    auto r = to_fixed_chars(buf, buf + sizeof buf, v, decimals);
     if (r.ec != std::errc()) r = std::to_chars(buf, buf + sizeof buf, v);
     out_.append(buf, r.ptr);
   }
@@ -159,19 +161,24 @@ class MsgpackWriter {
   void boolean(bool b) { byte(b ? 0xc3 : 0xc2); }
   void uint(std::uint64_t v) {
     if (v < 128) return byte(static_cast<std::uint8_t>(v));
-    byte(0xcf);
-    for (int i = 7; i >= 0; --i) byte(static_cast<std::uint8_t>(v >> (8 * i)));
+    tagged_be64(0xcf, v);
   }
   void number(double v) { number(v, 0); }
   void number(double v, int) {
     std::uint64_t bits;
     std::memcpy(&bits, &v, sizeof bits);
-    byte(0xcb);
-    for (int i = 7; i >= 0; --i) byte(static_cast<std::uint8_t>(bits >> (8 * i)));
+    tagged_be64(0xcb, bits);
   }
 
  private:
   void byte(std::uint8_t b) { out_ += static_cast<char>(b); }
+  // One append for the 9 bytes: byte by byte, they were most of a pose's encoding.
+  void tagged_be64(std::uint8_t tag, std::uint64_t v) {
+    char b[9];
+    b[0] = static_cast<char>(tag);
+    for (int i = 0; i < 8; ++i) b[1 + i] = static_cast<char>(v >> (8 * (7 - i)));
+    out_.append(b, sizeof b);
+  }
   void be16(std::size_t n) {
     byte(static_cast<std::uint8_t>(n >> 8)), byte(static_cast<std::uint8_t>(n));
   }
