@@ -100,32 +100,30 @@ class SocketClient {
     return decode_payload(*p);
   }
 
+  // The first message of `topic` for which done(message) holds, or nothing after `timeout`.
+  template <class Done>
+  std::optional<nlohmann::json> receive_until(const std::string& topic, Done done,
+                                              std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      auto message = receive(topic, left);
+      if (message && done(*message)) return message;
+    }
+  }
   // The first `stats` for which done(stats) holds, or nothing after `timeout`.
   template <class Done>
   std::optional<nlohmann::json> stats_until(
       Done done, std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    for (;;) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-          deadline - std::chrono::steady_clock::now());
-      if (left.count() <= 0) return std::nullopt;
-      auto stats = receive("stats", left);
-      if (stats && done(*stats)) return stats;
-    }
+    return receive_until("stats", done, timeout);
   }
-
   // The next pose of frame `frame`, skipping poses of other frames (another
   // input's, such as a vendor source's), or nothing after `timeout`.
   std::optional<nlohmann::json> pose_of(std::uint64_t frame,
                                         std::chrono::milliseconds timeout = std::chrono::milliseconds(5000)) {
-    const auto deadline = std::chrono::steady_clock::now() + timeout;
-    for (;;) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-          deadline - std::chrono::steady_clock::now());
-      if (left.count() <= 0) return std::nullopt;
-      auto pose = receive("pose", left);
-      if (pose && (*pose)["frame"] == frame) return pose;
-    }
+    return receive_until("pose", [frame](const nlohmann::json& pose) { return pose["frame"] == frame; }, timeout);
   }
 
   // Probes until a pose of a probe answers (poses of other inputs' frames do
