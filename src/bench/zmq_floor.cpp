@@ -1,13 +1,12 @@
 #include "zmq_floor.hpp"
 
-#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <stdexcept>
 #include <string_view>
 
-#include "transport/daemon.hpp"
+#include "transport/socket_options.hpp"
 
 namespace fabrik::bench {
 
@@ -65,25 +64,9 @@ ZmqFloor::ZmqFloor(const DaemonConfig& config, const std::string& input_address,
   if (!f) throw std::invalid_argument("the floor's pose has no frame number where poses have it");
   pose_frame_ = *f;
   reply_.reserve(pose_.size() + 16);
-  // fabrikd's input and output sockets as daemon.cpp's open_socket makes
-  // them (its queue sizes follow from the config the same way).
-  const std::int64_t max_message_bytes =
-      static_cast<std::int64_t>(2 * config.max_payload_bytes + 4096);
-  sub_.set(zmq::sockopt::linger, 0);
-  sub_.set(zmq::sockopt::subscribe, "markers");
-  sub_.set(zmq::sockopt::maxmsgsize, max_message_bytes);
-  sub_.set(zmq::sockopt::rcvhwm,
-           static_cast<int>(std::clamp<std::int64_t>(
-               static_cast<std::int64_t>(wire::kInputQueueBytes) / max_message_bytes, 16, 1000)));
-  sub_.set(zmq::sockopt::handshake_ivl, wire::kHandshakeTimeoutMs);
-  sub_.set(zmq::sockopt::rcvbuf, wire::kInputReceiveBufferBytes);
-  pub_.set(zmq::sockopt::linger, 0);
-  pub_.set(zmq::sockopt::sndhwm, wire::pose_queue_messages(config.max_backlog_frames));
-  pub_.set(zmq::sockopt::sndbuf, wire::kPoseSendBufferBytes);
-  pub_.set(zmq::sockopt::xpub_verboser, true);
-  pub_.set(zmq::sockopt::maxmsgsize, wire::kMaxSubscriptionBytes);
-  pub_.set(zmq::sockopt::rcvhwm, wire::kSubscriptionQueueMessages);
-  pub_.set(zmq::sockopt::rcvbuf, wire::kSubscriberReceiveBufferBytes);
+  // fabrikd's input and output sockets, by the daemon's own rules.
+  wire::set_input_options(sub_, config);
+  wire::set_output_options(pub_, config);
   sub_.bind(input_address);
   pub_.bind(output_address);
   input_endpoint_ = sub_.get(zmq::sockopt::last_endpoint);

@@ -19,6 +19,7 @@
 #include "config/config_error.hpp"
 #include "model_codec.hpp"
 #include "socket_monitor.hpp"
+#include "socket_options.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -43,43 +44,15 @@ std::string_view view(const zmq::message_t& m) {
   return {static_cast<const char*>(m.data()), m.size()};
 }
 
-// ZeroMQ refuses a message this large before buffering it, and drops the
-// peer that sent it (a connecting source reconnects by itself). Up to it,
-// an oversized payload reaches the decoder, which counts it in decode_errors.
-std::int64_t zmq_max_message_bytes(const DaemonConfig& c) {
-  return static_cast<std::int64_t>(2 * c.max_payload_bytes + 4096);
-}
-
-int input_queue_messages(const DaemonConfig& c) {
-  return static_cast<int>(std::clamp<std::int64_t>(
-      static_cast<std::int64_t>(kInputQueueBytes) / zmq_max_message_bytes(c), 16, 1000));
-}
-
-// Socket options are set before bind/connect, so they hold for every connection.
 zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const DaemonConfig& c) {
   const bool input = type == zmq::socket_type::sub;
   const Endpoint& e = input ? c.input : c.output;
   const char* role = input ? "input" : "output";
   zmq::socket_t s(context, type);
-  s.set(zmq::sockopt::linger, 0);
-  if (input) {
-    s.set(zmq::sockopt::subscribe, "markers");
-    s.set(zmq::sockopt::maxmsgsize, zmq_max_message_bytes(c));
-    s.set(zmq::sockopt::rcvhwm, input_queue_messages(c));
-    s.set(zmq::sockopt::handshake_ivl, kHandshakeTimeoutMs);
-    s.set(zmq::sockopt::rcvbuf, kInputReceiveBufferBytes);
-  } else {
-    s.set(zmq::sockopt::sndhwm, pose_queue_messages(c.max_backlog_frames));
-    s.set(zmq::sockopt::sndbuf, kPoseSendBufferBytes);
-    // Every subscription also comes to the loop (read_subscriptions), with
-    // the connection it came from. (ZMQ_XPUB_MANUAL would let the loop apply
-    // them itself, but libzmq 4.3 then pairs a message that is not a
-    // subscription with the next subscription's connection.)
-    s.set(zmq::sockopt::xpub_verboser, true);
-    s.set(zmq::sockopt::maxmsgsize, kMaxSubscriptionBytes);
-    s.set(zmq::sockopt::rcvhwm, kSubscriptionQueueMessages);
-    s.set(zmq::sockopt::rcvbuf, kSubscriberReceiveBufferBytes);
-  }
+  if (input)
+    set_input_options(s, c);
+  else
+    set_output_options(s, c);
   try {
     if (e.mode == SocketMode::bind)
       s.bind(e.address);
@@ -311,13 +284,12 @@ void Daemon::attach_sockets(State& next, State* old) {
   if (keep_sub) {
     // New limits hold for connections made from now on; the decoder checks
     // the payload limit on every message anyway.
-    old->sub.set(zmq::sockopt::maxmsgsize, zmq_max_message_bytes(next.config));
-    old->sub.set(zmq::sockopt::rcvhwm, input_queue_messages(next.config));
+    set_input_limits(old->sub, next.config);
     next.sub = std::move(old->sub);
     next.monitor = std::move(old->monitor);
   }
   if (keep_pub) {
-    old->pub.set(zmq::sockopt::sndhwm, pose_queue_messages(next.config.max_backlog_frames));
+    set_output_limits(old->pub, next.config);
     next.pub = std::move(old->pub);
   }
   // A source keeps its connection while neither it nor the lab's axes changed.

@@ -1,0 +1,68 @@
+// What fabrikd's sockets are given (src/transport/socket_options.hpp): the
+// input's queue follows the config within its memory bound, and a socket
+// kept across a reload ends with the limits a new one would get.
+#include <catch2/catch.hpp>
+#include <cstdint>
+#include <zmq.hpp>
+
+#include "config/daemon_config.hpp"
+#include "transport/daemon.hpp"
+#include "transport/socket_options.hpp"
+
+using namespace fabrik;
+
+namespace {
+
+DaemonConfig with_limits(std::size_t max_payload_bytes, int max_backlog_frames) {
+  DaemonConfig c;
+  c.max_payload_bytes = max_payload_bytes;
+  c.max_backlog_frames = max_backlog_frames;
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("The input socket's queue follows the payload limit within its memory bound") {
+  zmq::context_t context(1);
+  for (const std::size_t payload : {std::size_t{1} << 10, std::size_t{1} << 20,
+                                    std::size_t{8} << 20, std::size_t{64} << 20}) {
+    CAPTURE(payload);
+    zmq::socket_t s(context, zmq::socket_type::sub);
+    wire::set_input_options(s, with_limits(payload, 16));
+    const std::int64_t max_message_bytes = s.get(zmq::sockopt::maxmsgsize);
+    const int queue_messages = s.get(zmq::sockopt::rcvhwm);
+    // A payload up to the limit, and past it, reaches the decoder (which counts it).
+    CHECK(max_message_bytes > static_cast<std::int64_t>(payload));
+    CHECK(queue_messages >= 16);
+    CHECK(queue_messages <= 1000);
+    // Within the bound, except where the queue is at its floor of 16.
+    if (queue_messages > 16)
+      CHECK(static_cast<std::size_t>(queue_messages) * static_cast<std::size_t>(max_message_bytes) <=
+            wire::kInputQueueBytes);
+    CHECK(s.get(zmq::sockopt::rcvbuf) == wire::kInputReceiveBufferBytes);
+  }
+}
+
+TEST_CASE("A socket kept across a reload gets the limits a new socket would") {
+  zmq::context_t context(1);
+  const DaemonConfig before = with_limits(std::size_t{1} << 10, 4);
+  const DaemonConfig after = with_limits(std::size_t{8} << 20, 64);
+
+  zmq::socket_t kept_in(context, zmq::socket_type::sub), new_in(context, zmq::socket_type::sub);
+  wire::set_input_options(kept_in, before);
+  const int queue_before = kept_in.get(zmq::sockopt::rcvhwm);
+  wire::set_input_limits(kept_in, after);
+  wire::set_input_options(new_in, after);
+  REQUIRE(new_in.get(zmq::sockopt::rcvhwm) != queue_before);  // the reload changes something
+  CHECK(kept_in.get(zmq::sockopt::rcvhwm) == new_in.get(zmq::sockopt::rcvhwm));
+  CHECK(kept_in.get(zmq::sockopt::maxmsgsize) == new_in.get(zmq::sockopt::maxmsgsize));
+
+  zmq::socket_t kept_out(context, zmq::socket_type::xpub), new_out(context, zmq::socket_type::xpub);
+  wire::set_output_options(kept_out, before);
+  const int subscriber_queue_before = kept_out.get(zmq::sockopt::sndhwm);
+  wire::set_output_limits(kept_out, after);
+  wire::set_output_options(new_out, after);
+  REQUIRE(new_out.get(zmq::sockopt::sndhwm) != subscriber_queue_before);
+  CHECK(kept_out.get(zmq::sockopt::sndhwm) == new_out.get(zmq::sockopt::sndhwm));
+  CHECK(new_out.get(zmq::sockopt::sndhwm) == wire::pose_queue_messages(after.max_backlog_frames));
+}
