@@ -3,9 +3,11 @@
 #include <catch2/catch.hpp>
 #include <charconv>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 
 #include "config/daemon_config.hpp"
 #include "daemon_thread.hpp"
@@ -236,6 +238,100 @@ TEST_CASE("A pose carries measured only when asked: the visible markers' measure
       CHECK(without["markers"].size() == before["markers"].size());
       CHECK(without["occluded"] == before["occluded"]);
     }
+}
+
+namespace {
+
+json read_proto(const char* file) {
+  std::ifstream in(std::string(FABRIK_SOURCE_DIR) + "/proto/" + file);
+  return json::parse(in);
+}
+
+// A pose's keys, its residual's and its solver's, as "key", "residual.key", "solver.key".
+std::set<std::string> pose_keys(const json& pose) {
+  std::set<std::string> keys;
+  for (const auto& [k, v] : pose.items()) keys.insert(k);
+  for (const char* inner : {"residual", "solver"})
+    if (pose.contains(inner))
+      for (const auto& [k, v] : pose[inner].items()) keys.insert(std::string(inner) + "." + k);
+  return keys;
+}
+
+}  // namespace
+
+TEST_CASE("output.pose_content chooses a pose's optional parts, never its required fields",
+          "[codec][pose_content]") {
+  DaemonConfig c = default_daemon_config();
+  Tracker tracker(c.tracker);
+  const auto [measured, visible] = rest_measurements(tracker, {0.001, 0, 0}, {"RKNE"});
+  const TrackResult& r = tracker.track(0.0, measured, visible);
+  const PoseHeader h{7, true, 0.25, true, 1790000000123456.0};
+  // What the pose schema requires, read from it: the reduced pose's floor.
+  const json schema = read_proto("pose.schema.json");
+  std::set<std::string> required = {"time", "stamp_us"};  // the header's echoes, always written
+  for (const json& k : schema["required"]) required.insert(k.get<std::string>());
+  for (const char* inner : {"residual", "solver"})
+    for (const json& k : schema["properties"][inner]["required"])
+      required.insert(std::string(inner) + "." + k.get<std::string>());
+  // The config schema lists exactly the parts the encoder knows, in its order.
+  const json parts = read_proto("daemon-config.schema.json")["properties"]["output"]["properties"]
+                                ["pose_content"]["items"]["enum"];
+  REQUIRE(parts.size() == kPosePartNames.size());
+  for (std::size_t k = 0; k < parts.size(); ++k) CHECK(parts[k] == kPosePartNames[k]);
+
+  for (auto enc : {PayloadEncoding::json, PayloadEncoding::msgpack}) {
+    CAPTURE(enc == PayloadEncoding::json);
+    const auto parse = [&](const std::string& p) {
+      return enc == PayloadEncoding::json ? json::parse(p) : json::from_msgpack(p);
+    };
+    std::string plain, all, none;
+    PoseEncoder(tracker, "mm", enc).encode(h, r, plain);
+    PoseEncoder(tracker, "mm", enc, false, PoseContent::all()).encode(h, r, all);
+    CHECK(all == plain);  // every part: byte for byte the pose as it was
+    const json full = parse(plain);
+    std::set<std::string> every = required;
+    for (std::string_view p : kPosePartNames) every.insert(std::string(p));
+    CHECK(pose_keys(full) == every);
+    PoseEncoder(tracker, "mm", enc, false, PoseContent::none()).encode(h, r, none);
+    CHECK(pose_keys(parse(none)) == required);
+    CHECK(none.size() * 10 < plain.size() * 6);  // segments, angles and the rest are most of it
+    // Each part alone: the required fields and that part, as the full pose has it.
+    for (std::size_t k = 0; k < kPosePartNames.size(); ++k) {
+      const std::string name(kPosePartNames[k]);
+      CAPTURE(name);
+      std::string one;
+      PoseEncoder(tracker, "mm", enc, false, PoseContent::none().with(static_cast<PosePart>(k)))
+          .encode(h, r, one);
+      const json pose = parse(one);
+      std::set<std::string> expected = required;
+      expected.insert(name);
+      CHECK(pose_keys(pose) == expected);
+      std::string path = "/" + name;  // residual.quality: /residual/quality
+      std::replace(path.begin(), path.end(), '.', '/');
+      const json::json_pointer at(path);
+      CHECK(pose[at] == full[at]);
+      for (const char* kept : {"joints", "markers", "occluded", "frame"})
+        CHECK(pose[kept] == full[kept]);
+    }
+  }
+
+  // As a config file says it; every mistake names the part and the choices.
+  const auto load = [](const std::string& content) {
+    return load_daemon_config(
+        R"({"format": "fabrikd-config/1", "model": "models/fullbody.json", "output": {"pose_content": )" +
+            content + "}}",
+        "content.json");
+  };
+  CHECK(default_daemon_config().output_pose_content == PoseContent::all());
+  CHECK(load(R"(["angles"])").output_pose_content ==
+        PoseContent::none().with(PosePart::angles));
+  CHECK(load("[]").output_pose_content == PoseContent::none());
+  CHECK(load(R"(["solver.stop", "segments"])").output_pose_content ==
+        PoseContent::none().with(PosePart::segments).with(PosePart::solver_stop));
+  CHECK_THROWS_WITH(load(R"(["angles", "joints"])"), Catch::Contains("unknown pose part 'joints'") &&
+                                                          Catch::Contains("residual.quality"));
+  CHECK_THROWS_WITH(load(R"(["angles", "angles"])"), Catch::Contains("listed twice"));
+  CHECK_THROWS_WITH(load(R"("angles")"), Catch::Contains("/output/pose_content"));
 }
 
 TEST_CASE("The model message names exactly what the poses name, once, in both encodings",

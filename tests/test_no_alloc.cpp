@@ -218,6 +218,9 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   // With output.measured_markers: the frame's measurements too.
   const wire::PoseEncoder measured_json(tracker, "mm", wire::PayloadEncoding::json, true);
   const wire::PoseEncoder measured_msgpack(tracker, "m", wire::PayloadEncoding::msgpack, true);
+  // With output.pose_content: joints and angles (and the required fields).
+  const wire::PoseEncoder angles_json(tracker, "mm", wire::PayloadEncoding::json, false,
+                                      PoseContent::none().with(PosePart::angles));
   std::vector<std::string> names;
   std::vector<int> points;
   for (const MarkerTarget& m : config.tracker.markers)
@@ -276,6 +279,7 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
                          {frame.p_world_m, frame.visible});
     measured_msgpack.encode({frame.frame, true, t, false, 0.0}, r, out,
                             {frame.p_world_m, frame.visible});
+    angles_json.encode({frame.frame, true, t, false, 0.0}, r, out);
     encode_allocations += g_allocations.load() - before;
     REQUIRE(ok);
   }

@@ -137,6 +137,11 @@ int main(int argc, char** argv) {
   b_pipeline->add_option("--encoding", pipeline.encoding, "json or msgpack, in and out")
       ->check(CLI::IsMember({"json", "msgpack"}))
       ->capture_default_str();
+  b_pipeline
+      ->add_option("--pose-content", pipeline.pose_content,
+                   "output.pose_content for every config: the pose's optional parts to send "
+                   "(e.g. angles; none: the required fields only); default each config's own")
+      ->delimiter(',');
   b_pipeline->add_flag("--json", pipeline_json, "Print one JSON object instead of a table");
 
   fabrik::bench::ViewBenchOptions view_bench;

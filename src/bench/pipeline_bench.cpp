@@ -66,6 +66,12 @@ std::unique_ptr<Run> make_run(zmq::context_t& daemon_context, zmq::context_t& cl
     throw std::invalid_argument("unknown transport '" + o.transport + "' (use tcp or ipc)");
   }
   config.output_encoding = o.encoding == "msgpack" ? Encoding::msgpack : Encoding::json;
+  if (!o.pose_content.empty()) {
+    json names = json::array();
+    for (const std::string& n : o.pose_content)
+      if (n != "none") names.push_back(n);
+    config.output_pose_content = read_pose_content(JsonReader(names, "--pose-content"));
+  }
   run->model = config.tracker.model;
   for (const MarkerTarget& t : config.tracker.markers)
     run->names.push_back(t.marker), run->points.push_back(t.point);
@@ -180,6 +186,7 @@ json run_pipeline(const PipelineOptions& o) {
           {"rate_hz", o.rate_hz},
           {"transport", o.transport},
           {"encoding", o.encoding},
+          {"pose_content", o.pose_content.empty() ? json("each config's") : json(o.pose_content)},
           {"models", models}};
 }
 
@@ -190,10 +197,10 @@ std::string pipeline_table(const json& r) {
                 "fabrik bench pipeline: the daemon's frame path in-process, %d frames per model "
                 "(one at a time, models interleaved), %s markers in, %s poses out over %s to a "
                 "subscriber\nper frame, microseconds: p50 (p99); around solve = decode + encode "
-                "+ send, per frame\n\n",
+                "+ send, per frame; pose content: %s\n\n",
                 r["frames"].get<int>(), r["encoding"].get<std::string>().c_str(),
                 r["encoding"].get<std::string>().c_str(),
-                r["transport"].get<std::string>().c_str());
+                r["transport"].get<std::string>().c_str(), r["pose_content"].dump().c_str());
   out += line;
   std::snprintf(line, sizeof line, "%-28s %7s %7s %7s  %-14s %-14s %-14s %-14s %-14s %s\n",
                 "model", "markers", "in B", "pose B", "decode", "solve", "encode", "send",

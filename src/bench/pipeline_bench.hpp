@@ -18,6 +18,9 @@ struct PipelineOptions {
   double rate_hz = 1000.0;           // the synthetic motion's sampling rate
   std::string transport = "tcp";     // of the output: tcp or ipc (loopback)
   std::string encoding = "json";     // of the marker frames and poses
+  // output.pose_content for every config, as its part names ("none": the
+  // required fields only); empty: each config's own.
+  std::vector<std::string> pose_content;
 };
 nlohmann::json run_pipeline(const PipelineOptions& options);
 std::string pipeline_table(const nlohmann::json& result);

@@ -203,7 +203,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   }
   if (root.has("output")) {
     const JsonReader out = root.at("output");
-    out.only_keys({"endpoint", "mode", "encoding", "units", "measured_markers"});
+    out.only_keys({"endpoint", "mode", "encoding", "units", "measured_markers", "pose_content"});
     c.output = read_endpoint(out, c.output);
     if (out.has("units")) {
       c.output_m_per_unit = metres_per_unit(out.at("units"));
@@ -214,6 +214,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
           read_choice<Encoding>(out.at("encoding"), "encoding",
                                 {{"json", Encoding::json}, {"msgpack", Encoding::msgpack}});
     c.output_measured_markers = out.get("measured_markers", c.output_measured_markers);
+    if (out.has("pose_content")) c.output_pose_content = read_pose_content(out.at("pose_content"));
   }
   if (c.input.address == c.output.address)
     root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",

@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "pose_content.hpp"
 #include "sensors_json.hpp"
 #include "source_config.hpp"
 #include "tracking/tracker.hpp"
@@ -34,6 +35,8 @@ struct DaemonConfig {
   Encoding output_encoding = Encoding::json;
   // Poses also carry `measured`: each visible marker's measured position.
   bool output_measured_markers = false;
+  // The pose's optional parts that poses carry (output.pose_content); all by default.
+  PoseContent output_pose_content = PoseContent::all();
   std::size_t max_payload_bytes = 1 << 20;
   // Input coordinates farther than this from the origin on any axis are not
   // plausible measurements: the marker is taken as occluded (and counted).

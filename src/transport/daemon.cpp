@@ -257,7 +257,8 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
                                        ? PayloadEncoding::msgpack
                                        : PayloadEncoding::json;
   s->encoder = std::make_unique<PoseEncoder>(*s->tracker, config.output_units, encoding,
-                                             config.output_measured_markers);
+                                             config.output_measured_markers,
+                                             config.output_pose_content);
   s->frame = s->decoder->make_frame();
   s->waiting.resize(static_cast<std::size_t>(config.max_backlog_frames));
   s->received_at.resize(s->waiting.size());

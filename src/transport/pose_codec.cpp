@@ -9,12 +9,24 @@ std::string_view wire_status(SolveStatus status) {
 }
 
 PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding,
-                         bool measured_markers)
+                         bool measured_markers, PoseContent content)
     : units_(std::move(units)),
       scale_(units_ == "m" ? 1.0 : 1e3),
       decimals_(units_ == "m" ? 7 : 4),  // 0.1 micrometre either way
       encoding_(encoding),
-      measured_markers_(measured_markers) {
+      measured_markers_(measured_markers),
+      content_(content) {
+  const auto n = [&](std::initializer_list<PosePart> parts) {
+    std::size_t k = 0;
+    for (PosePart p : parts) k += content.has(p) ? 1 : 0;
+    return k;
+  };
+  // Required: frame, units, joints, markers, occluded, residual, solver.
+  pose_keys_ = 7 + (measured_markers ? 1 : 0) +
+               n({PosePart::held, PosePart::gap_s, PosePart::outliers, PosePart::relabelled,
+                  PosePart::angles, PosePart::translations, PosePart::segments});
+  residual_keys_ = 4 + n({PosePart::residual_quality, PosePart::residual_beyond});
+  solver_keys_ = 3 + n({PosePart::solver_stop});
   for (const Joint& j : tracker.model().joints)
     joints_.push_back({j.name, JsonWriter::json_key(j.name)});
   for (const MarkerTarget& m : tracker.setup().markers)
@@ -38,8 +50,8 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
     w.end_array();
   };
-  w.begin_map(14 + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0) +
-              (measured_markers_ ? 1 : 0));
+  const auto has = [&](PosePart p) { return content_.has(p); };
+  w.begin_map(pose_keys_ + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
   if (header.has_time) {
@@ -83,43 +95,51 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     }
     w.end_map();
   }
-  std::size_t held = 0;
-  for (std::uint8_t h : r.held) held += h;
   w.key("occluded");
   w.begin_array(static_cast<std::size_t>(r.occluded_count));
   for (std::size_t i = 0; i < markers_.size(); ++i)
     if (r.occluded[i]) w.string(markers_[i].plain);
   w.end_array();
-  w.key("held");  // addition: occluded markers still pulled by their last position
-  w.begin_array(held);
-  for (std::size_t i = 0; i < markers_.size(); ++i)
-    if (r.held[i]) w.string(markers_[i].plain);
-  w.end_array();
-  w.key("gap_s");  // addition: per occluded marker, seconds since it was last measured
-  w.begin_map(static_cast<std::size_t>(r.occluded_count));
-  for (std::size_t i = 0; i < markers_.size(); ++i) {
-    if (!r.occluded[i]) continue;
-    w.named_key(markers_[i].plain, markers_[i].json_key);
-    w.number(r.gap_s[i], 4);
+  if (has(PosePart::held)) {
+    std::size_t held = 0;
+    for (std::uint8_t h : r.held) held += h;
+    w.key("held");  // addition: occluded markers still pulled by their last position
+    w.begin_array(held);
+    for (std::size_t i = 0; i < markers_.size(); ++i)
+      if (r.held[i]) w.string(markers_[i].plain);
+    w.end_array();
   }
-  w.end_map();
-  w.key("outliers");  // addition: measured markers left out of this frame's solve
-  w.begin_array(static_cast<std::size_t>(r.outlier_count));
-  for (std::size_t i = 0; i < markers_.size(); ++i)
-    if (r.outliers[i]) w.string(markers_[i].plain);
-  w.end_array();
-  std::size_t relabelled = 0;
-  for (std::size_t i = 0; i < markers_.size(); ++i) relabelled += r.relabelled_from[i] >= 0;
-  w.key("relabelled");  // addition: swapped labels, solved with the other one's measurement
-  w.begin_map(relabelled);
-  for (std::size_t i = 0; i < markers_.size(); ++i)
-    if (r.relabelled_from[i] >= 0) {
+  if (has(PosePart::gap_s)) {
+    w.key("gap_s");  // addition: per occluded marker, seconds since it was last measured
+    w.begin_map(static_cast<std::size_t>(r.occluded_count));
+    for (std::size_t i = 0; i < markers_.size(); ++i) {
+      if (!r.occluded[i]) continue;
       w.named_key(markers_[i].plain, markers_[i].json_key);
-      w.string(markers_[r.relabelled_from[i]].plain);
+      w.number(r.gap_s[i], 4);
     }
-  w.end_map();
+    w.end_map();
+  }
+  if (has(PosePart::outliers)) {
+    w.key("outliers");  // addition: measured markers left out of this frame's solve
+    w.begin_array(static_cast<std::size_t>(r.outlier_count));
+    for (std::size_t i = 0; i < markers_.size(); ++i)
+      if (r.outliers[i]) w.string(markers_[i].plain);
+    w.end_array();
+  }
+  if (has(PosePart::relabelled)) {
+    std::size_t relabelled = 0;
+    for (std::size_t i = 0; i < markers_.size(); ++i) relabelled += r.relabelled_from[i] >= 0;
+    w.key("relabelled");  // addition: swapped labels, solved with the other one's measurement
+    w.begin_map(relabelled);
+    for (std::size_t i = 0; i < markers_.size(); ++i)
+      if (r.relabelled_from[i] >= 0) {
+        w.named_key(markers_[i].plain, markers_[i].json_key);
+        w.string(markers_[r.relabelled_from[i]].plain);
+      }
+    w.end_map();
+  }
   w.key("residual");
-  w.begin_map(6);
+  w.begin_map(residual_keys_);
   w.key("rms");
   w.number(r.residual_rms_m * scale_);
   w.key("max");
@@ -131,50 +151,62 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.null();
   w.key("count");
   w.uint(static_cast<std::uint64_t>(r.residual_count));
-  w.key("quality");  // addition: the verdict against the config's quality thresholds
-  w.string(to_string(r.quality));
-  w.key("beyond");  // addition: markers solved with whose residual exceeds quality.max_mm
-  w.begin_array(static_cast<std::size_t>(r.beyond_count));
-  for (std::size_t i = 0; i < markers_.size(); ++i)
-    if (r.beyond[i]) w.string(markers_[i].plain);
-  w.end_array();
+  if (has(PosePart::residual_quality)) {
+    w.key("quality");  // addition: the verdict against the config's quality thresholds
+    w.string(to_string(r.quality));
+  }
+  if (has(PosePart::residual_beyond)) {
+    w.key("beyond");  // addition: markers solved with whose residual exceeds quality.max_mm
+    w.begin_array(static_cast<std::size_t>(r.beyond_count));
+    for (std::size_t i = 0; i < markers_.size(); ++i)
+      if (r.beyond[i]) w.string(markers_[i].plain);
+    w.end_array();
+  }
   w.end_map();
   constexpr double kDegPerRad = 180.0 / 3.141592653589793;
-  w.key("angles");  // addition: rotational coordinates, degrees
-  w.begin_map(angle_names_.size());
-  for (std::size_t i = 0; i < angle_names_.size(); ++i) {
-    w.named_key(angle_names_[i].plain, angle_names_[i].json_key);
-    w.number(r.coordinates[angle_index_[i]] * kDegPerRad, 4);
-  }
-  w.end_map();
-  w.key("translations");  // addition: translational coordinates, output units
-  w.begin_map(translation_names_.size());
-  for (std::size_t i = 0; i < translation_names_.size(); ++i) {
-    w.named_key(translation_names_[i].plain, translation_names_[i].json_key);
-    w.number(r.coordinates[translation_index_[i]] * scale_);
-  }
-  w.end_map();
-  w.key("segments");  // addition: anatomical frame (world rotation) and origin per segment
-  w.begin_map(segment_names_.size());
-  for (std::size_t s = 0; s < segment_names_.size(); ++s) {
-    w.named_key(segment_names_[s].plain, segment_names_[s].json_key);
-    const Eigen::Quaterniond& q = r.segment_q_world[s];
-    w.begin_map(2);
-    w.key("q");
-    w.begin_array(4);
-    for (const double v : {q.w(), q.x(), q.y(), q.z()}) w.number(v, 7);
-    w.end_array();
-    w.key("origin");
-    vec(r.segment_origin_world_m[s]);
+  if (has(PosePart::angles)) {
+    w.key("angles");  // addition: rotational coordinates, degrees
+    w.begin_map(angle_names_.size());
+    for (std::size_t i = 0; i < angle_names_.size(); ++i) {
+      w.named_key(angle_names_[i].plain, angle_names_[i].json_key);
+      w.number(r.coordinates[angle_index_[i]] * kDegPerRad, 4);
+    }
     w.end_map();
   }
-  w.end_map();
+  if (has(PosePart::translations)) {
+    w.key("translations");  // addition: translational coordinates, output units
+    w.begin_map(translation_names_.size());
+    for (std::size_t i = 0; i < translation_names_.size(); ++i) {
+      w.named_key(translation_names_[i].plain, translation_names_[i].json_key);
+      w.number(r.coordinates[translation_index_[i]] * scale_);
+    }
+    w.end_map();
+  }
+  if (has(PosePart::segments)) {
+    w.key("segments");  // addition: anatomical frame (world rotation) and origin per segment
+    w.begin_map(segment_names_.size());
+    for (std::size_t s = 0; s < segment_names_.size(); ++s) {
+      w.named_key(segment_names_[s].plain, segment_names_[s].json_key);
+      const Eigen::Quaterniond& q = r.segment_q_world[s];
+      w.begin_map(2);
+      w.key("q");
+      w.begin_array(4);
+      for (const double v : {q.w(), q.x(), q.y(), q.z()}) w.number(v, 7);
+      w.end_array();
+      w.key("origin");
+      vec(r.segment_origin_world_m[s]);
+      w.end_map();
+    }
+    w.end_map();
+  }
   w.key("solver");
-  w.begin_map(4);
+  w.begin_map(solver_keys_);
   w.key("status");
   w.string(wire_status(r.solve.status));
-  w.key("stop");  // addition: the solver's own stopping reason
-  w.string(to_string(r.solve.status));
+  if (has(PosePart::solver_stop)) {
+    w.key("stop");  // addition: the solver's own stopping reason
+    w.string(to_string(r.solve.status));
+  }
   w.key("iterations");
   w.uint(static_cast<std::uint64_t>(r.solve.iterations));
   w.key("solve_us");

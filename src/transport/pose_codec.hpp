@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "config/pose_content.hpp"
 #include "marker_codec.hpp"
 #include "tracking/tracker.hpp"
 
@@ -38,9 +39,11 @@ class PoseEncoder {
  public:
   // Positions are written in `units` ("mm" or "m"). With `measured_markers`
   // (config output.measured_markers), each pose also carries `measured`: the
-  // visible markers' measured positions; without it, no such key.
+  // visible markers' measured positions; without it, no such key. `content`
+  // (config output.pose_content) chooses the optional parts; the required
+  // fields are always written.
   PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding,
-              bool measured_markers = false);
+              bool measured_markers = false, PoseContent content = PoseContent::all());
   void encode(const PoseHeader& header, const TrackResult& result, std::string& out,
               MeasuredMarkers measured = {}) const;
   PayloadEncoding encoding() const { return encoding_; }
@@ -64,6 +67,9 @@ class PoseEncoder {
   int decimals_;
   PayloadEncoding encoding_;
   bool measured_markers_;
+  PoseContent content_;
+  // Keys of the pose, of its residual and of its solver (MessagePack map headers).
+  std::size_t pose_keys_, residual_keys_, solver_keys_;
 };
 
 }  // namespace fabrik::wire

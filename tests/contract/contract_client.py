@@ -117,7 +117,7 @@ class Daemon:
     """One fabrikd process with its config, log and sockets."""
 
     def __init__(self, fabrikd, workdir, output_encoding="json", output_units="mm",
-                 measured_markers=False):
+                 measured_markers=False, pose_content=None):
         self.in_ep = f"tcp://127.0.0.1:{free_port()}"
         self.out_ep = f"tcp://127.0.0.1:{free_port()}"
         self.output_units = output_units
@@ -139,8 +139,10 @@ class Daemon:
             "stats_interval_s": STATS_INTERVAL_S,
             "log_level": "info",
         }
+        if pose_content is not None:
+            config["output"]["pose_content"] = pose_content
         load_schema("daemon-config.schema.json").validate(config)
-        tag = f"{output_encoding}-{output_units}"
+        tag = f"{output_encoding}-{output_units}" + ("" if pose_content is None else "-content")
         self.config_path = pathlib.Path(workdir) / f"fabrikd-{tag}.json"
         self.config_path.write_text(json.dumps(config, indent=2))
         self.log_path = pathlib.Path(workdir) / f"fabrikd-{tag}.log"
@@ -663,6 +665,40 @@ def run_msgpack_metres(args, workdir, model_markers_rest, rest_joints, root):
               "measured), stats and model valid")
 
 
+def run_pose_content(args, workdir, model_markers_rest, rest_joints, root):
+    """output.pose_content ["angles"]: poses carry the schema's required fields
+    and angles, nothing else of the optional parts, and still validate."""
+    schema = json.loads((ROOT / "proto" / "pose.schema.json").read_text())
+    required = set(schema["required"])
+    inner = {k: set(schema["properties"][k]["required"]) for k in ("residual", "solver")}
+    for enc in ("json", "msgpack"):
+        with Daemon(args.fabrikd, workdir, output_encoding=enc, pose_content=["angles"]) as d:
+            d.join()
+            d.wait_for(lambda: d.models, ANSWER_TIMEOUT_S, "the model message after subscribing")
+            coordinates = {c["name"] for c in d.models[0]["coordinates"]}
+            hidden = sorted(model_markers_rest)[:2]
+            for i in range(10):
+                frame, t = 200 + i, i / 100.0
+                markers = moved(model_markers_rest, root, t)
+                sent = {k: (None if k in hidden and i % 2 else v) for k, v in markers.items()}
+                d.send(json.dumps(marker_frame(frame, sent, t, "mm")).encode())
+                pose = d.wait_pose(frame)  # validated against proto/pose.schema.json on arrival
+                check_pose(pose, markers, frame, t, moved(rest_joints, root, t),
+                           set(model_markers_rest), set(rest_joints),
+                           expect_occluded=[k for k, v in sent.items() if v is None])
+                check(set(pose) == required | {"time", "angles"},
+                      f"pose of frame {frame} ({enc}) with pose_content [angles]: keys "
+                      f"{sorted(pose)}")
+                for k, keys in inner.items():
+                    check(set(pose[k]) == keys, f"pose of frame {frame} ({enc}): {k} keys "
+                          f"{sorted(pose[k])}, the schema requires {sorted(keys)}")
+                check(set(pose["angles"]) <= coordinates and pose["angles"],
+                      f"pose of frame {frame} ({enc}): angles {sorted(pose['angles'])}")
+            d.stop()
+    print("contract: output.pose_content [angles], JSON and MessagePack: poses carry the "
+          "required fields and angles only, and validate")
+
+
 def main():
     global ANSWER_TIMEOUT_S
     ap = argparse.ArgumentParser(description=__doc__,
@@ -679,6 +715,7 @@ def main():
     with tempfile.TemporaryDirectory(prefix="fabrikd-contract-") as workdir:
         run_main(args, workdir, markers, joints, root)
         run_msgpack_metres(args, workdir, markers, joints, root)
+        run_pose_content(args, workdir, markers, joints, root)
     print("contract: all checks passed")
 
 
