@@ -114,6 +114,20 @@ TEST_CASE("A star of 50 end effectors with reachable targets converges in every 
   }
 }
 
+TEST_CASE("Cold stars of 50 converge where the worst target switches late in the solve",
+          "[convergence][stall]") {
+  // The bench's cold star50 draws (seed 1): solves 155, 170, 211 and 222 stalled 0.1-0.3 mm
+  // short with the 8-check window alone, where the worst distance's kink (another arm
+  // becoming the worst) read as a slowing down; the 16-check window sees the pace through it.
+  const ReachProblem star = star_problem(50);
+  SolverOptions o = reach_options();
+  o.max_iterations = 300;
+  constexpr int kSolves = 223;
+  const ReachRuns runs = reach_runs(star, o, false, kSolves, 1);
+  CAPTURE(runs.within, runs.stalled, runs.max_iterations, runs.worst_m);
+  CHECK(runs.within == kSolves);
+}
+
 TEST_CASE("A star whose targets are out of reach still stops as stalled, in a few iterations",
           "[convergence][stall]") {
   // Held back only while the worst distance may still reach the tolerance, the stall stop
