@@ -433,12 +433,13 @@ void FabrikSolver::free_root_fit(int n, SegmentPose& pose) const {
 
 void FabrikSolver::forward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                            std::span<const std::uint8_t> visible, Posture& posture) {
+  LinkStep last;
   for (int s = n_seg_ - 1; s >= 0; --s) {
     if (!active(pass, s)) continue;
     const bool root = s == 0;
     if (root && options_.root == RootMode::fixed) continue;  // the backward pass pins it
     if (link_[s]) {
-      forward_link(s, target_world_m, posture);
+      forward_link(s, target_world_m, posture, last);
       continue;
     }
     if (limited_[s]) {
@@ -505,32 +506,31 @@ void FabrikSolver::forward_limited(int pass, int s, Posture& posture) const {
 }
 
 // A link's forward step: its base moves onto the line from its one desired
-// position to the base, at the link's length from it.
-void FabrikSolver::forward_link(int s, std::span<const Eigen::Vector3d> target_world_m,
-                                Posture& posture) const {
+// position to the base, at the link's length from it. `last`: the pass's last link step,
+// which this one chains on when its desired position is the base that step just placed.
+[[gnu::always_inline]] inline void FabrikSolver::forward_link(
+    int s, std::span<const Eigen::Vector3d> target_world_m, Posture& posture,
+    LinkStep& last) const {
   const Slot& slot = slots_[slot_first_[s]];
   const Eigen::Vector3d& d_m = desired_m(slot, target_world_m, posture);
   Eigen::Vector3d& base_m = posture.segments[s].base_world_m;
-  const Eigen::Vector3d u = base_m - d_m;
-  const double dist_sq = u.squaredNorm();
-  if (dist_sq > 1e-24)
-    base_m = d_m + length_over(slot.a_norm_m, dist_sq) * u;
+  const bool chained = slot.source < 0 && last.segment == ~slot.source;
+  if (last.step(d_m, base_m, slot.a_norm_m, chained, base_m))
+    last.segment = s;
   else  // on the desired position: keep the link's direction
     base_m = d_m - (link_tip_m_[s] - base_m);
 }
 
 // A link's backward step: from its new base, its point goes towards its
-// desired position, at the link's length.
-void FabrikSolver::backward_link(int s, const Eigen::Vector3d& base_m,
-                                 std::span<const Eigen::Vector3d> target_world_m,
-                                 Posture& posture) {
+// desired position, at the link's length. `chained`: base_m is the tip `last` just placed.
+[[gnu::always_inline]] inline void FabrikSolver::backward_link(
+    int s, const Eigen::Vector3d& base_m, std::span<const Eigen::Vector3d> target_world_m,
+    Posture& posture, LinkStep& last, bool chained) {
   const Slot& slot = slots_[slot_first_[s]];
-  const Eigen::Vector3d v = desired_m(slot, target_world_m, posture) - base_m;
-  const double dist_sq = v.squaredNorm();
   Eigen::Vector3d& tip_m = link_tip_m_[s];
   SegmentPose& pose = posture.segments[s];
-  if (dist_sq > 1e-24)
-    tip_m = base_m + length_over(slot.a_norm_m, dist_sq) * v;
+  if (last.step(base_m, desired_m(slot, target_world_m, posture), slot.a_norm_m, chained, tip_m))
+    last.segment = s;
   else  // on the desired position: keep the link's direction
     tip_m = base_m + (tip_m - pose.base_world_m);
   pose.base_world_m = base_m;
@@ -552,13 +552,14 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
                             const Eigen::Vector3d& root_pin_m) {
   const bool carrying = options_.subtree_carry > 0.0;
   if (any_limited_) limited_moments(pass, carrying, posture);
+  LinkStep last;
   for (int s = 0; s < n_seg_; ++s) {
     SegmentPose& pose = posture.segments[s];
     const Segment& seg = model_.segments[s];
     if (s == 0) {
       if (options_.root == RootMode::free) continue;  // placed by the forward pass
       if (link_[s]) {
-        backward_link(s, root_pin_m, target_world_m, posture);
+        backward_link(s, root_pin_m, target_world_m, posture, last, false);
         continue;
       }
       const int n = gather(pass, s, target_world_m, visible, posture);
@@ -570,7 +571,7 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
                                        ? link_tip_m_[seg.parent]
                                        : posture.point_world_m(model_, seg.parent_point);
     if (link_[s]) {
-      backward_link(s, base_m, target_world_m, posture);
+      backward_link(s, base_m, target_world_m, posture, last, last.segment == seg.parent);
       continue;
     }
     if (!active(pass, s)) {

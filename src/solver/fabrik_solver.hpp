@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "joint_fit.hpp"
+#include "link_step.hpp"
 #include "model.hpp"
 #include "posture.hpp"
 #include "solve_types.hpp"
@@ -110,9 +111,11 @@ class FabrikSolver {
                             : posture.segments[~slot.source].base_world_m;
   }
   // Links: see mark_active.
-  void forward_link(int s, std::span<const Eigen::Vector3d> target_world_m, Posture& posture) const;
+  void forward_link(int s, std::span<const Eigen::Vector3d> target_world_m, Posture& posture,
+                    LinkStep& last) const;
   void backward_link(int s, const Eigen::Vector3d& base_m,
-                     std::span<const Eigen::Vector3d> target_world_m, Posture& posture);
+                     std::span<const Eigen::Vector3d> target_world_m, Posture& posture,
+                     LinkStep& last, bool chained);
   void turn_links(Posture& posture) const;
   // World position of target i's point during a solve.
   Eigen::Vector3d target_point_m(int i, const Posture& posture) const {

@@ -88,9 +88,10 @@ SolveResult TargetSet::measure_with(PointOf point_of,
 // convergence: remaining = change * rate / (1 - rate). A fast solver stops
 // soon after it has converged, a slowly creeping one keeps going.
 // That estimate is held back while the solve may still meet the tolerance:
-// when the worst distance, falling on as it fell over the last kWindow checks
-// (geometrically at the rate of the window's two halves, or linearly over the
-// iterations left if it does not slow down), would reach the tolerance. On a
+// when the worst distance, falling on as it fell over the last 8 checks, or
+// over the last 16 (geometrically at the rate of the window's two halves, or
+// linearly over the iterations left if it does not slow down), would reach the
+// tolerance. On a
 // tree of many end effectors the arms settle fast and the sub-base creeps: the
 // fast mode's rate predicted no change left, and stars of 20-50 stopped up to
 // 17 % of their solves 0.1-0.5 mm short (docs/convergence.md). Out of reach,
@@ -107,15 +108,16 @@ class StopRule {
   void jumped() { after_jump_ = true; }
 
  private:
-  // Whether the worst distance, at its pace since worst_before_m (`back` checks ago) and in the
-  // ring, would reach the tolerance in the iterations left after `iteration`.
-  bool may_still_converge(int iteration, double worst_m, double worst_before_m, int back) const;
+  // Whether the worst distance, at its pace over the last checks (the ring), would reach the
+  // tolerance in the iterations left after `iteration`.
+  bool may_still_converge(int iteration, double worst_m) const;
 
-  static constexpr int kWindow = 8;
+  static constexpr int kWindow = 8;  // the short window; the long one is twice as long
+  static constexpr int kRing = 32;   // holds the long window (2 * kWindow checks back)
   const SolverOptions& options_;
   double last_change_m_ = 0.0;
   bool after_jump_ = false;
-  std::array<double, kWindow> worst_m_{};  // ring: the worst distance at the last checks
+  std::array<double, kRing> worst_m_{};  // ring: the worst distance at the last checks
   int checks_ = 0;
 };
 
