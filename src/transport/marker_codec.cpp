@@ -354,6 +354,9 @@ MarkerDecoder::MarkerDecoder(std::span<const std::string> names, double default_
       max_payload_bytes_(max_payload_bytes),
       plausible_(plausible) {
   marker_name_.reserve(kMaxUnknownNameBytes);
+  // Most frames take the JSON fast path, so the full reader may first see
+  // one when memory is short: its token buffer is grown here, not then.
+  json_reader_.reserve(std::min<std::size_t>(max_payload_bytes_, 4096));
 }
 
 MarkerFrame MarkerDecoder::make_frame() const {
