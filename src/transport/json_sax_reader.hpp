@@ -32,6 +32,9 @@ class JsonSaxReader {
     return true;
   }
   const std::string& error() const { return error_; }
+  // Tokens (strings, numbers) up to `bytes` long read without allocating,
+  // even on the first payloads that reach the reader.
+  void reserve(std::size_t bytes) { buf_.reserve(bytes); }
 
  private:
   static constexpr int kMaxDepth = 512;  // guards the stack if a handler allows any nesting

@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "json_sax_reader.hpp"
+#include "marker_json_fast.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -18,11 +19,11 @@ constexpr int kMaxDepth = 8;
 constexpr std::size_t kMaxUnknownNames = 8;
 constexpr std::size_t kMaxUnknownNameBytes = 64;  // longer names are cut in lists and messages
 
-// SAX handler: a small state machine over the token stream.
-class FrameSax : public nlohmann::json_sax<json> {
+// SAX handler: a small state machine over the token stream. Final, so the
+// JSON reader (a template on the handler) calls it without virtual dispatch.
+class FrameSax final : public nlohmann::json_sax<json> {
  public:
-  FrameSax(const std::unordered_map<std::string, int>& index,
-           const std::unordered_map<std::string, int>& sensor_index, MarkerFrame& out,
+  FrameSax(const MarkerNameIndex& index, const MarkerNameIndex& sensor_index, MarkerFrame& out,
            std::string& error, std::string& name_scratch)
       : index_(index),
         sensor_index_(sensor_index),
@@ -140,16 +141,11 @@ class FrameSax : public nlohmann::json_sax<json> {
       return true;
     }
     if (state_ == State::marker_key) {
-      const auto it = index_.find(k);
-      marker_ = it == index_.end() ? -1 : it->second;
+      marker_ = index_.find(k);
       if (marker_ >= 0) ++out_.known_count;
       if (marker_ < 0) {
         ++out_.unknown_count;
-        if (out_.unknown_listed < static_cast<int>(out_.unknown_names.size())) {
-          // Cut to the reserved capacity: listing an unknown name never allocates.
-          std::string& listed = out_.unknown_names[out_.unknown_listed++];
-          listed.assign(k, 0, std::min(k.size(), listed.capacity()));
-        }
+        list_unknown_name(out_.unknown_names, out_.unknown_listed, k);
       }
       // Kept for messages only, cut to its reserved capacity: no allocation.
       marker_name_.assign(k, 0, std::min(k.size(), marker_name_.capacity()));
@@ -157,14 +153,10 @@ class FrameSax : public nlohmann::json_sax<json> {
       return true;
     }
     if (state_ == State::sensor_key) {
-      const auto it = sensor_index_.find(k);
-      sensor_ = it == sensor_index_.end() ? -1 : it->second;
+      sensor_ = sensor_index_.find(k);
       if (sensor_ < 0) {
         ++out_.unknown_sensor_count;
-        if (out_.unknown_sensors_listed < static_cast<int>(out_.unknown_sensor_names.size())) {
-          std::string& listed = out_.unknown_sensor_names[out_.unknown_sensors_listed++];
-          listed.assign(k, 0, std::min(k.size(), listed.capacity()));
-        }
+        list_unknown_name(out_.unknown_sensor_names, out_.unknown_sensors_listed, k);
       } else {
         out_.sensor_visible[sensor_] = 0;  // until a usable quaternion arrives
       }
@@ -311,8 +303,8 @@ class FrameSax : public nlohmann::json_sax<json> {
     return false;
   }
 
-  const std::unordered_map<std::string, int>& index_;
-  const std::unordered_map<std::string, int>& sensor_index_;
+  const MarkerNameIndex& index_;
+  const MarkerNameIndex& sensor_index_;
   MarkerFrame& out_;
   std::string& error_;
   State state_ = State::start;
@@ -323,6 +315,24 @@ class FrameSax : public nlohmann::json_sax<json> {
   Eigen::Vector3d p_{0, 0, 0};
   double q_[4] = {0, 0, 0, 0};
 };
+
+// What a frame holds before its payload is read: nothing seen.
+void start_frame(MarkerFrame& out) {
+  out.frame = 0;
+  out.has_time = false;
+  out.time_s = 0.0;
+  out.has_stamp = false;
+  out.known_count = 0;
+  out.unknown_count = 0;
+  out.unknown_listed = 0;
+  out.rejected_count = 0;
+  out.zero_count = 0;
+  out.rejected_orientations = 0;
+  out.unknown_sensor_count = 0;
+  out.unknown_sensors_listed = 0;
+  std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
+  std::fill(out.sensor_visible.begin(), out.sensor_visible.end(), 0);
+}
 
 }  // namespace
 
@@ -336,14 +346,17 @@ PayloadEncoding detect_encoding(std::span<const std::uint8_t> payload) {
 MarkerDecoder::MarkerDecoder(std::span<const std::string> names, double default_m_per_unit,
                              std::size_t max_payload_bytes, PlausibleMarkers plausible,
                              std::span<const std::string> sensor_names)
-    : count_(static_cast<int>(names.size())),
+    : index_(names),
+      sensor_index_(sensor_names),
+      count_(static_cast<int>(names.size())),
       sensor_count_(static_cast<int>(sensor_names.size())),
       default_m_per_unit_(default_m_per_unit),
       max_payload_bytes_(max_payload_bytes),
       plausible_(plausible) {
-  for (int i = 0; i < count_; ++i) index_.emplace(names[i], i);
-  for (int i = 0; i < sensor_count_; ++i) sensor_index_.emplace(sensor_names[i], i);
   marker_name_.reserve(kMaxUnknownNameBytes);
+  // Most frames take the JSON fast path, so the full reader may first see
+  // one when memory is short: its token buffer is grown here, not then.
+  json_reader_.reserve(std::min<std::size_t>(max_payload_bytes_, 4096));
 }
 
 MarkerFrame MarkerDecoder::make_frame() const {
@@ -360,8 +373,7 @@ MarkerFrame MarkerDecoder::make_frame() const {
 }
 
 int MarkerDecoder::index_of(const std::string& name) const {
-  const auto it = index_.find(name);
-  return it == index_.end() ? -1 : it->second;
+  return index_.find(name);
 }
 
 bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& out,
@@ -376,40 +388,43 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
             std::to_string(max_payload_bytes_);
     return false;
   }
-  out.frame = 0;
-  out.has_time = false;
-  out.time_s = 0.0;
-  out.has_stamp = false;
-  out.known_count = 0;
-  out.unknown_count = 0;
-  out.unknown_listed = 0;
-  out.rejected_count = 0;
-  out.zero_count = 0;
-  out.rejected_orientations = 0;
-  out.unknown_sensor_count = 0;
-  out.unknown_sensors_listed = 0;
-  std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
-  std::fill(out.sensor_visible.begin(), out.sensor_visible.end(), 0);
-  FrameSax sax(index_, sensor_index_, out, error, marker_name_);
-  sax.quaternion_tolerance_ = plausible_.quaternion_tolerance;
+  start_frame(out);
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
-  sax.format_ = msgpack ? "MessagePack" : "JSON";
-  bool ok;
-  if (msgpack) {
-    ok = json::sax_parse(payload.begin(), payload.end(), &sax, json::input_format_t::msgpack);
+  const std::string_view text(reinterpret_cast<const char*>(payload.data()), payload.size());
+  FastFrameTop top;
+  bool try_fast = !msgpack && json_fast_path_;
+  if (try_fast && json_fast_skip_ > 0) {
+    --json_fast_skip_;
+    try_fast = false;
+  }
+  if (try_fast && read_common_marker_json(text, index_, out, top)) {
+    ++json_fast_frames_;
   } else {
-    ok = json_reader_.parse({reinterpret_cast<const char*>(payload.data()), payload.size()}, sax);
-    if (!ok && error.empty()) error = json_reader_.error();
+    if (try_fast) {  // declined: the full reader, from scratch
+      start_frame(out);
+      json_fast_skip_ = kFastPathPause - 1;
+    }
+    FrameSax sax(index_, sensor_index_, out, error, marker_name_);
+    sax.quaternion_tolerance_ = plausible_.quaternion_tolerance;
+    sax.format_ = msgpack ? "MessagePack" : "JSON";
+    bool ok;
+    if (msgpack) {
+      ok = json::sax_parse(payload.begin(), payload.end(), &sax, json::input_format_t::msgpack);
+    } else {
+      ok = json_reader_.parse(text, sax);
+      if (!ok && error.empty()) error = json_reader_.error();
+    }
+    if (!ok) {
+      if (error.empty()) error = std::string("not a valid ") + sax.format_ + " marker frame";
+      return false;
+    }
+    top = {sax.has_frame, sax.m_per_unit};
   }
-  if (!ok) {
-    if (error.empty()) error = std::string("not a valid ") + sax.format_ + " marker frame";
-    return false;
-  }
-  if (!sax.has_frame) {
+  if (!top.has_frame) {
     error = "\"frame\" is missing";
     return false;
   }
-  const double scale = sax.m_per_unit > 0.0 ? sax.m_per_unit : default_m_per_unit_;
+  const double scale = top.m_per_unit > 0.0 ? top.m_per_unit : default_m_per_unit_;
   for (int i = 0; i < count_; ++i) {
     if (!out.visible[i]) continue;
     Eigen::Vector3d& p = out.p_world_m[i];
