@@ -45,6 +45,13 @@ PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncod
 template <class Writer>
 void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& r,
                         MeasuredMarkers measured) const {
+  // The names of the markers flagged in `flags` (`count` of them), as an array.
+  auto flagged_names = [&](std::span<const std::uint8_t> flags, std::size_t count) {
+    w.begin_array(count);
+    for (std::size_t i = 0; i < markers_.size(); ++i)
+      if (flags[i]) w.string(markers_[i].plain);
+    w.end_array();
+  };
   auto vec = [&](const Eigen::Vector3d& p_m) {
     w.begin_array(3);
     for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
@@ -96,18 +103,12 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.end_map();
   }
   w.key("occluded");
-  w.begin_array(static_cast<std::size_t>(r.occluded_count));
-  for (std::size_t i = 0; i < markers_.size(); ++i)
-    if (r.occluded[i]) w.string(markers_[i].plain);
-  w.end_array();
+  flagged_names(r.occluded, static_cast<std::size_t>(r.occluded_count));
   if (has(PosePart::held)) {
     std::size_t held = 0;
     for (std::uint8_t h : r.held) held += h;
     w.key("held");  // addition: occluded markers still pulled by their last position
-    w.begin_array(held);
-    for (std::size_t i = 0; i < markers_.size(); ++i)
-      if (r.held[i]) w.string(markers_[i].plain);
-    w.end_array();
+    flagged_names(r.held, held);
   }
   if (has(PosePart::gap_s)) {
     w.key("gap_s");  // addition: per occluded marker, seconds since it was last measured
@@ -121,10 +122,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   }
   if (has(PosePart::outliers)) {
     w.key("outliers");  // addition: measured markers left out of this frame's solve
-    w.begin_array(static_cast<std::size_t>(r.outlier_count));
-    for (std::size_t i = 0; i < markers_.size(); ++i)
-      if (r.outliers[i]) w.string(markers_[i].plain);
-    w.end_array();
+    flagged_names(r.outliers, static_cast<std::size_t>(r.outlier_count));
   }
   if (has(PosePart::relabelled)) {
     std::size_t relabelled = 0;
@@ -157,10 +155,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   }
   if (has(PosePart::residual_beyond)) {
     w.key("beyond");  // addition: markers solved with whose residual exceeds quality.max_mm
-    w.begin_array(static_cast<std::size_t>(r.beyond_count));
-    for (std::size_t i = 0; i < markers_.size(); ++i)
-      if (r.beyond[i]) w.string(markers_[i].plain);
-    w.end_array();
+    flagged_names(r.beyond, static_cast<std::size_t>(r.beyond_count));
   }
   w.end_map();
   constexpr double kDegPerRad = 180.0 / 3.141592653589793;
