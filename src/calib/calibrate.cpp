@@ -13,6 +13,7 @@
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
 #include "config/model_loader.hpp"
+#include "config/solver_options_json.hpp"
 #include "tracking/tracker.hpp"
 
 namespace fabrik::calib {
@@ -24,6 +25,10 @@ const Eigen::Vector3d& CalibrationResult::point_world_m(const std::string& name)
 }
 
 namespace {
+
+// The subtree carry of a calibrated model with joint limits (docs/convergence.md, "subtree
+// carry": the share that closed most of the gap to the constrained least-squares fit).
+constexpr double kCalibratedSubtreeCarry = 0.5;
 
 // Model files are written in millimetres with 1 um resolution: far below
 // marker noise, and it keeps the file readable.
@@ -479,26 +484,30 @@ class Calibrator {
     c["model"] = r_.model;
     c["targets"] = {{"default", {{"level", t_.default_level}, {"weight", t_.default_weight}}},
                     {"markers", markers}};
-    c["solver"] = {{"tolerance_mm", 0.1},  {"stall_tolerance_mm", 0.1},
-                   {"max_iterations", 50}, {"segment_fit", "rigid"},
-                   {"root", "free"},       {"priorities", true}};
+    // Every value below is the daemon's default (DaemonConfig, tracking_settings.hpp), written
+    // out so that a user sees what to edit.
+    const DaemonConfig d;
+    SolverOptions solver = d.tracker.solver;
     // Real subjects' markers are never exactly reachable by the model: there
     // FABRIK's own fixed point with limited joints is far from the best
-    // fit, and the carry closes most of the gap (README "subtree carry").
+    // fit, and the carry closes most of the gap (docs/convergence.md "subtree carry").
     bool limited = false;
     for (const auto& sd : t_.segments) limited = limited || !sd.joint.is_null();
-    if (limited) c["solver"]["subtree_carry"] = 0.5;
-    c["input"] = {{"endpoint", "tcp://127.0.0.1:5555"},
-                  {"mode", "bind"},
+    if (limited) solver.subtree_carry = kCalibratedSubtreeCarry;
+    c["solver"] = solver_options_json(solver);
+    const auto mode = [](const Endpoint& e) { return e.mode == SocketMode::bind ? "bind" : "connect"; };
+    c["input"] = {{"endpoint", d.input.address},
+                  {"mode", mode(d.input)},
                   {"units", "mm"},
-                  {"max_payload_bytes", 1048576}};
-    c["output"] = {{"endpoint", "tcp://127.0.0.1:5556"},
-                   {"mode", "bind"},
-                   {"encoding", "json"},
-                   {"units", "mm"}};
-    c["occlusion"] = {{"hold_s", 0.0}};
-    c["stats_interval_s"] = 1.0;
-    c["log_level"] = "info";
+                  {"max_payload_bytes", d.max_payload_bytes},
+                  {"max_backlog_frames", d.max_backlog_frames}};
+    c["output"] = {{"endpoint", d.output.address},
+                   {"mode", mode(d.output)},
+                   {"encoding", d.output_encoding == Encoding::json ? "json" : "msgpack"},
+                   {"units", d.output_units}};
+    c["occlusion"] = {{"hold_s", d.tracker.occlusion.hold_s}};
+    c["stats_interval_s"] = d.stats_interval_s;
+    c["log_level"] = d.log_level;
   }
 
   // The written model, loaded as fabrikd will load it. Joints and coordinates

@@ -175,13 +175,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
                *model, c.tracker.markers, has_sensors);
   c.tracker.model = model;
 
-  SolverOptions solver;  // tracking defaults: a moving pelvis and rigid multi-marker segments
-  solver.root = RootMode::free;
-  solver.segment_fit = SegmentFit::rigid;
-  solver.tolerance_m = 0.1e-3;
-  solver.stall_tolerance_m = 0.1e-3;
-  solver.max_iterations = 50;
-  c.tracker.solver = root.has("solver") ? read_solver_options(root.at("solver"), solver) : solver;
+  if (root.has("solver")) c.tracker.solver = read_solver_options(root.at("solver"), c.tracker.solver);
 
   if (root.has("input")) {
     const JsonReader in = root.at("input");
@@ -227,13 +221,13 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   if (root.has("occlusion")) {
     const JsonReader o = root.at("occlusion");
     o.only_keys({"hold_s", "hold_level"});
-    c.tracker.occlusion.hold_s = o.get("hold_s", 0.0, 0.0, 3600.0);
+    c.tracker.occlusion.hold_s = o.get("hold_s", c.tracker.occlusion.hold_s, 0.0, 3600.0);
     c.tracker.occlusion.hold_level = static_cast<int>(o.get(
         "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
   }
   read_tracking_options(root, c.tracker);
   c.tracker.prediction = read_prediction(root, weakest);
-  c.stats_interval_s = root.get("stats_interval_s", 1.0, 0.01, 1.0);
+  c.stats_interval_s = root.get("stats_interval_s", c.stats_interval_s, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();
     read_choice<int>(

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "load.hpp"
 #include "solver/model.hpp"
 
 namespace fabrik {
@@ -35,7 +36,6 @@ Model load_model(const nlohmann::json& doc, const std::string& file);
 // A model object anywhere in a JSON document (e.g. inline in a daemon config).
 class JsonReader;
 Model load_model(const JsonReader& model);
-Model load_model_file(const std::string& path);
 
 // Metres per unit for "m" and "mm"; throws ConfigError via `reader` otherwise.
 class JsonReader;

@@ -25,4 +25,16 @@ SolverOptions read_solver_options(const JsonReader& solver, SolverOptions o) {
   return o;
 }
 
+nlohmann::ordered_json solver_options_json(const SolverOptions& o) {
+  nlohmann::ordered_json j = nlohmann::ordered_json::object();
+  j["tolerance_mm"] = o.tolerance_m * 1e3;
+  j["stall_tolerance_mm"] = o.stall_tolerance_m * 1e3;
+  j["max_iterations"] = o.max_iterations;
+  j["segment_fit"] = o.segment_fit == SegmentFit::rigid ? "rigid" : "paper";
+  j["root"] = o.root == RootMode::free ? "free" : "fixed";
+  j["priorities"] = o.use_priorities;
+  if (o.subtree_carry != 0.0) j["subtree_carry"] = o.subtree_carry;
+  return j;
+}
+
 }  // namespace fabrik

@@ -8,5 +8,8 @@
 namespace fabrik {
 
 SolverOptions read_solver_options(const JsonReader& solver, SolverOptions defaults = {});
+// The inverse, for configs fabrik writes (`fabrik calibrate`): the keys a daemon config's
+// "solver" object names, lengths in millimetres.
+nlohmann::ordered_json solver_options_json(const SolverOptions& options);
 
 }  // namespace fabrik

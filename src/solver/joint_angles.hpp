@@ -1,7 +1,8 @@
-// Joint angles: the Cardan decomposition R = Rz(a_z) Rx(a_x) Ry(a_y) of one
-// anatomical frame relative to another (the ISB joint coordinate system), the
-// projection of a rotation onto a joint's allowed range, and the model's
-// named coordinates. Allocation-free; radians throughout.
+/// @file
+/// Joint angles: the Cardan decomposition R = Rz(a_z) Rx(a_x) Ry(a_y) of one
+/// anatomical frame relative to another (the ISB joint coordinate system), the
+/// projection of a rotation onto a joint's allowed range, and the model's
+/// named coordinates. Allocation-free; radians throughout.
 #pragma once
 
 #include <Eigen/Core>
@@ -13,60 +14,60 @@
 
 namespace fabrik {
 
-// (a_z, a_x, a_y) with R = Rz(a_z) Rx(a_x) Ry(a_y); a_x in [-pi/2, pi/2].
+/// (a_z, a_x, a_y) with R = Rz(a_z) Rx(a_x) Ry(a_y); a_x in [-pi/2, pi/2].
 Eigen::Vector3d cardan_zxy(const Eigen::Matrix3d& r);
 Eigen::Matrix3d rotation_zxy(const Eigen::Vector3d& angles_rad);
 
-// World rotation of a segment's anatomical frame.
+/// World rotation of a segment's anatomical frame.
 inline Eigen::Matrix3d anatomical_world(const Model& model, const Posture& posture, int s) {
   return posture.segments[s].r_world * model.segments[s].q_anatomical.toRotationMatrix();
 }
 
-// The rotation of segment s's anatomical frame relative to segment
-// `reference`'s (-1: the world), and its Cardan angles.
+/// The rotation of segment s's anatomical frame relative to segment
+/// `reference`'s (-1: the world), and its Cardan angles.
 Eigen::Matrix3d relative_anatomical(const Model& model, const Posture& posture, int s,
                                     int reference);
 inline Eigen::Vector3d joint_angles_rad(const Model& model, const Posture& posture, int s) {
   return cardan_zxy(relative_anatomical(model, posture, s, model.segments[s].parent));
 }
 
-// `angle` clamped to [lo, hi] (radians, lo <= hi within [-pi, pi]). When it is
-// outside, the bound it left through is taken: the one on the shorter arc from
-// `previous` (an angle inside the range) to `angle`; without a previous angle
-// inside the range, the nearer bound. This keeps a limit from snapping to the
-// other side of a wide forbidden arc when the pull comes from behind.
+/// `angle` clamped to [lo, hi] (radians, lo <= hi within [-pi, pi]). When it is
+/// outside, the bound it left through is taken: the one on the shorter arc from
+/// `previous` (an angle inside the range) to `angle`; without a previous angle
+/// inside the range, the nearer bound. This keeps a limit from snapping to the
+/// other side of a wide forbidden arc when the pull comes from behind.
 double clamp_angle(double angle, double previous, double lo, double hi);
 
-// True when the angles lie within the joint's ranges, to `tolerance_rad`.
+/// True when the angles lie within the joint's ranges, to `tolerance_rad`.
 bool within_limits(const JointLimits& joint, const Eigen::Vector3d& angles_rad,
                    double tolerance_rad);
 
-// Turns segment s, if its base joint is out of range, to the nearest allowed
-// orientation relative to its parent (each Cardan angle clamped; angles the
-// joint type holds set to their rest values). `previous` is the segment's world
-// rotation before its latest update (for clamp_angle). Returns true if it turned.
+/// Turns segment s, if its base joint is out of range, to the nearest allowed
+/// orientation relative to its parent (each Cardan angle clamped; angles the
+/// joint type holds set to their rest values). `previous` is the segment's world
+/// rotation before its latest update (for clamp_angle). Returns true if it turned.
 bool enforce_joint_limits(const Model& model, int s, const Eigen::Quaterniond& previous,
                           Posture& posture);
 
-// The joint angles within the joint's ranges that best turn a segment's
-// vectors onto desired ones: maximise <E(angles), b> (Frobenius), with
-// E = Rz(a_z) Rx(a_x) Ry(a_y) and b = sum_k w_k d_k v_k^T pairing desired
-// vectors d_k (parent joint frame) with the segment's vectors v_k (its own
-// joint frame). Exact coordinate ascent: each angle in turn is the maximum
-// of a sinusoid clamped to its range (clamp_angle, from `start`), `sweeps`
-// times. The result never leaves the ranges; held angles keep their value.
+/// The joint angles within the joint's ranges that best turn a segment's
+/// vectors onto desired ones: maximise <E(angles), b> (Frobenius), with
+/// E = Rz(a_z) Rx(a_x) Ry(a_y) and b = sum_k w_k d_k v_k^T pairing desired
+/// vectors d_k (parent joint frame) with the segment's vectors v_k (its own
+/// joint frame). Exact coordinate ascent: each angle in turn is the maximum
+/// of a sinusoid clamped to its range (clamp_angle, from `start`), `sweeps`
+/// times. The result never leaves the ranges; held angles keep their value.
 Eigen::Vector3d fit_joint_angles(const Eigen::Matrix3d& b, const JointLimits& joint,
                                  const Eigen::Vector3d& start_rad, int sweeps);
 
-// Every coordinate of the model (Model::coordinates) at this posture:
-// rotations in radians, translations in metres. Those relative to the world
-// are in the reference frame of Model::lab_axes (OpenSim's ground). Rotations
-// are the Cardan angles' principal values; see unwrap_coordinates.
+/// Every coordinate of the model (Model::coordinates) at this posture:
+/// rotations in radians, translations in metres. Those relative to the world
+/// are in the reference frame of Model::lab_axes (OpenSim's ground). Rotations
+/// are the Cardan angles' principal values; see unwrap_coordinates.
 void coordinate_values(const Model& model, const Posture& posture, std::span<double> out);
 
-// Each rotation in `out` moved by whole turns to the value nearest its
-// `previous` one (translations untouched): continuous coordinates over
-// frames, as OpenSim's, which never wrap at +-180 deg.
+/// Each rotation in `out` moved by whole turns to the value nearest its
+/// `previous` one (translations untouched): continuous coordinates over
+/// frames, as OpenSim's, which never wrap at +-180 deg.
 void unwrap_coordinates(const Model& model, std::span<const double> previous,
                         std::span<double> out);
 

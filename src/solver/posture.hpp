@@ -1,6 +1,7 @@
-// A posture: the world pose of every segment. Point positions follow from it,
-// so segment geometry is rigid by construction (only rotation and translation
-// are ever changed, and rotations are kept unit quaternions).
+/// @file
+/// A posture: the world pose of every segment. Point positions follow from it,
+/// so segment geometry is rigid by construction (only rotation and translation
+/// are ever changed, and rotations are kept unit quaternions).
 #pragma once
 
 #include <Eigen/Core>
@@ -13,15 +14,15 @@
 namespace fabrik {
 
 struct SegmentPose {
-  Eigen::Quaterniond q_world{Eigen::Quaterniond::Identity()};  // segment frame -> world
-  Eigen::Matrix3d r_world{Eigen::Matrix3d::Identity()};        // cached q_world
-  Eigen::Vector3d base_world_m{0, 0, 0};                       // world position of the base
+  Eigen::Quaterniond q_world{Eigen::Quaterniond::Identity()};  ///< segment frame -> world
+  Eigen::Matrix3d r_world{Eigen::Matrix3d::Identity()};        ///< cached q_world
+  Eigen::Vector3d base_world_m{0, 0, 0};                       ///< world position of the base
 
   void set_rotation(const Eigen::Quaterniond& q) {
     q_world = q.normalized();
     r_world = q_world.toRotationMatrix();
   }
-  // For a quaternion already normalised by the caller (skips a second normalisation).
+  /// For a quaternion already normalised by the caller (skips a second normalisation).
   void set_unit_rotation(const Eigen::Quaterniond& q) {
     q_world = q;
     r_world = q_world.toRotationMatrix();
@@ -34,7 +35,7 @@ struct SegmentPose {
 struct Posture {
   std::vector<SegmentPose> segments;
 
-  // The model's rest posture: every frame parallel to world, joints connected.
+  /// The model's rest posture: every frame parallel to world, joints connected.
   static Posture rest(const Model& model);
   Eigen::Vector3d point_world_m(const Model& model, int point) const {
     const Point& p = model.points[point];
@@ -42,12 +43,12 @@ struct Posture {
   }
 };
 
-// Places every non-root segment's base on its parent's joint point, keeping
-// rotations: used after rotations change (kinematics, baselines).
+/// Places every non-root segment's base on its parent's joint point, keeping
+/// rotations: used after rotations change (kinematics, baselines).
 void connect_joints(const Model& model, Posture& posture);
 
-// Forward kinematics: world rotations from rotations relative to the parent
-// (q_local[0] is the root's world rotation), bases connected at the joints.
+/// Forward kinematics: world rotations from rotations relative to the parent
+/// (q_local[0] is the root's world rotation), bases connected at the joints.
 void set_from_local(const Model& model, const Eigen::Vector3d& root_base_m,
                     std::span<const Eigen::Quaterniond> q_local, Posture& posture);
 

@@ -1,5 +1,6 @@
-// Inputs and outputs shared by every solver in the library (FABRIK and the
-// Jacobian baselines), so they can be swapped and compared on equal terms.
+/// @file
+/// Inputs and outputs shared by every solver in the library (FABRIK and the
+/// Jacobian baselines), so they can be swapped and compared on equal terms.
 #pragma once
 
 #include <cstdint>
@@ -7,73 +8,74 @@
 
 namespace fabrik {
 
-// A target pulls one model point towards a measured world position.
+/// A target pulls one model point towards a measured world position.
 struct Target {
-  int point = -1;       // index into Model::points
-  int level = 0;        // priority level: higher is stronger
-  double weight = 1.0;  // relative weight within its level
+  int point = -1;       ///< index into Model::points
+  int level = 0;        ///< priority level: higher is stronger
+  double weight = 1.0;  ///< relative weight within its level
 };
 
-// A target that turns one segment towards a measured world orientation (an
-// IMU or a tracked rigid body, already brought into the segment's frame).
-// It weighs as much as three point targets at `orientation_lever_m` from the
-// segment's base along its axes would: an orientation error of theta radians
-// counts like a point lever * theta away.
+/// A target that turns one segment towards a measured world orientation (an
+/// IMU or a tracked rigid body, already brought into the segment's frame).
+/// It weighs as much as three point targets at `orientation_lever_m` from the
+/// segment's base along its axes would: an orientation error of theta radians
+/// counts like a point lever * theta away.
 struct OrientationTarget {
-  int segment = -1;  // index into Model::segments
+  int segment = -1;  ///< index into Model::segments
   int level = 0;
   double weight = 1.0;
 };
 
 enum class SegmentFit {
-  paper,  // Moya & Colloud 2013: translate to the mean candidate, rotate by angle(a, b)
-  rigid,  // least-squares rotation of all driving points of the segment
+  paper,  ///< Moya & Colloud 2013: translate to the mean candidate, rotate by angle(a, b)
+  rigid,  ///< least-squares rotation of all driving points of the segment
 };
 
 enum class RootMode {
-  fixed,  // the root base stays where the start posture has it (the paper's experiment)
-  free,   // the root segment is placed by its own targets (mocap: the pelvis moves)
+  fixed,  ///< the root base stays where the start posture has it (the paper's experiment)
+  free,   ///< the root segment is placed by its own targets (mocap: the pelvis moves)
 };
 
 struct SolverOptions {
-  double tolerance_m = 1e-3;        // converged when every visible target is this close
-  int max_iterations = 64;          // per solve
-  double stall_tolerance_m = 1e-6;  // stalled when no target distance will change more (StopRule)
+  double tolerance_m = 1e-3;        ///< converged when every visible target is this close
+  int max_iterations = 64;          ///< per solve
+  double stall_tolerance_m = 1e-6;  ///< stalled when no target distance will change more (StopRule)
   SegmentFit segment_fit = SegmentFit::paper;
   RootMode root = RootMode::fixed;
-  bool use_priorities = true;  // false: all levels are solved together, in one pass
-  // Passes of the strongest level per iteration: it is revisited until its
-  // targets settle (tolerance or stall), at most this often, so it ends every
-  // iteration as well met as it can be. 1 is the paper's literal loop.
+  bool use_priorities = true;  ///< false: all levels are solved together, in one pass
+  /// Passes of the strongest level per iteration: it is revisited until its
+  /// targets settle (tolerance or stall), at most this often, so it ends every
+  /// iteration as well met as it can be. 1 is the paper's literal loop.
   int level_passes = 8;
-  // In the pass of a level, targets of stronger levels take part too, with
-  // their weight times this factor: they hold what the stronger levels
-  // reached, so a weak level moves the body mostly where the strong ones
-  // leave it free (their null space, in Baerlocher & Boulic's terms).
-  // 0 disables it (the paper's literal loop, where each level pulls alone):
-  // then a weak level can cost the strongest one accuracy in a conflict.
+  /// In the pass of a level, targets of stronger levels take part too, with
+  /// their weight times this factor: they hold what the stronger levels
+  /// reached, so a weak level moves the body mostly where the strong ones
+  /// leave it free (their null space, in Baerlocher & Boulic's terms).
+  /// 0 disables it (the paper's literal loop, where each level pulls alone):
+  /// then a weak level can cost the strongest one accuracy in a conflict.
   double anchor_weight = 1000.0;
-  // With joint limits: the targets below a limited joint also pull, with
-  // their weight times this factor, on the segments above it (through
-  // limited joints), held at the joints' current angles. 0 is FABRIK's own
-  // rule (a segment feels its children only through their joint points),
-  // whose fixed point can sit far from the constrained least-squares fit on
-  // real data; > 0 costs iterations (see README "subtree carry").
+  /// With joint limits: the targets below a limited joint also pull, with
+  /// their weight times this factor, on the segments above it (through
+  /// limited joints), held at the joints' current angles. 0 is FABRIK's own
+  /// rule (a segment feels its children only through their joint points),
+  /// whose fixed point can sit far from the constrained least-squares fit on
+  /// real data; > 0 costs iterations (see README "subtree carry").
   double subtree_carry = 0.0;
-  // Jump ahead along the convergence loop's steps when they shrink along one direction
-  // (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the
-  // weighted squared distance of the targets. false: FABRIK's own iterations alone.
+  /// Jump ahead along the convergence loop's steps when they shrink along one direction
+  /// (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the
+  /// weighted squared distance of the targets. false: FABRIK's own iterations alone.
   bool extrapolate = true;
-  // The lever of orientation targets (see OrientationTarget), metres.
+  /// The lever of orientation targets (see OrientationTarget), metres.
   double orientation_lever_m = 0.1;
 };
 
 enum class SolveStatus : std::uint8_t {
-  converged,       // every visible target within tolerance
-  stalled,         // a fixed point: no target moved by stall tolerance (e.g. unreachable)
-  max_iterations,  // iteration budget spent while still improving
-  no_targets,      // nothing visible to track: posture unchanged
-  size_mismatch,   // the inputs do not match the solver's targets or model: posture unchanged
+  converged,       ///< every visible target within tolerance
+  stalled,         ///< a fixed point: no target moved by stall tolerance (e.g. unreachable)
+  max_iterations,  ///< iteration budget spent while still improving
+  no_targets,      ///< nothing visible to track: posture unchanged
+  size_mismatch,   ///< the inputs do not match the solver's targets or model: posture unchanged
+  wrong_workspace,  ///< solve(plan, workspace, ...) with a workspace made for another plan
 };
 
 inline std::string_view to_string(SolveStatus s) {
@@ -88,22 +90,24 @@ inline std::string_view to_string(SolveStatus s) {
       return "no_targets";
     case SolveStatus::size_mismatch:
       return "size_mismatch";
+    case SolveStatus::wrong_workspace:
+      return "wrong_workspace";
   }
   return "unknown";
 }
 
 struct SolveResult {
   SolveStatus status = SolveStatus::no_targets;
-  int iterations = 0;  // of the convergence loop
-  int passes = 0;      // forward + backward reaching passes, over all levels
-  int jumps = 0;       // extrapolations kept (SolverOptions::extrapolate)
+  int iterations = 0;  ///< of the convergence loop
+  int passes = 0;      ///< forward + backward reaching passes, over all levels
+  int jumps = 0;       ///< extrapolations kept (SolverOptions::extrapolate)
   int visible_targets = 0;
-  // Over visible targets, unweighted; an orientation target counts as its
-  // angle times orientation_lever_m.
+  /// Over visible targets, unweighted; an orientation target counts as its
+  /// angle times orientation_lever_m.
   double rms_m = 0.0;
   double max_m = 0.0;
-  // Index into the solver's targets (point targets first, then orientation
-  // targets), -1 if none visible.
+  /// Index into the solver's targets (point targets first, then orientation
+  /// targets), -1 if none visible.
   int worst_target = -1;
 };
 

@@ -14,14 +14,9 @@
 #include "solver/posture.hpp"
 #include "solver/solve_types.hpp"
 
-namespace fabrik {
+#include "tracking/tracking_settings.hpp"
 
-struct ColdStartSettings {
-  int max_iterations = 500;  // the cold frame's budget (a warm frame has solver.max_iterations)
-  // A frame this long after the last one with a measured marker starts cold (seconds).
-  double after_gap_s = 0.5;
-  bool align = true;  // turn and move the rest posture onto the visible markers first
-};
+namespace fabrik {
 
 // The solver options of a cold frame: the warm ones with the cold budget.
 SolverOptions cold_solver_options(const SolverOptions& warm, const ColdStartSettings& cold);

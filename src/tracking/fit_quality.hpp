@@ -9,26 +9,9 @@
 #include <cstdint>
 #include <string_view>
 
+#include "tracking/tracking_settings.hpp"
+
 namespace fabrik {
-
-struct QualitySettings {
-  double rms_m = 0.020;  // per-frame RMS over the markers that took part in the solve
-  double max_m = 0.040;  // any one of them
-};
-
-enum class FitQuality : std::uint8_t { none, good, poor };
-
-inline std::string_view to_string(FitQuality q) {
-  switch (q) {
-    case FitQuality::none:
-      return "none";
-    case FitQuality::good:
-      return "good";
-    case FitQuality::poor:
-      return "poor";
-  }
-  return "none";
-}
 
 inline FitQuality judge_fit(const QualitySettings& s, int residual_count, double rms_m,
                             double max_m) {

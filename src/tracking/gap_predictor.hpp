@@ -25,45 +25,9 @@
 #include "solver/posture.hpp"
 #include "solver/solve_types.hpp"
 
-namespace fabrik {
+#include "tracking/tracking_settings.hpp"
 
-struct PredictionSettings {
-  bool enabled = false;
-  // Priority level and weight of the predicted rotations (orientation
-  // targets). The daemon config puts them on the weakest marker level with
-  // weight 0.05: a pull that markers on the same level outweigh, which takes
-  // no extra priority pass (a level of their own below the markers' costs one
-  // and, where markers of children constrain the segment, leaves it nothing).
-  int level = 0;
-  double weight = 0.05;
-  // The relative angular velocity at the start of a gap decays with this time
-  // constant, so the prediction turns at most velocity * decay and then holds
-  // (0: hold from the start).
-  double velocity_decay_s = 0.1;
-  // Velocities are differences over this much of the recent past (at least
-  // one frame): long enough to average marker noise, short enough to follow.
-  double velocity_window_s = 0.05;
-  // A returning marker's target moves from where the prediction had it to
-  // its measurement at most this fast, so the posture does not jump.
-  double return_speed_m_per_s = 0.2;
-  // Donor markers for the reported fill (not the solve): candidates ranked by
-  // the spread of their distance to the marker, triples averaged, their
-  // triangles no flatter than min_sine, weights 1 / max(score, floor)^2; at
-  // most this many gaps start choosing per frame (the rest take the
-  // skeleton's fill), which bounds a frame's cost.
-  bool donors = true;
-  int donor_candidates = 8;
-  int donor_triples = 3;
-  double donor_min_sine = 0.2;
-  double donor_score_floor_m = 3e-4;
-  int donor_choices_per_frame = 4;
-  // Donors come from segments at most this many joints from the marker's (0:
-  // its own): a marker elsewhere that looked steady for a moment is not trusted.
-  int donor_max_joints = 2;
-  // Where the skeleton competes, a triple's weight falls as a Gaussian of its
-  // distance from the skeleton's fill, in this many of their combined scores.
-  double donor_gate = 3.0;
-};
+namespace fabrik {
 
 // Per pair of markers (row: the filled one, [i * n + m]): whether m is on a
 // segment at most max_joints joints from i's. marker_segments: each marker's segment.

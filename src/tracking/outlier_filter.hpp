@@ -28,24 +28,9 @@
 #include "solver/posture.hpp"
 #include "tracking/marker_neighbours.hpp"
 
-namespace fabrik {
+#include "tracking/tracking_settings.hpp"
 
-struct OutlierSettings {
-  bool enabled = true;
-  // A residual at or below this is never an outlier (metres): well beyond the soft-tissue
-  // artefact of a good fit (OpenSim's guidance: max under 2-4 cm).
-  double floor_m = 0.060;
-  // Nor one at or below this multiple of the median residual of the other measured markers:
-  // when every marker fits worse (fast motion, a poor calibration), the bar rises with them.
-  double median_factor = 8.0;
-  // A candidate moved when its distances to most of its measured neighbours are off by
-  // more than this (metres): beyond the few centimetres skin markers move over bone in
-  // fast movement, well within what a swap, ghost or stray zero does.
-  double moved_m = 0.030;
-  int max_per_frame = 3;  // markers left out per frame at most (one extra solve each)
-  int min_markers = 6;    // measured markers a frame needs before any is judged
-  bool relabel_swaps = true;
-};
+namespace fabrik {
 
 class OutlierFilter {
  public:

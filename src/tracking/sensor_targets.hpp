@@ -24,20 +24,9 @@
 #include "solver/posture.hpp"
 #include "solver/solve_types.hpp"
 
+#include "tracking/tracking_settings.hpp"
+
 namespace fabrik {
-
-struct SensorTarget {
-  std::string sensor;  // name in the stream
-  int segment = -1;    // index into Model::segments
-  int level = 0;       // priority level, as for markers
-  double weight = 1.0;
-  Eigen::Quaterniond q_segment_sensor{Eigen::Quaterniond::Identity()};
-};
-
-struct SensorSetup {
-  std::vector<SensorTarget> sensors;
-  Eigen::Quaterniond q_world_sensors{Eigen::Quaterniond::Identity()};
-};
 
 // The sensors' world in the model's world: first `rotation_xyz_rad`, space-fixed
 // rotations about x, then y, then z (OpenSim's sensor_to_opensim_rotations),

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "donor_fill.hpp"
+#include "gap_predictor.hpp"
 #include "tracker.hpp"
 
 namespace fabrik {

@@ -1,0 +1,62 @@
+#include "solver.hpp"
+
+#include <atomic>
+
+#include "fabrik_solver.hpp"
+
+namespace fabrik {
+
+namespace {
+std::uint64_t next_plan_id() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+
+SolverPlan::SolverPlan(std::shared_ptr<const Model> model, std::vector<Target> targets,
+                       SolverOptions options, std::vector<OrientationTarget> orientations)
+    : model_(std::move(model)),
+      targets_(std::move(targets)),
+      orientations_(std::move(orientations)),
+      options_(options),
+      id_(next_plan_id()) {
+  if (!model_) throw std::invalid_argument("SolverPlan: no model");
+  // The solver checks targets against the model when made: one made here rejects a bad plan
+  // at setup, not at its first solve.
+  FabrikSolver check(model_, targets_, options_, orientations_);
+}
+
+SolverWorkspace::SolverWorkspace(const SolverPlan& plan)
+    : plan_id_(plan.id()),
+      solver_(std::make_unique<FabrikSolver>(plan.shared_model(), plan.targets(), plan.options(),
+                                             plan.orientations())) {}
+SolverWorkspace::~SolverWorkspace() = default;
+SolverWorkspace::SolverWorkspace(SolverWorkspace&&) noexcept = default;
+SolverWorkspace& SolverWorkspace::operator=(SolverWorkspace&&) noexcept = default;
+
+std::span<const double> SolverWorkspace::target_distances_m() const {
+  return solver_ ? solver_->target_distances_m() : std::span<const double>{};
+}
+
+SolveResult solve(const SolverPlan& plan, SolverWorkspace& workspace,
+                  std::span<const Eigen::Vector3d> target_world_m,
+                  std::span<const std::uint8_t> visible, Posture& posture) {
+  return solve(plan, workspace, target_world_m, visible, {}, {}, posture);
+}
+
+SolveResult solve(const SolverPlan& plan, SolverWorkspace& workspace,
+                  std::span<const Eigen::Vector3d> target_world_m,
+                  std::span<const std::uint8_t> visible,
+                  std::span<const Eigen::Quaterniond> q_world,
+                  std::span<const std::uint8_t> orientation_visible, Posture& posture) {
+  if (!workspace.solver_ || workspace.plan_id_ != plan.id()) {
+    SolveResult wrong;
+    wrong.status = SolveStatus::wrong_workspace;
+    return wrong;
+  }
+  if (plan.orientations().empty() && q_world.empty() && orientation_visible.empty())
+    return workspace.solver_->solve(target_world_m, visible, posture);
+  return workspace.solver_->solve(target_world_m, visible, q_world, orientation_visible, posture);
+}
+
+}  // namespace fabrik

@@ -1,0 +1,90 @@
+/// @file
+/// The solver as a library user holds it (Pinocchio's Model/Data split): a SolverPlan is the
+/// problem, fixed once (model, targets, options) and shared read-only between threads; a
+/// SolverWorkspace is one thread's scratch for solving that plan. solve() takes both and
+/// checks that they belong together and that the inputs have the plan's sizes: a mismatch is a
+/// status value (SolveStatus::wrong_workspace, SolveStatus::size_mismatch), never an exception
+/// and never undefined behaviour. A solve allocates nothing.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "model.hpp"
+#include "posture.hpp"
+#include "solve_types.hpp"
+
+namespace fabrik {
+
+class FabrikSolver;
+
+/// The problem: which model points are pulled (targets), which segments are turned
+/// (orientation targets), and how the loop runs (options). Immutable once made.
+class SolverPlan {
+ public:
+  /// Throws std::invalid_argument when a target names a point or segment the model lacks, or
+  /// has a weight that is not positive and finite.
+  SolverPlan(std::shared_ptr<const Model> model, std::vector<Target> targets,
+             SolverOptions options = {}, std::vector<OrientationTarget> orientations = {});
+
+  const Model& model() const { return *model_; }
+  const std::shared_ptr<const Model>& shared_model() const { return model_; }
+  const std::vector<Target>& targets() const { return targets_; }
+  const std::vector<OrientationTarget>& orientations() const { return orientations_; }
+  const SolverOptions& options() const { return options_; }
+  /// Unique among the plans made in this process (copies share it: they are the same problem).
+  std::uint64_t id() const { return id_; }
+
+ private:
+  std::shared_ptr<const Model> model_;
+  std::vector<Target> targets_;
+  std::vector<OrientationTarget> orientations_;
+  SolverOptions options_;
+  std::uint64_t id_;
+};
+
+/// One thread's scratch space for one plan, sized when made. Movable, not copyable.
+class SolverWorkspace {
+ public:
+  explicit SolverWorkspace(const SolverPlan& plan);
+  ~SolverWorkspace();
+  SolverWorkspace(SolverWorkspace&&) noexcept;
+  SolverWorkspace& operator=(SolverWorkspace&&) noexcept;
+  SolverWorkspace(const SolverWorkspace&) = delete;
+  SolverWorkspace& operator=(const SolverWorkspace&) = delete;
+
+  /// The plan this workspace was made for (SolverPlan::id).
+  std::uint64_t plan_id() const { return plan_id_; }
+  /// Distance of each target to its point after the last solve (NaN where not visible):
+  /// point targets, then orientation targets (their angle times options().orientation_lever_m).
+  std::span<const double> target_distances_m() const;
+
+ private:
+  friend SolveResult solve(const SolverPlan&, SolverWorkspace&, std::span<const Eigen::Vector3d>,
+                           std::span<const std::uint8_t>, std::span<const Eigen::Quaterniond>,
+                           std::span<const std::uint8_t>, Posture&);
+  std::uint64_t plan_id_;
+  std::unique_ptr<FabrikSolver> solver_;
+};
+
+/// Moves `posture` (the start: the previous frame's result, or Posture::rest) so that each
+/// visible target's point meets target_world_m[i] (metres, world frame), strongest priority
+/// level first. target_world_m and visible have one entry per plan.targets(). The posture is
+/// left unchanged when the status is size_mismatch, wrong_workspace or no_targets.
+SolveResult solve(const SolverPlan& plan, SolverWorkspace& workspace,
+                  std::span<const Eigen::Vector3d> target_world_m,
+                  std::span<const std::uint8_t> visible, Posture& posture);
+
+/// The same with orientation targets: q_world[k] (the segment's desired world rotation, unit)
+/// and orientation_visible[k] belong to plan.orientations()[k].
+SolveResult solve(const SolverPlan& plan, SolverWorkspace& workspace,
+                  std::span<const Eigen::Vector3d> target_world_m,
+                  std::span<const std::uint8_t> visible,
+                  std::span<const Eigen::Quaterniond> q_world,
+                  std::span<const std::uint8_t> orientation_visible, Posture& posture);
+
+}  // namespace fabrik
