@@ -1,0 +1,103 @@
+// The public solver API (solver.hpp): a plan shared read-only, a workspace per thread, and
+// every misuse answered with a status value.
+#include <catch2/catch.hpp>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "solver/solver.hpp"
+#include "test_models.hpp"
+
+using namespace fabrik;
+
+namespace {
+
+struct Problem {
+  std::shared_ptr<const Model> model = std::make_shared<const Model>(test::fullbody_model());
+  std::vector<Target> targets;
+  std::vector<Eigen::Vector3d> target_world_m;
+  std::vector<std::uint8_t> visible;
+  Posture rest = Posture::rest(*model);
+
+  explicit Problem(const Eigen::Vector3d& shift_m) {
+    for (int p : model->marker_points()) {
+      targets.push_back({p, 0, 1.0});
+      target_world_m.push_back(rest.point_world_m(*model, p) + shift_m);
+    }
+    visible.assign(targets.size(), 1);
+  }
+};
+
+SolverOptions free_root() {
+  SolverOptions o;
+  o.root = RootMode::free;
+  o.tolerance_m = 1e-5;
+  o.max_iterations = 200;
+  return o;
+}
+
+}  // namespace
+
+TEST_CASE("A plan solved in two workspaces on two threads gives the same posture", "[api]") {
+  const Problem pr(Eigen::Vector3d(0.03, -0.01, 0.02));
+  const SolverPlan plan(pr.model, pr.targets, free_root());
+  Posture postures[2] = {pr.rest, pr.rest};
+  SolveResult results[2];
+  std::vector<std::thread> threads;
+  for (int k = 0; k < 2; ++k)
+    threads.emplace_back([&, k] {
+      SolverWorkspace w(plan);
+      results[k] = solve(plan, w, pr.target_world_m, pr.visible, postures[k]);
+    });
+  for (auto& t : threads) t.join();
+  CHECK(results[0].status == SolveStatus::converged);
+  CHECK(results[0].max_m <= 1e-5);
+  CHECK(results[0].iterations == results[1].iterations);
+  for (std::size_t s = 0; s < postures[0].segments.size(); ++s) {
+    CHECK(postures[0].segments[s].base_world_m == postures[1].segments[s].base_world_m);
+    CHECK(postures[0].segments[s].q_world.coeffs() == postures[1].segments[s].q_world.coeffs());
+  }
+}
+
+TEST_CASE("A workspace made for another plan is refused and the posture kept", "[api]") {
+  const Problem pr(Eigen::Vector3d(0.03, 0, 0));
+  const SolverPlan plan(pr.model, pr.targets, free_root());
+  const SolverPlan same_problem(pr.model, pr.targets, free_root());
+  SolverWorkspace foreign(same_problem);
+  Posture p = pr.rest;
+  const SolveResult r = solve(plan, foreign, pr.target_world_m, pr.visible, p);
+  CHECK(r.status == SolveStatus::wrong_workspace);
+  CHECK(to_string(r.status) == "wrong_workspace");
+  CHECK(p.segments[0].base_world_m == pr.rest.segments[0].base_world_m);
+  // A copy of a plan is the same problem: its workspaces fit both.
+  const SolverPlan copy = plan;
+  SolverWorkspace w(copy);
+  CHECK(w.plan_id() == plan.id());
+  CHECK(solve(plan, w, pr.target_world_m, pr.visible, p).status == SolveStatus::converged);
+  // A moved-from workspace holds nothing and is refused too.
+  SolverWorkspace moved(std::move(w));
+  CHECK(solve(plan, w, pr.target_world_m, pr.visible, p).status == SolveStatus::wrong_workspace);
+  CHECK(solve(plan, moved, pr.target_world_m, pr.visible, p).status != SolveStatus::wrong_workspace);
+}
+
+TEST_CASE("Inputs of the wrong size are a status, not a crash", "[api]") {
+  const Problem pr(Eigen::Vector3d(0.01, 0, 0));
+  const SolverPlan plan(pr.model, pr.targets, free_root());
+  SolverWorkspace w(plan);
+  Posture p = pr.rest;
+  const std::span<const Eigen::Vector3d> short_targets(pr.target_world_m.data(),
+                                                       pr.target_world_m.size() - 1);
+  CHECK(solve(plan, w, short_targets, pr.visible, p).status == SolveStatus::size_mismatch);
+  Posture wrong_model;  // no segments
+  CHECK(solve(plan, w, pr.target_world_m, pr.visible, wrong_model).status ==
+        SolveStatus::size_mismatch);
+  CHECK(p.segments[0].base_world_m == pr.rest.segments[0].base_world_m);
+}
+
+TEST_CASE("A plan with a target outside the model is refused at setup", "[api]") {
+  const Problem pr(Eigen::Vector3d::Zero());
+  std::vector<Target> bad = pr.targets;
+  bad.push_back({static_cast<int>(pr.model->points.size()), 0, 1.0});
+  CHECK_THROWS_AS(SolverPlan(pr.model, bad, free_root()), std::invalid_argument);
+  CHECK_THROWS_AS(SolverPlan(nullptr, pr.targets, free_root()), std::invalid_argument);
+}
