@@ -16,6 +16,9 @@
 #include <string>
 #include <vector>
 
+/// Prioritized FABRIK inverse kinematics for motion capture: the skeleton model (Model), the
+/// solver (SolverPlan, solve), the per-frame tracking pipeline (Tracker) and the loading of its
+/// setup (load.hpp). Quantities name their unit: `_m` metres, `_rad` radians, `_s` seconds.
 namespace fabrik {
 
 /// What a model point is: `base` is a segment's base joint (its local origin),
