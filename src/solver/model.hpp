@@ -31,8 +31,8 @@ struct Point {
   std::string name;  ///< unique, except that a child's base point shares its joint's name
   int segment = -1;  ///< owning segment
   PointKind kind = PointKind::end_site;  ///< what the point is (see PointKind)
-  Eigen::Vector3d p_local_m{0, 0, 0};  ///< in the segment frame, relative to its base
-  int child_segment = -1;              ///< for kind == joint: the segment whose base sits here
+  Eigen::Vector3d p_local_m{0, 0, 0};    ///< in the segment frame, relative to its base
+  int child_segment = -1;                ///< for kind == joint: the segment whose base sits here
 };
 
 /// How a segment may turn relative to its parent about its base joint. Its
@@ -67,14 +67,14 @@ struct JointLimits {
 /// One rigid body of the skeleton: its place in the tree, its points and the
 /// limits of its base joint. Indices are into the Model's vectors.
 struct Segment {
-  std::string name;  ///< unique within the model
+  std::string name;       ///< unique within the model
   int parent = -1;        ///< -1 for the root
   int parent_point = -1;  ///< index into Model::points of the parent's point where our base sits
   int base_point = -1;    ///< our own base point (local origin)
   int first_point = 0;    ///< our points are points[first_point, first_point + point_count)
   int point_count = 0;    ///< number of points, the base point included
-  int first_child = 0;  ///< our children are child_ids[first_child, first_child + child_count)
-  int child_count = 0;  ///< number of child segments
+  int first_child = 0;    ///< our children are child_ids[first_child, first_child + child_count)
+  int child_count = 0;    ///< number of child segments
   /// The anatomical frame (x anterior, y superior/proximal, z right, as ISB
   /// recommends) in the segment frame, i.e. its axes in the world at rest.
   /// Identity when the model does not define one.
@@ -85,7 +85,7 @@ struct Segment {
 /// Joint centres as reported downstream: the root base plus every parent/child link.
 struct Joint {
   std::string name;  ///< the point's name (the base joint's name in the model description)
-  int point = -1;  ///< the child's base point (or the root base)
+  int point = -1;    ///< the child's base point (or the root base)
 };
 
 /// A named quantity computed from a posture, as OpenSim's coordinates are:
@@ -96,9 +96,9 @@ enum class CoordinateKind : std::uint8_t { rotation, translation };
 /// One named coordinate of the model (see CoordinateKind); coordinate_values
 /// computes them all. Which fields apply depends on `kind`.
 struct Coordinate {
-  std::string name;  ///< unique within the model
+  std::string name;                                ///< unique within the model
   CoordinateKind kind = CoordinateKind::rotation;  ///< an angle (radians) or a position (metres)
-  int segment = -1;      ///< rotation: the moving segment
+  int segment = -1;                                ///< rotation: the moving segment
   int relative_to = -1;  ///< rotation: the reference segment, -1 for the world
   int angle = 0;         ///< rotation: Cardan angle index (0: a_z, 1: a_x, 2: a_y)
   int point = -1;        ///< translation: the point
@@ -136,14 +136,14 @@ struct LabAxes {
 /// immutable (see the file's description).
 class Model {
  public:
-  const std::string name;  ///< the model's name (e.g. from its description file)
+  const std::string name;               ///< the model's name (e.g. from its description file)
   const std::vector<Segment> segments;  ///< topological order: a parent precedes its children
   const std::vector<Point> points;      ///< grouped by segment, base point first
   const std::vector<int> child_ids;     ///< children lists, see Segment::first_child
-  const std::vector<Joint> joints;     ///< the root base first, then one per parent/child link
+  const std::vector<Joint> joints;      ///< the root base first, then one per parent/child link
   const std::vector<Coordinate> coordinates;  ///< named coordinates, in the description's order
-  const Eigen::Vector3d root_rest_m;  ///< world position of the root base at rest
-  const LabAxes lab_axes;             ///< for coordinates relative to the world
+  const Eigen::Vector3d root_rest_m;          ///< world position of the root base at rest
+  const LabAxes lab_axes;                     ///< for coordinates relative to the world
 
   /// Index into segments of the segment with this name, -1 if none.
   int find_segment(const std::string& segment_name) const;

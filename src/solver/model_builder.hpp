@@ -16,7 +16,7 @@ namespace fabrik {
 /// A point of a segment as described: where it sits and whether it is a marker.
 /// A point named as another segment's base becomes the joint to that child.
 struct PointSpec {
-  std::string name;  ///< unique across the whole model
+  std::string name;                    ///< unique across the whole model
   Eigen::Vector3d p_local_m{0, 0, 0};  ///< relative to the segment base, rest frame
   bool marker = false;                 ///< a marker site rather than a joint / end site
 };
@@ -34,7 +34,7 @@ struct JointSpec {
 /// One segment as described: its name, where it hangs in the tree, its points,
 /// its anatomical frame and its base joint.
 struct SegmentSpec {
-  std::string name;  ///< unique, not empty
+  std::string name;    ///< unique, not empty
   std::string parent;  ///< empty for the root
   std::string base;    ///< name of the base joint: a point of the parent (or the root origin)
   std::vector<PointSpec> points;  ///< its points other than the base, in its rest frame
@@ -48,7 +48,7 @@ struct SegmentSpec {
 /// anatomical frame relative to `relative_to` (empty: the world), or a world
 /// coordinate of `point`.
 struct CoordinateSpec {
-  std::string name;  ///< unique, not empty
+  std::string name;                                ///< unique, not empty
   CoordinateKind kind = CoordinateKind::rotation;  ///< an angle or a position
   /// Rotation: the name of the moving segment.
   std::string segment, relative_to, point;
@@ -56,7 +56,7 @@ struct CoordinateSpec {
   /// Rotation: the name of the reference segment, empty for the world.
   /// @var point
   /// Translation: the name of the point.
-  int axis = 0;  ///< x = 0, y = 1, z = 2 (rotation: the Cardan angle about that axis)
+  int axis = 0;         ///< x = 0, y = 1, z = 2 (rotation: the Cardan angle about that axis)
   double sign = 1.0;    ///< value = sign * (raw + offset); finite, not 0
   double offset = 0.0;  ///< radians or metres, added before the sign
 };
@@ -71,7 +71,7 @@ class ModelError : public std::invalid_argument {
   ModelError(int segment, int point, std::string field, const std::string& what)
       : std::invalid_argument(what), segment_(segment), point_(point), field_(std::move(field)) {}
   int segment() const { return segment_; }  ///< index into the specs, -1: the model as a whole
-  int point() const { return point_; }  ///< index into that segment's points, -1: the segment
+  int point() const { return point_; }      ///< index into that segment's points, -1: the segment
   const std::string& field() const { return field_; }  ///< the offending field's name
 
  private:

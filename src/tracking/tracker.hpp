@@ -29,30 +29,30 @@ struct TrackerSetup {
   std::shared_ptr<const Model> model;  ///< the skeleton tracked; required
   std::vector<MarkerTarget> markers;   ///< in the order track() takes the measurements
   SolverOptions solver = tracking_solver_options();  ///< options of a warm frame's solve
-  OcclusionPolicy occlusion;  ///< what occluded markers do
-  SensorSetup sensors;  ///< orientation sensors (sensor_targets.hpp); none by default
-  OutlierSettings outliers;      ///< leaving out markers that do not fit
-  QualitySettings quality;       ///< the bars of a good fit (TrackResult::quality)
-  ColdStartSettings cold_start;  ///< how a frame without a previous one is solved
+  OcclusionPolicy occlusion;                         ///< what occluded markers do
+  SensorSetup sensors;            ///< orientation sensors (sensor_targets.hpp); none by default
+  OutlierSettings outliers;       ///< leaving out markers that do not fit
+  QualitySettings quality;        ///< the bars of a good fit (TrackResult::quality)
+  ColdStartSettings cold_start;   ///< how a frame without a previous one is solved
   PredictionSettings prediction;  ///< gap filling from the recent past (gap_predictor.hpp)
 };
 
 /// The outcome of one frame. Spans stay valid until the next track() call.
 struct TrackResult {
-  SolveResult solve;  ///< the frame's final solve (after any left out outliers)
-  double solve_us = 0.0;                             ///< wall time of the solve itself
+  SolveResult solve;      ///< the frame's final solve (after any left out outliers)
+  double solve_us = 0.0;  ///< wall time of the solve itself
   std::span<const Eigen::Vector3d> joints_world_m;   ///< per Model::joints
   std::span<const Eigen::Vector3d> markers_world_m;  ///< per marker of the setup: model position
   std::span<const std::uint8_t> occluded;            ///< per marker: no valid measurement
   std::span<const std::uint8_t> held;                ///< per marker: occluded but held
   std::span<const double> gap_s;  ///< per marker: time since last measured (0 when measured)
-  int occluded_count = 0;  ///< markers occluded in this frame
+  int occluded_count = 0;         ///< markers occluded in this frame
   /// Residual between measured and model positions over the markers measured
   /// in this frame and solved with (held ones and outliers left out excluded), metres.
   double residual_rms_m = 0.0;
   double residual_max_m = 0.0;  ///< the largest of those residuals, metres
   int residual_count = 0;       ///< markers those residuals are over
-  int worst_marker = -1;  ///< index into the setup's markers, -1 if none measured
+  int worst_marker = -1;        ///< index into the setup's markers, -1 if none measured
   /// Per Model::coordinates: joint angles (radians) and translations (metres).
   /// Rotations are continuous over frames (unwrap_coordinates, joint_angles.hpp):
   /// principal values on the first frame and after reset() or a clock that went
@@ -65,7 +65,7 @@ struct TrackResult {
   /// frame; and the angle between each measured sensor's desired segment
   /// rotation and the segment's tracked one (radians, NaN when occluded).
   std::span<const std::uint8_t> sensor_occluded;
-  int sensor_occluded_count = 0;  ///< sensors without a usable measurement in this frame
+  int sensor_occluded_count = 0;             ///< sensors without a usable measurement in this frame
   std::span<const double> sensor_error_rad;  ///< per sensor: the angle above, radians
   /// RMS of those angles over the measured sensors, radians.
   double sensor_rms_rad = 0.0, sensor_max_rad = 0.0;
@@ -91,7 +91,7 @@ struct TrackResult {
   FitQuality quality = FitQuality::none;
   std::span<const std::uint8_t> beyond;  ///< per marker: solved with, residual beyond quality.max_m
   int beyond_count = 0;                  ///< markers flagged in `beyond`
-  bool cold_start = false;  ///< this frame started cold (cold_start.hpp)
+  bool cold_start = false;               ///< this frame started cold (cold_start.hpp)
 };
 
 /// The tracking pipeline of one subject (see the file's description): made once from a

@@ -31,9 +31,9 @@ inline SolverOptions tracking_solver_options() {
 /// An orientation sensor (an IMU or a tracked rigid body) fixed to one segment: it turns that
 /// segment as an orientation target of the solver.
 struct SensorTarget {
-  std::string sensor;  ///< name in the stream
-  int segment = -1;    ///< index into Model::segments
-  int level = 0;       ///< priority level, as for markers
+  std::string sensor;   ///< name in the stream
+  int segment = -1;     ///< index into Model::segments
+  int level = 0;        ///< priority level, as for markers
   double weight = 1.0;  ///< relative weight within its level
   /// The sensor's frame in its segment's frame (found by calibration).
   Eigen::Quaterniond q_segment_sensor{Eigen::Quaterniond::Identity()};
@@ -150,9 +150,9 @@ struct PredictionSettings {
 
 /// A named measured marker that pulls one model point.
 struct MarkerTarget {
-  std::string marker;  ///< name in the marker stream
-  int point = -1;      ///< index into Model::points
-  int level = 0;       ///< priority level, higher is stronger
+  std::string marker;   ///< name in the marker stream
+  int point = -1;       ///< index into Model::points
+  int level = 0;        ///< priority level, higher is stronger
   double weight = 1.0;  ///< relative weight within its level
 };
 
