@@ -39,7 +39,7 @@ struct TrackerSetup {
 
 /// The outcome of one frame. Spans stay valid until the next track() call.
 struct TrackResult {
-  SolveResult solve;      ///< the frame's final solve (after any left out outliers)
+  SolveResult solve;      ///< the frame's last solve (with any outliers left out)
   double solve_us = 0.0;  ///< wall time of the solve itself
   std::span<const Eigen::Vector3d> joints_world_m;   ///< per Model::joints
   std::span<const Eigen::Vector3d> markers_world_m;  ///< per marker of the setup: model position

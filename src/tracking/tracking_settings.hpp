@@ -48,8 +48,8 @@ struct SensorSetup {
   Eigen::Quaterniond q_world_sensors{Eigen::Quaterniond::Identity()};
 };
 
-/// Leaving out markers that do not fit (swaps, ghosts, stray zeros): the marker with the
-/// largest residual beyond the bars below is left out and the frame solved again.
+/// Leaving out markers that do not fit (swaps, ghosts, stray zeros): the worst marker beyond
+/// the bars below is left out and the frame solved again, at most max_per_frame times.
 struct OutlierSettings {
   bool enabled = true;  ///< false: every measured marker takes part
   /// A residual at or below this is never an outlier (metres): well beyond the soft-tissue
@@ -107,7 +107,7 @@ struct ColdStartSettings {
 /// the rotation relative to its parent that the recent past predicts, and occluded markers are
 /// reported where the prediction (or donor markers) put them.
 struct PredictionSettings {
-  bool enabled = false;  ///< off by default: occluded markers only stop pulling
+  bool enabled = false;  ///< false: no prediction, an occluded marker stops pulling (unless held)
   /// Priority level and weight of the predicted rotations (orientation
   /// targets). The daemon config puts them on the weakest marker level with
   /// weight 0.05: a pull that markers on the same level outweigh, which takes
