@@ -32,7 +32,7 @@ struct TimeSteps {
   std::size_t rows = 0;                   ///< how many
   long long first_frame = 0;              ///< Frame# of the first of them
   std::size_t first_line = 0;             ///< and its line in the file
-  /// Its Time (seconds; see previous_s).
+  /// Its Time, seconds.
   double time_s = 0.0, previous_s = 0.0;  ///< its Time and the previous row's
 };
 
@@ -184,8 +184,8 @@ enum class C3dProcessor { intel, dec, mips };
 /// other writers do.
 struct C3dWriteOptions {
   C3dProcessor processor = C3dProcessor::intel;  ///< the number format
-  bool float_data = true;  ///< float data; false: int16 scaled by POINT:SCALE
-  std::string units = "mm";  ///< POINT:UNITS, "mm" or "m": the file's length unit
+  bool float_data = true;                        ///< float data; false: int16 scaled by POINT:SCALE
+  std::string units = "mm";                      ///< POINT:UNITS, "mm" or "m": the file's length unit
   /// What other writers do, for tests of the reader:
   /// analog channels sampled `analog_samples_per_frame` times per frame (a ramp per channel);
   std::size_t analog_channels = 0;
