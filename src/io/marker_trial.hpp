@@ -185,7 +185,7 @@ enum class C3dProcessor { intel, dec, mips };
 struct C3dWriteOptions {
   C3dProcessor processor = C3dProcessor::intel;  ///< the number format
   bool float_data = true;                        ///< float data; false: int16 scaled by POINT:SCALE
-  std::string units = "mm";                      ///< POINT:UNITS, "mm" or "m": the file's length unit
+  std::string units = "mm";                      ///< the length unit (POINT:UNITS): "mm" or "m"
   /// What other writers do, for tests of the reader:
   /// analog channels sampled `analog_samples_per_frame` times per frame (a ramp per channel);
   std::size_t analog_channels = 0;
