@@ -11,11 +11,15 @@
 
 namespace fabrik {
 
+/// A setup-time error in a JSON input (see the file's description).
 class ConfigError : public std::runtime_error {
  public:
+  /// what() is "FILE: at POINTER: PROBLEM. Fix: FIX" (no fix part when `fix` is empty);
+  /// an empty pointer means the whole document, "/".
   ConfigError(const std::string& file, const std::string& pointer, const std::string& problem,
               const std::string& fix);
-  const std::string& file() const { return file_; }
+  const std::string& file() const { return file_; }  ///< the file, as given
+  /// The JSON pointer of the offending value (RFC 6901), "/" for the whole document.
   const std::string& pointer() const { return pointer_; }
 
  private:

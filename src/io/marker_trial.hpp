@@ -14,14 +14,17 @@
 #include <string>
 #include <vector>
 
+/// Files: marker recordings (TRC, C3D) read into metres, and OpenSim tables (.sto, .mot).
 namespace fabrik::io {
 
 /// A label written on two markers: which one a model marker of that name means is ambiguous.
 struct RepeatedLabel {
-  std::string label;
+  std::string label;  ///< the label, as written
   /// As the file numbers them: TRC columns of the two X values (Frame# is column 1, so the first
   /// marker's X is 3); C3D entries of POINT:LABELS (from 1).
   std::size_t first = 0, second = 0;
+  /// @var second
+  /// The second of the two markers, numbered as `first` is.
 };
 
 /// TRC rows whose Time is not after the previous row's.
@@ -29,6 +32,7 @@ struct TimeSteps {
   std::size_t rows = 0;                   ///< how many
   long long first_frame = 0;              ///< Frame# of the first of them
   std::size_t first_line = 0;             ///< and its line in the file
+  /// Its Time, seconds.
   double time_s = 0.0, previous_s = 0.0;  ///< its Time and the previous row's
 };
 
@@ -43,15 +47,17 @@ struct RecordingFacts {
   std::vector<std::size_t> zero_samples;
   /// C3D analog channels and rotations: counted and named, their data is not read.
   std::size_t analog_channels = 0;
-  double analog_rate_hz = 0.0;
-  std::vector<std::string> analog_labels;
-  std::size_t rotations = 0;
-  std::vector<std::string> rotation_labels;
+  double analog_rate_hz = 0.0;               ///< analog samples per second (0: no channels)
+  std::vector<std::string> analog_labels;    ///< ANALOG:LABELS, per channel
+  std::size_t rotations = 0;                 ///< ROTATION:USED: rotations per frame
+  std::vector<std::string> rotation_labels;  ///< ROTATION:LABELS, per rotation
   /// Labels on more than one marker (each repetition once), TRC or C3D.
   std::vector<RepeatedLabel> repeated_labels;
   /// A TRC Time column that goes back (OpenSim refuses the file) or stands still (repeated
   /// values, e.g. times rounded at a high rate: harmless here, time comes from the rate).
   TimeSteps time_backwards, time_standing;
+  /// @var time_standing
+  /// TRC rows whose Time equals the previous row's (a warning only).
 };
 
 /// How a source numbers and times its frames, to name them in outputs as the source does.
@@ -59,8 +65,9 @@ struct FrameClock {
   int first_frame = 1;  ///< number of the first frame
   /// The source's time of the first frame in frame periods; NaN: first_frame - 1 (MarkerTrial).
   double first_time_frames = std::numeric_limits<double>::quiet_NaN();
-  double rate_hz = 0.0;
+  double rate_hz = 0.0;  ///< frames per second
 
+  /// The source's number of frame `index` (from 0): first_frame + index.
   long long number(std::size_t index) const {
     return static_cast<long long>(first_frame) + static_cast<long long>(index);
   }
@@ -88,11 +95,14 @@ struct MarkerTrial {
   /// 200 but the file has 151 data rows: read 151". Commands print them.
   std::vector<std::string> warnings;
 
+  /// Number of frames (0 when there are no markers).
   std::size_t frames() const { return labels.empty() ? 0 : positions_m.size() / labels.size(); }
-  std::size_t markers() const { return labels.size(); }
+  std::size_t markers() const { return labels.size(); }  ///< number of markers
+  /// Position of `marker` in `frame` (both from 0), metres; NaN when missing.
   const Eigen::Vector3d& at(std::size_t frame, std::size_t marker) const {
     return positions_m[frame * labels.size() + marker];
   }
+  /// The same, writable (metres; NaN marks a missing sample).
   Eigen::Vector3d& at(std::size_t frame, std::size_t marker) {
     return positions_m[frame * labels.size() + marker];
   }
@@ -102,6 +112,7 @@ struct MarkerTrial {
   /// The frame's time as the source counts it: (first_time_frames + frame) / rate. Outputs
   /// (.mot, .trc, reports) carry these times, so they line up with the source and OpenSim.
   double file_time_s(std::size_t frame) const { return clock().time_s(frame); }
+  /// How the source numbers and times the frames (first_frame, first_time_frames, rate_hz).
   FrameClock clock() const { return {first_frame, first_time_frames, rate_hz}; }
   /// Index of the first marker named `label`, -1 if absent.
   int find(const std::string& label) const;
@@ -111,14 +122,16 @@ struct MarkerTrial {
 /// with the path and says what is wrong, e.g. "x.c3d: parameter section: POINT:LABELS missing".
 class FormatError : public std::runtime_error {
  public:
+  /// what() is "PATH: PROBLEM".
   FormatError(const std::string& path, const std::string& problem)
       : std::runtime_error(path + ": " + problem), path_(path) {}
-  const std::string& path() const { return path_; }
+  const std::string& path() const { return path_; }  ///< the file, as given
 
  private:
   std::string path_;
 };
 
+/// How strictly the readers (read_trc, read_c3d, read_trial) take a file.
 struct ReadOptions {
   /// Some exporters write a frame count larger than the data they store (the real Optotrak.c3d
   /// test file declares 1149 frames and holds 29). By default such a C3D file is rejected as
@@ -134,6 +147,7 @@ struct ReadOptions {
   /// `source` and says so in `warnings`. A Time column that stands still is a warning either way.
   bool refuse_ambiguous = true;
 };
+/// The former name of ReadOptions, when they were for C3D only.
 using C3dReadOptions = ReadOptions;
 
 /// TRC: tab-separated text as OpenSim reads it: header values separated by any run of
@@ -144,6 +158,7 @@ using C3dReadOptions = ReadOptions;
 /// file's size (16 MiB at least; short rows are cheap to write but cost 24 bytes a marker).
 /// Throws FormatError.
 MarkerTrial read_trc(const std::string& path, const ReadOptions& options = {});
+/// The longest a TRC field may be, in bytes, in read_trc's bound on a row's length.
 inline constexpr std::size_t kTrcBytesPerField = 256;
 /// Writes an OpenSim/Mokka-compatible TRC (PathFileType 4, X/Y/Z), empty fields for missing
 /// markers, 6 decimals in mm or 9 in m (1 nm either way). Units "mm" or "m"; a label must be
@@ -162,18 +177,19 @@ MarkerTrial read_trial(const std::string& path, const ReadOptions& options = {})
 /// what the file holds instead, e.g. "the file has no 3D marker data; it has 38 analog channels".
 void require_marker_data(const MarkerTrial& trial, const std::string& path);
 
-/// Writes a C3D file in any processor's number format, with int16 (scaled) or float data, so
-/// the reader can be tested on every format without outside files. Missing markers get
-/// residual -1. Units "mm" or "m" (std::invalid_argument otherwise).
+/// A C3D file's number format, named by its processor: Intel (little-endian IEEE), DEC
+/// (little-endian integers, VAX F-floating) or MIPS (big-endian IEEE).
 enum class C3dProcessor { intel, dec, mips };
+/// How write_c3d writes a file: its number format and units, and for tests of the reader, what
+/// other writers do.
 struct C3dWriteOptions {
-  C3dProcessor processor = C3dProcessor::intel;
-  bool float_data = true;
-  std::string units = "mm";
+  C3dProcessor processor = C3dProcessor::intel;  ///< the number format
+  bool float_data = true;                        ///< float data; false: int16 scaled by POINT:SCALE
+  std::string units = "mm";                      ///< the length unit (POINT:UNITS): "mm" or "m"
   /// What other writers do, for tests of the reader:
   /// analog channels sampled `analog_samples_per_frame` times per frame (a ramp per channel);
   std::size_t analog_channels = 0;
-  std::size_t analog_samples_per_frame = 1;
+  std::size_t analog_samples_per_frame = 1;  ///< analog samples per channel per frame
   /// rotations (ROTATION group, identity matrices after the point data);
   std::size_t rotations = 0;
   /// frames written when the trial has no markers (an analog- or rotation-only file);
@@ -184,11 +200,15 @@ struct C3dWriteOptions {
   /// no TRIAL group (so the header's 16-bit frame numbers count), and the header's first frame
   /// word written as this value, the last as first + frames - 1 modulo 65536 (0: first_frame);
   bool trial_group = true;
-  unsigned header_first_frame = 0;
+  unsigned header_first_frame = 0;  ///< the header's first frame word (see trial_group)
   /// POINT:FRAMES written as this value (-1: the number of frames modulo 65536).
   long point_frames = -1;
 };
+/// Writes a C3D file in any processor's number format, with int16 (scaled) or float data, so
+/// the reader can be tested on every format without outside files. Missing markers get
+/// residual -1. Units "mm" or "m" (std::invalid_argument otherwise).
 void write_c3d(const std::string& path, const MarkerTrial& trial, const C3dWriteOptions& options);
+/// The same with the number format and units only (the other options at their defaults).
 void write_c3d(const std::string& path, const MarkerTrial& trial, C3dProcessor processor,
                bool float_data, const std::string& units = "mm");
 

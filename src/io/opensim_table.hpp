@@ -18,13 +18,17 @@
 
 namespace fabrik::io {
 
+/// One OpenSim table as read or to be written (see the file's description).
 struct OpenSimTable {
   std::string name;                                         ///< the header's first line, if not key=value
   std::vector<std::pair<std::string, std::string>> header;  ///< key=value lines, in order
   std::vector<std::string> comments;                        ///< the header's other lines
   std::vector<std::string> columns;                         ///< the labels, time first
-  std::size_t rows = 0;
+  std::size_t rows = 0;  ///< rows of the table (time_s.size())
+  /// Time of the first row, seconds.
   double first_time_s = 0.0, last_time_s = 0.0;
+  /// @var last_time_s
+  /// Time of the last row, seconds.
   double rate_hz = 0.0;     ///< DataRate, else from the time column (rows - 1 over the span)
   std::string rate_source;  ///< "from DataRate", "from the time column", "" when unknown
   std::string cell_kind;    ///< "numbers", or "quaternions (w,x,y,z)" / "3-vectors" when cells

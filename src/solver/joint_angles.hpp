@@ -16,6 +16,7 @@ namespace fabrik {
 
 /// (a_z, a_x, a_y) with R = Rz(a_z) Rx(a_x) Ry(a_y); a_x in [-pi/2, pi/2].
 Eigen::Vector3d cardan_zxy(const Eigen::Matrix3d& r);
+/// The rotation Rz(a_z) Rx(a_x) Ry(a_y) of angles (a_z, a_x, a_y), radians: cardan_zxy's inverse.
 Eigen::Matrix3d rotation_zxy(const Eigen::Vector3d& angles_rad);
 
 /// World rotation of a segment's anatomical frame.
@@ -27,6 +28,8 @@ inline Eigen::Matrix3d anatomical_world(const Model& model, const Posture& postu
 /// `reference`'s (-1: the world), and its Cardan angles.
 Eigen::Matrix3d relative_anatomical(const Model& model, const Posture& posture, int s,
                                     int reference);
+/// The Cardan angles (a_z, a_x, a_y), radians, of segment s's base joint: its anatomical
+/// frame relative to its parent's (the root's: relative to the world).
 inline Eigen::Vector3d joint_angles_rad(const Model& model, const Posture& posture, int s) {
   return cardan_zxy(relative_anatomical(model, posture, s, model.segments[s].parent));
 }

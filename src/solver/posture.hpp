@@ -13,11 +13,13 @@
 
 namespace fabrik {
 
+/// The world pose of one segment: its frame's rotation and its base's position.
 struct SegmentPose {
   Eigen::Quaterniond q_world{Eigen::Quaterniond::Identity()};  ///< segment frame -> world
   Eigen::Matrix3d r_world{Eigen::Matrix3d::Identity()};        ///< cached q_world
   Eigen::Vector3d base_world_m{0, 0, 0};                       ///< world position of the base
 
+  /// Sets the rotation (segment frame -> world) to `q` normalised, and its cached matrix.
   void set_rotation(const Eigen::Quaterniond& q) {
     q_world = q.normalized();
     r_world = q_world.toRotationMatrix();
@@ -27,16 +29,19 @@ struct SegmentPose {
     q_world = q;
     r_world = q_world.toRotationMatrix();
   }
+  /// World position (metres) of a point given in the segment frame, relative to the base.
   Eigen::Vector3d to_world(const Eigen::Vector3d& p_local_m) const {
     return r_world * p_local_m + base_world_m;
   }
 };
 
+/// The world pose of every segment of one model.
 struct Posture {
-  std::vector<SegmentPose> segments;
+  std::vector<SegmentPose> segments;  ///< one per Model::segments, in the model's order
 
   /// The model's rest posture: every frame parallel to world, joints connected.
   static Posture rest(const Model& model);
+  /// World position (metres) of model point `point` (an index into Model::points).
   Eigen::Vector3d point_world_m(const Model& model, int point) const {
     const Point& p = model.points[point];
     return segments[p.segment].to_world(p.p_local_m);

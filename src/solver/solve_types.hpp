@@ -22,26 +22,30 @@ struct Target {
 /// counts like a point lever * theta away.
 struct OrientationTarget {
   int segment = -1;  ///< index into Model::segments
-  int level = 0;
-  double weight = 1.0;
+  int level = 0;        ///< priority level, as Target::level
+  double weight = 1.0;  ///< relative weight within its level, as Target::weight
 };
 
+/// How a reaching pass turns a segment about its base towards the positions its
+/// driving points should take.
 enum class SegmentFit {
   paper,  ///< Moya & Colloud 2013: translate to the mean candidate, rotate by angle(a, b)
   rigid,  ///< least-squares rotation of all driving points of the segment
 };
 
+/// Whether the root segment's base may move.
 enum class RootMode {
   fixed,  ///< the root base stays where the start posture has it (the paper's experiment)
   free,   ///< the root segment is placed by its own targets (mocap: the pelvis moves)
 };
 
+/// How the convergence loop runs and when it stops; part of a SolverPlan.
 struct SolverOptions {
   double tolerance_m = 1e-3;        ///< converged when every visible target is this close
   int max_iterations = 64;          ///< per solve
   double stall_tolerance_m = 1e-6;  ///< stalled when no target distance will change more (StopRule)
-  SegmentFit segment_fit = SegmentFit::paper;
-  RootMode root = RootMode::fixed;
+  SegmentFit segment_fit = SegmentFit::paper;  ///< how each segment is turned in a pass
+  RootMode root = RootMode::fixed;             ///< whether the root base may move
   bool use_priorities = true;  ///< false: all levels are solved together, in one pass
   /// Passes of the strongest level per iteration: it is revisited until its
   /// targets settle (tolerance or stall), at most this often, so it ends every
@@ -69,6 +73,7 @@ struct SolverOptions {
   double orientation_lever_m = 0.1;
 };
 
+/// Why a solve stopped. Every outcome is a value here, never an exception.
 enum class SolveStatus : std::uint8_t {
   converged,       ///< every visible target within tolerance
   stalled,         ///< a fixed point: no target moved by stall tolerance (e.g. unreachable)
@@ -78,6 +83,7 @@ enum class SolveStatus : std::uint8_t {
   wrong_workspace,  ///< solve(plan, workspace, ...) with a workspace made for another plan
 };
 
+/// The enumerator's name, e.g. "converged" (for logs and reports).
 inline std::string_view to_string(SolveStatus s) {
   switch (s) {
     case SolveStatus::converged:
@@ -96,16 +102,17 @@ inline std::string_view to_string(SolveStatus s) {
   return "unknown";
 }
 
+/// What one solve did and how well the posture meets its visible targets at the end.
 struct SolveResult {
-  SolveStatus status = SolveStatus::no_targets;
+  SolveStatus status = SolveStatus::no_targets;  ///< why it stopped
   int iterations = 0;  ///< of the convergence loop
   int passes = 0;      ///< forward + backward reaching passes, over all levels
   int jumps = 0;       ///< extrapolations kept (SolverOptions::extrapolate)
-  int visible_targets = 0;
+  int visible_targets = 0;  ///< point and orientation targets visible in this solve
   /// Over visible targets, unweighted; an orientation target counts as its
   /// angle times orientation_lever_m.
   double rms_m = 0.0;
-  double max_m = 0.0;
+  double max_m = 0.0;  ///< the largest distance of a visible target, metres (unweighted)
   /// Index into the solver's targets (point targets first, then orientation
   /// targets), -1 if none visible.
   int worst_target = -1;

@@ -31,11 +31,14 @@ class SolverPlan {
   SolverPlan(std::shared_ptr<const Model> model, std::vector<Target> targets,
              SolverOptions options = {}, std::vector<OrientationTarget> orientations = {});
 
-  const Model& model() const { return *model_; }
+  const Model& model() const { return *model_; }  ///< the model the targets index into
+  /// The same model, shared (for holders that must keep it alive).
   const std::shared_ptr<const Model>& shared_model() const { return model_; }
+  /// The point targets, in the order solve() takes their positions.
   const std::vector<Target>& targets() const { return targets_; }
+  /// The orientation targets, in the order solve() takes their rotations.
   const std::vector<OrientationTarget>& orientations() const { return orientations_; }
-  const SolverOptions& options() const { return options_; }
+  const SolverOptions& options() const { return options_; }  ///< how the loop runs
   /// Unique among the plans made in this process (copies share it: they are the same problem).
   std::uint64_t id() const { return id_; }
 
@@ -50,9 +53,12 @@ class SolverPlan {
 /// One thread's scratch space for one plan, sized when made. Movable, not copyable.
 class SolverWorkspace {
  public:
+  /// Allocates everything a solve of `plan` needs (at setup, not on the frame path).
   explicit SolverWorkspace(const SolverPlan& plan);
   ~SolverWorkspace();
+  /// Takes the scratch space; solving with the moved-from workspace gives wrong_workspace.
   SolverWorkspace(SolverWorkspace&&) noexcept;
+  /// Takes the scratch space; solving with the moved-from workspace gives wrong_workspace.
   SolverWorkspace& operator=(SolverWorkspace&&) noexcept;
   SolverWorkspace(const SolverWorkspace&) = delete;
   SolverWorkspace& operator=(const SolverWorkspace&) = delete;

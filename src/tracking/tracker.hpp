@@ -23,34 +23,36 @@ namespace fabrik {
 
 class TrackerCore;
 
+/// Everything a Tracker needs, fixed when it is made; each part has its default
+/// (tracking_settings.hpp).
 struct TrackerSetup {
-  std::shared_ptr<const Model> model;
-  std::vector<MarkerTarget> markers;
-  SolverOptions solver = tracking_solver_options();
-  OcclusionPolicy occlusion;
-  SensorSetup sensors;  ///< orientation sensors (sensor_targets.hpp); none by default
-  OutlierSettings outliers;
-  QualitySettings quality;
-  ColdStartSettings cold_start;
+  std::shared_ptr<const Model> model;  ///< the skeleton tracked; required
+  std::vector<MarkerTarget> markers;   ///< in the order track() takes the measurements
+  SolverOptions solver = tracking_solver_options();  ///< options of a warm frame's solve
+  OcclusionPolicy occlusion;                         ///< what occluded markers do
+  SensorSetup sensors;            ///< orientation sensors (sensor_targets.hpp); none by default
+  OutlierSettings outliers;       ///< leaving out markers that do not fit
+  QualitySettings quality;        ///< the bars of a good fit (TrackResult::quality)
+  ColdStartSettings cold_start;   ///< how a frame without a previous one is solved
   PredictionSettings prediction;  ///< gap filling from the recent past (gap_predictor.hpp)
 };
 
 /// The outcome of one frame. Spans stay valid until the next track() call.
 struct TrackResult {
-  SolveResult solve;
-  double solve_us = 0.0;                             ///< wall time of the solve itself
+  SolveResult solve;      ///< the frame's last solve (with any outliers left out)
+  double solve_us = 0.0;  ///< wall time of the solve itself
   std::span<const Eigen::Vector3d> joints_world_m;   ///< per Model::joints
   std::span<const Eigen::Vector3d> markers_world_m;  ///< per marker of the setup: model position
   std::span<const std::uint8_t> occluded;            ///< per marker: no valid measurement
   std::span<const std::uint8_t> held;                ///< per marker: occluded but held
   std::span<const double> gap_s;  ///< per marker: time since last measured (0 when measured)
-  int occluded_count = 0;
+  int occluded_count = 0;         ///< markers occluded in this frame
   /// Residual between measured and model positions over the markers measured
   /// in this frame and solved with (held ones and outliers left out excluded), metres.
   double residual_rms_m = 0.0;
-  double residual_max_m = 0.0;
-  int residual_count = 0;
-  int worst_marker = -1;  ///< index into the setup's markers, -1 if none measured
+  double residual_max_m = 0.0;  ///< the largest of those residuals, metres
+  int residual_count = 0;       ///< markers those residuals are over
+  int worst_marker = -1;        ///< index into the setup's markers, -1 if none measured
   /// Per Model::coordinates: joint angles (radians) and translations (metres).
   /// Rotations are continuous over frames (unwrap_coordinates, joint_angles.hpp):
   /// principal values on the first frame and after reset() or a clock that went
@@ -58,14 +60,17 @@ struct TrackResult {
   std::span<const double> coordinates;
   /// Per segment: its anatomical frame's world rotation, and its base (origin) in the world.
   std::span<const Eigen::Quaterniond> segment_q_world;
-  std::span<const Eigen::Vector3d> segment_origin_world_m;
+  std::span<const Eigen::Vector3d> segment_origin_world_m;  ///< per segment: base, metres
   /// Orientation sensors, per sensor of the setup: no usable measurement in this
   /// frame; and the angle between each measured sensor's desired segment
   /// rotation and the segment's tracked one (radians, NaN when occluded).
   std::span<const std::uint8_t> sensor_occluded;
-  int sensor_occluded_count = 0;
-  std::span<const double> sensor_error_rad;
+  int sensor_occluded_count = 0;             ///< sensors without a usable measurement in this frame
+  std::span<const double> sensor_error_rad;  ///< per sensor: the angle above, radians
+  /// RMS of those angles over the measured sensors, radians.
   double sensor_rms_rad = 0.0, sensor_max_rad = 0.0;
+  /// @var sensor_max_rad
+  /// The largest of those angles, radians.
   int worst_sensor = -1;  ///< index into the setup's sensors, -1 if none measured
   /// No marker pulled in this frame (orientation sensors alone): the root's
   /// position is unknown, so it was held where the previous frame left it.
@@ -74,7 +79,9 @@ struct TrackResult {
   /// beyond the others (outlier_filter.hpp): left out of the solve, unless relabelled_from
   /// names the marker whose measurement it was solved with instead (a label swap), else -1.
   std::span<const std::uint8_t> outliers;
-  int outlier_count = 0;
+  int outlier_count = 0;  ///< measured markers flagged in `outliers`
+  /// Per marker: the index of the marker whose measurement it was solved with (a label swap),
+  /// -1 when none.
   std::span<const int> relabelled_from;
   /// Per marker: distance between the measurement it was solved with (its own, or for an
   /// outlier left out its own) and its model position (metres); NaN when not measured.
@@ -82,25 +89,30 @@ struct TrackResult {
   /// The verdict against setup().quality, and per marker whether it was solved with and ended
   /// beyond quality.max_m.
   FitQuality quality = FitQuality::none;
-  std::span<const std::uint8_t> beyond;
-  int beyond_count = 0;
-  bool cold_start = false;  ///< this frame started cold (cold_start.hpp)
+  std::span<const std::uint8_t> beyond;  ///< per marker: solved with, residual beyond quality.max_m
+  int beyond_count = 0;                  ///< markers flagged in `beyond`
+  bool cold_start = false;               ///< this frame started cold (cold_start.hpp)
 };
 
+/// The tracking pipeline of one subject (see the file's description): made once from a
+/// TrackerSetup, then fed one frame at a time. Movable, not copyable.
 class Tracker {
  public:
+  /// Sizes every buffer. Throws std::invalid_argument when the setup does not fit together
+  /// (no model, a marker without its model point, a sensor without its segment, ...).
   explicit Tracker(TrackerSetup setup);
   ~Tracker();
   /// The result's spans point into the tracker's state, which a move carries along.
   Tracker(Tracker&&) noexcept;
+  /// As the move constructor: the result's spans move with the state.
   Tracker& operator=(Tracker&&) noexcept;
   Tracker(const Tracker&) = delete;
   Tracker& operator=(const Tracker&) = delete;
 
-  const TrackerSetup& setup() const;
-  const Model& model() const;
-  int marker_count() const;
-  int sensor_count() const;
+  const TrackerSetup& setup() const;  ///< as given to the constructor
+  const Model& model() const;         ///< setup().model
+  int marker_count() const;           ///< setup().markers.size()
+  int sensor_count() const;           ///< setup().sensors.sensors.size()
 
   /// One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
   /// occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
@@ -121,6 +133,7 @@ class Tracker {
 
   /// Forget the previous frame: the next one starts cold (cold_start.hpp).
   void reset();
+  /// The posture of the last frame tracked (the rest posture before the first).
   const Posture& posture() const;
 
  private:

@@ -28,21 +28,30 @@ inline SolverOptions tracking_solver_options() {
   return o;
 }
 
+/// An orientation sensor (an IMU or a tracked rigid body) fixed to one segment: it turns that
+/// segment as an orientation target of the solver.
 struct SensorTarget {
-  std::string sensor;  ///< name in the stream
-  int segment = -1;    ///< index into Model::segments
-  int level = 0;       ///< priority level, as for markers
-  double weight = 1.0;
+  std::string sensor;   ///< name in the stream
+  int segment = -1;     ///< index into Model::segments
+  int level = 0;        ///< priority level, as for markers
+  double weight = 1.0;  ///< relative weight within its level
+  /// The sensor's frame in its segment's frame (found by calibration).
   Eigen::Quaterniond q_segment_sensor{Eigen::Quaterniond::Identity()};
 };
 
+/// The orientation sensors of a Tracker. A sensor measuring q_sensors_sensor makes its segment's
+/// desired world rotation q_world_sensors * q_sensors_sensor * q_segment_sensor^-1.
 struct SensorSetup {
-  std::vector<SensorTarget> sensors;
+  std::vector<SensorTarget> sensors;  ///< in the order Tracker::track takes their rotations
+  /// The sensors' world (a magnetic/gravity frame for an IMU, the mocap system's for a rigid
+  /// body) in the model's world: an axis change, then a heading about the vertical.
   Eigen::Quaterniond q_world_sensors{Eigen::Quaterniond::Identity()};
 };
 
+/// Leaving out markers that do not fit (swaps, ghosts, stray zeros): the worst marker beyond
+/// the bars below is left out and the frame solved again, at most max_per_frame times.
 struct OutlierSettings {
-  bool enabled = true;
+  bool enabled = true;  ///< false: every measured marker takes part
   /// A residual at or below this is never an outlier (metres): well beyond the soft-tissue
   /// artefact of a good fit (OpenSim's guidance: max under 2-4 cm).
   double floor_m = 0.060;
@@ -55,16 +64,24 @@ struct OutlierSettings {
   double moved_m = 0.030;
   int max_per_frame = 3;  ///< markers left out per frame at most (one extra solve each)
   int min_markers = 6;    ///< measured markers a frame needs before any is judged
+  /// Two markers left out that each fit the other's model point are a label swap: they are
+  /// put back with their labels exchanged (TrackResult::relabelled_from).
   bool relabel_swaps = true;
 };
 
+/// The bars of a good fit (FitQuality), metres; markers beyond max_m are reported
+/// (TrackResult::beyond).
 struct QualitySettings {
   double rms_m = 0.020;  ///< per-frame RMS over the markers that took part in the solve
   double max_m = 0.040;  ///< any one of them
 };
 
+/// How well a frame fits, judged against QualitySettings: `none` when no measured marker took
+/// part (nothing to judge), `good` when the RMS and the largest residual are within their
+/// bars, `poor` otherwise.
 enum class FitQuality : std::uint8_t { none, good, poor };
 
+/// The enumerator's name: "none", "good" or "poor".
 inline std::string_view to_string(FitQuality q) {
   switch (q) {
     case FitQuality::none:
@@ -77,6 +94,8 @@ inline std::string_view to_string(FitQuality q) {
   return "none";
 }
 
+/// The first frame, and a frame after a long gap, start from the rest posture (cold) rather
+/// than from the previous frame's result (warm).
 struct ColdStartSettings {
   int max_iterations = 500;  ///< the cold frame's budget (a warm frame has solver.max_iterations)
   /// A frame this long after the last one with a measured marker starts cold (seconds).
@@ -84,15 +103,18 @@ struct ColdStartSettings {
   bool align = true;  ///< turn and move the rest posture onto the visible markers first
 };
 
+/// Live gap filling: while some of a segment's markers are occluded, it is pulled weakly towards
+/// the rotation relative to its parent that the recent past predicts, and occluded markers are
+/// reported where the prediction (or donor markers) put them.
 struct PredictionSettings {
-  bool enabled = false;
+  bool enabled = false;  ///< false: no prediction, an occluded marker stops pulling (unless held)
   /// Priority level and weight of the predicted rotations (orientation
   /// targets). The daemon config puts them on the weakest marker level with
   /// weight 0.05: a pull that markers on the same level outweigh, which takes
   /// no extra priority pass (a level of their own below the markers' costs one
   /// and, where markers of children constrain the segment, leaves it nothing).
   int level = 0;
-  double weight = 0.05;
+  double weight = 0.05;  ///< relative weight of the predicted rotations within `level`
   /// The relative angular velocity at the start of a gap decays with this time
   /// constant, so the prediction turns at most velocity * decay and then holds
   /// (0: hold from the start).
@@ -109,11 +131,15 @@ struct PredictionSettings {
   /// most this many gaps start choosing per frame (the rest take the
   /// skeleton's fill), which bounds a frame's cost.
   bool donors = true;
-  int donor_candidates = 8;
-  int donor_triples = 3;
+  int donor_candidates = 8;  ///< candidates per marker: those whose distance to it varied least
+  int donor_triples = 3;     ///< triples of candidates averaged, the best scored
+  /// A triple is used only where the sine of its triangle's angle at its first marker is at least
+  /// this (flatter triangles give no reliable frame).
   double donor_min_sine = 0.2;
+  /// Scores (metres: how far holding in the triple's frame missed the marker in the recent past)
+  /// below this count as this in the weights, so no near-zero score takes all the weight.
   double donor_score_floor_m = 3e-4;
-  int donor_choices_per_frame = 4;
+  int donor_choices_per_frame = 4;  ///< gaps that may start choosing donors in one frame
   /// Donors come from segments at most this many joints from the marker's (0:
   /// its own): a marker elsewhere that looked steady for a moment is not trusted.
   int donor_max_joints = 2;
@@ -124,17 +150,18 @@ struct PredictionSettings {
 
 /// A named measured marker that pulls one model point.
 struct MarkerTarget {
-  std::string marker;  ///< name in the marker stream
-  int point = -1;      ///< index into Model::points
-  int level = 0;       ///< priority level, higher is stronger
-  double weight = 1.0;
+  std::string marker;   ///< name in the marker stream
+  int point = -1;       ///< index into Model::points
+  int level = 0;        ///< priority level, higher is stronger
+  double weight = 1.0;  ///< relative weight within its level
 };
 
+/// What an occluded marker does: by default it stops pulling at once.
 struct OcclusionPolicy {
   /// An occluded marker's last measured position keeps pulling its point for
   /// this long, as a target of `hold_level`; 0 turns holding off.
   double hold_s = 0.0;
-  int hold_level = -1;
+  int hold_level = -1;  ///< priority level of held positions (daemon config: below every marker)
 };
 
 }  // namespace fabrik
