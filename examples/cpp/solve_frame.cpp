@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   for (int point : model->marker_points()) targets.push_back({point, 0, 1.0});
   fabrik::SolverOptions options;
   options.root = fabrik::RootMode::free;
+  options.segment_fit = fabrik::SegmentFit::rigid;  // markers of a segment fitted together
   options.tolerance_m = 1e-4;
   const fabrik::SolverPlan plan(model, targets, options);
 
