@@ -15,11 +15,11 @@ namespace {
 py::ssize_t ss(std::size_t n) { return static_cast<py::ssize_t>(n); }
 
 py::array_t<double> positions_mm(io::MarkerTrial& t) {
+  const std::vector<py::ssize_t> shape{ss(t.frames()), ss(t.markers()), 3};  // before the move
   for (Eigen::Vector3d& p : t.positions_m) p *= kMmPerM;
   auto* heap = new std::vector<Eigen::Vector3d>(std::move(t.positions_m));
   py::capsule owner(heap, [](void* p) { delete static_cast<std::vector<Eigen::Vector3d>*>(p); });
-  return py::array_t<double>({ss(t.frames()), ss(t.markers()), py::ssize_t{3}},
-                             reinterpret_cast<const double*>(heap->data()), owner);
+  return py::array_t<double>(shape, reinterpret_cast<const double*>(heap->data()), owner);
 }
 
 std::vector<double> scaled(std::vector<double>&& v, double factor) {
