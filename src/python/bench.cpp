@@ -37,9 +37,9 @@ py::array_t<double> synthetic_frames(const Config& config, std::size_t frames, d
                                      static_cast<py::ssize_t>(points.size()), 3});
 }
 
-// Mean wall time of Tracker::track per frame (us) over the frames, tracked in order from a
-// cold start by a Tracker of this config, the input already in metres as fabrikd has it.
-double bench_track_cpp(const Config& config, const Frames& frames_mm, double rate_hz) {
+// Wall time of each Tracker::track call (us), the frames tracked in order from a cold start by
+// a Tracker of this config, the input already in metres as fabrikd has it.
+std::vector<double> bench_track_cpp(const Config& config, const Frames& frames_mm, double rate_hz) {
   const std::size_t markers = config.config->tracker.markers.size();
   if (frames_mm.ndim() != 3 || frames_mm.shape(1) != static_cast<py::ssize_t>(markers) ||
       frames_mm.shape(2) != 3)
@@ -54,13 +54,17 @@ double bench_track_cpp(const Config& config, const Frames& frames_mm, double rat
   }
   const std::vector<std::uint8_t> visible(markers, 1);
   Tracker tracker(config.config->tracker);
+  std::vector<double> us(frames);
   py::gil_scoped_release unlocked;
-  const auto start = std::chrono::steady_clock::now();
-  for (std::size_t f = 0; f < frames; ++f)
+  for (std::size_t f = 0; f < frames; ++f) {
+    const auto start = std::chrono::steady_clock::now();
     tracker.track(static_cast<double>(f) / rate_hz,
                   std::span<const Eigen::Vector3d>(all_m.data() + f * markers, markers), visible);
-  const std::chrono::duration<double, std::micro> took = std::chrono::steady_clock::now() - start;
-  return frames ? took.count() / static_cast<double>(frames) : 0.0;
+    const std::chrono::duration<double, std::micro> took =
+        std::chrono::steady_clock::now() - start;
+    us[f] = took.count();
+  }
+  return us;
 }
 
 }  // namespace
