@@ -60,8 +60,7 @@ std::vector<double> bench_track_cpp(const Config& config, const Frames& frames_m
     const auto start = std::chrono::steady_clock::now();
     tracker.track(static_cast<double>(f) / rate_hz,
                   std::span<const Eigen::Vector3d>(all_m.data() + f * markers, markers), visible);
-    const std::chrono::duration<double, std::micro> took =
-        std::chrono::steady_clock::now() - start;
+    const std::chrono::duration<double, std::micro> took = std::chrono::steady_clock::now() - start;
     us[f] = took.count();
   }
   return us;

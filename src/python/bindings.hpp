@@ -40,7 +40,14 @@ py::array_t<T> owned_array(std::vector<T>&& values, std::vector<py::ssize_t> sha
 // "cannot read" as a ValueError, which hides the usual mistake).
 void require_file(const std::string& path, const std::string& what);
 
-std::vector<std::string> names_of(const std::vector<MarkerTarget>& markers);
+// The names of a list of markers, joints, segments...: names_of(model.joints, &Joint::name).
+template <class T>
+std::vector<std::string> names_of(const std::vector<T>& items, std::string T::*name) {
+  std::vector<std::string> names;
+  names.reserve(items.size());
+  for (const T& item : items) names.push_back(item.*name);
+  return names;
+}
 
 void bind_errors(py::module_& m);
 void bind_config(py::module_& m);

@@ -38,9 +38,9 @@ Config load(const std::optional<std::string>& path) {
 }
 
 Config calibrate(const std::string& template_path, const std::string& static_path,
-                 const std::optional<std::string>& output, long long first_frame,
-                 long long frames, long long auto_window, const std::string& lab_up,
-                 const std::string& lab_forward, bool keep_zeros) {
+                 const std::optional<std::string>& output, long long first_frame, long long frames,
+                 long long auto_window, const std::string& lab_up, const std::string& lab_forward,
+                 bool keep_zeros) {
   require_file(template_path, "template");
   require_file(static_path, "static trial");
   calib::CalibrateOptions options;
@@ -97,22 +97,18 @@ void bind_config(py::module_& m) {
       .def_property_readonly("model_name",
                              [](const Config& c) { return c.config->tracker.model->name; })
       .def_property_readonly(
-          "marker_names", [](const Config& c) { return names_of(c.config->tracker.markers); },
+          "marker_names",
+          [](const Config& c) {
+            return names_of(c.config->tracker.markers, &MarkerTarget::marker);
+          },
           "Tracked markers, in the order Tracker.track takes an array")
       .def_property_readonly(
           "joint_names",
-          [](const Config& c) {
-            std::vector<std::string> names;
-            for (const Joint& j : c.config->tracker.model->joints) names.push_back(j.name);
-            return names;
-          })
-      .def_property_readonly(
-          "segment_names",
-          [](const Config& c) {
-            std::vector<std::string> names;
-            for (const Segment& s : c.config->tracker.model->segments) names.push_back(s.name);
-            return names;
-          })
+          [](const Config& c) { return names_of(c.config->tracker.model->joints, &Joint::name); })
+      .def_property_readonly("segment_names",
+                             [](const Config& c) {
+                               return names_of(c.config->tracker.model->segments, &Segment::name);
+                             })
       .def_property_readonly("angle_names",
                              [](const Config& c) {
                                return coordinate_names(*c.config->tracker.model,
@@ -123,10 +119,12 @@ void bind_config(py::module_& m) {
                                return coordinate_names(*c.config->tracker.model,
                                                        CoordinateKind::translation);
                              })
-      .def_property_readonly("json", [](const Config& c) { return c.json; },
-                             "The config's JSON text when calibrate() made it, else ''")
-      .def_property_readonly("calibration_report", [](const Config& c) { return c.report; },
-                             "calibrate(): the summary `fabrik calibrate` prints, else ''")
+      .def_property_readonly(
+          "json", [](const Config& c) { return c.json; },
+          "The config's JSON text when calibrate() made it, else ''")
+      .def_property_readonly(
+          "calibration_report", [](const Config& c) { return c.report; },
+          "calibrate(): the summary `fabrik calibrate` prints, else ''")
       .def("__repr__", [](const Config& c) {
         return "<fabrik.Config " + c.config->file + ": model '" + c.config->tracker.model->name +
                "', " + std::to_string(c.config->tracker.markers.size()) + " markers>";

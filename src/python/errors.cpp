@@ -20,13 +20,6 @@ void require_file(const std::string& path, const std::string& what) {
   }
 }
 
-std::vector<std::string> names_of(const std::vector<MarkerTarget>& markers) {
-  std::vector<std::string> names;
-  names.reserve(markers.size());
-  for (const MarkerTarget& t : markers) names.push_back(t.marker);
-  return names;
-}
-
 void bind_errors(py::module_& m) {
   static py::exception<ConfigError> config_error(m, "ConfigError", PyExc_ValueError);
   static py::exception<io::FormatError> format_error(m, "FormatError", PyExc_ValueError);

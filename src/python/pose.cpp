@@ -7,9 +7,9 @@ namespace fabrik::python {
 
 PoseLayout::PoseLayout(const Tracker& tracker) {
   const Model& model = tracker.model();
-  marker_names = names_of(tracker.setup().markers);
-  for (const Joint& j : model.joints) joint_names.push_back(j.name);
-  for (const Segment& s : model.segments) segment_names.push_back(s.name);
+  marker_names = names_of(tracker.setup().markers, &MarkerTarget::marker);
+  joint_names = names_of(model.joints, &Joint::name);
+  segment_names = names_of(model.segments, &Segment::name);
   for (const Coordinate& c : model.coordinates) {
     coordinate_names.push_back(c.name);
     coordinate_is_rotation.push_back(c.kind == CoordinateKind::rotation);
@@ -83,16 +83,33 @@ Pose::Pose(std::shared_ptr<const PoseLayout> l, double t_s, double t_us, const T
 
 namespace {
 
-// A view of the pose's numbers that keeps the pose alive.
-py::array numbers_view(const py::object& self, std::size_t at, std::vector<py::ssize_t> shape) {
-  Pose& p = self.cast<Pose&>();
-  return py::array_t<double>(std::move(shape), p.numbers.data() + at, self);
+// Pose.<name>: a (rows, columns) view of the pose's numbers from layout.*at (columns 0: 1-D),
+// keeping the pose alive.
+void def_numbers(py::class_<Pose>& cls, const char* name, std::size_t PoseLayout::*at,
+                 std::size_t PoseLayout::*rows, py::ssize_t columns, const char* doc) {
+  cls.def_property_readonly(
+      name,
+      [at, rows, columns](const py::object& self) {
+        Pose& p = self.cast<Pose&>();
+        const PoseLayout& L = *p.layout;
+        std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(L.*rows)};
+        if (columns > 0) shape.push_back(columns);
+        return py::array_t<double>(std::move(shape), p.numbers.data() + L.*at, self);
+      },
+      doc);
 }
 
-py::array flags_view(const py::object& self, std::size_t at) {
-  Pose& p = self.cast<Pose&>();
-  return py::array(py::dtype("bool"), {static_cast<py::ssize_t>(p.layout->markers)},
-                   p.flags.data() + at, self);
+// Pose.<name>: a (markers,) bool view of the pose's flags from layout.*at.
+void def_flags(py::class_<Pose>& cls, const char* name, std::size_t PoseLayout::*at,
+               const char* doc) {
+  cls.def_property_readonly(
+      name,
+      [at](const py::object& self) {
+        Pose& p = self.cast<Pose&>();
+        return py::array(py::dtype("bool"), {static_cast<py::ssize_t>(p.layout->markers)},
+                         p.flags.data() + (*p.layout).*at, self);
+      },
+      doc);
 }
 
 py::dict coordinate_dict(const Pose& p, bool rotations) {
@@ -104,77 +121,30 @@ py::dict coordinate_dict(const Pose& p, bool rotations) {
   return d;
 }
 
-py::ssize_t ss(std::size_t n) { return static_cast<py::ssize_t>(n); }
-
 }  // namespace
 
 void bind_pose(py::module_& m) {
-  py::class_<Pose>(m, "Pose",
-                   "One tracked frame. Lengths in mm, in the lab (world) frame of the input; "
-                   "angles in degrees. Arrays view the pose's own copy of the frame: they stay "
-                   "valid after the next track() and may be kept.")
-      .def_readonly("time_s", &Pose::time_s)
-      .def_property_readonly("status", [](const Pose& p) { return std::string(p.status); },
-                             "The solver's stop reason: converged, stalled, max_iterations, "
-                             "no_targets or size_mismatch (a value, never an exception)")
+  py::class_<Pose> cls(m, "Pose",
+                       "One tracked frame. Lengths in mm, in the lab (world) frame of the input; "
+                       "angles in degrees. Arrays view the pose's own copy of the frame: they stay "
+                       "valid after the next track() and may be kept.");
+  cls.def_readonly("time_s", &Pose::time_s)
+      .def_property_readonly(
+          "status", [](const Pose& p) { return std::string(p.status); },
+          "The solver's stop reason: converged, stalled, max_iterations, "
+          "no_targets or size_mismatch (a value, never an exception)")
       .def_readonly("iterations", &Pose::iterations)
       .def_readonly("solve_us", &Pose::solve_us, "Wall time of the solve itself (us)")
       .def_readonly("track_us", &Pose::track_us,
                     "Wall time of the C++ Tracker::track call (us): the rest of a track() "
                     "call is the Python edge (python3 -m fabrik.bench)")
       .def_property_readonly(
-          "joints_mm",
-          [](py::object self) {
-            const PoseLayout& L = *self.cast<Pose&>().layout;
-            return numbers_view(self, L.joints_at, {ss(L.joints), 3});
-          },
-          "(joints, 3) joint centres, mm, in Tracker.joint_names order")
+          "angles_deg", [](const Pose& p) { return coordinate_dict(p, true); },
+          "The model's rotational coordinates (name -> degrees), as on the "
+          "wire and in `fabrik solve --angles`; continuous over frames")
       .def_property_readonly(
-          "markers_mm",
-          [](py::object self) {
-            const PoseLayout& L = *self.cast<Pose&>().layout;
-            return numbers_view(self, L.markers_at, {ss(L.markers), 3});
-          },
-          "(markers, 3) the model's markers (where the model puts them, occluded ones "
-          "included), mm, in Tracker.marker_names order")
-      .def_property_readonly(
-          "segment_q_world",
-          [](py::object self) {
-            const PoseLayout& L = *self.cast<Pose&>().layout;
-            return numbers_view(self, L.q_at, {ss(L.segments), 4});
-          },
-          "(segments, 4) each segment's anatomical frame's rotation in the world, unit "
-          "quaternions (w, x, y, z), in Tracker.segment_names order")
-      .def_property_readonly(
-          "segment_origin_mm",
-          [](py::object self) {
-            const PoseLayout& L = *self.cast<Pose&>().layout;
-            return numbers_view(self, L.origin_at, {ss(L.segments), 3});
-          },
-          "(segments, 3) each segment's base (origin) in the world, mm")
-      .def_property_readonly(
-          "marker_residual_mm",
-          [](py::object self) {
-            const PoseLayout& L = *self.cast<Pose&>().layout;
-            return numbers_view(self, L.residual_at, {ss(L.markers)});
-          },
-          "(markers,) distance from each measurement to its model marker, mm; NaN when "
-          "not measured")
-      .def_property_readonly(
-          "occluded", [](py::object self) { return flags_view(self, self.cast<Pose&>().layout->occluded_at); },
-          "(markers,) bool: no valid measurement (missing, NaN)")
-      .def_property_readonly(
-          "held", [](py::object self) { return flags_view(self, self.cast<Pose&>().layout->held_at); },
-          "(markers,) bool: occluded, but its last position still pulled (occlusion.hold_s)")
-      .def_property_readonly(
-          "outliers", [](py::object self) { return flags_view(self, self.cast<Pose&>().layout->outlier_at); },
-          "(markers,) bool: measured, but left out of the solve as an outlier")
-      .def_property_readonly("angles_deg", [](const Pose& p) { return coordinate_dict(p, true); },
-                             "The model's rotational coordinates (name -> degrees), as on the "
-                             "wire and in `fabrik solve --angles`; continuous over frames")
-      .def_property_readonly("translations_mm",
-                             [](const Pose& p) { return coordinate_dict(p, false); },
-                             "The model's translational coordinates (name -> mm)")
+          "translations_mm", [](const Pose& p) { return coordinate_dict(p, false); },
+          "The model's translational coordinates (name -> mm)")
       .def_readonly("occluded_count", &Pose::occluded_count)
       .def_readonly("residual_rms_mm", &Pose::residual_rms_mm,
                     "RMS over the markers measured and solved with, mm")
@@ -187,14 +157,35 @@ void bind_pose(py::module_& m) {
             return py::str(p.layout->marker_names[static_cast<std::size_t>(p.worst_marker)]);
           },
           "Name of the marker farthest from its model position, None when none was measured")
-      .def_property_readonly("quality", [](const Pose& p) { return std::string(p.quality); },
-                             "good, poor (against the config's quality thresholds) or none")
+      .def_property_readonly(
+          "quality", [](const Pose& p) { return std::string(p.quality); },
+          "good, poor (against the config's quality thresholds) or none")
       .def_readonly("cold_start", &Pose::cold_start)
       .def("__repr__", [](const Pose& p) {
         return "<fabrik.Pose t=" + std::to_string(p.time_s) + " s " + std::string(p.status) +
                ", residual " + std::to_string(p.residual_rms_mm) + " mm RMS, " +
                std::to_string(p.occluded_count) + " occluded>";
       });
+  using L = PoseLayout;
+  def_numbers(cls, "joints_mm", &L::joints_at, &L::joints, 3,
+              "(joints, 3) joint centres, mm, in Tracker.joint_names order");
+  def_numbers(cls, "markers_mm", &L::markers_at, &L::markers, 3,
+              "(markers, 3) the model's markers (where the model puts them, occluded ones "
+              "included), mm, in Tracker.marker_names order");
+  def_numbers(cls, "segment_q_world", &L::q_at, &L::segments, 4,
+              "(segments, 4) each segment's anatomical frame's rotation in the world, unit "
+              "quaternions (w, x, y, z), in Tracker.segment_names order");
+  def_numbers(cls, "segment_origin_mm", &L::origin_at, &L::segments, 3,
+              "(segments, 3) each segment's base (origin) in the world, mm");
+  def_numbers(cls, "marker_residual_mm", &L::residual_at, &L::markers, 0,
+              "(markers,) distance from each measurement to its model marker, mm; NaN when not "
+              "measured");
+  def_flags(cls, "occluded", &L::occluded_at,
+            "(markers,) bool: no valid measurement (absent, NaN)");
+  def_flags(cls, "held", &L::held_at,
+            "(markers,) bool: occluded, but its last position still pulled (occlusion.hold_s)");
+  def_flags(cls, "outliers", &L::outlier_at,
+            "(markers,) bool: measured, but left out of the solve as an outlier");
 }
 
 }  // namespace fabrik::python

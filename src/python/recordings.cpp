@@ -1,10 +1,10 @@
 // Recordings into NumPy: marker trials (TRC, C3D) as (frames, markers, 3) millimetres, and
 // OpenSim tables (MOT, STO) with their values as the file has them. The readers' vectors are
 // moved into the arrays (no copy); marker positions are scaled to mm in place.
+#include "recordings.hpp"
 #include "bindings.hpp"
 #include "io/marker_trial.hpp"
 #include "io/opensim_table.hpp"
-#include "recordings.hpp"
 
 namespace fabrik::python {
 

@@ -12,7 +12,9 @@ namespace fabrik::python {
 
 namespace {
 
-py::ssize_t ss(std::size_t n) { return static_cast<py::ssize_t>(n); }
+py::ssize_t ss(std::size_t n) {
+  return static_cast<py::ssize_t>(n);
+}
 
 py::array_t<double> positions_mm(io::MarkerTrial& t) {
   const std::vector<py::ssize_t> shape{ss(t.frames()), ss(t.markers()), 3};  // before the move
@@ -58,7 +60,8 @@ py::dict solution_dict(TrialSolution&& s) {
   const std::size_t n = s.coordinate_names.size();
   std::vector<std::string> angle_names, translation_names;
   for (std::size_t c = 0; c < n; ++c)
-    (s.coordinate_is_rotation[c] ? angle_names : translation_names).push_back(s.coordinate_names[c]);
+    (s.coordinate_is_rotation[c] ? angle_names : translation_names)
+        .push_back(s.coordinate_names[c]);
   std::vector<double> angles_deg, translations_mm;
   angles_deg.reserve(frames * angle_names.size());
   translations_mm.reserve(frames * translation_names.size());

@@ -139,8 +139,10 @@ class PyTracker {
       for (py::ssize_t d = 0; d < a.ndim(); ++d)
         shape += (d ? ", " : "") + std::to_string(a.shape(d));
       throw py::value_error("markers: expected an array of shape (" +
-                            std::to_string(layout_->markers) + ", 3) (mm, in Tracker.marker_names "
-                            "order), got shape (" + shape + ")");
+                            std::to_string(layout_->markers) +
+                            ", 3) (mm, in Tracker.marker_names "
+                            "order), got shape (" +
+                            shape + ")");
     }
     const double* mm = a.data();
     for (std::size_t i = 0; i < layout_->markers; ++i, mm += 3)
@@ -179,10 +181,10 @@ void bind_tracker(py::module_& m) {
            "converge is a Pose.status, not an exception.")
       .def("reset", &PyTracker::reset, "Forget the previous frame: the next one starts cold")
       .def_property_readonly("config", &PyTracker::config)
-      .def_property_readonly("marker_names",
-                             [](const PyTracker& t) { return t.layout().marker_names; },
-                             "Tracked markers: the order of a track() array and of "
-                             "Pose.markers_mm")
+      .def_property_readonly(
+          "marker_names", [](const PyTracker& t) { return t.layout().marker_names; },
+          "Tracked markers: the order of a track() array and of "
+          "Pose.markers_mm")
       .def_property_readonly("joint_names",
                              [](const PyTracker& t) { return t.layout().joint_names; })
       .def_property_readonly("segment_names",
