@@ -65,6 +65,7 @@ py::dict read_table(const std::string& path) {
     py::gil_scoped_release unlocked;
     t = io::read_opensim_table(path);
   }
+  if (t.columns.empty()) throw io::FormatError(path, "no column labels (time first)");
   const auto rows = static_cast<py::ssize_t>(t.rows);
   const auto columns = static_cast<py::ssize_t>(t.columns.size() - 1);
   std::vector<py::ssize_t> shape{rows, columns};

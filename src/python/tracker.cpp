@@ -61,10 +61,10 @@ class PyTracker {
       } else {
         PyObject* found = PyDict_GetItemWithError(index_.ptr(), key);
         if (!found && PyErr_Occurred()) throw py::error_already_set();
-        if (!found && !ignore_unknown) throw py::key_error(unknown_name(key));
         i = found ? static_cast<int>(PyLong_AsLong(found)) : -1;
         remember(k, key, i);
       }
+      if (i < 0 && !ignore_unknown) throw py::key_error(unknown_name(key));
       if (i >= 0) read_xyz(value, key, measured_m_[static_cast<std::size_t>(i)]);
       ++k;
     }

@@ -96,9 +96,12 @@ def test_wrong_input_gives_clear_errors(config, frames):
     with pytest.raises(TypeError, match="give a dict"):
         tracker.track(object(), 0.0)
     # unknown names may be skipped on request
-    pose = tracker.track({"NOSE": (0, 0, 0), "LASI": tuple(frames[0][0])}, 0.0,
-                         ignore_unknown=True)
+    skipped = {"NOSE": (0, 0, 0), "LASI": tuple(frames[0][0])}
+    pose = tracker.track(skipped, 0.0, ignore_unknown=True)
     assert pose.occluded_count == n - 1
+    # ... on request only: the same dict again without it is refused again
+    with pytest.raises(KeyError, match="'NOSE'"):
+        tracker.track(skipped, 0.01)
 
 
 def test_a_pose_is_a_snapshot_and_its_arrays_keep_it_alive(config, frames):
