@@ -24,7 +24,7 @@ inline constexpr double kDegPerRad = 180.0 / 3.141592653589793;
 // A loaded daemon config, shared by the Trackers made from it (the model is immutable).
 struct Config {
   std::shared_ptr<const DaemonConfig> config;
-  std::string json;    // the config's text when it was made here (calibrate), else ""
+  std::string json;    // the config's text as loaded (pickling sends it)
   std::string report;  // calibrate: the summary `fabrik calibrate` prints, else ""
 };
 

@@ -15,14 +15,16 @@ namespace fabrik::python {
 
 namespace {
 
-Config make_config(DaemonConfig&& loaded) {
-  return Config{std::make_shared<const DaemonConfig>(std::move(loaded)), "", ""};
+constexpr const char* kDefaultFile = "<embedded>/default.json";
+
+Config make_config(const std::string& text, const std::string& file) {
+  return Config{std::make_shared<const DaemonConfig>(load_daemon_config(text, file)), text, ""};
 }
 
 // A fabrikd-model/1 file is tracked with the embedded default config's settings (targets,
 // solver, occlusion) and this model; anything else loads as a fabrikd-config/1 file.
 Config load(const std::optional<std::string>& path) {
-  if (!path) return make_config(default_daemon_config());
+  if (!path) return make_config(std::string(*embedded_config("default.json")), kDefaultFile);
   if (!embedded_config(*path)) require_file(*path, "config");
   const std::string text = read_config_text(*path);
   const nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
@@ -32,9 +34,23 @@ Config load(const std::optional<std::string>& path) {
     config["description"] = "the embedded default's settings with the model " + *path;
     config["model"] = std::filesystem::absolute(*path).string();
     config["targets"].erase("markers");  // the default's pelvis names may not be this model's
-    return make_config(load_daemon_config(config.dump(2), *path));
+    return make_config(config.dump(2) + "\n", *path);
   }
-  return make_config(load_daemon_config(text, *path));
+  return make_config(text, *path);
+}
+
+// Pickling (e.g. to send a config to Dask workers): the text and the file it came from, loaded
+// again on the other side. A model path in the text resolves against that file's directory,
+// so it must exist there too; calibrated configs carry their model inline.
+py::tuple config_state(const Config& c) {
+  return py::make_tuple(c.json, c.config->file, c.report);
+}
+
+Config config_from_state(const py::tuple& state) {
+  if (state.size() != 3) throw std::invalid_argument("Config: not a pickled fabrik.Config");
+  Config c = make_config(state[0].cast<std::string>(), state[1].cast<std::string>());
+  c.report = state[2].cast<std::string>();
+  return c;
 }
 
 Config calibrate(const std::string& template_path, const std::string& static_path,
@@ -121,7 +137,8 @@ void bind_config(py::module_& m) {
                              })
       .def_property_readonly(
           "json", [](const Config& c) { return c.json; },
-          "The config's JSON text when calibrate() made it, else ''")
+          "The config's JSON text (fabrikd-config/1) as it was loaded")
+      .def(py::pickle(&config_state, &config_from_state))
       .def_property_readonly(
           "calibration_report", [](const Config& c) { return c.report; },
           "calibrate(): the summary `fabrik calibrate` prints, else ''")

@@ -17,8 +17,8 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 class PyTracker {
  public:
   explicit PyTracker(const Config& config)
-      : config_(config.config),
-        tracker_(std::make_unique<Tracker>(config_->tracker)),
+      : config_(config),
+        tracker_(std::make_unique<Tracker>(config_.config->tracker)),
         layout_(std::make_shared<const PoseLayout>(*tracker_)),
         measured_m_(layout_->markers),
         visible_(layout_->markers, 1) {
@@ -40,7 +40,7 @@ class PyTracker {
 
   void reset() { tracker_->reset(); }
   const PoseLayout& layout() const { return *layout_; }
-  const Config config() const { return Config{config_, "", ""}; }
+  const Config& config() const { return config_; }
 
  private:
   // Absent names are occluded; NaN coordinates too (the tracker's rule). Callers usually pass
@@ -149,7 +149,7 @@ class PyTracker {
       measured_m_[i] = Eigen::Vector3d(mm[0], mm[1], mm[2]) * kMPerMm;
   }
 
-  std::shared_ptr<const DaemonConfig> config_;
+  Config config_;                     // shares the loaded config
   std::unique_ptr<Tracker> tracker_;  // not movable: the result's spans point into it
   std::shared_ptr<const PoseLayout> layout_;
   std::vector<Eigen::Vector3d> measured_m_;

@@ -60,3 +60,19 @@ def test_calibrate_writes_what_fabrik_calibrate_writes(tmp_path):
 def test_calibrate_errors(tmp_path):
     with pytest.raises(FileNotFoundError, match="no_template.json"):
         fabrik.calibrate(tmp_path / "no_template.json", tmp_path / "s.trc")
+
+
+def test_configs_pickle(tmp_path):
+    """A Config crosses process boundaries (Dask workers) as its text, loaded again there."""
+    import pickle
+    for config in (fabrik.load_config(), fabrik.load_config(DEFAULT_CONFIG),
+                   fabrik.load_config(f"{SOURCE}/config/models/fullbody.json")):
+        again = pickle.loads(pickle.dumps(config))
+        assert again.file == config.file and again.json == config.json
+        assert again.marker_names == config.marker_names
+        frame = fabrik.synthetic_frames(config, 1)[0]
+        a = fabrik.Tracker(config).track(frame, 0.0)
+        b = fabrik.Tracker(again).track(frame, 0.0)
+        assert np.array_equal(a.joints_mm, b.joints_mm)
+    tracker = fabrik.Tracker(fabrik.load_config())
+    assert tracker.config.json == fabrik.load_config().json
