@@ -1,0 +1,166 @@
+// Loading a daemon config (or a bare model, tracked with the default config's settings) and
+// calibrating a subject from a template and a static trial, as `fabrik calibrate` does.
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "bindings.hpp"
+#include "calib/calibrate.hpp"
+#include "config/json_reader.hpp"
+#include "config/lab_axes_json.hpp"
+#include "config/resources.hpp"
+
+namespace fabrik::python {
+
+namespace {
+
+constexpr const char* kDefaultFile = "<embedded>/default.json";
+
+Config make_config(const std::string& text, const std::string& file) {
+  return Config{std::make_shared<const DaemonConfig>(load_daemon_config(text, file)), text, ""};
+}
+
+// A fabrikd-model/1 file is tracked with the embedded default config's settings (targets,
+// solver, occlusion) and this model; anything else loads as a fabrikd-config/1 file.
+Config load(const std::optional<std::string>& path) {
+  if (!path) return make_config(std::string(*embedded_config("default.json")), kDefaultFile);
+  if (!embedded_config(*path)) require_file(*path, "config");
+  const std::string text = read_config_text(*path);
+  const nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
+  if (doc.is_object() && doc.value("format", "") == "fabrikd-model/1") {
+    nlohmann::ordered_json config =
+        nlohmann::ordered_json::parse(std::string(*embedded_config("default.json")));
+    config["description"] = "the embedded default's settings with the model " + *path;
+    config["model"] = std::filesystem::absolute(*path).string();
+    config["targets"].erase("markers");  // the default's pelvis names may not be this model's
+    return make_config(config.dump(2) + "\n", *path);
+  }
+  return make_config(text, *path);
+}
+
+// Pickling (e.g. to send a config to Dask workers): the text and the file it came from, loaded
+// again on the other side. A model path in the text resolves against that file's directory,
+// so it must exist there too; calibrated configs carry their model inline.
+py::tuple config_state(const Config& c) {
+  return py::make_tuple(c.json, c.config->file, c.report);
+}
+
+Config config_from_state(const py::tuple& state) {
+  if (state.size() != 3) throw std::invalid_argument("Config: not a pickled fabrik.Config");
+  Config c = make_config(state[0].cast<std::string>(), state[1].cast<std::string>());
+  c.report = state[2].cast<std::string>();
+  return c;
+}
+
+Config calibrate(const std::string& template_path, const std::string& static_path,
+                 const std::optional<std::string>& output, long long first_frame, long long frames,
+                 long long auto_window, const std::string& lab_up, const std::string& lab_forward,
+                 bool keep_zeros) {
+  require_file(template_path, "template");
+  require_file(static_path, "static trial");
+  calib::CalibrateOptions options;
+  options.first_frame = first_frame;
+  options.frames = frames;
+  options.auto_window = auto_window;
+  if (!lab_up.empty()) {
+    const nlohmann::json axes = lab_forward.empty()
+                                    ? nlohmann::json{{"up", lab_up}}
+                                    : nlohmann::json{{"up", lab_up}, {"forward", lab_forward}};
+    options.lab_axes = read_lab_axes(JsonReader(axes, "lab_up/lab_forward"));
+  } else if (!lab_forward.empty()) {
+    throw std::invalid_argument("lab_forward needs lab_up: give both");
+  }
+  Config out;
+  {
+    py::gil_scoped_release unlocked;  // reading, calibrating and checking take a while
+    const calib::CalibTemplate tmpl = calib::load_template_file(template_path);
+    io::ReadOptions read;
+    read.zeros_are_missing = !keep_zeros;
+    const io::MarkerTrial trial = io::read_trial(static_path, read);
+    io::require_marker_data(trial, static_path);
+    const calib::CalibrationResult r = calib::calibrate(tmpl, trial, static_path, options);
+    out.json = r.config.dump(2) + "\n";
+    out.report = calib::calibration_report(r);
+    // The config loads as the daemon will load it before it is written (as `fabrik calibrate`).
+    out.config = std::make_shared<const DaemonConfig>(
+        load_daemon_config(out.json, output ? *output : "<calibrated " + static_path + ">"));
+    if (output) {
+      std::ofstream file(*output, std::ios::binary);
+      file << out.json;
+      file.close();
+      if (!file) throw std::runtime_error(*output + ": cannot write the config");
+    }
+  }
+  return out;
+}
+
+std::vector<std::string> coordinate_names(const Model& model, CoordinateKind kind) {
+  std::vector<std::string> names;
+  for (const Coordinate& c : model.coordinates)
+    if (c.kind == kind) names.push_back(c.name);
+  return names;
+}
+
+}  // namespace
+
+void bind_config(py::module_& m) {
+  py::class_<Config>(m, "Config",
+                     "A daemon config (fabrikd-config/1): the model, the tracked markers and "
+                     "their priorities, the solver and occlusion settings. Immutable.")
+      .def_property_readonly("file", [](const Config& c) { return c.config->file; })
+      .def_property_readonly("description", [](const Config& c) { return c.config->description; })
+      .def_property_readonly("model_name",
+                             [](const Config& c) { return c.config->tracker.model->name; })
+      .def_property_readonly(
+          "marker_names",
+          [](const Config& c) {
+            return names_of(c.config->tracker.markers, &MarkerTarget::marker);
+          },
+          "Tracked markers, in the order Tracker.track takes an array")
+      .def_property_readonly(
+          "joint_names",
+          [](const Config& c) { return names_of(c.config->tracker.model->joints, &Joint::name); })
+      .def_property_readonly("segment_names",
+                             [](const Config& c) {
+                               return names_of(c.config->tracker.model->segments, &Segment::name);
+                             })
+      .def_property_readonly("angle_names",
+                             [](const Config& c) {
+                               return coordinate_names(*c.config->tracker.model,
+                                                       CoordinateKind::rotation);
+                             })
+      .def_property_readonly("translation_names",
+                             [](const Config& c) {
+                               return coordinate_names(*c.config->tracker.model,
+                                                       CoordinateKind::translation);
+                             })
+      .def_property_readonly(
+          "json", [](const Config& c) { return c.json; },
+          "The config's JSON text (fabrikd-config/1) as it was loaded")
+      .def(py::pickle(&config_state, &config_from_state))
+      .def_property_readonly(
+          "calibration_report", [](const Config& c) { return c.report; },
+          "calibrate(): the summary `fabrik calibrate` prints, else ''")
+      .def("__repr__", [](const Config& c) {
+        return "<fabrik.Config " + c.config->file + ": model '" + c.config->tracker.model->name +
+               "', " + std::to_string(c.config->tracker.markers.size()) + " markers>";
+      });
+  m.def("load_config", &load, py::arg("path") = py::none(),
+        "A daemon config (fabrikd-config/1 JSON) from `path`, or a model (fabrikd-model/1) "
+        "tracked with the default config's settings; no path: the embedded default config "
+        "(the built-in full-body model). Raises FileNotFoundError, or ConfigError (a "
+        "ValueError) naming the file, the JSON pointer and the fix.");
+  m.def("calibrate", &calibrate, py::arg("template"), py::arg("static"),
+        py::arg("output") = py::none(), py::kw_only(), py::arg("first_frame") = -1,
+        py::arg("frames") = -1, py::arg("auto_window") = -1, py::arg("lab_up") = "",
+        py::arg("lab_forward") = "", py::arg("keep_zeros") = false,
+        "A subject's config from a model template (fabrikd-template/1) and a static trial "
+        "(.trc/.c3d), the same code as `fabrik calibrate`; written to `output` when given. "
+        "first_frame (the file's frame number) and frames choose the averaging window, "
+        "auto_window the stillest window of that many frames. Releases the GIL. Raises "
+        "FileNotFoundError, ConfigError, FormatError (ValueErrors) or CalibrationError "
+        "(a RuntimeError).");
+}
+
+}  // namespace fabrik::python

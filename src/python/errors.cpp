@@ -1,0 +1,41 @@
+// The C++ library's setup errors as Python exceptions carrying the C++ message: a bad config
+// or template is a ValueError (fabrik.ConfigError), a bad recording a ValueError
+// (fabrik.FormatError), a calibration the data cannot support a RuntimeError
+// (fabrik.CalibrationError). Convergence outcomes are never exceptions (Pose.status).
+#include <filesystem>
+
+#include "bindings.hpp"
+#include "calib/calibrate.hpp"
+#include "config/config_error.hpp"
+#include "io/marker_trial.hpp"
+
+namespace fabrik::python {
+
+void require_file(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    PyErr_SetObject(PyExc_FileNotFoundError,
+                    py::make_tuple(2, what + " not found: " + path, path).ptr());
+    throw py::error_already_set();
+  }
+}
+
+void bind_errors(py::module_& m) {
+  static py::exception<ConfigError> config_error(m, "ConfigError", PyExc_ValueError);
+  static py::exception<io::FormatError> format_error(m, "FormatError", PyExc_ValueError);
+  static py::exception<calib::CalibrationError> calibration_error(m, "CalibrationError",
+                                                                  PyExc_RuntimeError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const ConfigError& e) {
+      config_error(e.what());
+    } catch (const io::FormatError& e) {
+      format_error(e.what());
+    } catch (const calib::CalibrationError& e) {
+      calibration_error(e.what());
+    }
+  });
+}
+
+}  // namespace fabrik::python

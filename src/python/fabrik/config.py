@@ -1,0 +1,31 @@
+"""Loading a daemon config or model, and calibrating a subject (the compiled code; paths may
+be str or os.PathLike)."""
+import os
+
+from . import _fabrik
+
+
+def load_config(path=None):
+    """A fabrikd-config/1 file, or a fabrikd-model/1 file tracked with the embedded default
+    config's settings; no path: the embedded default (the built-in full-body model).
+
+    Raises FileNotFoundError, or ConfigError (a ValueError) whose message names the file, the
+    JSON pointer and the fix."""
+    return _fabrik.load_config(None if path is None else os.fspath(path))
+
+
+def calibrate(template, static, output=None, *, first_frame=-1, frames=-1, auto_window=-1,
+              lab_up="", lab_forward="", keep_zeros=False):
+    """A subject's Config from a model template (fabrikd-template/1) and a static trial (.trc or
+    .c3d): the same code as `fabrik calibrate`. The config is usable at once (Tracker(config),
+    solve(config, ...)); with `output` it is also written there. Its calibration_report is the
+    summary `fabrik calibrate` prints.
+
+    first_frame (the file's frame number) and frames choose the averaging window; auto_window=N
+    the stillest N frames instead. lab_up/lab_forward ("+z", "+x") declare the lab's axes.
+    Releases the GIL. Raises FileNotFoundError, ConfigError/FormatError (ValueErrors) or
+    CalibrationError (a RuntimeError: the trial cannot support the template)."""
+    return _fabrik.calibrate(os.fspath(template), os.fspath(static),
+                             None if output is None else os.fspath(output),
+                             first_frame=first_frame, frames=frames, auto_window=auto_window,
+                             lab_up=lab_up, lab_forward=lab_forward, keep_zeros=keep_zeros)

@@ -1,0 +1,70 @@
+"""A whole trial through the offline pipeline of `fabrik solve`, as NumPy arrays (and a pandas
+DataFrame of angles where pandas is installed)."""
+import json
+import os
+from dataclasses import dataclass, field
+from typing import List
+
+import numpy as np
+
+from . import _fabrik
+from .recordings import MarkerData
+
+
+@dataclass
+class Solution:
+    """Per frame f: joints_mm[f] (joints, 3) and markers_mm[f] (markers, 3, the model's markers
+    with gaps filled from both sides) in mm; angles_deg[f] (degrees, angle_names order, continuous
+    over frames) and translations_mm[f] (mm); residual RMS/max (mm) over the markers solved with;
+    status: the solver's stop reason (a value, never an exception). time_s and frame_numbers are
+    the source's own. summary: what `fabrik solve --report` writes."""
+    time_s: np.ndarray
+    frame_numbers: np.ndarray
+    rate_hz: float
+    joint_names: List[str]
+    joints_mm: np.ndarray
+    marker_names: List[str]
+    markers_mm: np.ndarray
+    angle_names: List[str]
+    angles_deg: np.ndarray
+    translation_names: List[str]
+    translations_mm: np.ndarray
+    residual_rms_mm: np.ndarray
+    residual_max_mm: np.ndarray
+    solve_us: np.ndarray
+    iterations: np.ndarray
+    measured: np.ndarray
+    outlier_count: np.ndarray
+    status: List[str]
+    quality: List[str]
+    summary: dict
+    missing_in_trial: List[str] = field(default_factory=list)
+    ignored_in_trial: List[str] = field(default_factory=list)
+    mostly_missing: List[str] = field(default_factory=list)
+
+    def angles_dataframe(self):
+        """The angles (degrees) as a pandas DataFrame indexed by time_s, one column per angle.
+        Needs pandas (imported here, not at `import fabrik`)."""
+        try:
+            import pandas as pd
+        except ImportError as e:
+            raise ImportError("Solution.angles_dataframe needs pandas "
+                              "(Debian: python3-pandas); the arrays need nothing") from e
+        return pd.DataFrame(self.angles_deg, index=pd.Index(self.time_s, name="time_s"),
+                            columns=self.angle_names)
+
+
+def solve(config, markers, keep_zeros=False):
+    """Track a whole trial as `fabrik solve` does (the daemon's Tracker, then the two-sided
+    gap fill of the model's markers). markers: a .trc/.c3d path, or MarkerData (e.g. from
+    read_markers, or made from your own (frames, markers, 3) mm array). Releases the GIL while
+    it solves. Raises FileNotFoundError/FormatError, or RuntimeError when the trial shares no
+    marker name with the config."""
+    if isinstance(markers, MarkerData):
+        d = _fabrik._solve_arrays(config, list(markers.names),
+                                  np.asarray(markers.positions_mm, dtype=np.float64),
+                                  float(markers.rate_hz), int(markers.first_frame))
+    else:
+        d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros)
+    d["summary"] = json.loads(d.pop("summary_json"))
+    return Solution(**d)

@@ -1,0 +1,196 @@
+// Tracker: the daemon's per-frame pipeline driven from Python. Markers come in as a dict
+// (name -> x, y, z) or a (markers, 3) array in Tracker.marker_names order, in millimetres;
+// they are converted to metres once, into buffers sized here, and tracked as fabrikd tracks a
+// frame. The GIL stays held: a frame is tens of microseconds, less than a thread switch costs.
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "pose.hpp"
+
+namespace fabrik::python {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+class PyTracker {
+ public:
+  explicit PyTracker(const Config& config)
+      : config_(config),
+        tracker_(std::make_unique<Tracker>(config_.config->tracker)),
+        layout_(std::make_shared<const PoseLayout>(*tracker_)),
+        measured_m_(layout_->markers),
+        visible_(layout_->markers, 1) {
+    for (std::size_t i = 0; i < layout_->markers; ++i)
+      index_[py::str(layout_->marker_names[i])] = py::int_(i);
+  }
+
+  Pose track(const py::handle& markers, double time_s, bool ignore_unknown) {
+    if (PyDict_Check(markers.ptr()))
+      read_dict(markers, ignore_unknown);
+    else
+      read_array(markers);
+    // Timed so that the bench (and a caller) can tell the edge's cost from the tracker's.
+    const auto start = std::chrono::steady_clock::now();
+    const TrackResult& r = tracker_->track(time_s, measured_m_, visible_);
+    const std::chrono::duration<double, std::micro> took = std::chrono::steady_clock::now() - start;
+    return Pose(layout_, time_s, took.count(), r);
+  }
+
+  void reset() { tracker_->reset(); }
+  const PoseLayout& layout() const { return *layout_; }
+  const Config& config() const { return config_; }
+
+ private:
+  // Absent names are occluded; NaN coordinates too (the tracker's rule). Callers usually pass
+  // dicts built the same way every frame, so the keys come as the same str objects in the same
+  // order: the key at position k is checked against the one seen there last time by identity
+  // (held references, so an identical address is the same immutable str), and only a new key
+  // is hashed and looked up: about 0.9 us less per 45-marker frame (docs/python.md).
+  void read_dict(const py::handle& markers, bool ignore_unknown) {
+    for (Eigen::Vector3d& p : measured_m_) p.setConstant(kNaN);
+    PyObject* key = nullptr;
+    PyObject* value = nullptr;
+    Py_ssize_t pos = 0;
+    std::size_t k = 0;
+    while (PyDict_Next(markers.ptr(), &pos, &key, &value)) {
+      int i = -1;
+      if (k < seen_keys_.size() && seen_keys_[k].ptr() == key) {
+        i = seen_index_[k];
+      } else {
+        PyObject* found = PyDict_GetItemWithError(index_.ptr(), key);
+        if (!found && PyErr_Occurred()) throw py::error_already_set();
+        i = found ? static_cast<int>(PyLong_AsLong(found)) : -1;
+        remember(k, key, i);
+      }
+      if (i < 0 && !ignore_unknown) throw py::key_error(unknown_name(key));
+      if (i >= 0) read_xyz(value, key, measured_m_[static_cast<std::size_t>(i)]);
+      ++k;
+    }
+  }
+
+  void remember(std::size_t k, PyObject* key, int index) {
+    if (k >= kRememberedKeys) return;
+    if (k >= seen_keys_.size()) {
+      seen_keys_.resize(k + 1);
+      seen_index_.resize(k + 1);
+    }
+    seen_keys_[k] = py::reinterpret_borrow<py::object>(key);
+    seen_index_[k] = index;
+  }
+
+  static void read_xyz(PyObject* value, PyObject* key, Eigen::Vector3d& out_m) {
+    // Tuples and lists read directly; anything else (a NumPy row) through the sequence protocol.
+    if (PyTuple_Check(value) || PyList_Check(value)) {
+      if (PySequence_Fast_GET_SIZE(value) == 3) {
+        PyObject** items = PySequence_Fast_ITEMS(value);
+        for (int k = 0; k < 3; ++k) out_m[k] = item_double(items[k], key) * kMPerMm;
+        return;
+      }
+    } else if (PySequence_Check(value) && PySequence_Size(value) == 3) {
+      for (int k = 0; k < 3; ++k) {
+        py::object item = py::reinterpret_steal<py::object>(PySequence_GetItem(value, k));
+        if (!item) throw py::error_already_set();
+        out_m[k] = item_double(item.ptr(), key) * kMPerMm;
+      }
+      return;
+    }
+    PyErr_Clear();
+    throw py::value_error("marker " + py::str(key).cast<std::string>() +
+                          ": give x, y, z (3 numbers, mm), not " +
+                          py::repr(value).cast<std::string>());
+  }
+
+  static double item_double(PyObject* item, PyObject* key) {
+    if (PyFloat_CheckExact(item)) return PyFloat_AS_DOUBLE(item);
+    const double v = PyFloat_AsDouble(item);
+    if (v == -1.0 && PyErr_Occurred()) {
+      PyErr_Clear();
+      throw py::value_error("marker " + py::str(key).cast<std::string>() +
+                            ": coordinates must be numbers (mm), got " +
+                            py::repr(item).cast<std::string>());
+    }
+    return v;
+  }
+
+  std::string unknown_name(PyObject* key) const {
+    std::string names;
+    for (std::size_t i = 0; i < layout_->markers && i < 8; ++i)
+      names += (i ? ", " : "") + layout_->marker_names[i];
+    if (layout_->markers > 8) names += ", ...";
+    return py::repr(key).cast<std::string>() + " is not a marker of this tracker (" +
+           std::to_string(layout_->markers) + " markers: " + names +
+           "; Tracker.marker_names lists them). Pass ignore_unknown=True to skip such names";
+  }
+
+  void read_array(const py::handle& markers) {
+    auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(markers);
+    if (!a) {
+      PyErr_Clear();
+      throw py::type_error("markers: give a dict name -> (x, y, z) in mm, or a (" +
+                           std::to_string(layout_->markers) +
+                           ", 3) array in Tracker.marker_names order, not " +
+                           std::string(py::str(py::type::of(markers).attr("__name__"))));
+    }
+    if (a.ndim() != 2 || a.shape(0) != static_cast<py::ssize_t>(layout_->markers) ||
+        a.shape(1) != 3) {
+      std::string shape;
+      for (py::ssize_t d = 0; d < a.ndim(); ++d)
+        shape += (d ? ", " : "") + std::to_string(a.shape(d));
+      throw py::value_error("markers: expected an array of shape (" +
+                            std::to_string(layout_->markers) +
+                            ", 3) (mm, in Tracker.marker_names "
+                            "order), got shape (" +
+                            shape + ")");
+    }
+    const double* mm = a.data();
+    for (std::size_t i = 0; i < layout_->markers; ++i, mm += 3)
+      measured_m_[i] = Eigen::Vector3d(mm[0], mm[1], mm[2]) * kMPerMm;
+  }
+
+  Config config_;                     // shares the loaded config
+  std::unique_ptr<Tracker> tracker_;  // not movable: the result's spans point into it
+  std::shared_ptr<const PoseLayout> layout_;
+  std::vector<Eigen::Vector3d> measured_m_;
+  std::vector<std::uint8_t> visible_;  // all 1: occlusion is NaN (or an absent name)
+  py::dict index_;                     // name -> index into the markers
+  // read_dict's memory of the last dict's keys by position (-1: an ignored unknown name);
+  // bounded, so a stream of ever-new names cannot grow it.
+  static constexpr std::size_t kRememberedKeys = 4096;
+  std::vector<py::object> seen_keys_;
+  std::vector<int> seen_index_;
+};
+
+}  // namespace
+
+void bind_tracker(py::module_& m) {
+  bind_pose(m);
+  py::class_<PyTracker>(m, "Tracker",
+                        "fabrikd's per-frame tracking (targets, priorities, occlusion policy, "
+                        "warm-started FABRIK) for one config. Not thread-safe: one thread per "
+                        "Tracker.")
+      .def(py::init<const Config&>(), py::arg("config"))
+      .def("track", &PyTracker::track, py::arg("markers"), py::arg("time_s"),
+           py::arg("ignore_unknown") = false,
+           "Track one frame. markers: a dict marker name -> (x, y, z) in mm (absent names "
+           "are occluded), or a (markers, 3) float array in mm in marker_names order (NaN "
+           "rows are occluded). time_s: the frame's time in seconds (the hold policy and "
+           "continuity use it). Returns a Pose (a copy: it stays valid). An unknown name is a "
+           "KeyError unless ignore_unknown; a wrong shape a ValueError. A solve that does not "
+           "converge is a Pose.status, not an exception.")
+      .def("reset", &PyTracker::reset, "Forget the previous frame: the next one starts cold")
+      .def_property_readonly("config", &PyTracker::config)
+      .def_property_readonly(
+          "marker_names", [](const PyTracker& t) { return t.layout().marker_names; },
+          "Tracked markers: the order of a track() array and of "
+          "Pose.markers_mm")
+      .def_property_readonly("joint_names",
+                             [](const PyTracker& t) { return t.layout().joint_names; })
+      .def_property_readonly("segment_names",
+                             [](const PyTracker& t) { return t.layout().segment_names; })
+      .def_property_readonly("coordinate_names",
+                             [](const PyTracker& t) { return t.layout().coordinate_names; });
+}
+
+}  // namespace fabrik::python

@@ -1,0 +1,80 @@
+"""Whole-trial solve: the same numbers as `fabrik solve`, from a file or from arrays; angles as a
+pandas DataFrame."""
+import numpy as np
+import pytest
+
+import fabrik
+from conftest import DEFAULT_CONFIG, fabrik_cli
+
+
+@pytest.fixture(scope="module")
+def cli_outputs(synth_trial, tmp_path_factory):
+    out = tmp_path_factory.mktemp("solve")
+    fabrik_cli("solve", "--config", DEFAULT_CONFIG, "--input", synth_trial, "--output",
+               out / "joints.trc", "--markers", out / "markers.trc", "--angles",
+               out / "angles.mot", "--report", out / "report.json", "--quiet")
+    return out
+
+
+@pytest.fixture(scope="module")
+def solution(synth_trial):
+    return fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), synth_trial)
+
+
+def test_solve_matches_the_cli(solution, cli_outputs):
+    joints = fabrik.read_markers(cli_outputs / "joints.trc")
+    markers = fabrik.read_markers(cli_outputs / "markers.trc")
+    angles = fabrik.read_table(cli_outputs / "angles.mot")
+    assert solution.joint_names == joints.names and solution.marker_names == markers.names
+    np.testing.assert_allclose(solution.joints_mm, joints.positions_mm, rtol=0, atol=0.6e-6)
+    # the filled model markers, NaN where the CLI wrote nothing
+    np.testing.assert_allclose(solution.markers_mm, markers.positions_mm, rtol=0, atol=0.6e-6)
+    np.testing.assert_allclose(solution.time_s, angles.time_s, rtol=0, atol=1e-8)
+    for i, name in enumerate(solution.angle_names):
+        np.testing.assert_allclose(solution.angles_deg[:, i], angles.column(name), rtol=0,
+                                   atol=0.6e-8)
+    for i, name in enumerate(solution.translation_names):
+        np.testing.assert_allclose(solution.translations_mm[:, i] / 1000, angles.column(name),
+                                   rtol=0, atol=0.6e-8)
+    import json
+    report = json.loads((cli_outputs / "report.json").read_text())
+    assert solution.summary["frames"] == report["frames"]
+    assert solution.summary["residual_mm"]["rms_mean"] == pytest.approx(
+        report["residual_mm"]["rms_mean"], abs=1e-9)
+    assert set(solution.status) <= {"converged", "stalled", "max_iterations", "no_targets"}
+
+
+def test_solve_from_arrays_equals_solve_from_file(solution, synth_trial):
+    trial = fabrik.read_markers(synth_trial)
+    mine = fabrik.MarkerData(names=trial.names, positions_mm=trial.positions_mm.copy(),
+                             time_s=trial.time_s, rate_hz=trial.rate_hz,
+                             first_frame=trial.first_frame)
+    again = fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), mine)
+    # the same to rounding: the file's metres went to mm and back
+    np.testing.assert_allclose(again.joints_mm, solution.joints_mm, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(again.angles_deg, solution.angles_deg, rtol=0, atol=1e-9)
+    assert again.status == solution.status
+
+
+def test_solution_arrays_own_their_memory(solution):
+    # moved from C++, not copied: the array's base is the capsule that owns the vector
+    assert solution.joints_mm.base is not None
+    assert solution.joints_mm.shape == (len(solution.time_s), len(solution.joint_names), 3)
+    assert solution.angles_deg.shape == (len(solution.time_s), len(solution.angle_names))
+
+
+def test_angles_dataframe(solution):
+    pd = pytest.importorskip("pandas")
+    df = solution.angles_dataframe()
+    assert isinstance(df, pd.DataFrame)
+    assert list(df.columns) == solution.angle_names and df.index.name == "time_s"
+    assert np.array_equal(df.to_numpy(), solution.angles_deg)
+
+
+def test_a_trial_sharing_no_marker_is_refused(tmp_path):
+    data = fabrik.MarkerData(names=["A", "B"], positions_mm=np.zeros((3, 2, 3)),
+                             time_s=np.arange(3) / 100, rate_hz=100)
+    with pytest.raises(RuntimeError, match="none of"):
+        fabrik.solve(fabrik.load_config(), data)
+    with pytest.raises(FileNotFoundError, match="nothing.trc"):
+        fabrik.solve(fabrik.load_config(), tmp_path / "nothing.trc")
