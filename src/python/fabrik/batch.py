@@ -188,6 +188,13 @@ def calibrate_subject(job):
     job: fabrik, template, static (path), config (path to write), calibrate_args,
     timeout_s. An existing config (a previous run's) is reused.
     """
+    try:
+        return _calibrate_subject(job)
+    except Exception as e:  # e.g. OUT not writable: the subject's trials fail, the batch goes on
+        return {"error": "calibration from %s failed: %s: %s" % (job["static"], type(e).__name__, e)}
+
+
+def _calibrate_subject(job):
     config = job["config"]
     if os.path.isfile(config):
         return {"config": config, "reused": True}
@@ -265,6 +272,14 @@ def solve_trial(job, calibration):
     timeout_s. calibration: calibrate_subject's result (Dask passes the finished task's).
     """
     started = time.monotonic()
+    try:
+        return _solve_trial(job, calibration, started)
+    except Exception as e:  # e.g. a full disk, an unexpected report: this trial fails, not the batch
+        return dict(_blank_row(job), status="failed", wall_s=round(time.monotonic() - started, 3),
+                    error="%s: %s" % (type(e).__name__, e))
+
+
+def _solve_trial(job, calibration, started):
     row = _blank_row(job)
     if "error" in calibration:
         row.update(status="failed", error=calibration["error"])
@@ -295,9 +310,10 @@ def solve_trial(job, calibration):
         _remove(partial.values())
         row.update(status="failed", error=error, wall_s=round(time.monotonic() - started, 3))
         return row
+    row = row_from_report(job, report, "ok", round(time.monotonic() - started, 3))
     for k in kinds:  # the report last: it marks the trial complete
         os.replace(partial[k], outputs[k])
-    return row_from_report(job, report, "ok", round(time.monotonic() - started, 3))
+    return row
 
 
 def check_cli(fabrik, timeout_s=60):
@@ -484,6 +500,9 @@ def run_batch(root, out, template=None, scheduler=None, workers=None, fabrik=Non
               file=log, flush=True)
 
     if pending and workers == 1 and not scheduler:
+        cli = check_cli(fabrik, connect_timeout_s)
+        if "error" in cli:
+            raise SetupError("the fabrik CLI: %s. Fix: give --fabrik PATH" % cli["error"])
         run_sequential(calibrations, pending, on_row)
     elif pending:
         client, cluster = connect(scheduler, workers or os.cpu_count() or 1, connect_timeout_s)
