@@ -1,0 +1,187 @@
+"""fabrik.batch (docs/batch.md) on a synthetic archive: a two-worker Dask cluster gives what one
+process gives, bad files fail alone, a rerun skips what is done and redoes what is not."""
+import concurrent.futures
+import csv
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+SOURCE = os.environ["FABRIK_SOURCE_DIR"]
+FABRIK = os.environ["FABRIK_BIN"]
+TEMPLATE = os.path.join(SOURCE, "config", "templates", "plugin_gait_lower_body.json")
+TIMING = ("solve_p50_us", "solve_p99_us", "wall_s")
+RUN_TIMEOUT_S = 180      # one batch of a few dozen 1-2 s trials takes seconds
+CLUSTER_TIMEOUT_S = 60   # starting two local worker processes takes a few seconds
+
+SUBJECTS, TRIALS = 3, 8
+BAD = {("subj01", "walk_truncated"), ("subj02", "walk_unreadable"), ("subj03", "walk_wrong_markers")}
+NO_STATIC = "subj04"
+
+
+def synth_archive(root, subjects, trials, seconds):
+    subprocess.run([sys.executable, os.path.join(SOURCE, "scripts", "synth-archive"), str(root),
+                    "--subjects", str(subjects), "--trials", str(trials), "--seconds", str(seconds),
+                    "--fabrik", FABRIK], check=True, timeout=RUN_TIMEOUT_S, capture_output=True)
+
+
+def batch(root, out, *args):
+    """`python3 -m fabrik.batch` as a user runs it: (exit code, stderr)."""
+    p = subprocess.run([sys.executable, "-m", "fabrik.batch", str(root), "--output", str(out),
+                        "--template", TEMPLATE, "--fabrik", FABRIK, *args],
+                       capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
+    return p.returncode, p.stderr
+
+
+def summary(out):
+    with open(os.path.join(out, "summary.csv"), newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def without_timings(rows, out):
+    """Rows minus the columns that time this machine, with OUT's path (in error texts) as 'OUT'."""
+    return [{k: v.replace(str(out), "OUT") for k, v in r.items() if k not in TIMING} for r in rows]
+
+
+def output_files(out):
+    return sorted(os.path.relpath(os.path.join(d, n), out)
+                  for d, _, names in os.walk(out) for n in names)
+
+
+def numbers_of(path, out):
+    """A file's content as compared between runs: a report without its solve times; text with
+    OUT's path as 'OUT' (calibrate names its output) and its numbers parsed."""
+    with open(path) as f:
+        text = f.read().replace(str(out), "OUT")
+    if path.endswith(".report.json"):
+        report = json.loads(text)
+        del report["solve_us"]
+        return report
+    return [float(t) if re.fullmatch(r"[-+0-9.eE]+", t) and re.search(r"[0-9]", t) else t
+            for t in re.split(r"[\s,]+", text)]
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory):
+    """3 subjects x (1 static + 8 walks of 1.5 s), three bad files, a subject with no static trial."""
+    root = tmp_path_factory.mktemp("archive")
+    synth_archive(root, SUBJECTS, TRIALS, 1.5)
+    walk = os.path.join(root, "subj01", "walk01.trc")
+    with open(walk) as f:
+        lines = f.read().splitlines(keepends=True)
+    with open(os.path.join(root, "subj01", "walk_truncated.trc"), "w") as f:
+        f.writelines(lines[:3])  # cut inside the header: no marker names
+    with open(os.path.join(root, "subj02", "walk_unreadable.c3d"), "wb") as f:
+        f.write(b"not a C3D file")
+    labels = lines[3].rstrip("\n").split("\t")  # Frame#, Time, then each name and two blanks
+    lines[3] = "\t".join(labels[:2] + [("M%d" % i if name else name)
+                                       for i, name in enumerate(labels[2:])]) + "\n"
+    with open(os.path.join(root, "subj03", "walk_wrong_markers.trc"), "w") as f:
+        f.writelines(lines)
+    os.makedirs(os.path.join(root, NO_STATIC))
+    for name in ("walk01.trc", "walk02.trc"):
+        shutil.copy(os.path.join(root, "subj02", name), os.path.join(root, NO_STATIC, name))
+    return root
+
+
+@pytest.fixture(scope="module")
+def scheduler_address():
+    """A local Dask cluster of two single-threaded worker processes, reached by its address."""
+    distributed = pytest.importorskip("distributed")
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        cluster = pool.submit(distributed.LocalCluster, n_workers=2, threads_per_worker=1,
+                              processes=True, dashboard_address=None).result(CLUSTER_TIMEOUT_S)
+    try:
+        with distributed.Client(cluster.scheduler_address, timeout=CLUSTER_TIMEOUT_S) as client:
+            client.wait_for_workers(2, timeout=CLUSTER_TIMEOUT_S)
+        yield cluster.scheduler_address
+    finally:
+        cluster.close(timeout=CLUSTER_TIMEOUT_S)
+
+
+@pytest.fixture(scope="module")
+def runs(archive, scheduler_address, tmp_path_factory):
+    """The archive once sequentially and once on the two-worker cluster."""
+    seq, dask = tmp_path_factory.mktemp("sequential"), tmp_path_factory.mktemp("dask")
+    return {"sequential": (seq, *batch(archive, seq, "--workers", "1")),
+            "dask": (dask, *batch(archive, dask, "--scheduler", scheduler_address))}
+
+
+def test_the_dask_run_equals_the_sequential_run(runs):
+    (seq, _, seq_log), (dask, _, dask_log) = runs["sequential"], runs["dask"]
+    assert "on the cluster at tcp://" in dask_log and "on this process" in seq_log
+    rows = summary(seq)
+    assert len(rows) == SUBJECTS * (1 + TRIALS) + len(BAD) + 2
+    assert without_timings(summary(dask), dask) == without_timings(rows, seq)
+    files = output_files(seq)
+    assert files == output_files(dask)
+    assert len([f for f in files if f.endswith(".angles.mot")]) == SUBJECTS * (1 + TRIALS)
+    for f in files:
+        if f == "summary.csv":
+            continue  # compared above, without its timings
+        assert numbers_of(os.path.join(dask, f), dask) == numbers_of(os.path.join(seq, f), seq), f
+
+
+def test_bad_files_fail_alone_and_the_exit_code_says_so(runs):
+    for out, code, _ in runs.values():
+        assert code == 1
+        rows = summary(out)
+        failed = {(r["subject"], r["trial"]) for r in rows if r["status"] == "failed"}
+        assert failed == BAD | {(NO_STATIC, "walk01"), (NO_STATIC, "walk02")}
+        for r in rows:
+            if r["status"] == "failed":
+                assert r["error"] and r["frames"] == ""
+            else:
+                assert r["status"] == "ok" and r["error"] == ""
+                assert int(r["frames"]) > 0 and 0 < float(r["rms_mean_mm"]) < 5
+        by_trial = {(r["subject"], r["trial"]): r["error"] for r in rows}
+        assert "walk_unreadable.c3d" in by_trial[("subj02", "walk_unreadable")]
+        assert "shares none" in by_trial[("subj03", "walk_wrong_markers")]
+        # The subject without a static trial: what was found, and the fix.
+        assert "no static trial" in by_trial[(NO_STATIC, "walk01")]
+        assert "found 2: walk01.trc, walk02.trc" in by_trial[(NO_STATIC, "walk01")]
+        assert [f for f in output_files(out) if ".partial" in f or "walk_" in f] == []
+        statics = [r for r in rows if r["kind"] == "static"]
+        assert len(statics) == SUBJECTS and all("static" in r["trial"] for r in statics)
+
+
+def stamps(out):
+    return {f: os.stat(os.path.join(out, f)).st_mtime_ns for f in output_files(out)
+            if f != "summary.csv"}
+
+
+def test_a_rerun_skips_what_is_done_and_redoes_what_is_not(tmp_path):
+    root, out = tmp_path / "archive", tmp_path / "out"
+    synth_archive(root, 2, 3, 1.0)
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 0  # no trial failed
+    first, before = summary(out), stamps(out)
+    assert {r["status"] for r in first} == {"ok"} and len(first) == 2 * 4
+
+    code, log = batch(root, out, "--workers", "1")
+    assert code == 0 and "8 done already (skipped), 0 to run" in log
+    rows = summary(out)
+    assert {r["status"] for r in rows} == {"skipped"}
+    assert stamps(out) == before  # nothing rewritten
+    strip = lambda rs: [dict(r, status="", **dict.fromkeys(TIMING, "")) for r in rs]
+    assert strip(rows) == strip(first)  # the skipped rows carry the done trials' numbers
+
+    # One output gone, one trial half-written (its report renamed last, so missing).
+    os.remove(out / "subj02" / "walk03.angles.mot")
+    os.replace(out / "subj01" / "walk01.report.json", out / "subj01" / ".walk01.report.partial.json")
+    code, log = batch(root, out, "--workers", "1")
+    assert code == 0 and "6 done already (skipped), 2 to run" in log
+    rows = summary(out)
+    assert {(r["subject"], r["trial"]) for r in rows if r["status"] == "ok"} == {
+        ("subj01", "walk01"), ("subj02", "walk03")}
+    after = stamps(out)
+    rerun = {f for f in before if after.get(f) != before[f]}
+    assert rerun == {"subj01/walk01.joints.trc", "subj01/walk01.angles.mot",
+                     "subj01/walk01.report.json", "subj02/walk03.joints.trc", "subj02/walk03.angles.mot",
+                     "subj02/walk03.report.json"}
+    assert strip(rows) == strip(first)
+    assert [f for f in after if ".partial" in f] == []
