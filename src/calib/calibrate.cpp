@@ -484,7 +484,7 @@ class Calibrator {
                    {"root", "free"},       {"priorities", true}};
     // Real subjects' markers are never exactly reachable by the model: there
     // FABRIK's own fixed point with limited joints is far from the best
-    // fit, and the carry closes most of the gap (README "subtree carry").
+    // fit, and the carry closes most of the gap (docs/joint-limits.md, "Subtree carry").
     bool limited = false;
     for (const auto& sd : t_.segments) limited = limited || !sd.joint.is_null();
     if (limited) c["solver"]["subtree_carry"] = 0.5;
