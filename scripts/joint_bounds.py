@@ -22,7 +22,7 @@ import sys
 import tempfile
 
 LETTERS = ("z", "x", "y")
-# Which Cardan angles each joint type lets turn (model format, README "Model files").
+# Which Cardan angles each joint type lets turn (model format, docs/models.md).
 MOVES = {"ball": "zxy", "universal": "zx", "hinge": "z", "fixed": "", "free": ""}
 
 

@@ -396,7 +396,7 @@ TEST_CASE("walk1 with gait2354 vs OpenSim's IK: hip flexion and the knee follow 
 }
 
 // The issue's must-show in full. Known to fail with today's solver and foot
-// model (README, "Joint angles against OpenSim"): the ankle angle's shape
+// model (docs/angles.md, "`fabrik eval angles`"): the ankle angle's shape
 // differs from OpenSim's 1-DOF ankle (r 0.76 / 0.89), the left knee is 0.1 deg
 // over, and the per-frame maximum residual is 48 mm where the constrained
 // least-squares optimum of the same model is 28 mm. [!mayfail] reports the

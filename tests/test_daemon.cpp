@@ -699,7 +699,7 @@ TEST_CASE("A subscriber that stalls gets fresh poses after the few queued for it
   cfg.max_backlog_frames = backlog;
   RunningDaemon d(context, std::move(cfg));
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
-  // A real-time subscriber keeps its own queue short too (README).
+  // A real-time subscriber keeps its own queue short too (docs/overload.md).
   zmq::socket_t late = real_time_subscriber(context, d.daemon.output_endpoint(), "pose");
   std::uint64_t frame = client.handshake();
   const std::string markers = rest_markers(d.daemon.config()).dump();

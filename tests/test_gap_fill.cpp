@@ -251,7 +251,7 @@ std::optional<eval::GapReport> walk1_gaps(const eval::GapOptions& options) {
 }
 }  // namespace
 
-// The must-show on the one trial we have (README, "Gap filling").
+// The must-show on the one trial we have (docs/gap-filling.md).
 // Without donor markers (prediction.donors false) the live median is 9.2 mm
 // and the offline one 8.4 mm: both fail. A returning marker's hand-over
 // started at the model point plus the marker's old offset fails the return

@@ -395,7 +395,7 @@ TEST_CASE("Property: random trees keep geometry and the rigid fit never ends wor
                              (posture.point_world_m(m, targets[i].point) - pos[i]).norm()) < 1e-9);
           // The paper's rule aligns only the mean direction of a segment's
           // drivers, so with several targets on one segment it can end worse
-          // than it started; the rigid fit never does (README: segment fit).
+          // than it started; the rigid fit never does (docs/solver.md: rigid fit).
           if (fit == SegmentFit::rigid) CHECK(error_sq(posture, prio) <= start_sq + 1e-9);
         }
   }

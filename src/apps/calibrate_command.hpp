@@ -1,5 +1,5 @@
 // `fabrik calibrate`: a model template and a static trial -> a daemon config
-// with the subject's model inline (see README, "Model templates").
+// with the subject's model inline (see docs/calibration.md).
 #pragma once
 
 #include <CLI/CLI.hpp>

@@ -1,5 +1,5 @@
 // What a segment's or marker's name says about the body, for templates that
-// leave out frames, joints and coordinates (README "Angles for any
+// leave out frames, joints and coordinates (docs/calibration.md, "Angles for any
 // template"): its side (r_thigh, LASI, R.ASIS, thigh_l, RightArm), which part
 // of the body it is (thigh, shank, foot, ...) and the OpenSim coordinate names
 // of the joint above it. Names only: no geometry here.

@@ -1,4 +1,4 @@
-// Model templates (`fabrikd-template/1`, see README "Model templates"): which
+// Model templates (`fabrikd-template/1`, see docs/calibration.md): which
 // markers belong to which segment, the segment tree, and how every joint
 // centre and end site is defined from static-trial markers. `fabrik
 // calibrate` turns a template plus a static trial into a fabrikd-model/1

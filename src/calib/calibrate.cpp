@@ -26,7 +26,7 @@ const Eigen::Vector3d& CalibrationResult::point_world_m(const std::string& name)
 
 namespace {
 
-// The subtree carry of a calibrated model with joint limits (docs/convergence.md, "subtree
+// The subtree carry of a calibrated model with joint limits (docs/joint-limits.md, "Subtree
 // carry": the share that closed most of the gap to the constrained least-squares fit).
 constexpr double kCalibratedSubtreeCarry = 0.5;
 
@@ -490,7 +490,7 @@ class Calibrator {
     SolverOptions solver = d.tracker.solver;
     // Real subjects' markers are never exactly reachable by the model: there
     // FABRIK's own fixed point with limited joints is far from the best
-    // fit, and the carry closes most of the gap (docs/convergence.md "subtree carry").
+    // fit, and the carry closes most of the gap (docs/joint-limits.md, "Subtree carry").
     bool limited = false;
     for (const auto& sd : t_.segments) limited = limited || !sd.joint.is_null();
     if (limited) solver.subtree_carry = kCalibratedSubtreeCarry;

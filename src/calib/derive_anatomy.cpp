@@ -297,8 +297,8 @@ class Deriver {
         add(name, e, lines[s]);
       }
     }
-    out_.report.push_back("angles derived (the template names no coordinates; README \"Angles "
-                          "for any template\"); joints without a \"joint\" stay free:");
+    out_.report.push_back("angles derived (the template names no coordinates; docs/calibration.md, "
+                          "\"Angles for any template\"); joints without a \"joint\" stay free:");
     for (std::size_t s = 0; s < t_.segments.size(); ++s) {
       std::string line = "  " + t_.segments[s].name + ": ";
       line += "frame " + (how_[s].empty() ? std::string("from the template") : how_[s]);

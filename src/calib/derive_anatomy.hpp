@@ -1,6 +1,6 @@
 // Anatomical frames and named coordinates for a template that names no
 // coordinates, derived from its segment tree, its names and the static
-// posture (README "Angles for any template"). The rules, in short:
+// posture (docs/calibration.md, "Angles for any template"). The rules, in short:
 // * the body's up is where the root's limbs point proximally (and its trunk
 //   distally); its right is the mean of every left-to-right pair of markers or
 //   points (RASI/LASI, r_hip/l_hip, R.Knee/L.Knee);

@@ -125,7 +125,7 @@ void read_targets(const JsonReader& targets, const Model& model, std::vector<Mar
 }
 
 // Gap filling from the recent past (PredictionSettings): on unless switched off, by default
-// on the weakest marker level with a small weight (README, "Gap filling").
+// on the weakest marker level with a small weight (docs/gap-filling.md).
 PredictionSettings read_prediction(const JsonReader& root, int default_level) {
   PredictionSettings p;
   p.enabled = true;

@@ -77,7 +77,7 @@ constexpr std::size_t kMaxConfigFileBytes = std::size_t{16} << 20;
 constexpr int kMaxJsonDepth = 256;
 // Values (numbers, strings, arrays, objects...) in one file: the largest
 // real model or calibrated config holds a few tens of thousands; this bounds
-// what the parsed document takes in memory (README, "Limits").
+// what the parsed document takes in memory (docs/daemon.md, "Config").
 constexpr std::size_t kMaxJsonValues = std::size_t{1} << 20;
 
 // Why a file cannot be read, and what to do about it.

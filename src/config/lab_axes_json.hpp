@@ -1,4 +1,4 @@
-// "lab_axes" of models and templates (README "Lab axes"): which of the
+// "lab_axes" of models and templates (docs/lab-axes.md): which of the
 // lab's axes is up and which is forward, as signed axis names,
 // {"up": "+z", "forward": "+x"}. They turn world-relative coordinates into
 // OpenSim's ground frame (X forward, Y up, Z right: LabAxes in

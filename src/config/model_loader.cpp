@@ -284,7 +284,7 @@ Model load_model(const JsonReader& root) {
     } else if (e.field() != "segments") {
       pointer = root.pointer() + "/" + e.field();
     }
-    throw ConfigError(root.file(), pointer, e.what(), "see the model format in README.md");
+    throw ConfigError(root.file(), pointer, e.what(), "see the model format in docs/models.md");
   }
 }
 

@@ -1,4 +1,4 @@
-// Loads a skeleton model from its JSON format (see README, "Model files").
+// Loads a skeleton model from its JSON format (see docs/models.md).
 // Lengths are converted to metres here, once.
 #pragma once
 
@@ -14,7 +14,7 @@ namespace fabrik {
 // spine fits well within these (OpenSim's largest full-body models have about
 // 150 bodies and lab marker sets up to about 300 markers), while a larger file
 // would make setup and every frame cost what no real body needs. Each limit
-// is named in the error with its pointer and a fix (README, "Model files").
+// is named in the error with its pointer and a fix (docs/models.md).
 class JsonReader;
 struct ModelLimits {
   static constexpr int kSegments = 512;

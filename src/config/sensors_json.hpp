@@ -1,5 +1,5 @@
 // The "sensors" section of daemon configs and templates (docs/daemon-config.md,
-// README "Orientation sensors"): which orientation sensor (IMU, rigid body)
+// docs/imu.md): which orientation sensor (IMU, rigid body)
 // sits on which segment with which level and weight, its fixed rotation in
 // the segment's frame, and how the sensors' world lies in the model's world.
 #pragma once

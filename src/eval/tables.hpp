@@ -1,4 +1,4 @@
-// The evaluations' results as text tables (for the terminal and the README),
+// The evaluations' results as text tables (for the terminal and docs/),
 // JSON (--json) and CSV (for scripts/plot_*.py). Lengths in mm, angles in degrees.
 #pragma once
 

@@ -63,7 +63,7 @@ struct SolverOptions {
   /// limited joints), held at the joints' current angles. 0 is FABRIK's own
   /// rule (a segment feels its children only through their joint points),
   /// whose fixed point can sit far from the constrained least-squares fit on
-  /// real data; > 0 costs iterations (see README "subtree carry").
+  /// real data; > 0 costs iterations (see docs/joint-limits.md, "Subtree carry").
   double subtree_carry = 0.0;
   /// Jump ahead along the convergence loop's steps when they shrink along one direction
   /// (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the

@@ -70,7 +70,7 @@ struct DaemonControl {
 };
 static_assert(std::atomic<bool>::is_always_lock_free);
 
-// Transport limits (README, "Under overload").
+// Transport limits (docs/overload.md).
 // Each subscriber's queue in the PUB socket (ZMQ_SNDHWM), in messages: the
 // poses of one catch-up burst (max_backlog_frames) and a stats message, times
 // two because a PUB socket learns what its subscriber has read only in
@@ -90,10 +90,10 @@ constexpr int kPoseSendBufferBytes = 16 * 1024;
 constexpr std::size_t kInputQueueBytes = std::size_t{64} << 20;
 // Kernel receive buffer per input connection (bytes): frames that wait in
 // front of ZeroMQ's queue are bounded too (the source's own queue is its
-// business: README).
+// business: docs/overload.md).
 constexpr int kInputReceiveBufferBytes = 256 * 1024;
-// What a subscriber may send to the output socket (README, "Under
-// overload"). fabrikd publishes only these topics, so a subscription that is
+// What a subscriber may send to the output socket (docs/overload.md).
+// fabrikd publishes only these topics, so a subscription that is
 // not a prefix of one of them can never match: it is refused and its
 // connection dropped. ZeroMQ keeps every subscription it is sent in a tree
 // (about 32 bytes per subscribed byte, never given back while connected), so

@@ -1,5 +1,5 @@
 // What a fabrikd input (SUB) or output (XPUB) socket is given: its options,
-// queue limits and kernel buffers (README, "Under overload"). The daemon
+// queue limits and kernel buffers (docs/overload.md). The daemon
 // opens its sockets with these, and so does `fabrik bench latency`'s ZeroMQ
 // floor (src/bench/zmq_floor.cpp), so the floor cannot drift from the daemon.
 // The limits' constants and their reasons are in daemon.hpp ("Transport limits").

@@ -1,6 +1,6 @@
 // Our JSON reader (src/transport/json_sax_reader.hpp) against
 // nlohmann::json::accept on the same bytes. They must agree, with two
-// documented exceptions (README, "Fuzzing and sanitizers"):
+// documented exceptions (docs/fuzzing.md, "NUL bytes after a frame"):
 //   - NUL bytes: nlohmann's lexer takes '\0' for the end of the input and
 //     ignores whatever follows; our reader takes the payload's length, as
 //     ZeroMQ gives it, and rejects a NUL (RFC 8259 allows none outside

@@ -2,7 +2,7 @@
 // it answers true or false (with a reason), never throws or crashes, and
 // reuses one frame across calls as the daemon does. An accepted frame has
 // finite positions for every visible marker, and an accepted JSON payload is
-// valid JSON to nlohmann too (our reader is the stricter one, README). The
+// valid JSON to nlohmann too (our reader is the stricter one, docs/fuzzing.md). The
 // JSON fast path and the full reader give the same verdict, message and frame.
 #include <cmath>
 #include <cstdint>
