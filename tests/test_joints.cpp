@@ -278,8 +278,11 @@ TEST_CASE("A target moving across a hinge limit gives a continuous angle, also f
   specs[0] = {"upper",
               "",
               "shoulder",
-              {{"elbow", {0, -0.30, 0}, false}, {"m_upper", {0.05, -0.15, 0.0}, true}}};
-  specs[1] = {"forearm", "upper", "elbow", {{"wrist", {0, -0.25, 0}, false}}};
+              {{"elbow", {0, -0.30, 0}, false}, {"m_upper", {0.05, -0.15, 0.0}, true}},
+              Eigen::Matrix3d::Identity(),
+              {}};
+  specs[1] = {"forearm", "upper", "elbow", {{"wrist", {0, -0.25, 0}, false}},
+              Eigen::Matrix3d::Identity(), {}};
   specs[1].joint.type = JointType::hinge;
   specs[1].joint.min_rad[0] = 0.0;
   specs[1].joint.max_rad[0] = 120 * kDeg;

@@ -47,7 +47,7 @@ io::MarkerTrial leg_static_from_23() {
   t.first_frame = 23;
   for (std::size_t f = 0; f < t.frames(); ++f)
     for (std::size_t m = 0; m < t.markers(); ++m)
-      if (t.at(f, m).allFinite()) t.at(f, m).x() += 1e-3 * std::sin(0.7 * f + m);
+      if (t.at(f, m).allFinite()) t.at(f, m).x() += 1e-3 * std::sin(0.7 * static_cast<double>(f) + static_cast<double>(m));
   t.at(7, 3).y() += 6e-3;  // RTHI
   return t;
 }
@@ -155,7 +155,7 @@ TEST_CASE(".mot times are the source's own: frame 23 at 0.23 s, frame 1 at 0 s, 
     REQUIRE(t.rows == n);
     for (std::size_t k = 0; k < n; ++k) {
       INFO("row " << k);
-      CHECK(t.time_s[k] == Approx(c.first_s + k / c.rate_hz).margin(1e-9));
+      CHECK(t.time_s[k] == Approx(c.first_s + static_cast<double>(k) / c.rate_hz).margin(1e-9));
     }
     // On the frame grid, exactly (n + k) / rate, however the file rounded them.
     if (!std::isnan(c.grid_frames)) CHECK(t.time_s[2] == (c.grid_frames + 2.0) / c.rate_hz);

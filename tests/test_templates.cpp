@@ -90,13 +90,13 @@ struct Agreement {
 Agreement agree(const std::vector<double>& fabrik_deg, const std::vector<double>& truth_rad) {
   const std::size_t n = fabrik_deg.size();
   double mean = 0;
-  for (std::size_t i = 0; i < n; ++i) mean += (fabrik_deg[i] - truth_rad[i] * kDeg) / n;
+  for (std::size_t i = 0; i < n; ++i) mean += (fabrik_deg[i] - truth_rad[i] * kDeg) / static_cast<double>(n);
   Agreement a;
   a.offset_deg = mean;
   double s2 = 0, lo = 1e9, hi = -1e9, tlo = 1e9, thi = -1e9;
   for (std::size_t i = 0; i < n; ++i) {
     const double d = fabrik_deg[i] - truth_rad[i] * kDeg - mean;
-    s2 += d * d / n;
+    s2 += d * d / static_cast<double>(n);
     lo = std::min(lo, fabrik_deg[i]);
     hi = std::max(hi, fabrik_deg[i]);
     tlo = std::min(tlo, truth_rad[i] * kDeg);
