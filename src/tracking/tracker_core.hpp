@@ -27,24 +27,14 @@ class TrackerCore {
   int marker_count() const { return static_cast<int>(setup_.markers.size()); }
   int sensor_count() const { return sensors_.size(); }
 
-  // One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
-  // occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
-  // frame's time (for the hold policy). Spans of the wrong size give
-  // SolveStatus::size_mismatch and leave the posture as it was.
+  // The members below are Tracker's (tracker.hpp documents them).
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible);
-  // The same with orientation sensors: q_sensors_sensor[k] (sensor k's frame in
-  // the sensors' world, unit) and sensor_visible[k] belong to
-  // setup().sensors.sensors[k]; empty spans mean no sensor measured. With no
-  // marker measured or held, the root cannot be placed: it keeps its position
-  // from the previous frame (the rest position when cold) and the sensors turn
-  // the segments about it.
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible,
                            std::span<const Eigen::Quaterniond> q_sensors_sensor,
                            std::span<const std::uint8_t> sensor_visible);
 
-  // Forget the previous frame: the next one starts cold (cold_start.hpp).
   void reset();
   const Posture& posture() const { return posture_; }
 
