@@ -81,6 +81,11 @@ SolveResult TargetSet::measure_with(PointOf point_of,
   return r;
 }
 
+// How far a distance falling at `pace_m` an iteration over the newer half of a window of
+// 2 * `half` checks ending at `iteration`, and at `older_m` over the older half, falls in
+// the `left` iterations to come, its pace shrinking as a power of the iteration count.
+double power_law_fall_m(int iteration, int half, double pace_m, double older_m, double left);
+
 // The per-iteration stopping rules shared by all iterative solvers: within
 // tolerance; stalled; out of iterations. A solve is stalled when the target
 // distances will change by less than the stall tolerance from now on, as
@@ -89,9 +94,9 @@ SolveResult TargetSet::measure_with(PointOf point_of,
 // soon after it has converged, a slowly creeping one keeps going.
 // That estimate is held back while the solve may still meet the tolerance:
 // when the worst distance, falling on as it fell over the last 8 checks, or
-// over the last 16 (geometrically at the rate of the window's two halves, or
-// linearly over the iterations left if it does not slow down), would reach the
-// tolerance. On a
+// over the last 16 (geometrically at the rate of the window's two halves, or as
+// a power of the iteration count, whichever falls further, at most linearly over
+// the iterations left), would reach the tolerance. On a
 // tree of many end effectors the arms settle fast and the sub-base creeps: the
 // fast mode's rate predicted no change left, and stars of 20-50 stopped up to
 // 17 % of their solves 0.1-0.5 mm short (docs/convergence.md). Out of reach,
