@@ -54,8 +54,6 @@ SolveResult solve(const SolverPlan& plan, SolverWorkspace& workspace,
     wrong.status = SolveStatus::wrong_workspace;
     return wrong;
   }
-  if (plan.orientations().empty() && q_world.empty() && orientation_visible.empty())
-    return workspace.solver_->solve(target_world_m, visible, posture);
   return workspace.solver_->solve(target_world_m, visible, q_world, orientation_visible, posture);
 }
 
