@@ -315,3 +315,16 @@ TEST_CASE("Warm start: a joint's last turn is carried on, damped, with the joint
   warm.predict(0.05, true, start);
   CHECK(start.segments[2].q_world.isApprox(untouched.segments[2].q_world));
 }
+
+TEST_CASE("The stop rule's power-law fall is the integral of the pace it fits", "[convergence]") {
+  // Paces 1 um at the newer half's middle (iteration 36) and 1 um * (36/28)^2 at the older
+  // half's (28): b = 2. From iteration 40 over 60 more, the pace 1e-6 * (s/36)^-2 sums to
+  // 1e-6 * 36^2 * (1/40 - 1/100) = 19.44 um (worked by hand, not with the formula).
+  const double pace_m = 1e-6, older_m = 1e-6 * (36.0 / 28.0) * (36.0 / 28.0);
+  CHECK(power_law_fall_m(40, 8, pace_m, older_m, 60.0) == Approx(19.44e-6).epsilon(1e-9));
+  // A power whose sum diverges (b <= 1: here b = 1) or paces that do not fall predict nothing.
+  CHECK(power_law_fall_m(40, 8, pace_m, pace_m * 36.0 / 28.0, 60.0) == 0.0);
+  CHECK(power_law_fall_m(40, 8, pace_m, pace_m, 60.0) == 0.0);
+  // Nor does a window that reaches back before the first iteration.
+  CHECK(power_law_fall_m(10, 8, pace_m, older_m, 60.0) == 0.0);
+}
