@@ -1,6 +1,7 @@
 #include "daemon_config.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <map>
 
@@ -147,21 +148,9 @@ PredictionSettings read_prediction(const JsonReader& root, int default_level) {
   return p;
 }
 
-}  // namespace
 
-DaemonConfig load_daemon_config(const std::string& text, const std::string& file) {
-  const nlohmann::json doc = JsonReader::parse(text, file);
-  const JsonReader root(doc, file);
-  root.expect_object();
-  root.only_keys({"format", "description", "model", "targets", "sensors", "solver", "input",
-                  "output", "occlusion", "outliers", "quality", "cold_start", "prediction", "stats_interval_s",
-                  "log_level"});
-  if (root.at("format").as_string() != kFormat)
-    root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
-                           std::string("use \"") + kFormat + "\"");
-  DaemonConfig c;
-  c.file = file;
-  c.description = root.get("description", std::string());
+// The model, targets, sensors, solver, occlusion and tracking options: one subject's tracking.
+void read_tracking_parts(const JsonReader& root, const std::string& file, DaemonConfig& c) {
   auto model = std::make_shared<const Model>(read_model(root.at("model"), file));
   if (root.has("sensors")) {
     std::vector<std::string> segments;
@@ -177,6 +166,23 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
 
   if (root.has("solver")) c.tracker.solver = read_solver_options(root.at("solver"), c.tracker.solver);
 
+  int weakest = 1000;
+  for (const MarkerTarget& t : c.tracker.markers) weakest = std::min(weakest, t.level);
+  for (const SensorTarget& t : c.tracker.sensors.sensors) weakest = std::min(weakest, t.level);
+  c.tracker.occlusion.hold_level = weakest - 1;
+  if (root.has("occlusion")) {
+    const JsonReader o = root.at("occlusion");
+    o.only_keys({"hold_s", "hold_level"});
+    c.tracker.occlusion.hold_s = o.get("hold_s", c.tracker.occlusion.hold_s, 0.0, 3600.0);
+    c.tracker.occlusion.hold_level = static_cast<int>(o.get(
+        "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
+  }
+  read_tracking_options(root, c.tracker);
+  c.tracker.prediction = read_prediction(root, weakest);
+}
+
+// input, output: the daemon's sockets and encodings.
+void read_io_parts(const JsonReader& root, DaemonConfig& c) {
   if (root.has("input")) {
     const JsonReader in = root.at("input");
     in.only_keys({"endpoint", "mode", "units", "max_payload_bytes", "max_backlog_frames",
@@ -214,19 +220,86 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
                            "give the pose output its own endpoint");
 
-  int weakest = 1000;
-  for (const MarkerTarget& t : c.tracker.markers) weakest = std::min(weakest, t.level);
-  for (const SensorTarget& t : c.tracker.sensors.sensors) weakest = std::min(weakest, t.level);
-  c.tracker.occlusion.hold_level = weakest - 1;
-  if (root.has("occlusion")) {
-    const JsonReader o = root.at("occlusion");
-    o.only_keys({"hold_s", "hold_level"});
-    c.tracker.occlusion.hold_s = o.get("hold_s", c.tracker.occlusion.hold_s, 0.0, 3600.0);
-    c.tracker.occlusion.hold_level = static_cast<int>(o.get(
-        "hold_level", static_cast<long long>(c.tracker.occlusion.hold_level), -1001LL, 1000LL));
+}
+
+
+// `subjects`: each entry's name and its own config file (what `fabrik
+// calibrate` writes), of which the tracking parts are used.
+void read_subjects(const JsonReader& list, const std::string& file,
+                   std::vector<SubjectConfig>& out) {
+  list.expect_array();
+  const std::size_t n = list.value().size();
+  if (n == 0 || n > kMaxSubjects)
+    list.fail("\"subjects\" lists " + std::to_string(n) + " subjects",
+              "list 1 to " + std::to_string(kMaxSubjects) + " subjects (or leave the key out "
+              "for one subject)");
+  for (std::size_t k = 0; k < n; ++k) {
+    const JsonReader e = list.at(k);
+    e.only_keys({"name", "config"});
+    SubjectConfig s;
+    s.name = e.at("name").as_string();
+    const bool name_ok =
+        !s.name.empty() && s.name.size() <= kMaxSubjectNameBytes &&
+        std::all_of(s.name.begin(), s.name.end(), [](char ch) {
+          return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' ||
+                 ch == '.';
+        });
+    if (!name_ok)
+      e.at("name").fail("subject name '" + s.name + "' cannot be used",
+                        "use 1 to " + std::to_string(kMaxSubjectNameBytes) +
+                            " letters, digits, '_', '-' or '.' (it becomes the topic pose/NAME "
+                            "and the prefix NAME: of marker names)");
+    for (const SubjectConfig& other : out)
+      if (other.name == s.name)
+        e.at("name").fail("subject '" + s.name + "' is listed twice", "give each subject its own name");
+    std::filesystem::path path(e.at("config").as_string());
+    if (path.is_relative() && file != kEmbeddedDefault)
+      path = std::filesystem::path(file).parent_path() / path;
+    std::string text;
+    if (auto p = read_text_file(path.string(), text))
+      e.at("config").fail("subject config '" + path.string() + "' " +
+                              (p->problem.rfind("is ", 0) == 0 ? p->problem
+                                                              : "cannot be used: " + p->problem),
+                          p->fix.empty() ? "give a path relative to this config" : p->fix);
+    if (nlohmann::json::parse(text, nullptr, false).contains("subjects"))
+      e.at("config").fail("subject config '" + path.string() + "' lists subjects itself",
+                          "name the config of one subject (what fabrik calibrate writes)");
+    DaemonConfig one = load_daemon_config(text, path.string());
+    s.file = path.string();
+    s.tracker = std::move(one.tracker);
+    s.sensors = std::move(one.sensors);
+    out.push_back(std::move(s));
   }
-  read_tracking_options(root, c.tracker);
-  c.tracker.prediction = read_prediction(root, weakest);
+}
+}  // namespace
+
+DaemonConfig load_daemon_config(const std::string& text, const std::string& file) {
+  const nlohmann::json doc = JsonReader::parse(text, file);
+  const JsonReader root(doc, file);
+  root.expect_object();
+  const bool multi = root.has("subjects");
+  if (multi)  // the tracking parts come from each subject's own config
+    root.only_keys({"format", "description", "subjects", "subject_timeout_s", "input", "output",
+                    "stats_interval_s", "log_level"});
+  else
+    root.only_keys({"format", "description", "model", "targets", "sensors", "solver", "input",
+                    "output", "occlusion", "outliers", "quality", "cold_start", "prediction",
+                    "stats_interval_s", "log_level"});
+  if (root.at("format").as_string() != kFormat)
+    root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
+                           std::string("use \"") + kFormat + "\"");
+  DaemonConfig c;
+  c.file = file;
+  c.description = root.get("description", std::string());
+  if (multi) {
+    read_subjects(root.at("subjects"), file, c.subjects);
+    c.tracker = c.subjects.front().tracker;
+    c.sensors = c.subjects.front().sensors;
+    c.subject_timeout_s = root.get("subject_timeout_s", c.subject_timeout_s, 1e-3, 3600.0);
+  } else {
+    read_tracking_parts(root, file, c);
+  }
+  read_io_parts(root, c);
   c.stats_interval_s = root.get("stats_interval_s", c.stats_interval_s, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();
@@ -236,6 +309,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   }
   return c;
 }
+
 
 DaemonConfig load_daemon_config_file(const std::string& path) {
   return load_daemon_config(read_config_text(path), path);

@@ -21,6 +21,20 @@ struct Endpoint {
   SocketMode mode = SocketMode::bind;
 };
 
+// One subject of a multi-subject config (`subjects`, docs/daemon-config.md):
+// its name on the wire (`Name:Marker`, a frame's "subject", topic pose/Name)
+// and the tracking parts of its own calibrated config.
+struct SubjectConfig {
+  std::string name;
+  std::string file;  // the subject's config file, as resolved
+  TrackerSetup tracker;
+  SensorSection sensors;
+};
+
+// What a subject's name may be: it is a topic suffix and a marker-name prefix.
+constexpr std::size_t kMaxSubjectNameBytes = 32;
+constexpr std::size_t kMaxSubjects = 64;
+
 struct DaemonConfig {
   std::string file;  // where it came from ("<embedded>/default.json" for the default)
   std::string description;
@@ -51,6 +65,14 @@ struct DaemonConfig {
   int max_backlog_frames = 16;
   double stats_interval_s = 1.0;
   std::string log_level = "info";
+  // Several subjects (`subjects`): each with its own tracker and pose; empty:
+  // one subject, `tracker` above (as before subjects existed). When not empty,
+  // `tracker` and `sensors` are the first subject's.
+  std::vector<SubjectConfig> subjects;
+  // A subject none of whose markers (or sensors) was measured for longer than
+  // this (frame time) stops getting poses, and starts cold when it is seen
+  // again (docs/multi-subject.md).
+  double subject_timeout_s = 0.5;
 };
 
 // Throws ConfigError. `file` is used in messages and to resolve a relative

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cerrno>
 #include <condition_variable>
+#include <functional>
+#include <type_traits>
 #include <cstring>
 #include <iterator>
 #include <stdexcept>
@@ -106,6 +108,9 @@ struct StatsFields {
   StageSamples& stages_us;
   std::string_view last_error, config;  // both already safe (safe_text)
   const SourceInput* source = nullptr;  // null: the config names no source
+  // Multi-subject configs: writes stats.subjects (a map) when set.
+  std::function<void(JsonWriter&)> subjects_json;
+  std::function<void(MsgpackWriter&)> subjects_msgpack;
 };
 
 // stats.source (proto/stats.schema.json): the vendor server's connection.
@@ -157,7 +162,10 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  w.begin_map(s.source ? 28 : 27);  // MessagePack needs the exact count of the keys below
+  constexpr bool json = std::is_same_v<Writer, JsonWriter>;
+  const bool subjects = json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
+  // MessagePack needs the exact count of the keys below
+  w.begin_map(27 + (s.source ? 1 : 0) + (subjects ? 2 : 0));
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -202,6 +210,14 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.key("source");
     write_source_stats(w, *s.source);
   }
+  if (subjects) {
+    count("other_subject_frames", s.c.other_subject_frames);
+    w.key("subjects");
+    if constexpr (json)
+      s.subjects_json(w);
+    else
+      s.subjects_msgpack(w);
+  }
   w.end_map();
 }
 
@@ -211,6 +227,27 @@ bool subscribes_to_our_topics(std::string_view prefix) {
   return std::any_of(std::begin(kPublishedTopics), std::end(kPublishedTopics),
                      [&](std::string_view topic) { return topic.starts_with(prefix); });
 }
+
+bool subscribes_to_our_topics(std::string_view prefix, std::span<const std::string> subject_topics) {
+  return subscribes_to_our_topics(prefix) ||
+         std::any_of(subject_topics.begin(), subject_topics.end(),
+                     [&](const std::string& topic) { return topic.starts_with(prefix); });
+}
+
+// One subject of a multi-subject config: its tracker, its pose encoder, its
+// slice of the combined frame (names NAME:Marker) and a decoder of its bare
+// names (frames with "subject"), and whether it is present.
+struct Daemon::SubjectState {
+  std::string name, pose_topic, model_topic, model_out;
+  std::unique_ptr<Tracker> tracker;
+  std::unique_ptr<PoseEncoder> encoder;
+  std::unique_ptr<MarkerDecoder> decoder;
+  MarkerFrame frame;  // decoded into by `decoder`
+  std::size_t marker_first = 0, marker_count = 0, sensor_first = 0, sensor_count = 0;
+  bool present = false;
+  double last_seen_s = 0.0;  // frame time
+  Clock::time_point last_seen_at{};
+};
 
 struct Daemon::State {
   DaemonConfig config;
@@ -230,6 +267,10 @@ struct Daemon::State {
   zmq::socket_t sub, pub;
   SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
+  // Multi-subject configs: one per subject (empty: tracker, encoder and
+  // model_out above serve the one subject), and their topics (pose/NAME, model/NAME).
+  std::vector<SubjectState> subjects;
+  std::vector<std::string> subject_topics;
 };
 
 struct Daemon::ReloadJob {
@@ -244,26 +285,61 @@ struct Daemon::ReloadJob {
 
 std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   auto s = std::make_unique<State>();
-  s->tracker = std::make_unique<Tracker>(config.tracker);
-  std::vector<std::string> names, sensor_names;
-  for (const MarkerTarget& m : config.tracker.markers) names.push_back(m.marker);
-  for (const SensorTarget& t : config.tracker.sensors.sensors) sensor_names.push_back(t.sensor);
-  s->decoder = std::make_unique<MarkerDecoder>(
-      names, config.input_m_per_unit, config.max_payload_bytes,
-      PlausibleMarkers{config.max_abs_coordinate_m, config.zero_is_missing,
-                       config.quaternion_tolerance},
-      sensor_names);
+  const PlausibleMarkers plausible{config.max_abs_coordinate_m, config.zero_is_missing,
+                                   config.quaternion_tolerance};
   const PayloadEncoding encoding = config.output_encoding == Encoding::msgpack
                                        ? PayloadEncoding::msgpack
                                        : PayloadEncoding::json;
-  s->encoder = std::make_unique<PoseEncoder>(*s->tracker, config.output_units, encoding,
-                                             config.output_measured_markers,
-                                             config.output_pose_content);
+  const auto make_encoder = [&](const Tracker& tracker) {
+    return std::make_unique<PoseEncoder>(tracker, config.output_units, encoding,
+                                         config.output_measured_markers,
+                                         config.output_pose_content);
+  };
+  // The names a decoder takes for one subject's setup, each after `prefix`.
+  const auto names_of = [](const TrackerSetup& setup, const std::string& prefix,
+                           std::vector<std::string>& names, std::vector<std::string>& sensors) {
+    for (const MarkerTarget& m : setup.markers) names.push_back(prefix + m.marker);
+    for (const SensorTarget& t : setup.sensors.sensors) sensors.push_back(prefix + t.sensor);
+  };
+  std::vector<std::string> names, sensor_names;
+  if (config.subjects.empty()) {
+    s->tracker = std::make_unique<Tracker>(config.tracker);
+    s->encoder = make_encoder(*s->tracker);
+    names_of(config.tracker, "", names, sensor_names);
+  }
+  s->subjects.resize(config.subjects.size());
+  for (std::size_t k = 0; k < config.subjects.size(); ++k) {
+    const SubjectConfig& c = config.subjects[k];
+    SubjectState& subject = s->subjects[k];
+    subject.name = c.name;
+    subject.pose_topic = "pose/" + c.name;
+    subject.model_topic = "model/" + c.name;
+    s->subject_topics.push_back(subject.pose_topic);
+    s->subject_topics.push_back(subject.model_topic);
+    subject.tracker = std::make_unique<Tracker>(c.tracker);
+    subject.encoder = make_encoder(*subject.tracker);
+    subject.encoder->set_subject(c.name);
+    std::vector<std::string> bare, bare_sensors;
+    names_of(c.tracker, "", bare, bare_sensors);
+    subject.decoder = std::make_unique<MarkerDecoder>(bare, config.input_m_per_unit,
+                                                      config.max_payload_bytes, plausible,
+                                                      bare_sensors);
+    subject.frame = subject.decoder->make_frame();
+    subject.marker_first = names.size();
+    subject.sensor_first = sensor_names.size();
+    names_of(c.tracker, c.name + ":", names, sensor_names);
+    subject.marker_count = names.size() - subject.marker_first;
+    subject.sensor_count = sensor_names.size() - subject.sensor_first;
+    subject.model_out = encode_model(c.tracker, safe_text(c.file), config.output_units, encoding);
+  }
+  s->decoder = std::make_unique<MarkerDecoder>(names, config.input_m_per_unit,
+                                               config.max_payload_bytes, plausible, sensor_names);
   s->frame = s->decoder->make_frame();
   s->waiting.resize(static_cast<std::size_t>(config.max_backlog_frames));
   s->received_at.resize(s->waiting.size());
   s->config_name = safe_text(config.file);
-  s->model_out = encode_model(config.tracker, s->config_name, config.output_units, encoding);
+  if (config.subjects.empty())
+    s->model_out = encode_model(config.tracker, s->config_name, config.output_units, encoding);
   s->config = std::move(config);
   return s;
 }
@@ -312,6 +388,8 @@ Daemon::Daemon(zmq::context_t& context, DaemonConfig config, SourceClientFactory
   auto s = prepare_state(std::move(config));
   attach_sockets(*s, nullptr);
   state_ = std::move(s);
+  subject_counts_.assign(state_->subjects.size(), {});
+  subject_snapshot_ = subject_counts_;
   out_.reserve(1 << 16);
   stats_out_.reserve(4096);
 }
@@ -337,9 +415,16 @@ DaemonCounters Daemon::counters() const {
   return snapshot_;
 }
 
+std::vector<SubjectCounters> Daemon::subject_counters() const {
+  std::lock_guard lock(snapshot_mutex_);
+  return subject_snapshot_;
+}
+
 void Daemon::update_snapshot() {
   std::lock_guard lock(snapshot_mutex_);
   snapshot_ = counters_;
+  // Same size except right after a reload: copying then allocates nothing.
+  subject_snapshot_ = subject_counts_;
 }
 
 void Daemon::send(const char* topic, const std::string& payload) {
@@ -464,7 +549,21 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
     bad_input("bad marker frame: ", decode_error_);
     return;
   }
-  const MarkerFrame& f = s.frame;
+  // A multi-subject frame with "subject": its bare names are that subject's.
+  SubjectState* only = nullptr;
+  if (!s.subjects.empty() && s.frame.has_subject) {
+    for (SubjectState& subject : s.subjects)
+      if (subject.name == s.frame.subject) only = &subject;
+    if (!only) {
+      ++counters_.other_subject_frames;
+      return;
+    }
+    if (!only->decoder->decode(payload, only->frame, decode_error_)) {
+      bad_input("bad marker frame: ", decode_error_);
+      return;
+    }
+  }
+  const MarkerFrame& f = only ? only->frame : s.frame;
   counters_.rejected_coordinates += static_cast<std::uint64_t>(f.rejected_count);
   counters_.zero_markers += static_cast<std::uint64_t>(f.zero_count);
   counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
@@ -473,7 +572,10 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
   if (f.known_count == 0 && f.unknown_count > 0) ++counters_.unmatched_frames;
   const bool warn_mismatch = s.names.observe(f.known_count, f.unknown_count);
   counters_.config_mismatch = s.names.mismatched();
-  publish_pose(f, received, decode_start);
+  if (s.subjects.empty())
+    publish_pose(f, received, decode_start);
+  else
+    publish_subjects(f, only, received, decode_start);
   try {
     // Look up first: only a name not seen before costs an allocation.
     const auto report_once = [&](const std::string& name, const char* what) {
@@ -483,7 +585,19 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
                      safe_text(name, 128), *what == 'm' ? "model" : "config");
       }
     };
-    for (int k = 0; k < f.unknown_listed; ++k) report_once(f.unknown_names[k], "marker");
+    // Another subject's markers (another fabrikd's, in a split): reported
+    // once per subject, not once per marker.
+    const auto other_subject = [&](const std::string& name) {
+      const std::size_t colon = name.find(':');
+      if (s.subjects.empty() || colon == std::string::npos || colon == 0) return false;
+      const std::string_view prefix(name.data(), colon);
+      for (const SubjectState& subject : s.subjects)
+        if (subject.name == prefix) return false;
+      report_once(std::string(prefix), "subject");
+      return true;
+    };
+    for (int k = 0; k < f.unknown_listed; ++k)
+      if (!other_subject(f.unknown_names[k])) report_once(f.unknown_names[k], "marker");
     for (int k = 0; k < f.unknown_sensors_listed; ++k)
       report_once(f.unknown_sensor_names[k], "orientation sensor");
     if (warn_mismatch) warn_config_mismatch(f);
@@ -511,30 +625,82 @@ void Daemon::warn_config_mismatch(const MarkerFrame& f) {
 void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
                           Clock::time_point decode_start) {
   State& s = *state_;
+  const double time_s = f.has_time ? f.time_s
+                                   : std::chrono::duration<double>(received - started_).count();
+  track_and_publish(*s.tracker, *s.encoder, "pose", f, time_s,
+                    {f.p_world_m, f.visible, f.q_sensor, f.sensor_visible}, received, decode_start);
+}
+
+// Presence (docs/multi-subject.md): a subject is seen in a frame when one of
+// its markers or sensors is measured. Unseen for longer than
+// subject_timeout_s (frame time; or a clock that went back), it is absent:
+// no poses, and its tracker is reset so that it starts cold when seen again.
+// Unseen for less, it is tracked on (an occlusion: the tracker's gap rules).
+void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::time_point received,
+                              Clock::time_point decode_start) {
+  State& s = *state_;
+  const double time_s = f.has_time ? f.time_s
+                                   : std::chrono::duration<double>(received - started_).count();
+  const double timeout_s = s.config.subject_timeout_s;
+  for (std::size_t k = 0; k < s.subjects.size(); ++k) {
+    SubjectState& subject = s.subjects[k];
+    if (only && &subject != only) continue;
+    const Measurements m =
+        only ? Measurements{f.p_world_m, f.visible, f.q_sensor, f.sensor_visible}
+             : Measurements{
+                   std::span(f.p_world_m).subspan(subject.marker_first, subject.marker_count),
+                   std::span(f.visible).subspan(subject.marker_first, subject.marker_count),
+                   std::span(f.q_sensor).subspan(subject.sensor_first, subject.sensor_count),
+                   std::span(f.sensor_visible).subspan(subject.sensor_first, subject.sensor_count)};
+    const auto any = [](std::span<const std::uint8_t> flags) {
+      return std::find(flags.begin(), flags.end(), std::uint8_t{1}) != flags.end();
+    };
+    const bool seen = any(m.visible) || any(m.sensor_visible);
+    SubjectCounters& c = subject_counts_[k];
+    const double age_s = time_s - subject.last_seen_s;
+    if (subject.present && (age_s > timeout_s || age_s < 0.0)) {
+      subject.present = c.present = false;
+      subject.tracker->reset();
+      ++c.departures;
+    }
+    if (seen) {
+      if (!subject.present) ++c.appearances;
+      subject.present = c.present = true;
+      subject.last_seen_s = time_s;
+      subject.last_seen_at = received;
+    }
+    if (!subject.present) continue;
+    if (track_and_publish(*subject.tracker, *subject.encoder, subject.pose_topic.c_str(), f,
+                          time_s, m, received, decode_start))
+      ++c.frames_out;
+    decode_start = Clock::now();  // the next subject's stages start here
+  }
+}
+
+bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
+                               const MarkerFrame& f, double time_s, const Measurements& m,
+                               Clock::time_point received, Clock::time_point decode_start) {
   FrameStages stages;
   const Clock::time_point solve_start = Clock::now();
   stages[Stage::decode] = us_between(decode_start, solve_start);
-  const double time_s = f.has_time ? f.time_s
-                                   : std::chrono::duration<double>(received - started_).count();
-  const TrackResult* r =
-      &s.tracker->track(time_s, f.p_world_m, f.visible, f.q_sensor, f.sensor_visible);
+  const TrackResult* r = &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible);
   if (!all_finite(*r)) {
     // A degenerate solve must not poison the warm start of every later frame.
     internal_error("solve gave a non-finite pose: ", "restarted from the rest posture");
-    s.tracker->reset();
-    r = &s.tracker->track(time_s, f.p_world_m, f.visible, f.q_sensor, f.sensor_visible);
-    if (!all_finite(*r)) return;
+    tracker.reset();
+    r = &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible);
+    if (!all_finite(*r)) return false;
   }
   const Clock::time_point encode_start = Clock::now();
-  s.encoder->encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_,
-                    {f.p_world_m, f.visible});
+  encoder.encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_,
+                 {m.p_world_m, m.visible});
   const Clock::time_point send_start = Clock::now();
   counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
   counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
   ++interval_frames_out_;
   update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it
-  send("pose", out_);
+  send(topic, out_);
   const Clock::time_point sent = Clock::now();
   stages[Stage::solve] = us_between(solve_start, encode_start);
   stages[Stage::encode] = us_between(encode_start, send_start);
@@ -543,6 +709,7 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
   queue_us_.add(us_between(received, sent));
   stages_us_.add(stages);
   last_stages_ = stages;
+  return true;
 }
 
 void Daemon::read_monitor() {
@@ -610,8 +777,14 @@ void Daemon::read_subscriptions() {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
     if (!m.empty() && m[0] == 0) continue;  // an unsubscription: nothing to hold
-    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1))) {
-      model_wanted = model_wanted || subscribes_to_model(m.substr(1));
+    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1), s.subject_topics)) {
+      const std::string_view prefix = m.substr(1);
+      model_wanted = model_wanted ||
+                     (s.subjects.empty() ? subscribes_to_model(prefix)
+                                         : std::any_of(s.subjects.begin(), s.subjects.end(),
+                                                       [&](const SubjectState& subject) {
+                                                         return subject.model_topic.starts_with(prefix);
+                                                       }));
       continue;
     }
     ++counters_.subscriptions_refused;
@@ -629,8 +802,9 @@ void Daemon::read_subscriptions() {
     const std::size_t n_text = safe_text(m.substr(std::min<std::size_t>(1, m.size())), text, 64);
     subscriber_log_.warn(
         "refused a subscription to '{}' on the output{}: fabrikd publishes only the topics "
-        "pose, stats and model (stats: subscriptions_refused)",
-        std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "");
+        "pose, stats and model{} (stats: subscriptions_refused)",
+        std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "",
+        s.subjects.empty() ? "" : ", and pose/NAME and model/NAME for its subjects");
   }
   update_snapshot();
   if (model_wanted) want_model(Clock::now());
@@ -646,14 +820,17 @@ void Daemon::want_model(Clock::time_point now) {
 }
 
 void Daemon::publish_model() {
-  send("model", state_->model_out);
+  // Every subject's model (the subscriber's prefix picks what it receives).
+  if (state_->subjects.empty()) send("model", state_->model_out);
+  for (const SubjectState& subject : state_->subjects)
+    send(subject.model_topic.c_str(), subject.model_out);
   last_model_ = Clock::now();
   model_pending_ = false;
 }
 
 void Daemon::publish_stats(double interval_s) {
   const State& s = *state_;
-  const StatsFields fields{
+  StatsFields fields{
       std::chrono::duration<double>(Clock::now() - started_).count(),
       interval_s,
       interval_s > 0 ? static_cast<double>(interval_frames_out_) / interval_s : 0.0,
@@ -663,7 +840,38 @@ void Daemon::publish_stats(double interval_s) {
       stages_us_,
       last_error_.view(),
       s.config_name,
-      s.source.get()};
+      s.source.get(),
+      {},
+      {}};
+  const Clock::time_point now = Clock::now();
+  const auto subjects = [&](auto& w) {
+    w.begin_map(s.subjects.size());
+    for (std::size_t k = 0; k < s.subjects.size(); ++k) {
+      const SubjectState& subject = s.subjects[k];
+      const SubjectCounters& c = subject_counts_[k];
+      w.key(subject.name);  // a checked name: letters, digits, '_', '-', '.'
+      w.begin_map(5);
+      w.key("present");
+      w.boolean(c.present);
+      w.key("frames_out");
+      w.uint(c.frames_out);
+      w.key("appearances");
+      w.uint(c.appearances);
+      w.key("departures");
+      w.uint(c.departures);
+      w.key("seen_s_ago");  // by the daemon's clock; null: never seen
+      if (c.appearances == 0)
+        w.null();
+      else
+        w.number(std::chrono::duration<double>(now - subject.last_seen_at).count(), 3);
+      w.end_map();
+    }
+    w.end_map();
+  };
+  if (!s.subjects.empty()) {
+    fields.subjects_json = subjects;
+    fields.subjects_msgpack = subjects;
+  }
   if (s.config.output_encoding == Encoding::msgpack) {
     MsgpackWriter w(stats_out_);
     write_stats(w, fields);
@@ -681,6 +889,7 @@ void Daemon::publish_stats(double interval_s) {
 void Daemon::switch_to(std::unique_ptr<State> next) {
   attach_sockets(*next, state_.get());
   state_ = std::move(next);
+  subject_counts_.assign(state_->subjects.size(), {});
   overloaded_ = false;
   ++counters_.reloads;
   spdlog::set_level(spdlog::level::from_str(state_->config.log_level));
@@ -748,12 +957,15 @@ void Daemon::wait_for_reload_at_stop() {
 }
 
 void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& load_config) {
-  spdlog::info("fabrikd: markers in on {} ({}), poses out on {} ({}), {} markers tracked",
+  spdlog::info("fabrikd: markers in on {} ({}), poses out on {} ({}), {} markers tracked{}",
                safe_text(input_endpoint()),
                state_->config.input.mode == SocketMode::bind ? "bind" : "connect",
                safe_text(output_endpoint()),
                state_->config.output.mode == SocketMode::bind ? "bind" : "connect",
-               state_->tracker->marker_count());
+               state_->frame.p_world_m.size(),
+               state_->subjects.empty()
+                   ? std::string()
+                   : " for " + std::to_string(state_->subjects.size()) + " subjects");
   Clock::time_point last_stats = Clock::now();
   while (!control.stop.load()) {
     if (reload_ && reload_->done) finish_reload();

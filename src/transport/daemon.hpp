@@ -56,6 +56,15 @@ struct DaemonCounters {
   std::uint64_t outliers = 0;          // measured markers left out of a solve as outliers
   std::uint64_t poor_frames = 0;       // poses whose residual.quality was poor
   std::uint64_t subscriptions_refused = 0;  // output subscriptions to no topic of ours (peer dropped)
+  std::uint64_t other_subject_frames = 0;  // frames whose "subject" the config does not list
+};
+
+// One subject's counts (multi-subject configs; DaemonConfig::subjects order).
+struct SubjectCounters {
+  std::uint64_t frames_out = 0;   // its poses published
+  std::uint64_t appearances = 0;  // times it was seen after being absent (or never seen): cold starts
+  std::uint64_t departures = 0;   // times it was unseen for longer than subject_timeout_s
+  bool present = false;           // getting poses
 };
 
 // Signals to the loop, set from another thread or a signal handler (the
@@ -100,6 +109,8 @@ constexpr int kInputReceiveBufferBytes = 256 * 1024;
 // refusing them is what bounds a subscriber's memory.
 inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats", "model"};
 bool subscribes_to_our_topics(std::string_view prefix);
+// The same with a multi-subject config's topics too (pose/NAME, model/NAME).
+bool subscribes_to_our_topics(std::string_view prefix, std::span<const std::string> subject_topics);
 // Whether a subscription to `prefix` receives the topic `model` (sent to it
 // when the subscription arrives: Daemon::read_subscriptions).
 inline bool subscribes_to_model(std::string_view prefix) {
@@ -142,6 +153,8 @@ class Daemon {
   std::string input_endpoint() const;
   std::string output_endpoint() const;
   DaemonCounters counters() const;
+  // Per subject of a multi-subject config, in its order (empty: one subject).
+  std::vector<SubjectCounters> subject_counters() const;
   // The running config; not to be used across a reload.
   const DaemonConfig& config() const;
   // The frame path alone, for benchmarks: serves `payload` as if it had just
@@ -170,6 +183,24 @@ class Daemon {
                    std::chrono::steady_clock::time_point received);
   void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received,
                     std::chrono::steady_clock::time_point decoded);
+  struct SubjectState;
+  // A multi-subject frame: each subject seen in it (or only `only`, for a
+  // frame with "subject") tracked and published on pose/NAME.
+  void publish_subjects(const MarkerFrame& f, SubjectState* only,
+                        std::chrono::steady_clock::time_point received,
+                        std::chrono::steady_clock::time_point decoded);
+  // Tracks one frame of measurements and publishes its pose on `topic`; false
+  // when the pose could not be made finite (nothing published).
+  struct Measurements {
+    std::span<const Eigen::Vector3d> p_world_m;
+    std::span<const std::uint8_t> visible;
+    std::span<const Eigen::Quaterniond> q_sensor;
+    std::span<const std::uint8_t> sensor_visible;
+  };
+  bool track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
+                         const MarkerFrame& f, double time_s, const Measurements& m,
+                         std::chrono::steady_clock::time_point received,
+                         std::chrono::steady_clock::time_point decoded);
   void read_monitor();
   void read_subscriptions();
   void publish_stats(double interval_s);
@@ -193,6 +224,7 @@ class Daemon {
   DaemonCounters counters_;
   mutable std::mutex snapshot_mutex_;  // counters() may be called from other threads
   DaemonCounters snapshot_;
+  std::vector<SubjectCounters> subject_counts_, subject_snapshot_;  // sized at each (re)load
   std::chrono::steady_clock::time_point started_;
   bool model_pending_ = false;  // asked for within kModelInterval of the last one
   std::chrono::steady_clock::time_point last_model_{};

@@ -67,6 +67,10 @@ class FrameSax final : public nlohmann::json_sax<json> {
         return fail("\"units\" must be \"mm\" or \"m\", got \"" + s + "\"");
       return top_value_done();
     }
+    if (state_ == State::subject) {
+      set_frame_subject(out_, s);
+      return top_value_done();
+    }
     return scalar("a string");
   }
   bool binary(binary_t&) override { return scalar("binary data"); }
@@ -136,6 +140,8 @@ class FrameSax final : public nlohmann::json_sax<json> {
         state_ = State::markers;
       else if (k == "orientations")
         state_ = State::orientations;
+      else if (k == "subject")
+        state_ = State::subject;
       else
         state_ = State::top_skip_value;  // additions to the contract are allowed
       return true;
@@ -189,6 +195,7 @@ class FrameSax final : public nlohmann::json_sax<json> {
     marker_value,
     coords,
     orientations,
+    subject,
     sensor_key,
     sensor_value,
     quat,
@@ -284,6 +291,8 @@ class FrameSax final : public nlohmann::json_sax<json> {
         return fail(std::string("\"markers\" must be an object, got ") + what);
       case State::orientations:
         return fail(std::string("\"orientations\" must be an object, got ") + what);
+      case State::subject:
+        return fail(std::string("\"subject\" must be a string, got ") + what);
       case State::sensor_value:
         return fail("orientation \"" + marker_name_ + "\" must be [w, x, y, z] or null, got " +
                     what);
@@ -330,6 +339,8 @@ void start_frame(MarkerFrame& out) {
   out.rejected_orientations = 0;
   out.unknown_sensor_count = 0;
   out.unknown_sensors_listed = 0;
+  out.has_subject = false;
+  out.subject.clear();
   std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
   std::fill(out.sensor_visible.begin(), out.sensor_visible.end(), 0);
 }
@@ -369,6 +380,7 @@ MarkerFrame MarkerDecoder::make_frame() const {
   f.sensor_visible.assign(sensor_count_, 0);
   f.unknown_sensor_names.resize(kMaxUnknownNames);
   for (std::string& name : f.unknown_sensor_names) name.reserve(kMaxUnknownNameBytes);
+  f.subject.reserve(kMaxSubjectBytes);
   return f;
 }
 

@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -50,7 +51,18 @@ struct MarkerFrame {
   int unknown_sensor_count = 0;                   // sensor names not in the config
   std::vector<std::string> unknown_sensor_names;  // the first unknown_sensors_listed (cut)
   int unknown_sensors_listed = 0;
+  // Addition to the contract, "subject": whose markers the frame's bare
+  // names are (multi-subject configs; docs/multi-subject.md). Cut to its
+  // reserved capacity (kMaxSubjectBytes), so reading it never allocates.
+  bool has_subject = false;
+  std::string subject;
 };
+constexpr std::size_t kMaxSubjectBytes = 64;
+// Sets `subject` (cut to kMaxSubjectBytes: a longer one matches no subject).
+inline void set_frame_subject(MarkerFrame& f, std::string_view subject) {
+  f.has_subject = true;
+  f.subject.assign(subject.substr(0, std::min(subject.size(), kMaxSubjectBytes)));
+}
 
 // What a measured position must be to count as seen.
 struct PlausibleMarkers {

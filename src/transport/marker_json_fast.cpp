@@ -59,6 +59,12 @@ class CommonShapeReader {
       top_.m_per_unit = units == "mm" ? 1e-3 : units == "m" ? 1.0 : 0.0;
       return top_.m_per_unit > 0.0;
     }
+    if (key == "subject") {
+      std::string_view subject;
+      if (!string(subject)) return false;
+      set_frame_subject(out_, subject);
+      return true;
+    }
     return false;  // other keys, "orientations" included: the full reader
   }
 

@@ -42,6 +42,12 @@ PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncod
     segment_names_.push_back({seg.name, JsonWriter::json_key(seg.name)});
 }
 
+void PoseEncoder::set_subject(std::string name) {
+  if (subject_.empty() && !name.empty()) ++pose_keys_;
+  if (!subject_.empty() && name.empty()) --pose_keys_;
+  subject_ = std::move(name);
+}
+
 template <class Writer>
 void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& r,
                         MeasuredMarkers measured) const {
@@ -61,6 +67,10 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   w.begin_map(pose_keys_ + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));
   w.key("frame");
   w.uint(header.frame);
+  if (!subject_.empty()) {
+    w.key("subject");  // addition: whose pose (multi-subject configs)
+    w.string(subject_);
+  }
   if (header.has_time) {
     w.key("time");
     w.number(header.time_s, 6);

@@ -47,6 +47,9 @@ class PoseEncoder {
   void encode(const PoseHeader& header, const TrackResult& result, std::string& out,
               MeasuredMarkers measured = {}) const;
   PayloadEncoding encoding() const { return encoding_; }
+  // Addition: each pose carries "subject": `name` (multi-subject configs);
+  // never called: no such key, as before subjects existed.
+  void set_subject(std::string name);
 
  private:
   template <class Writer>
@@ -63,6 +66,7 @@ class PoseEncoder {
   std::vector<Name> angle_names_, translation_names_, segment_names_;
   std::vector<int> angle_index_, translation_index_;
   std::string units_;
+  std::string subject_;  // empty: no "subject" key
   double scale_;  // output units per metre
   int decimals_;
   PayloadEncoding encoding_;

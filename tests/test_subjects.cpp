@@ -1,0 +1,299 @@
+// Several subjects tracked by one daemon (docs/multi-subject.md): config,
+// routing by `Subject:Marker` names and by a frame's "subject", a pose per
+// subject on pose/NAME, appearing and disappearing subjects, topic selection
+// by subscription. Over real (inproc) ZeroMQ sockets; every wait is bounded.
+#include <catch2/catch.hpp>
+#include <chrono>
+#include <map>
+#include <set>
+
+#include "config/config_error.hpp"
+#include "daemon_thread.hpp"
+#include "socket_client.hpp"
+#include "subjects_fixture.hpp"
+
+using namespace fabrik;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+namespace {
+
+zmq::context_t& zmq_context() {
+  static zmq::context_t context;
+  return context;
+}
+
+DaemonConfig on_inproc(DaemonConfig c, const std::string& tag) {
+  c.input = {"inproc://subjects-in-" + tag, SocketMode::bind};
+  c.output = {"inproc://subjects-out-" + tag, SocketMode::bind};
+  c.stats_interval_s = 0.05;
+  spdlog::set_level(spdlog::level::err);
+  return c;
+}
+
+// The markers of subjects `names` (subject k at subject_offset_m(k)), named NAME:Marker.
+json both_markers(const DaemonConfig& c, SyntheticMotion& motion, double t_s,
+                  const std::vector<std::string>& names, const std::vector<int>& present) {
+  json markers = json::object();
+  for (int k : present)
+    markers = test::subject_markers(c.subjects[k].tracker, motion, t_s, test::subject_offset_m(k),
+                                    names[k] + ":", markers);
+  return markers;
+}
+
+// Sends frames with Alice's markers until her pose comes back, then drains.
+// Returns the next frame number to use.
+std::uint64_t handshake(test::SocketClient& client, const DaemonConfig& c, SyntheticMotion& motion) {
+  for (int i = 0; i < 600; ++i) {
+    client.send(json{{"frame", 1000000 + i},
+                     {"markers", test::subject_markers(c.subjects[0].tracker, motion, 0.0,
+                                                       test::subject_offset_m(0),
+                                                       c.subjects[0].name + ":")}}
+                    .dump());
+    if (client.receive("pose/" + c.subjects[0].name, 50ms)) {
+      // The answers to probes still in flight (stats keep coming: bounded by time).
+      const auto until = std::chrono::steady_clock::now() + 300ms;
+      while (std::chrono::steady_clock::now() < until) (void)client.receive_any(50ms);
+      return 2000000;
+    }
+  }
+  FAIL("no pose/" << c.subjects[0].name << " came back in 600 probes");
+  return 0;
+}
+
+// Waits (bounded) until the daemon has counted `frames_in` frames.
+bool counted(const wire::Daemon& d, std::uint64_t frames_in) {
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (d.counters().frames_in >= frames_in) return true;
+    std::this_thread::yield();
+  }
+  return false;
+}
+
+double distance_mm(const json& a, const json& b) {
+  const Eigen::Vector3d x(a[0].get<double>(), a[1].get<double>(), a[2].get<double>());
+  const Eigen::Vector3d y(b[0].get<double>(), b[1].get<double>(), b[2].get<double>());
+  return (x - y).norm();
+}
+
+}  // namespace
+
+TEST_CASE("A daemon config lists subjects, each from its own calibrated config", "[subjects]") {
+  test::SubjectsDir dir;
+  const DaemonConfig c = load_daemon_config_file(dir.write({"Alice", "Bob"}, {{"subject_timeout_s", 0.25}}));
+  REQUIRE(c.subjects.size() == 2);
+  CHECK(c.subjects[0].name == "Alice");
+  CHECK(c.subjects[1].name == "Bob");
+  CHECK(c.subject_timeout_s == 0.25);
+  const DaemonConfig one = default_daemon_config();
+  CHECK(one.subjects.empty());
+  CHECK(c.subjects[1].tracker.markers.size() == one.tracker.markers.size());
+  CHECK(DaemonConfig{}.subject_timeout_s == 0.5);  // the documented default
+  // Names that cannot be a topic suffix or a marker prefix, twice the same, and
+  // tracking parts at the top level are refused.
+  for (const json& bad :
+       {json{{"subjects", {{{"name", "A:B"}, {"config", "Alice.json"}}}}},
+        json{{"subjects", {{{"name", "A/B"}, {"config", "Alice.json"}}}}},
+        json{{"subjects", {{{"name", "Alice"}, {"config", "Alice.json"}},
+                           {{"name", "Alice"}, {"config", "Alice.json"}}}}},
+        json{{"subjects", json::array()}},
+        json{{"model", "models/fullbody.json"}},
+        json{{"subjects", {{{"name", "Eve"}, {"config", "missing.json"}}}}}}) {
+    CAPTURE(bad.dump());
+    CHECK_THROWS_AS(load_daemon_config_file(dir.write({"Alice"}, bad)), ConfigError);
+  }
+}
+
+TEST_CASE("Markers named Subject:Marker reach that subject's tracker and pose/NAME",
+          "[subjects][daemon]") {
+  test::SubjectsDir dir;
+  const std::vector<std::string> names{"Alice", "Bob"};
+  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names)), "prefix"));
+  const DaemonConfig& c = d.daemon.config();
+  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  MotionSettings ms;
+  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
+  const std::uint64_t first = handshake(client, c, motion);
+  const int n = 40;
+  for (int i = 0; i < n; ++i) {
+    const std::uint64_t frame = first + static_cast<std::uint64_t>(i);
+    const json markers = both_markers(c, motion, i * 0.01, names, {0, 1});
+    client.send(json{{"frame", frame}, {"time", i * 0.01}, {"markers", markers}}.dump());
+    std::map<std::string, json> poses;
+    const auto until = std::chrono::steady_clock::now() + 5s;
+    while (poses.size() < 2 && std::chrono::steady_clock::now() < until) {
+      auto m = client.receive_any(5s);
+      REQUIRE(m);
+      if (m->first.starts_with("pose")) poses[m->first] = m->second;
+    }
+    REQUIRE(poses.count("pose/Alice"));
+    REQUIRE(poses.count("pose/Bob"));
+    for (const std::string& name : names) {
+      const json& pose = poses["pose/" + name];
+      CHECK(pose["subject"] == name);
+      CHECK(pose["frame"] == frame);
+      CHECK(pose["occluded"].empty());
+      // Each pose fits its own subject's markers (2 m apart): routing, not a mix.
+      CHECK(distance_mm(pose["markers"]["LASI"], markers[name + ":LASI"]) < 5.0);
+    }
+  }
+  const auto s = d.daemon.subject_counters();
+  REQUIRE(s.size() == 2);
+  CHECK(s[0].frames_out >= static_cast<std::uint64_t>(n));
+  CHECK(s[1].frames_out >= static_cast<std::uint64_t>(n));
+  CHECK(d.daemon.counters().unknown_markers == 0);
+}
+
+TEST_CASE("A frame's subject field gives its bare names to that subject only", "[subjects][daemon]") {
+  test::SubjectsDir dir;
+  const std::vector<std::string> names{"Alice", "Bob"};
+  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names)), "field"));
+  const DaemonConfig& c = d.daemon.config();
+  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  MotionSettings ms;
+  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
+  const std::uint64_t first = handshake(client, c, motion);
+  const auto before = d.daemon.subject_counters();
+  const std::uint64_t frames_in = d.daemon.counters().frames_in;
+  const json bob = test::subject_markers(c.subjects[1].tracker, motion, 0.0, test::subject_offset_m(1), "");
+  client.send(json{{"frame", first}, {"subject", "Bob"}, {"markers", bob}}.dump());
+  const auto pose = client.receive("pose/Bob", 5s);
+  REQUIRE(pose);
+  CHECK((*pose)["subject"] == "Bob");
+  CHECK(distance_mm((*pose)["markers"]["LASI"], bob["LASI"]) < 5.0);
+  // A subject the config does not list: counted, no pose.
+  client.send(json{{"frame", first + 1}, {"subject", "Carol"}, {"markers", bob}}.dump());
+  REQUIRE(counted(d.daemon, frames_in + 2));
+  const auto after = d.daemon.subject_counters();
+  CHECK(after[1].frames_out == before[1].frames_out + 1);
+  CHECK(after[0].frames_out == before[0].frames_out);  // Alice's tracker did not see Bob
+  CHECK(d.daemon.counters().other_subject_frames == 1);
+  CHECK(d.daemon.counters().unknown_markers == 0);
+}
+
+TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back cold",
+          "[subjects][daemon]") {
+  test::SubjectsDir dir;
+  const std::vector<std::string> names{"Alice", "Bob"};
+  test::DaemonThread d(zmq_context(),
+                       on_inproc(load_daemon_config_file(dir.write(names, {{"subject_timeout_s", 0.1}})),
+                                 "timeout"));
+  const DaemonConfig& c = d.daemon.config();
+  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  MotionSettings ms;
+  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
+  const std::uint64_t first = handshake(client, c, motion);
+  // The handshake's frames have no time (the daemon's clock since its start,
+  // well under 10 s): the jump to 10 s below is a gap, so Alice starts cold too.
+  const auto start = d.daemon.subject_counters();
+  std::set<int> bob_frames;
+  const auto bob_present = [](int i) { return i < 20 || i >= 60; };
+  for (int i = 0; i < 80; ++i) {
+    const double t = 10.0 + i * 0.01;  // after the handshake's receive-clock times
+    const json markers =
+        both_markers(c, motion, t, names, bob_present(i) ? std::vector<int>{0, 1} : std::vector<int>{0});
+    client.send(json{{"frame", first + i}, {"time", t}, {"markers", markers}}.dump());
+    // Subjects are served in the config's order: Bob's pose of a frame
+    // follows Alice's, so reading up to Alice's pose of this frame collects
+    // Bob's of the frame before.
+    for (const auto until = std::chrono::steady_clock::now() + 5s;;) {
+      REQUIRE(std::chrono::steady_clock::now() < until);
+      auto m = client.receive_any(5s);
+      REQUIRE(m);
+      if (m->first == "pose/Bob") bob_frames.insert(static_cast<int>(m->second["frame"].get<std::uint64_t>() - first));
+      if (m->first == "pose/Alice" && m->second["frame"] == first + i) break;
+    }
+  }
+  // Bob's pose of the last frame follows Alice's.
+  if (client.receive_until("pose/Bob", [&](const json& p) { return p["frame"] == first + 79; }, 5s))
+    bob_frames.insert(79);
+  // Bob was last seen at frame 19 (t = 10.19): tracked through the occlusion
+  // while t - 10.19 <= 0.1 (frames 20..29), absent from frame 30, back at 60.
+  std::set<int> expected;
+  for (int i = 0; i < 80; ++i)
+    if (i < 30 || i >= 60) expected.insert(i);
+  CHECK(bob_frames == expected);
+  const auto s = d.daemon.subject_counters();
+  CHECK(s[1].departures - start[1].departures == 1);
+  CHECK(s[1].appearances - start[1].appearances == 2);  // cold at the start and on return
+  CHECK(s[1].present);
+  CHECK(s[0].departures - start[0].departures == 1);  // the jump to t = 10 s, nothing else
+  CHECK(s[0].appearances - start[0].appearances == 1);
+  const auto stats = client.stats_until([](const json& j) { return j.contains("subjects"); });
+  REQUIRE(stats);
+  CHECK((*stats)["subjects"]["Bob"]["present"] == true);
+  CHECK((*stats)["subjects"]["Bob"]["departures"].get<int>() >= 1);
+  CHECK((*stats)["other_subject_frames"] == 0);
+}
+
+TEST_CASE("A subscriber selects one subject by topic prefix, other topics are refused",
+          "[subjects][daemon]") {
+  test::SubjectsDir dir;
+  const std::vector<std::string> names{"Alice", "Bob"};
+  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names)), "topics"));
+  const DaemonConfig& c = d.daemon.config();
+  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  MotionSettings ms;
+  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
+  std::uint64_t frame = handshake(client, c, motion);
+  const auto subscriber = [&](const std::string& prefix) {
+    zmq::socket_t s(zmq_context(), zmq::socket_type::sub);
+    s.set(zmq::sockopt::linger, 0);
+    s.set(zmq::sockopt::subscribe, prefix);
+    s.connect(d.daemon.output_endpoint());
+    return s;
+  };
+  zmq::socket_t bob_only = subscriber("pose/Bob"), all_poses = subscriber("pose"),
+                alice_model = subscriber("model/Alice");
+  // Until each has a message (subscriptions propagate asynchronously).
+  const auto topics_of = [](zmq::socket_t& s, std::set<std::string>& topics) {
+    zmq::message_t t, p;
+    while (s.recv(t, zmq::recv_flags::dontwait)) {
+      topics.insert(std::string(t.to_string_view()));
+      while (t.more() && s.recv(p, zmq::recv_flags::dontwait) && p.more()) {
+      }
+    }
+  };
+  std::set<std::string> bob_topics, all_topics, model_topics;
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while ((all_topics.size() < 2 || bob_topics.empty() || model_topics.empty()) &&
+         std::chrono::steady_clock::now() < deadline) {
+    client.send(json{{"frame", frame++}, {"markers", both_markers(c, motion, 0.0, names, {0, 1})}}.dump());
+    client.receive("pose/Alice", 1s);  // paces the frames
+    topics_of(bob_only, bob_topics);
+    topics_of(all_poses, all_topics);
+    topics_of(alice_model, model_topics);
+  }
+  CHECK(bob_topics == std::set<std::string>{"pose/Bob"});
+  CHECK(all_topics == std::set<std::string>{"pose/Alice", "pose/Bob"});
+  CHECK(model_topics == std::set<std::string>{"model/Alice"});
+  // Subscriptions that match no published topic are refused.
+  CHECK(wire::subscribes_to_our_topics("pose/B", std::vector<std::string>{"pose/Bob"}));
+  CHECK_FALSE(wire::subscribes_to_our_topics("pose/Carol", std::vector<std::string>{"pose/Bob"}));
+  CHECK_FALSE(wire::subscribes_to_our_topics("pose/Bob"));  // without subjects: refused
+  const std::uint64_t refused = d.daemon.counters().subscriptions_refused;
+  zmq::socket_t carol = subscriber("pose/Carol");
+  const auto until = std::chrono::steady_clock::now() + 5s;
+  while (d.daemon.counters().subscriptions_refused == refused && std::chrono::steady_clock::now() < until)
+    std::this_thread::yield();
+  CHECK(d.daemon.counters().subscriptions_refused == refused + 1);
+}
+
+TEST_CASE("A config without subjects publishes as before: topic pose, no subject key",
+          "[subjects][daemon]") {
+  DaemonConfig config = on_inproc(default_daemon_config(), "single");
+  test::DaemonThread d(zmq_context(), config);
+  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  const std::uint64_t first = client.handshake();
+  MotionSettings ms;
+  SyntheticMotion motion(*config.tracker.model, ms);
+  const json markers = test::subject_markers(config.tracker, motion, 0.0, Eigen::Vector3d::Zero(), "");
+  // A "subject" in a frame is an addition a single-subject daemon ignores.
+  client.send(json{{"frame", first}, {"subject", "Alice"}, {"markers", markers}}.dump());
+  const auto pose = client.pose_of(first);
+  REQUIRE(pose);
+  CHECK_FALSE(pose->contains("subject"));
+  CHECK(d.daemon.subject_counters().empty());
+  CHECK(d.daemon.counters().other_subject_frames == 0);
+}
