@@ -24,6 +24,8 @@
 #include "test_models.hpp"
 #include "transport/marker_codec.hpp"
 #include "transport/pose_codec.hpp"
+#include "transport/daemon.hpp"
+#include "subjects_fixture.hpp"
 
 #include "sanitized.hpp"
 
@@ -442,4 +444,56 @@ TEST_CASE("The QTM stream path (split, decode data, encode data) allocates nothi
   CHECK(split_allocations == 0);
   CHECK(decode_allocations == 0);
   CHECK(encode_allocations == 0);
+}
+
+// The whole frame path of a multi-subject daemon (Daemon::serve_payload:
+// decode, route, track and encode each subject, publish) against a
+// single-subject one: the only allocation is ZeroMQ's copy of each pose it
+// sends (a message over 33 bytes), so a frame of two subjects costs exactly
+// what two single-subject frames cost, and one with "subject" one.
+TEST_CASE("A multi-subject frame allocates nothing beyond ZeroMQ's copy of each pose sent",
+          "[alloc][subjects]") {
+  zmq::context_t context;
+  test::SubjectsDir dir;
+  DaemonConfig single = default_daemon_config();
+  DaemonConfig multi = load_daemon_config_file(dir.write({"Alice", "Bob"}));
+  single.input = {"inproc://alloc-single-in", SocketMode::bind};
+  single.output = {"inproc://alloc-single-out", SocketMode::bind};
+  multi.input = {"inproc://alloc-multi-in", SocketMode::bind};
+  multi.output = {"inproc://alloc-multi-out", SocketMode::bind};
+  wire::Daemon one(context, single), two(context, multi);
+  SyntheticMotion motion(*single.tracker.model, MotionSettings{});
+  const auto bytes = [](const std::string& s) {
+    return std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(s.data()), s.size());
+  };
+  long single_allocations = 0, prefix_allocations = 0, field_allocations = 0;
+  const int frames = 40, warm_up = 5;
+  for (int f = 0; f < frames + warm_up; ++f) {
+    const double t = f / 100.0;
+    const nlohmann::json bare = test::subject_markers(single.tracker, motion, t, Eigen::Vector3d::Zero(), "");
+    nlohmann::json both = test::subject_markers(single.tracker, motion, t, test::subject_offset_m(0), "Alice:");
+    both = test::subject_markers(single.tracker, motion, t, test::subject_offset_m(1), "Bob:", both);
+    const std::string p_single = nlohmann::json{{"frame", f}, {"time", t}, {"markers", bare}}.dump();
+    const std::string p_prefix = nlohmann::json{{"frame", f}, {"time", t}, {"markers", both}}.dump();
+    const std::string p_field =
+        nlohmann::json{{"frame", f}, {"time", t}, {"subject", "Bob"}, {"markers", bare}}.dump();
+    long before = g_allocations.load();
+    one.serve_payload(bytes(p_single));
+    const long a_single = g_allocations.load() - before;
+    before = g_allocations.load();
+    two.serve_payload(bytes(p_prefix));
+    const long a_prefix = g_allocations.load() - before;
+    before = g_allocations.load();
+    two.serve_payload(bytes(p_field));
+    const long a_field = g_allocations.load() - before;
+    if (f < warm_up) continue;
+    single_allocations += a_single;
+    prefix_allocations += a_prefix;
+    field_allocations += a_field;
+  }
+  CHECK(two.counters().frames_out == 3u * static_cast<std::uint64_t>(frames + warm_up));
+  CHECK(two.counters().decode_errors == 0);
+  CHECK(single_allocations <= frames);  // at most ZeroMQ's one per pose
+  CHECK(prefix_allocations == 2 * single_allocations);
+  CHECK(field_allocations == single_allocations);
 }
