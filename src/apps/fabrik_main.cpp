@@ -8,6 +8,7 @@
 #include "bench/convergence_bench.hpp"
 #include "bench/latency_bench.hpp"
 #include "bench/pipeline_bench.hpp"
+#include "bench/subjects_bench.hpp"
 #include "bench/view_bench.hpp"
 #include "calibrate_command.hpp"
 #include "cli_exit.hpp"
@@ -144,6 +145,29 @@ int main(int argc, char** argv) {
       ->delimiter(',');
   b_pipeline->add_flag("--json", pipeline_json, "Print one JSON object instead of a table");
 
+  fabrik::bench::SubjectsOptions subjects;
+  bool subjects_json = false;
+  CLI::App* b_subjects = bench->add_subcommand(
+      "subjects",
+      "Several subjects in one daemon over loopback tcp: per-frame latency to the last "
+      "subject's pose, and dropped frames, against the subject count");
+  b_subjects->add_option("--counts", subjects.counts, "Subject counts, run in turn")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  b_subjects->add_option("--rate", subjects.rate_hz, "Frames per second")
+      ->check(CLI::Range(1.0, 100000.0))
+      ->capture_default_str();
+  b_subjects->add_option("--seconds", subjects.seconds, "Duration per count")
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
+  b_subjects
+      ->add_option("--config", subjects.config,
+                   "One subject's config (as `fabrik calibrate` writes it; default: the built-in "
+                   "one), every subject tracked with it")
+      ->check(CLI::ExistingFile);
+  b_subjects->add_flag("--json", subjects_json, "Print one JSON object instead of a table");
+
   fabrik::bench::ViewBenchOptions view_bench;
   bool view_json = false;
   CLI::App* b_view = bench->add_subcommand(
@@ -213,6 +237,9 @@ int main(int argc, char** argv) {
     } else if (b_pipeline->parsed()) {
       const auto r = fabrik::bench::run_pipeline(pipeline);
       std::cout << (pipeline_json ? r.dump(2) + "\n" : fabrik::bench::pipeline_table(r));
+    } else if (b_subjects->parsed()) {
+      const auto r = fabrik::bench::run_subjects(subjects);
+      std::cout << (subjects_json ? r.dump(2) + "\n" : fabrik::bench::subjects_table(r));
     } else if (b_view->parsed()) {
       const auto r = fabrik::bench::run_view_bench(view_bench);
       std::cout << (view_json ? r.dump(2) + "\n" : fabrik::bench::view_bench_table(r));
