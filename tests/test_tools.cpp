@@ -815,3 +815,61 @@ TEST_CASE("fabrik replay and watch refuse ports ZeroMQ would wrap, exit 2 naming
   CHECK_THAT(raw_err, Catch::Contains("'tcp://\\xff:1\\xfe'"));
   CHECK(raw_err.find('\xff') == std::string::npos);
 }
+
+// ---- Several subjects in one recording (docs/multi-subject.md) ----
+
+TEST_CASE("solve --subject takes one subject of a Subject:Marker C3D, as its own one-person file",
+          "[subjects]") {
+  const MarkerTrial one = default_model_trial();
+  const Eigen::Vector3d bob_offset_m(2.0, 0.0, 0.0);
+  // A Vicon-style C3D of two subjects, and Bob alone in a TRC (as Pose2Sim
+  // writes one file per person).
+  MarkerTrial two = one, bob = one;
+  two.labels.clear();
+  for (const std::string& subject : {"Alice", "Bob"})
+    for (const std::string& l : one.labels) two.labels.push_back(subject + ":" + l);
+  two.positions_m.clear();
+  for (std::size_t f = 0; f < one.frames(); ++f) {
+    for (std::size_t m = 0; m < one.markers(); ++m) two.positions_m.push_back(one.at(f, m));
+    for (std::size_t m = 0; m < one.markers(); ++m)
+      two.positions_m.push_back(one.at(f, m) + bob_offset_m);
+  }
+  for (Eigen::Vector3d& p : bob.positions_m) p += bob_offset_m;
+  TempFile c3d(".c3d"), trc(".trc"), out_c3d(".trc"), out_trc(".trc"), report_c3d(".json"),
+      report_trc(".json");
+  fabrik::io::write_c3d(c3d.path(), two, fabrik::io::C3dProcessor::intel, true);
+  fabrik::io::write_trc(trc.path(), bob);
+
+  auto [code, err] = run_fabrik({"solve", "--input", c3d.path(), "--subject", "Bob", "--output",
+                                 out_c3d.path(), "--report", report_c3d.path(), "--quiet"});
+  INFO(err);
+  REQUIRE(code == 0);
+  auto [code_trc, err_trc] = run_fabrik({"solve", "--input", trc.path(), "--output", out_trc.path(),
+                                         "--report", report_trc.path(), "--quiet"});
+  INFO(err_trc);
+  REQUIRE(code_trc == 0);
+  const json r_c3d = json::parse(slurp(report_c3d.path())), r_trc = json::parse(slurp(report_trc.path()));
+  CHECK(r_c3d["frames"] == r_trc["frames"]);
+  CHECK(r_c3d["residual_mm"]["rms_mean"].get<double>() < 1.0);
+  CHECK(r_c3d["residual_mm"]["rms_mean"].get<double>() ==
+        Approx(r_trc["residual_mm"]["rms_mean"].get<double>()).margin(0.05));
+  // Bob's joint centres, 2 m from Alice's: the same from either file.
+  const MarkerTrial j_c3d = fabrik::io::read_trial(out_c3d.path()),
+                    j_trc = fabrik::io::read_trial(out_trc.path());
+  REQUIRE(j_c3d.positions_m.size() == j_trc.positions_m.size());
+  double worst_m = 0.0, mean_x_m = 0.0;
+  for (std::size_t i = 0; i < j_c3d.positions_m.size(); ++i) {
+    worst_m = std::max(worst_m, (j_c3d.positions_m[i] - j_trc.positions_m[i]).norm());
+    mean_x_m += j_c3d.positions_m[i].x() / static_cast<double>(j_c3d.positions_m.size());
+  }
+  CHECK(worst_m < 1e-3);
+  double alice_x_m = 0.0;
+  for (const Eigen::Vector3d& p : one.positions_m)
+    alice_x_m += p.x() / static_cast<double>(one.positions_m.size());
+  CHECK(mean_x_m - alice_x_m == Approx(2.0).margin(0.1));
+  // A subject the file does not have: refused, naming those it has.
+  auto [code_carol, err_carol] = run_fabrik({"solve", "--input", c3d.path(), "--subject", "Carol",
+                                             "--output", out_c3d.path(), "--quiet"});
+  CHECK(code_carol != 0);
+  CHECK_THAT(err_carol, Catch::Contains("Alice, Bob"));
+}

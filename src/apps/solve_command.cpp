@@ -1,5 +1,6 @@
 #include "solve_command.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -9,6 +10,7 @@
 #include "common/safe_text.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
+#include "offline/subject_markers.hpp"
 #include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
@@ -17,7 +19,7 @@ namespace fabrik::apps {
 namespace {
 
 struct SolveOptions {
-  std::string config, input, output, markers_output, report, angles, orientations;
+  std::string config, input, output, markers_output, report, angles, orientations, subject;
   bool quiet = false, keep_zeros = false;
 };
 
@@ -30,13 +32,24 @@ void progress_bar(std::size_t done, std::size_t total) {
 }
 
 void run(const SolveOptions& o) {
-  const DaemonConfig config =
+  DaemonConfig config =
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
+  // A multi-subject config: the tracking of the subject --subject names.
+  if (!config.subjects.empty()) {
+    auto it = std::find_if(config.subjects.begin(), config.subjects.end(),
+                           [&](const SubjectConfig& s) { return s.name == o.subject; });
+    if (it == config.subjects.end())
+      throw std::runtime_error(config.file + " lists subjects: give --subject with one of them "
+                               "(or the subject's own config)");
+    config.tracker = it->tracker;
+    config.sensors = it->sensors;
+  }
   if (o.input.empty() && o.orientations.empty())
     throw std::runtime_error("give --input (markers), --orientations (sensors), or both");
   io::MarkerTrial trial;
   if (!o.input.empty()) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
+    if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
     if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
   }
   std::optional<io::OrientationTable> table;
@@ -146,6 +159,9 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_option("--angles", o->angles,
                 "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");
+  c->add_option("--subject", o->subject,
+                "Track only this subject's markers, labelled SUBJECT:MARKER (a Vicon C3D of "
+                "several subjects); with a config that lists subjects, also its tracking");
   c->add_flag("--quiet", o->quiet, "No progress bar");
   c->add_flag("--keep-zeros", o->keep_zeros,
               "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
