@@ -71,6 +71,25 @@ bool counted(const wire::Daemon& d, std::uint64_t frames_in) {
   return false;
 }
 
+// Alice and Bob (the built-in full-body model each) in a daemon on a thread,
+// a client connected both ways and past its handshake, the motion that makes
+// their markers. `extra`: more top-level config keys.
+struct AliceAndBob {
+  AliceAndBob(const std::string& tag, const json& extra = json::object())
+      : d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names, extra)), tag)),
+        c(d.daemon.config()),
+        client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint()),
+        motion(*c.subjects[0].tracker.model, MotionSettings{}),
+        first(handshake(client, c, motion)) {}
+  test::SubjectsDir dir;
+  const std::vector<std::string> names{"Alice", "Bob"};
+  test::DaemonThread d;
+  const DaemonConfig& c;
+  test::SocketClient client;
+  SyntheticMotion motion;
+  const std::uint64_t first;
+};
+
 double distance_mm(const json& a, const json& b) {
   const Eigen::Vector3d x(a[0].get<double>(), a[1].get<double>(), a[2].get<double>());
   const Eigen::Vector3d y(b[0].get<double>(), b[1].get<double>(), b[2].get<double>());
@@ -107,14 +126,9 @@ TEST_CASE("A daemon config lists subjects, each from its own calibrated config",
 
 TEST_CASE("Markers named Subject:Marker reach that subject's tracker and pose/NAME",
           "[subjects][daemon]") {
-  test::SubjectsDir dir;
-  const std::vector<std::string> names{"Alice", "Bob"};
-  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names)), "prefix"));
-  const DaemonConfig& c = d.daemon.config();
-  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
-  MotionSettings ms;
-  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
-  const std::uint64_t first = handshake(client, c, motion);
+  AliceAndBob two("prefix");
+  auto [d, c, client, motion, names] = std::tie(two.d, two.c, two.client, two.motion, two.names);
+  const std::uint64_t first = two.first;
   const int n = 40;
   for (int i = 0; i < n; ++i) {
     const std::uint64_t frame = first + static_cast<std::uint64_t>(i);
@@ -146,14 +160,9 @@ TEST_CASE("Markers named Subject:Marker reach that subject's tracker and pose/NA
 }
 
 TEST_CASE("A frame's subject field gives its bare names to that subject only", "[subjects][daemon]") {
-  test::SubjectsDir dir;
-  const std::vector<std::string> names{"Alice", "Bob"};
-  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names)), "field"));
-  const DaemonConfig& c = d.daemon.config();
-  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
-  MotionSettings ms;
-  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
-  const std::uint64_t first = handshake(client, c, motion);
+  AliceAndBob two("field");
+  auto [d, c, client, motion, names] = std::tie(two.d, two.c, two.client, two.motion, two.names);
+  const std::uint64_t first = two.first;
   const auto before = d.daemon.subject_counters();
   const std::uint64_t frames_in = d.daemon.counters().frames_in;
   const json bob = test::subject_markers(c.subjects[1].tracker, motion, 0.0, test::subject_offset_m(1), "");
@@ -174,16 +183,8 @@ TEST_CASE("A frame's subject field gives its bare names to that subject only", "
 
 TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back cold",
           "[subjects][daemon]") {
-  test::SubjectsDir dir;
-  const std::vector<std::string> names{"Alice", "Bob"};
-  test::DaemonThread d(zmq_context(),
-                       on_inproc(load_daemon_config_file(dir.write(names, {{"subject_timeout_s", 0.1}})),
-                                 "timeout"));
-  const DaemonConfig& c = d.daemon.config();
-  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
-  MotionSettings ms;
-  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
-  const std::uint64_t first = handshake(client, c, motion);
+  AliceAndBob two("timeout", {{"subject_timeout_s", 0.1}});
+  auto [d, c, client, motion, first, names] = std::tie(two.d, two.c, two.client, two.motion, two.first, two.names);
   // The handshake's frames have no time (the daemon's clock since its start,
   // well under 10 s): the jump to 10 s below is a gap, so Alice starts cold too.
   const auto start = d.daemon.subject_counters();
@@ -229,14 +230,9 @@ TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back c
 
 TEST_CASE("A subscriber selects one subject by topic prefix, other topics are refused",
           "[subjects][daemon]") {
-  test::SubjectsDir dir;
-  const std::vector<std::string> names{"Alice", "Bob"};
-  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(dir.write(names)), "topics"));
-  const DaemonConfig& c = d.daemon.config();
-  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
-  MotionSettings ms;
-  SyntheticMotion motion(*c.subjects[0].tracker.model, ms);
-  std::uint64_t frame = handshake(client, c, motion);
+  AliceAndBob two("topics");
+  auto [d, c, client, motion, names] = std::tie(two.d, two.c, two.client, two.motion, two.names);
+  std::uint64_t frame = two.first;
   const auto subscriber = [&](const std::string& prefix) {
     zmq::socket_t s(zmq_context(), zmq::socket_type::sub);
     s.set(zmq::sockopt::linger, 0);
