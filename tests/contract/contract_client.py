@@ -117,7 +117,7 @@ class Daemon:
     """One fabrikd process with its config, log and sockets."""
 
     def __init__(self, fabrikd, workdir, output_encoding="json", output_units="mm",
-                 measured_markers=False, pose_content=None):
+                 measured_markers=False, pose_content=None, subjects=None):
         self.in_ep = f"tcp://127.0.0.1:{free_port()}"
         self.out_ep = f"tcp://127.0.0.1:{free_port()}"
         self.output_units = output_units
@@ -141,8 +141,18 @@ class Daemon:
         }
         if pose_content is not None:
             config["output"]["pose_content"] = pose_content
+        if subjects:
+            # Several subjects (docs/multi-subject.md): the tracking parts of
+            # the config above become each subject's own config file.
+            one = {k: config.pop(k) for k in ("model", "targets", "solver")}
+            one["format"] = "fabrikd-config/1"
+            load_schema("daemon-config.schema.json").validate(one)
+            for name in subjects:
+                (pathlib.Path(workdir) / f"subject-{name}.json").write_text(json.dumps(one))
+            config["subjects"] = [{"name": n, "config": f"subject-{n}.json"} for n in subjects]
         load_schema("daemon-config.schema.json").validate(config)
-        tag = f"{output_encoding}-{output_units}" + ("" if pose_content is None else "-content")
+        tag = f"{output_encoding}-{output_units}" + ("" if pose_content is None else "-content") + \
+            ("-subjects" if subjects else "")
         self.config_path = pathlib.Path(workdir) / f"fabrikd-{tag}.json"
         self.config_path.write_text(json.dumps(config, indent=2))
         self.log_path = pathlib.Path(workdir) / f"fabrikd-{tag}.log"
@@ -166,6 +176,8 @@ class Daemon:
         self.model_schema = load_schema("model.schema.json")
         self.models = []  # every model message
         self.poses = {}  # frame -> list of poses
+        self.subjects = subjects or []
+        self.subject_poses = {}  # (subject, frame) -> pose, from topics pose/SUBJECT
         self.stats = []  # (arrival time, stats)
         self.encodings = set()
 
@@ -190,6 +202,16 @@ class Daemon:
             self.encodings.add(enc)
             check(enc == self.output_encoding,
                   f"output encoding {enc}, config says {self.output_encoding}")
+            subject_topic = topic.split(b"/", 1)
+            if len(subject_topic) == 2 and subject_topic[1].decode() in self.subjects:
+                check(subject_topic[0] in (b"pose", b"model"), f"unexpected output topic {topic!r}")
+                topic, name = subject_topic[0], subject_topic[1].decode()
+                if topic == b"pose":
+                    check(doc.get("subject") == name,
+                          f"pose on pose/{name} carries subject {doc.get('subject')!r}")
+                    self.subject_poses[(name, doc["frame"])] = doc
+            elif self.subjects:
+                check(topic == b"stats", f"topic {topic!r} from a daemon of several subjects")
             if topic == b"pose":
                 errors = list(self.pose_schema.iter_errors(doc))
                 check(not errors, f"pose violates proto/pose.schema.json: {errors[:1]}")
@@ -699,6 +721,45 @@ def run_pose_content(args, workdir, model_markers_rest, rest_joints, root):
           "required fields and angles only, and validate")
 
 
+def run_subjects(args, workdir, model_markers_rest, rest_joints, root):
+    """Two subjects (docs/multi-subject.md): markers named SUBJECT:MARKER, and a
+    frame with "subject"; each pose on pose/NAME with its subject, each model on
+    model/NAME, stats with subjects: all valid against proto/."""
+    names = ["Alice", "Bob"]
+    with Daemon(args.fabrikd, workdir, subjects=names) as d:
+        shift = {"Alice": 0.0, "Bob": 2000.0}  # mm along x: apart in the lab
+
+        def both(t):
+            markers = moved(model_markers_rest, root, t)
+            return {f"{n}:{k}": [v[0] + shift[n], v[1], v[2]] for n in names
+                    for k, v in markers.items()}
+
+        deadline = time.monotonic() + 15.0
+        frame = PROBE_BASE
+        while not d.subject_poses:  # slow joiner
+            check(time.monotonic() < deadline, "no pose/NAME within 15 s of starting fabrikd")
+            d.send(json.dumps(marker_frame(frame, both(0.0))).encode())
+            frame += 1
+            d.pump(0.05)
+        for i in range(10):
+            frame, t = 300 + i, i / 100.0
+            d.send(json.dumps(marker_frame(frame, both(t), t, "mm")).encode())
+            for n in names:
+                d.wait_for(lambda: (n, frame) in d.subject_poses, ANSWER_TIMEOUT_S,
+                           f"pose/{n} of frame {frame}")
+        bare = moved(model_markers_rest, root, 0.5)
+        bob = {k: [v[0] + shift["Bob"], v[1], v[2]] for k, v in bare.items()}
+        d.send(json.dumps(dict(marker_frame(400, bob, 0.5, "mm"), subject="Bob")).encode())
+        d.wait_for(lambda: ("Bob", 400) in d.subject_poses, ANSWER_TIMEOUT_S, "pose/Bob of 400")
+        check(("Alice", 400) not in d.subject_poses, "a frame with subject Bob answered for Alice")
+        stats = d.stats_after(time.monotonic())
+        check(set(stats.get("subjects", {})) == set(names), f"stats.subjects: {stats.get('subjects')}")
+        d.wait_for(lambda: d.models, ANSWER_TIMEOUT_S, "model/NAME after subscribing")
+        d.stop()
+    print("contract: two subjects: poses on pose/NAME with subject, models, stats with subjects "
+          "valid")
+
+
 def main():
     global ANSWER_TIMEOUT_S
     ap = argparse.ArgumentParser(description=__doc__,
@@ -716,6 +777,7 @@ def main():
         run_main(args, workdir, markers, joints, root)
         run_msgpack_metres(args, workdir, markers, joints, root)
         run_pose_content(args, workdir, markers, joints, root)
+        run_subjects(args, workdir, markers, joints, root)
     print("contract: all checks passed")
 
 
