@@ -7,6 +7,7 @@
 #include "bench/bench.hpp"
 #include "bench/generic_static.hpp"
 #include "bench/latency_bench.hpp"
+#include "bench/subjects_bench.hpp"
 #include "bench/zmq_floor.hpp"
 #include "calib/calibrate.hpp"
 #include "config/daemon_config.hpp"
@@ -293,4 +294,27 @@ TEST_CASE("The floor finds a frame number where both encoders write it", "[bench
                                            0xcf, 0,    0,    0,    0,   0,   1,   0,   2};
   CHECK(bench::frame_number(map16) == std::uint64_t{65538});
   CHECK_FALSE(bench::frame_number(std::vector<std::uint8_t>{'{', '}'}).has_value());
+}
+
+TEST_CASE("bench subjects answers every frame for every count and reports it", "[bench][subjects]") {
+  bench::SubjectsOptions o;
+  o.counts = {1, 3};
+  o.seconds = 0.5;  // 120 frames each at 240 Hz: the report, not the times
+  const nlohmann::json r = bench::run_subjects(o);
+  REQUIRE(r["runs"].size() == 2);
+  CHECK(r["markers_per_subject"] == default_daemon_config().tracker.markers.size());
+  for (std::size_t k = 0; k < 2; ++k) {
+    const nlohmann::json& run = r["runs"][k];
+    CAPTURE(run.dump());
+    CHECK(run["subjects"] == o.counts[k]);
+    CHECK(run["frames"] == 120);
+    // Answered: the last subject's pose of the frame arrived. A loaded
+    // machine's stall may make the daemon drop a backlog, but every frame
+    // left unanswered is one the daemon counted as dropped.
+    CHECK(run["unanswered"].get<int>() <= run["daemon_frames_dropped"].get<int>());
+    CHECK(run["answered"].get<int>() > 0);
+    CHECK(run["p99_us"].get<double>() >= run["p50_us"].get<double>());
+    CHECK(run["p50_us"].get<double>() > 0.0);
+  }
+  CHECK(bench::subjects_table(r).find("subjects  frames") != std::string::npos);
 }
