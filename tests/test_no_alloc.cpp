@@ -449,8 +449,9 @@ TEST_CASE("The QTM stream path (split, decode data, encode data) allocates nothi
 // The whole frame path of a multi-subject daemon (Daemon::serve_payload:
 // decode, route, track and encode each subject, publish) against a
 // single-subject one: the only allocation is ZeroMQ's copy of each pose it
-// sends (a message over 33 bytes), so a frame of two subjects costs exactly
-// what two single-subject frames cost, and one with "subject" one.
+// sends (a message over 33 bytes), so a frame of two subjects (and another
+// process's third) costs exactly what two single-subject frames cost, and
+// one with "subject" one.
 TEST_CASE("A multi-subject frame allocates nothing beyond ZeroMQ's copy of each pose sent",
           "[alloc][subjects]") {
   zmq::context_t context;
@@ -473,6 +474,10 @@ TEST_CASE("A multi-subject frame allocates nothing beyond ZeroMQ's copy of each 
     const nlohmann::json bare = test::subject_markers(single.tracker, motion, t, Eigen::Vector3d::Zero(), "");
     nlohmann::json both = test::subject_markers(single.tracker, motion, t, test::subject_offset_m(0), "Alice:");
     both = test::subject_markers(single.tracker, motion, t, test::subject_offset_m(1), "Bob:", both);
+    // And another process's subject (a split), whose name is longer than a
+    // short-string buffer: reported once, then skipped without allocating.
+    both = test::subject_markers(single.tracker, motion, t, test::subject_offset_m(2),
+                                 "Another_process_subject:", both);
     const std::string p_single = nlohmann::json{{"frame", f}, {"time", t}, {"markers", bare}}.dump();
     const std::string p_prefix = nlohmann::json{{"frame", f}, {"time", t}, {"markers", both}}.dump();
     const std::string p_field =

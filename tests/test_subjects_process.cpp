@@ -71,9 +71,9 @@ TEST_CASE("Subjects split across two fabrikd processes on one stream: each publi
   const DaemonConfig one = load_daemon_config_file(configs[0]);
   const TrackerSetup& setup = one.subjects[0].tracker;
   SyntheticMotion motion(*setup.model, MotionSettings{});
-  const auto send = [&](std::uint64_t frame, double t_s) {
+  const auto send = [&](std::uint64_t frame, double t_s, std::size_t first_subject = 0) {
     json markers = json::object();
-    for (std::size_t k = 0; k < all.size(); ++k)
+    for (std::size_t k = first_subject; k < all.size(); ++k)
       markers = test::subject_markers(setup, motion, t_s, test::subject_offset_m(static_cast<int>(k)),
                                       all[k] + ":", markers);
     const std::string payload = json{{"frame", frame}, {"time", t_s}, {"markers", markers}}.dump();
@@ -119,6 +119,20 @@ TEST_CASE("Subjects split across two fabrikd processes on one stream: each publi
     CAPTURE(p);
     CHECK(seen[p] == expected);  // its own subjects, every frame, nothing else
   }
+  // While A and B are out of the volume, frames of C and D alone: the second
+  // process answers them; to the first they are another process's frames,
+  // not a stream whose names do not fit its config (no mismatch warning).
+  const std::uint64_t later = first + 1000;
+  for (int i = 0; i < 30; ++i) {
+    send(later + static_cast<std::uint64_t>(i), 2.0 + i / 240.0, 2);
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    while (!seen[1].count({"pose/D", later + static_cast<std::uint64_t>(i)}) &&
+           std::chrono::steady_clock::now() < deadline)
+      collect(subs[1], 5ms, seen[1]);
+    REQUIRE(seen[1].count({"pose/D", later + static_cast<std::uint64_t>(i)}));
+  }
+  collect(subs[0], 200ms, seen[0]);
+  CHECK_FALSE(daemons[0]->wait_for_output("share none", 500ms));  // reads its log so far
   // The other process's subjects are reported once each, not per marker.
   for (std::size_t p = 0; p < split.size(); ++p) {
     const std::string other = split[1 - p][0];

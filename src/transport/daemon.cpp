@@ -283,6 +283,15 @@ struct Daemon::ReloadJob {
   std::string error;             // why there is none
 };
 
+// Whether `name` is SUBJECT:MARKER of a subject a multi-subject config does not list.
+bool Daemon::other_subject(const State& s, std::string_view name) {
+  const std::size_t colon = name.find(':');
+  if (s.subjects.empty() || colon == std::string_view::npos || colon == 0) return false;
+  return std::none_of(s.subjects.begin(), s.subjects.end(), [&](const SubjectState& subject) {
+    return subject.name == name.substr(0, colon);
+  });
+}
+
 std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   auto s = std::make_unique<State>();
   const PlausibleMarkers plausible{config.max_abs_coordinate_m, config.zero_is_missing,
@@ -569,8 +578,14 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
   counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
   counters_.rejected_orientations += static_cast<std::uint64_t>(f.rejected_orientations);
   counters_.unknown_sensors += static_cast<std::uint64_t>(f.unknown_sensor_count);
-  if (f.known_count == 0 && f.unknown_count > 0) ++counters_.unmatched_frames;
-  const bool warn_mismatch = s.names.observe(f.known_count, f.unknown_count);
+  // In a split, a frame of only other processes' subjects (while ours are
+  // out of the volume) is expected: not a mismatch of names.
+  const bool others_only = f.known_count == 0 && f.unknown_listed > 0 &&
+                           std::all_of(f.unknown_names.begin(),
+                                       f.unknown_names.begin() + f.unknown_listed,
+                                       [&](const std::string& name) { return other_subject(s, name); });
+  if (f.known_count == 0 && f.unknown_count > 0 && !others_only) ++counters_.unmatched_frames;
+  const bool warn_mismatch = !others_only && s.names.observe(f.known_count, f.unknown_count);
   counters_.config_mismatch = s.names.mismatched();
   if (s.subjects.empty())
     publish_pose(f, received, decode_start);
@@ -578,26 +593,22 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
     publish_subjects(f, only, received, decode_start);
   try {
     // Look up first: only a name not seen before costs an allocation.
-    const auto report_once = [&](const std::string& name, const char* what) {
+    const auto report_once = [&](std::string_view name, const char* what) {
       if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(name)) {
-        unknown_seen_.insert(name);
+        unknown_seen_.emplace(name);
         spdlog::warn("{} '{}' is not in the {}: ignored (reported once)", what,
                      safe_text(name, 128), *what == 'm' ? "model" : "config");
       }
     };
     // Another subject's markers (another fabrikd's, in a split): reported
     // once per subject, not once per marker.
-    const auto other_subject = [&](const std::string& name) {
-      const std::size_t colon = name.find(':');
-      if (s.subjects.empty() || colon == std::string::npos || colon == 0) return false;
-      const std::string_view prefix(name.data(), colon);
-      for (const SubjectState& subject : s.subjects)
-        if (subject.name == prefix) return false;
-      report_once(std::string(prefix), "subject");
-      return true;
-    };
-    for (int k = 0; k < f.unknown_listed; ++k)
-      if (!other_subject(f.unknown_names[k])) report_once(f.unknown_names[k], "marker");
+    for (int k = 0; k < f.unknown_listed; ++k) {
+      const std::string& name = f.unknown_names[k];
+      if (other_subject(s, name))
+        report_once(std::string_view(name).substr(0, name.find(':')), "subject");
+      else
+        report_once(name, "marker");
+    }
     for (int k = 0; k < f.unknown_sensors_listed; ++k)
       report_once(f.unknown_sensor_names[k], "orientation sensor");
     if (warn_mismatch) warn_config_mismatch(f);
@@ -607,8 +618,12 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
 
 void Daemon::warn_config_mismatch(const MarkerFrame& f) {
   std::vector<std::string> config_names, stream_names;
-  for (const MarkerTarget& m : state_->config.tracker.markers)
-    config_names.push_back(safe_text(m.marker, 64));
+  if (state_->subjects.empty())
+    for (const MarkerTarget& m : state_->config.tracker.markers)
+      config_names.push_back(safe_text(m.marker, 64));
+  for (const SubjectState& subject : state_->subjects)  // as the stream must name them
+    for (const MarkerTarget& m : subject.tracker->setup().markers)
+      config_names.push_back(safe_text(subject.name + ":" + m.marker, 64));
   for (int k = 0; k < f.unknown_listed; ++k) stream_names.push_back(safe_text(f.unknown_names[k], 64));
   for (const std::string& name : unknown_seen_)
     if (std::find(stream_names.begin(), stream_names.end(), name) == stream_names.end())

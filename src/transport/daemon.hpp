@@ -184,6 +184,7 @@ class Daemon {
   void publish_pose(const MarkerFrame& f, std::chrono::steady_clock::time_point received,
                     std::chrono::steady_clock::time_point decoded);
   struct SubjectState;
+  static bool other_subject(const State& s, std::string_view name);
   // A multi-subject frame: each subject seen in it (or only `only`, for a
   // frame with "subject") tracked and published on pose/NAME.
   void publish_subjects(const MarkerFrame& f, SubjectState* only,
@@ -233,7 +234,12 @@ class Daemon {
   FrameStages last_stages_;  // the latest frame's, zero when it was refused
   std::uint64_t interval_frames_out_ = 0;
   FixedText<256> last_error_;  // never allocates: survives an out-of-memory error path
-  std::unordered_set<std::string> unknown_seen_;
+  // Looked up by string_view (transparent): a name already reported costs no allocation.
+  struct NameHash {
+    using is_transparent = void;
+    std::size_t operator()(std::string_view name) const { return std::hash<std::string_view>{}(name); }
+  };
+  std::unordered_set<std::string, NameHash, std::equal_to<>> unknown_seen_;
   RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_, subscriber_log_;
   bool overloaded_ = false;  // behind the input: answer only the newest frame
   zmq::message_t topic_, payload_, extra_, subscription_;
