@@ -118,6 +118,55 @@ TEST_CASE("encode_marker_frame round-trips through the decoder in both encodings
   }
 }
 
+TEST_CASE("A 4th value is a keypoint's confidence, clamped, 1 without one, in both encodings",
+          "[codec][confidence]") {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const bool fast : {true, false}) {
+    MarkerDecoder d(kNames, 1e-3, 1 << 20);
+    d.set_json_fast_path(fast);
+    MarkerFrame f = d.make_frame();
+    std::string err;
+    CAPTURE(fast);
+    REQUIRE(d.decode(
+        bytes(R"({"frame": 1, "markers": {"A": [1, 2, 3, 0.25], "B": [4, 5, 6], "C": [7, 8, 9, 1.5], "X": [1, 2, 3, 0.5]}})"),
+        f, err));
+    CHECK(f.visible == std::vector<std::uint8_t>{1, 1, 1});
+    CHECK(f.confidence == std::vector<float>{0.25f, 1.0f, 1.0f});  // C clamped to 1
+    CHECK(f.confidence_count == 2);                                 // X is not a known marker
+    CHECK(f.p_world_m[0].isApprox(Eigen::Vector3d(1e-3, 2e-3, 3e-3)));
+    // The next frame starts from 1 again: confidence is per frame, not remembered.
+    REQUIRE(d.decode(bytes(R"({"frame": 2, "markers": {"A": [1, 2, 3], "B": [1, 1, 1, -0.5]}})"),
+                     f, err));
+    CHECK(f.confidence == std::vector<float>{1.0f, 0.0f, 1.0f});
+    CHECK(f.confidence_count == 1);
+  }
+  // MessagePack can carry a NaN score: it says nothing, so the marker is occluded.
+  MarkerDecoder d(kNames, 1e-3, 1 << 20);
+  MarkerFrame f = d.make_frame();
+  std::string err;
+  const json j = {{"frame", 3}, {"markers", {{"A", {1.0, 2.0, 3.0, nan}}, {"B", {1.0, 2.0, 3.0, 0.5}}}}};
+  REQUIRE(d.decode(bytes(msgpack(j)), f, err));
+  CHECK(f.visible == std::vector<std::uint8_t>{0, 1, 0});
+  CHECK(f.confidence[1] == 0.5f);
+}
+
+TEST_CASE("encode_marker_frame writes confidences as 4th values that decode back", "[codec][confidence]") {
+  MarkerDecoder d(kNames, 1.0, 1 << 20);
+  const std::vector<Eigen::Vector3d> p = {{0.1, 0.2, 0.3}, {1.0, 2.0, 3.0}, {-0.5, 0.25, 9.0}};
+  const std::vector<std::uint8_t> vis = {1, 0, 1};
+  const std::vector<float> confidence = {0.125f, 0.5f, 0.75f};
+  for (auto enc : {PayloadEncoding::json, PayloadEncoding::msgpack}) {
+    std::string out;
+    encode_marker_frame(5, nullptr, kNames, p, vis, "m", enc, out, nullptr, nullptr, confidence);
+    MarkerFrame f = d.make_frame();
+    std::string err;
+    REQUIRE(d.decode(bytes(out), f, err));
+    CHECK(f.visible == vis);
+    CHECK(f.confidence == std::vector<float>{0.125f, 1.0f, 0.75f});  // B occluded: no value sent
+    CHECK(f.confidence_count == 2);
+  }
+}
+
 TEST_CASE("Every kind of bad marker payload is refused with its own message", "[codec]") {
   MarkerDecoder d(kNames, 1e-3, 4096);
   MarkerFrame f = d.make_frame();
@@ -138,8 +187,8 @@ TEST_CASE("Every kind of bad marker payload is refused with its own message", "[
       {R"({"frame": 1, "stamp_us": [1]})", "\"stamp_us\" must be a number"},
       {R"({"frame": 1, "units": "cm"})", "\"units\" must be \"mm\" or \"m\""},
       {R"({"frame": 1, "markers": [1, 2]})", "\"markers\" must be an object"},
-      {R"({"frame": 1, "markers": {"A": [1, 2]}})", "expected [x, y, z], got 2"},
-      {R"({"frame": 1, "markers": {"A": [1, 2, 3, 4]}})", "more than 3"},
+      {R"({"frame": 1, "markers": {"A": [1, 2]}})", "expected [x, y, z] or [x, y, z, confidence], got 2"},
+      {R"({"frame": 1, "markers": {"A": [1, 2, 3, 4, 5]}})", "more than 4 values"},
       {R"({"frame": 1, "markers": {"A": "here"}})", "must be [x, y, z] or null"},
       {R"({"frame": 1, "markers": {"A": [1, "2", 3]}})", "coordinates must be numbers"},
       {R"({"frame": 1, "markers": {"A": [1, NaN, 3]}})", "not valid JSON"},

@@ -131,7 +131,7 @@ class PayloadMaker {
   }
   std::string marker_value() {
     if (chance(15)) return "null";
-    const int count = chance(97) ? 3 : static_cast<int>(rng_() % 5);
+    const int count = chance(85) ? 3 : chance(80) ? 4 : static_cast<int>(rng_() % 6);
     std::string s = "[" + ws();
     for (int k = 0; k < count; ++k) s += (k ? "," : "") + ws() + number() + ws();
     return s + "]";
@@ -172,6 +172,8 @@ void require_same_frame(const MarkerFrame& a, const MarkerFrame& b) {
   REQUIRE(a.has_stamp == b.has_stamp);
   if (a.has_stamp) REQUIRE(bits(a.stamp_us) == bits(b.stamp_us));
   REQUIRE(a.visible == b.visible);
+  REQUIRE(a.confidence == b.confidence);
+  REQUIRE(a.confidence_count == b.confidence_count);
   for (std::size_t i = 0; i < a.p_world_m.size(); ++i)
     for (int k = 0; k < 3; ++k) {
       CAPTURE(i, k, a.p_world_m[i][k], b.p_world_m[i][k]);

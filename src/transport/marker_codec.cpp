@@ -111,12 +111,13 @@ class FrameSax final : public nlohmann::json_sax<json> {
     --depth_;
     if (state_ == State::skip) return end_skip();
     if (state_ == State::coords) {
-      if (coord_ != 3)
-        return fail("marker \"" + marker_name_ + "\": expected [x, y, z], got " +
+      if (coord_ != 3 && coord_ != 4)
+        return fail("marker \"" + marker_name_ + "\": expected [x, y, z] or [x, y, z, confidence], got " +
                     std::to_string(coord_) + " numbers");
       if (marker_ >= 0) {
         out_.visible[marker_] = p_.allFinite() ? 1 : 0;
         out_.p_world_m[marker_] = p_;
+        if (coord_ == 4) set_confidence(out_, marker_, c_);
       }
       state_ = State::marker_key;
     }
@@ -232,8 +233,13 @@ class FrameSax final : public nlohmann::json_sax<json> {
         out_.has_stamp = true;
         return top_value_done();
       case State::coords:
-        if (coord_ >= 3) return fail("marker \"" + marker_name_ + "\": more than 3 coordinates");
-        p_[coord_++] = v;
+        if (coord_ >= 4)
+          return fail("marker \"" + marker_name_ + "\": more than 4 values (x, y, z, confidence)");
+        if (coord_ == 3)
+          c_ = v;
+        else
+          p_[coord_] = v;
+        ++coord_;
         return true;
       case State::quat:  // a wrong length is an occlusion (end_quaternion), not an error
         if (coord_ < 4) q_[coord_] = v;
@@ -322,6 +328,7 @@ class FrameSax final : public nlohmann::json_sax<json> {
   std::string& marker_name_;  // the decoder's, so its buffer is reused (also sensor names)
   int coord_ = 0;
   Eigen::Vector3d p_{0, 0, 0};
+  double c_ = 1.0;  // a marker's confidence, its 4th value
   double q_[4] = {0, 0, 0, 0};
 };
 
@@ -342,6 +349,8 @@ void start_frame(MarkerFrame& out) {
   out.has_subject = false;
   out.subject.clear();
   std::fill(out.visible.begin(), out.visible.end(), 0);  // absent markers are occluded
+  std::fill(out.confidence.begin(), out.confidence.end(), 1.0f);
+  out.confidence_count = 0;
   std::fill(out.sensor_visible.begin(), out.sensor_visible.end(), 0);
 }
 
@@ -374,6 +383,7 @@ MarkerFrame MarkerDecoder::make_frame() const {
   MarkerFrame f;
   f.p_world_m.assign(count_, Eigen::Vector3d::Zero());
   f.visible.assign(count_, 0);
+  f.confidence.assign(count_, 1.0f);
   f.unknown_names.resize(kMaxUnknownNames);
   for (std::string& name : f.unknown_names) name.reserve(kMaxUnknownNameBytes);
   f.q_sensor.assign(sensor_count_, Eigen::Quaterniond::Identity());
@@ -458,7 +468,7 @@ void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
                         const double* stamp_us, std::span<const std::string> names,
                         std::span<const Eigen::Vector3d> p_world_m,
                         std::span<const std::uint8_t> visible, std::string_view units,
-                        const SensorSamples* sensors) {
+                        const SensorSamples* sensors, std::span<const float> confidence) {
   const double scale = units == "mm" ? 1e3 : 1.0;
   w.begin_map(3 + (time_s ? 1 : 0) + (stamp_us ? 1 : 0) + (sensors ? 1 : 0));
   w.key("frame");
@@ -481,8 +491,10 @@ void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
       w.null();
       continue;
     }
-    w.begin_array(3);
+    const bool with_confidence = i < confidence.size();
+    w.begin_array(with_confidence ? 4 : 3);
     for (int k = 0; k < 3; ++k) w.number(p_world_m[i][k] * scale);
+    if (with_confidence) w.number(confidence[i], 3);
     w.end_array();
   }
   w.end_map();
@@ -511,13 +523,15 @@ void encode_marker_frame(std::uint64_t frame, const double* time_s,
                          std::span<const Eigen::Vector3d> p_world_m,
                          std::span<const std::uint8_t> visible, std::string_view units,
                          PayloadEncoding encoding, std::string& out, const double* stamp_us,
-                         const SensorSamples* sensors) {
+                         const SensorSamples* sensors, std::span<const float> confidence) {
   if (encoding == PayloadEncoding::json) {
     JsonWriter w(out, units == "mm" ? 4 : 7);
-    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units, sensors);
+    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units, sensors,
+                       confidence);
   } else {
     MsgpackWriter w(out);
-    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units, sensors);
+    write_marker_frame(w, frame, time_s, stamp_us, names, p_world_m, visible, units, sensors,
+                       confidence);
   }
 }
 

@@ -35,6 +35,10 @@ struct MarkerFrame {
   double stamp_us = 0.0;
   std::vector<Eigen::Vector3d> p_world_m;  // per known marker, metres
   std::vector<std::uint8_t> visible;       // per known marker
+  // Addition to the contract: per known marker, the confidence a markerless
+  // source gave as a 4th value ([x, y, z, c], clamped to [0, 1]); 1 without one.
+  std::vector<float> confidence;
+  int confidence_count = 0;  // known markers that carried a confidence
   int rejected_count = 0;  // known markers beyond the plausible range: taken as occluded
   int zero_count = 0;      // known markers at exactly (0, 0, 0): taken as occluded
   int known_count = 0;                     // marker names of the config (null ones included)
@@ -118,7 +122,8 @@ class MarkerDecoder {
 
 // A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are
 // given in metres and converted here), null where visible[i] is 0 or the
-// position is not finite.
+// position is not finite; with `confidence` (one per name), each visible marker
+// as [x, y, z, confidence].
 // Orientation sensors for a frame: names[k] at q[k] ([w, x, y, z]), null
 // where visible[k] is 0 or the quaternion is not finite.
 struct SensorSamples {
@@ -134,6 +139,7 @@ void encode_marker_frame(std::uint64_t frame, const double* time_s,
                          std::span<const Eigen::Vector3d> p_world_m,
                          std::span<const std::uint8_t> visible, std::string_view units,
                          PayloadEncoding encoding, std::string& out,
-                         const double* stamp_us = nullptr, const SensorSamples* sensors = nullptr);
+                         const double* stamp_us = nullptr, const SensorSamples* sensors = nullptr,
+                         std::span<const float> confidence = {});
 
 }  // namespace fabrik::wire

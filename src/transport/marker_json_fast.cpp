@@ -93,7 +93,7 @@ class CommonShapeReader {
     }
   }
 
-  // [x, y, z] or null, for marker i (-1: unknown, read and dropped).
+  // [x, y, z], [x, y, z, confidence] or null, for marker i (-1: unknown, read and dropped).
   bool marker_value(int i) {
     if (end_ - p_ >= 4 && std::string_view(p_, 4) == "null") {
       p_ += 4;
@@ -107,11 +107,20 @@ class CommonShapeReader {
       ws();
       if (!number(xyz[k], integer)) return false;
       ws();
-      if (!eat(k < 2 ? ',' : ']')) return false;
+      if (!eat(k < 2 ? ',' : ']') && !(k == 2 && eat(','))) return false;
+    }
+    const bool with_confidence = p_[-1] == ',';
+    double confidence = 1.0;
+    if (with_confidence) {
+      ws();
+      if (!number(confidence, integer)) return false;
+      ws();
+      if (!eat(']')) return false;
     }
     if (i >= 0) {
       out_.p_world_m[i] = {xyz[0], xyz[1], xyz[2]};
       out_.visible[i] = 1;  // finite: number() takes no overflow
+      if (with_confidence) set_confidence(out_, i, confidence);
     }
     return true;
   }

@@ -1,7 +1,7 @@
 // The fast path of MarkerDecoder for JSON: the common shape of a markers
 // payload read in one pass without the general reader:
 //   {"frame": N, "time": T, "stamp_us": S, "units": "mm" | "m",
-//    "markers": {"NAME": [x, y, z] | null, ...}}
+//    "markers": {"NAME": [x, y, z] | [x, y, z, confidence] | null, ...}}
 // keys in any order (any of them absent or repeated), any JSON whitespace,
 // names of printable ASCII without escapes. Anything else (other keys,
 // "orientations", escapes, non-ASCII names, a malformed or out-of-range
@@ -12,6 +12,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -39,6 +40,19 @@ inline void list_unknown_name(std::vector<std::string>& list, int& listed, std::
   if (listed >= static_cast<int>(list.size())) return;
   std::string& entry = list[listed++];
   entry.assign(name.data(), std::min(name.size(), entry.capacity()));
+}
+
+// Marker i's 4th value, as both readers take it: clamped to [0, 1] (detectors'
+// scores may stray a little past 1); one that is not finite says nothing about
+// the marker, so the marker is occluded.
+inline void set_confidence(MarkerFrame& out, int i, double confidence) {
+  ++out.confidence_count;
+  if (!std::isfinite(confidence)) {
+    out.visible[i] = 0;
+    out.confidence[i] = 0.0f;
+    return;
+  }
+  out.confidence[i] = static_cast<float>(std::clamp(confidence, 0.0, 1.0));
 }
 
 }  // namespace fabrik::wire
