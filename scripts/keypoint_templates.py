@@ -87,7 +87,7 @@ def build(name, style, feet, hands, neck_keypoint, head_top, hip_keypoint, face)
     if head_top:
         head_pts["head_top"] = kp("Head", [0, 300, 0], target="point")
     nose = "Nose" if style == "pose2sim" else "nose"
-    head_pts["nose"] = kp(nose, [90, 220, 0], target="point")
+    head_pts["nose_tip"] = kp(nose, [90, 220, 0], target="point")
     if face:
         for s, sign in (("r", 1), ("l", -1)):
             n = side_names(style, s)

@@ -255,6 +255,9 @@ struct Loader {
       p.at("target").fail("a target point is \"at\" exactly one keypoint",
                           "use \"at\": \"KEYPOINT\"");
     const std::string& keypoint = d.refs[0].names[0];
+    if (keypoint == d.name)
+      p.at("at").fail("the point and its keypoint are both named '" + keypoint + "'",
+                      "name the point after what it is (e.g. \"r_knee\" at \"RKnee\")");
     check_unique(keypoint, p.at("at"));
     MarkerDef m;
     m.name = keypoint;
