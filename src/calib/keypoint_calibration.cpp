@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "common/quantile.hpp"
@@ -182,18 +183,28 @@ class KeypointCalibrator {
     return sum / static_cast<double>(n);  // NaN propagates
   }
 
-  // The jitter variance (per axis) of a position: a keypoint's, or a mean's.
-  double jitter_var(const std::string& name) const {
-    if (const int m = t_.find_marker(name); m >= 0) return jitter_[m] * jitter_[m];  // 0 if fixed
+  // A position as a weighted sum of keypoints (keypoint -> weight): a keypoint's, or a mean's.
+  void add_weights(const std::string& name, double w, std::map<int, double>& out) const {
+    if (const int m = t_.find_marker(name); m >= 0) {
+      out[m] += w;
+      return;
+    }
     const PointDef& d = t_.points[t_.find_point(name)];
-    double sum = 0.0;
     std::size_t n = 0;
+    for (const PointRef& r : d.refs) n += r.names.size();
     for (const PointRef& r : d.refs)
-      for (const std::string& ref : r.names) {
-        sum += jitter_var(ref);
-        ++n;
-      }
-    return sum / static_cast<double>(n * n);
+      for (const std::string& ref : r.names) add_weights(ref, w / static_cast<double>(n), out);
+  }
+
+  // The jitter variance (per axis) of the difference of two positions: a keypoint shared by
+  // both (a hip and the hips' midpoint) cancels in part.
+  double difference_jitter_var(const std::string& a, const std::string& b) const {
+    std::map<int, double> w;
+    add_weights(a, 1.0, w);
+    add_weights(b, -1.0, w);
+    double var = 0.0;
+    for (const auto& [m, c] : w) var += c * c * jitter_[static_cast<std::size_t>(m)] * jitter_[static_cast<std::size_t>(m)];
+    return var;
   }
 
   std::string rest_from(const PointDef& d) const {
@@ -227,7 +238,7 @@ class KeypointCalibrator {
       l.mad_m = median_of(dev);
       // Jitter perpendicular to the segment lengthens it: E|L + n|^2 = L^2 + 3 var, of
       // which the two perpendicular axes survive in the median of |L + n|.
-      const double var = jitter_var(d.name) + jitter_var(from);
+      const double var = difference_jitter_var(d.name, from);
       l.median_m = std::sqrt(std::max(0.0, l.median_raw_m * l.median_raw_m - 2.0 * var));
       l.wide = l.iqr_m > std::max(o.wide_spread_share * l.median_m, o.wide_spread_min_m);
       length_m_[i] = l.median_m;
