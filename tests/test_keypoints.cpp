@@ -25,14 +25,7 @@ std::string template_path(const std::string& name) {
 // The template's truth model (nominal lengths) as `fabrik synth --config` loads it.
 tools::SynthSetup truth_setup(const CalibTemplate& t) {
   const KeypointCalibration k = nominal_keypoint_model(t);
-  const DaemonConfig c = load_daemon_config(k.result.config.dump(), "<truth>");
-  tools::SynthSetup s;
-  s.model = c.tracker.model;
-  for (const MarkerTarget& m : c.tracker.markers) {
-    s.marker_names.push_back(m.marker);
-    s.marker_points.push_back(m.point);
-  }
-  return s;
+  return tools::synth_setup(load_daemon_config(k.result.config.dump(), "<truth>"));
 }
 
 tools::SynthOptions short_trial() {

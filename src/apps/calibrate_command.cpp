@@ -150,7 +150,8 @@ void add_calibrate_command(CLI::App& app) {
   auto args = std::make_shared<CalibrateArgs>();
   CLI::App* cmd = app.add_subcommand(
       "calibrate",
-      "Build a subject's model from a template and a static trial; write a daemon config");
+      "Build a subject's model from a template and a static trial (or, for a keypoint "
+      "template, any movement: --trial); write a daemon config");
   cmd->add_option("--template", args->template_path, "Model template (fabrikd-template/1 JSON)");
   cmd->add_option("--static", args->static_path, "Static trial (.trc or .c3d)");
   cmd->add_option("--trial", args->trial_path,

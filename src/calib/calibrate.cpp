@@ -345,15 +345,7 @@ class Calibrator {
     const std::string where = o.lab_axes ? "with --lab-up/--lab-forward" : "in the template";
     const auto [superior, anterior] = static_directions();
     const bool has_frames = superior.norm() > 1e-9;
-    auto nearest_axis = [](const Eigen::Vector3d& v, const Eigen::Vector3d& except) {
-      Eigen::Vector3d best = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k) {
-        if (std::abs(except[k]) > 0.5) continue;
-        const Eigen::Vector3d e = Eigen::Vector3d::Unit(k) * (v[k] < 0.0 ? -1.0 : 1.0);
-        if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
-      }
-      return best;
-    };
+    const auto nearest_axis = nearest_lab_axis;
     auto deg_between = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
       return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / 3.141592653589793;
     };
@@ -609,6 +601,16 @@ class Calibrator {
 CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& trial,
                             const std::string& trial_name, const CalibrateOptions& options) {
   return Calibrator(tmpl, trial, trial_name).run(options);
+}
+
+Eigen::Vector3d nearest_lab_axis(const Eigen::Vector3d& v, const Eigen::Vector3d& except) {
+  Eigen::Vector3d best = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(except[k]) > 0.5) continue;
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k) * (v[k] < 0.0 ? -1.0 : 1.0);
+    if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
+  }
+  return best;
 }
 
 FrameWindow frame_window(const io::MarkerTrial& trial, const std::string& trial_name,

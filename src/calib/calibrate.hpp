@@ -90,6 +90,9 @@ struct CalibrationResult {
 CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& trial,
                             const std::string& trial_name, const CalibrateOptions& options = {});
 
+// The signed lab axis (+x, -z, ...) nearest v, other than the axis of `except` (zero: any).
+Eigen::Vector3d nearest_lab_axis(const Eigen::Vector3d& v, const Eigen::Vector3d& except);
+
 // Frames [first, first + count) (indices) of the trial from --first-frame (the file's frame
 // number; -1: the first) and --frames (-1: to the end). Throws CalibrationError.
 struct FrameWindow {

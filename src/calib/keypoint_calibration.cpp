@@ -250,15 +250,7 @@ class KeypointCalibrator {
   // points whose rest vector is vertical (legs, trunk, neck), sign by the rest's.
   void choose_axes(const KeypointCalibrateOptions& o) {
     const std::optional<LabAxesSpec>& declared = o.lab_axes ? o.lab_axes : t_.lab_axes;
-    auto nearest = [](const Eigen::Vector3d& v, const Eigen::Vector3d& except) {
-      Eigen::Vector3d best = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k) {
-        if (std::abs(except[k]) > 0.5) continue;
-        const Eigen::Vector3d e = Eigen::Vector3d::Unit(k) * (v[k] < 0.0 ? -1.0 : 1.0);
-        if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
-      }
-      return best;
-    };
+    const auto nearest = nearest_lab_axis;
     // Mean measured directions of vertical and of anterior rest vectors.
     Eigen::Vector3d superior = Eigen::Vector3d::Zero(), anterior = Eigen::Vector3d::Zero();
     for (const PointDef& d : t_.points) {

@@ -44,12 +44,7 @@ std::vector<MarkerlessRow> eval_markerless(const MarkerlessOptions& o) {
   const calib::CalibTemplate tmpl = calib::load_template_file(o.template_path);
   const calib::KeypointCalibration truth_cal = calib::nominal_keypoint_model(tmpl);
   const DaemonConfig truth_config = load_json_config(truth_cal.result.config, "<truth>");
-  tools::SynthSetup setup;
-  setup.model = truth_config.tracker.model;
-  for (const MarkerTarget& t : truth_config.tracker.markers) {
-    setup.marker_names.push_back(t.marker);
-    setup.marker_points.push_back(t.point);
-  }
+  const tools::SynthSetup setup = tools::synth_setup(truth_config);
   tools::SynthOptions so;
   so.seconds = o.seconds;
   so.rate_hz = o.rate_hz;

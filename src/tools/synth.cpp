@@ -14,7 +14,10 @@
 namespace fabrik::tools {
 
 SynthSetup load_synth_setup(const std::string& config_path) {
-  const DaemonConfig config = load_daemon_config_file(config_path);
+  return synth_setup(load_daemon_config_file(config_path));
+}
+
+SynthSetup synth_setup(const DaemonConfig& config) {
   SynthSetup setup;
   setup.model = config.tracker.model;
   for (const MarkerTarget& t : config.tracker.markers) {

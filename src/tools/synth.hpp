@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
 #include "solver/model.hpp"
 #include "synth/keypoint_corruption.hpp"
@@ -22,6 +23,7 @@ struct SynthSetup {
 // Through the daemon's own loader, so the names are exactly what fabrikd tracks. Throws
 // ConfigError naming the file, the JSON pointer and the fix.
 SynthSetup load_synth_setup(const std::string& config_path);
+SynthSetup synth_setup(const DaemonConfig& config);
 
 struct SynthOptions {
   double seconds = 10.0;
