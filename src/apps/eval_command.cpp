@@ -191,6 +191,9 @@ void add_markerless(CLI::App* eval) {
   c->add_option("--path", a->o.path, "live (frame by frame) or offline (placeholder: as live)")
       ->check(CLI::IsMember({"live", "offline"}))
       ->capture_default_str();
+  c->add_option("--trial", a->o.trial_path,
+                "Instead of generating: a trial written by fabrik synth --keypoints (with its "
+                ".joints.trc, .truth.mot and .injected.csv)");
   c->add_option("--json", a->json_path, "Also write the results as JSON");
   c->callback([a] {
     tools::run_command("eval markerless", [&] {

@@ -26,6 +26,9 @@ struct MarkerlessOptions {
   // Merged into the calibrated config (RFC 7396 merge patch) before it is loaded: tracking
   // options (filters, outlier rule, occlusion) as a config would set them.
   nlohmann::json config_overrides = nlohmann::json::object();
+  // Instead of generating: a trial `fabrik synth --keypoints` wrote (its truth files beside
+  // it); evaluated as one case, "file".
+  std::string trial_path;
   std::string path = "live";  // live: frame by frame; offline: (placeholder) the same for now
 };
 
