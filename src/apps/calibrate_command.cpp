@@ -7,6 +7,7 @@
 #include <memory>
 
 #include "calib/calibrate.hpp"
+#include "calib/keypoint_calibration.hpp"
 #include "calib/sensor_calibration.hpp"
 #include "config/daemon_config.hpp"
 #include "config/json_reader.hpp"
@@ -21,8 +22,10 @@ namespace fabrik {
 namespace {
 struct CalibrateArgs {
   std::string template_path, static_path, output_path, orientations_path, config_path;
+  std::string trial_path, lengths_json_path;  // keypoint templates: any movement, no static
   std::string lab_up, lab_forward;
   bool keep_zeros = false;
+  bool nominal = false;  // keypoint templates: the nominal lengths, no trial
   calib::CalibrateOptions options;
 };
 
@@ -71,10 +74,19 @@ void run_calibrate(const CalibrateArgs& a) {
               << " recalibrated)\n";
     return;
   }
-  if (a.template_path.empty() || a.static_path.empty())
-    throw std::runtime_error("give --template and --static (or --config with "
-                             "--static-orientations to recalibrate a config's sensors)");
+  if (a.template_path.empty() ||
+      int(!a.static_path.empty()) + int(!a.trial_path.empty()) + int(a.nominal) != 1)
+    throw std::runtime_error("give --template and --static (a marker template) or --trial (a "
+                             "keypoint template); or --config with --static-orientations to "
+                             "recalibrate a config's sensors");
   const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
+  const bool keypoints = tmpl.kind == calib::TemplateKind::keypoints;
+  if (keypoints == !a.static_path.empty())
+    throw std::runtime_error(
+        a.template_path + (keypoints ? " is a keypoint template: it calibrates from a movement "
+                                       "trial. Fix: give --trial instead of --static"
+                                     : " is a marker template: it calibrates from a static trial. "
+                                       "Fix: give --static instead of --trial"));
   calib::CalibrateOptions options = a.options;
   if (!a.lab_up.empty()) {
     const nlohmann::json axes = a.lab_forward.empty()
@@ -88,6 +100,33 @@ void run_calibrate(const CalibrateArgs& a) {
     throw std::runtime_error(a.template_path + " lists no orientation sensors, so --static-"
                              "orientations has nothing to calibrate. Fix: add \"sensors\" to "
                              "the template");
+  if (keypoints) {
+    if (options.auto_window > 0)
+      throw std::runtime_error("--auto-window picks a still window; a keypoint template measures "
+                               "lengths over movement. Fix: --first-frame/--frames, or neither");
+    calib::KeypointCalibration k;
+    if (a.nominal) {
+      k = calib::nominal_keypoint_model(tmpl, options.lab_axes);
+    } else {
+      const io::MarkerTrial trial =
+          apps::read_trial_or_explain("calibrate", a.trial_path, a.keep_zeros);
+      calib::KeypointCalibrateOptions ko;
+      ko.first_frame = options.first_frame;
+      ko.frames = options.frames;
+      ko.lab_axes = options.lab_axes;
+      k = calib::calibrate_keypoints(tmpl, trial, a.trial_path, ko);
+    }
+    const DaemonConfig written = write_config(k.result.config, a.output_path);
+    if (!a.lengths_json_path.empty()) {
+      std::ofstream out(a.lengths_json_path);
+      out << calib::keypoint_lengths_json(k).dump(2) << "\n";
+      if (!out) throw std::runtime_error(a.lengths_json_path + ": cannot write");
+    }
+    std::cout << calib::keypoint_length_report(k) << calib::calibration_report(k.result)
+              << "Wrote " << a.output_path << " (model '" << tmpl.name << "', "
+              << written.tracker.markers.size() << " tracked keypoints)\n";
+    return;
+  }
   const io::MarkerTrial trial =
       apps::read_trial_or_explain("calibrate", a.static_path, a.keep_zeros);
   calib::CalibrationResult r = calib::calibrate(tmpl, trial, a.static_path, options);
@@ -111,9 +150,19 @@ void add_calibrate_command(CLI::App& app) {
   auto args = std::make_shared<CalibrateArgs>();
   CLI::App* cmd = app.add_subcommand(
       "calibrate",
-      "Build a subject's model from a template and a static trial; write a daemon config");
+      "Build a subject's model from a template and a static trial (or, for a keypoint "
+      "template, any movement: --trial); write a daemon config");
   cmd->add_option("--template", args->template_path, "Model template (fabrikd-template/1 JSON)");
   cmd->add_option("--static", args->static_path, "Static trial (.trc or .c3d)");
+  cmd->add_option("--trial", args->trial_path,
+                  "Keypoint templates (\"kind\": \"keypoints\"): any movement trial of the "
+                  "keypoints (.trc or .c3d, m or mm); segment lengths are measured from it, no "
+                  "static trial (docs/keypoints.md)");
+  cmd->add_flag("--nominal", args->nominal,
+                "Keypoint templates, instead of --trial: the template at its nominal lengths "
+                "(the truth model of `fabrik synth --keypoints`)");
+  cmd->add_option("--lengths-json", args->lengths_json_path,
+                  "With --trial: also write each measured length and its spread as JSON");
   cmd->add_option("--static-orientations", args->orientations_path,
                   "Orientation sensors recorded in the model's rest posture (OpenSim quaternion "
                   ".sto): calibrates the template's sensors");

@@ -153,6 +153,66 @@ void run(const std::string& which, const EvalArgs& a) {
   }
 }
 
+// `fabrik eval markerless` (docs/keypoints.md).
+void add_markerless(CLI::App* eval) {
+  struct Args {
+    eval::MarkerlessOptions o;
+    std::string overrides, json_path;
+  };
+  auto a = std::make_shared<Args>();
+  CLI::App* c = eval->add_subcommand(
+      "markerless",
+      "A markerless trial of our own making: keypoints rendered from synthetic motion with "
+      "jitter, dropouts and left/right swaps; calibrated from itself and tracked; joint centres "
+      "and angles vs the truth");
+  c->add_option("--template", a->o.template_path, "Keypoint template")->capture_default_str();
+  c->add_option("--seconds", a->o.seconds, "Duration")->capture_default_str()->check(
+      CLI::Range(0.5, 3600.0));
+  c->add_option("--rate", a->o.rate_hz, "Frame rate (Hz)")->capture_default_str()->check(
+      CLI::Range(1.0, 10000.0));
+  c->add_option("--seed", a->o.seed, "Motion and corruption seed")->capture_default_str();
+  c->add_option("--cases", a->o.cases, "Of clean, jitter, dropouts, swaps, all")
+      ->capture_default_str();
+  KeypointCorruption& k = a->o.corruption;
+  c->add_option("--jitter-mm", k.jitter_mm, "Jitter sd per axis (mm)")->capture_default_str();
+  c->add_option("--dropouts-per-s", k.dropouts_per_s, "Dropout runs per second")
+      ->capture_default_str();
+  c->add_option("--dropout-frames-max", k.dropout_frames_max, "Each dropout: 2 to N frames")
+      ->capture_default_str();
+  c->add_option("--swaps-per-s", k.swaps_per_s, "Left/right swaps per second")
+      ->capture_default_str();
+  c->add_option("--swap-frames-max", k.swap_frames_max, "Each swap: 2 to N frames")
+      ->capture_default_str();
+  c->add_option("--limb-swap-share", k.limb_swap_share, "Share of swaps of a whole limb")
+      ->capture_default_str();
+  c->add_option("--config-overrides", a->overrides,
+                "JSON (or @FILE) merged into the calibrated config before tracking (RFC 7396 "
+                "merge patch), e.g. tracking options a config sets");
+  c->add_option("--path", a->o.path, "live (frame by frame) or offline (placeholder: as live)")
+      ->check(CLI::IsMember({"live", "offline"}))
+      ->capture_default_str();
+  c->add_option("--trial", a->o.trial_path,
+                "Instead of generating: a trial written by fabrik synth --keypoints (with its "
+                ".joints.trc, .truth.mot and .injected.csv)");
+  c->add_option("--json", a->json_path, "Also write the results as JSON");
+  c->callback([a] {
+    tools::run_command("eval markerless", [&] {
+      if (!a->overrides.empty()) {
+        std::string text = a->overrides;
+        if (text[0] == '@') {
+          std::ifstream in(text.substr(1));
+          if (!in) throw std::runtime_error(text.substr(1) + ": cannot read");
+          text.assign(std::istreambuf_iterator<char>(in), {});
+        }
+        a->o.config_overrides = nlohmann::json::parse(text);
+      }
+      const auto rows = eval::eval_markerless(a->o);
+      std::cout << eval::markerless_table(rows, a->o);
+      write_json(a->json_path, eval::markerless_json(rows));
+    });
+  });
+}
+
 }  // namespace
 
 void add_eval_command(CLI::App& app) {
@@ -234,6 +294,7 @@ void add_eval_command(CLI::App& app) {
   imu->add_option("--angles", ia->angles_path, "Write the walk's coordinates (.mot)");
   imu->add_option("--json", ia->json_path, "Also write the results as JSON");
   imu->callback([ia] { tools::run_command("eval imu", [&] { run("imu", *ia); }); });
+  add_markerless(eval);
 }
 
 }  // namespace fabrik::apps

@@ -100,6 +100,11 @@ struct Loader {
   // The model's limits hold for a template too, checked as it is read (its
   // names are looked up one by one, so a larger one would cost minutes).
   std::vector<int> depth;  // per segment, from the root
+  // Keypoint templates: the segment being read's level and weight (for its keypoints), and
+  // every "rest_from" (name, pointer), checked once all points are known.
+  int segment_level = 0;
+  double segment_weight = 1.0;
+  std::vector<std::pair<std::string, std::string>> rest_from_refs;
 
   void note_ref(const PointRef& ref, const JsonReader& where) { note_ref(ref, where.pointer()); }
   void note_ref(const PointRef& ref, const std::string& pointer) {
@@ -120,13 +125,28 @@ struct Loader {
 
   void read_point(const JsonReader& p, const std::string& name, int seg) {
     p.only_keys({"at", "midpoint", "offset", "from", "frame", "regression", "side", "markers",
-                 "description"});
+                 "description", "target", "rest", "rest_from", "optional"});
     PointDef d;
     d.name = name;
     d.segment = seg;
     d.pointer = p.pointer();
     const int rules =
         int(p.has("at")) + int(p.has("midpoint")) + int(p.has("offset")) + int(p.has("regression"));
+    if (rules == 0 && t.kind == TemplateKind::keypoints && p.has("rest")) {
+      // A point no keypoint sees (a trunk joint): fixed at its nominal rest vector. It is
+      // placed through a static-only marker of its own, which the rest posture carries.
+      d.fixed = true;
+      d.refs.push_back(PointRef{{"~" + name}});
+      MarkerDef m;
+      m.name = "~" + name;
+      m.segment = seg;
+      m.static_only = true;
+      m.pointer = p.pointer();
+      t.markers.push_back(std::move(m));
+      read_keypoint_fields(p, d);
+      t.points.push_back(std::move(d));
+      return;
+    }
     if (rules != 1)
       p.fail("a point needs exactly one rule",
              "give one of \"at\", \"midpoint\", \"offset\", "
@@ -197,7 +217,55 @@ struct Loader {
         note_ref(d.posterior, m);
       }
     }
+    read_keypoint_fields(p, d);
     t.points.push_back(std::move(d));
+  }
+
+  // A keypoint template's point: a target keypoint ("at" one name, which becomes a tracked
+  // marker of the segment) and its rest vector; a marker template has neither.
+  void read_keypoint_fields(const JsonReader& p, PointDef& d) {
+    const bool keypoints = t.kind == TemplateKind::keypoints;
+    for (const char* key : {"target", "rest", "rest_from", "optional"})
+      if (!keypoints && p.has(key))
+        p.at(key).fail(std::string("\"") + key + "\" belongs to keypoint templates",
+                       "add \"kind\": \"keypoints\" at the top, or remove it");
+    if (!keypoints) return;
+    if (d.rule != PointRule::at && d.rule != PointRule::midpoint)
+      p.fail("a keypoint template's point is \"at\" a keypoint or a \"midpoint\"",
+             "place joint centres on keypoints: there is no static trial for offsets or "
+             "regressions");
+    if (p.has("rest")) {
+      d.has_rest = true;
+      d.rest_m = p.at("rest").as_vec3() * scale;
+    } else if (d.rule == PointRule::at && !t.segments[d.segment].base.empty() &&
+               !(d.segment == 0 && t.segments[0].base == d.name)) {
+      p.fail("point '" + d.name + "' has no \"rest\" vector",
+             "give \"rest\": [x, y, z] from the segment's base (or \"rest_from\") in the "
+             "standing posture, OpenSim axes (x anterior, y up, z right), nominal length");
+    }
+    d.rest_from = p.get("rest_from", std::string());
+    if (!d.rest_from.empty()) rest_from_refs.emplace_back(d.rest_from, p.at("rest_from").pointer());
+    d.optional = p.get("optional", false);
+    if (!p.has("target")) return;
+    d.target = p.at("target").as_string();
+    if (d.target != "joint" && d.target != "point")
+      p.at("target").fail("unknown target '" + d.target + "'",
+                          "use \"joint\" (a joint centre) or \"point\" (a segment point)");
+    if (d.rule != PointRule::at || d.refs[0].names.size() != 1)
+      p.at("target").fail("a target point is \"at\" exactly one keypoint",
+                          "use \"at\": \"KEYPOINT\"");
+    const std::string& keypoint = d.refs[0].names[0];
+    if (keypoint == d.name)
+      p.at("at").fail("the point and its keypoint are both named '" + keypoint + "'",
+                      "name the point after what it is (e.g. \"r_knee\" at \"RKnee\")");
+    check_unique(keypoint, p.at("at"));
+    MarkerDef m;
+    m.name = keypoint;
+    m.segment = d.segment;
+    m.level = segment_level;
+    m.weight = segment_weight;
+    m.pointer = p.at("at").pointer();
+    t.markers.push_back(std::move(m));
   }
 
   void read_segment(const JsonReader& s) {
@@ -239,6 +307,16 @@ struct Loader {
     t.segments.push_back(seg);
     const int level = static_cast<int>(s.get("level", (long long)t.default_level, -1000, 1000));
     const double weight = s.get("weight", t.default_weight, 1e-9, 1e9);
+    segment_level = level;
+    segment_weight = weight;
+    if (t.kind == TemplateKind::keypoints) {
+      // The rest posture is built in OpenSim's axes, so every segment's frame is those axes.
+      for (const char* key : {"frame", "markers"})
+        if (s.has(key))
+          s.at(key).fail(std::string("a keypoint template's segment has no \"") + key + "\"",
+                         "its frame is the rest posture's axes (x anterior, y up, z right); "
+                         "its keypoints are points with \"target\"");
+    }
 
     if (s.has("points")) {
       const JsonReader pts = s.at("points");
@@ -337,8 +415,14 @@ struct Loader {
     if (fmt.as_string() != "fabrikd-template/1")
       fmt.fail("unsupported format '" + fmt.as_string() + "'",
                "use \"fabrikd-template/1\" (is this a template?)");
-    root.only_keys({"format", "name", "description", "units", "defaults", "segments",
+    root.only_keys({"format", "kind", "name", "description", "units", "defaults", "segments",
                     "coordinates", "sensors", "lab_axes"});
+    if (root.has("kind")) {
+      const std::string kind = root.at("kind").as_string();
+      if (kind == "keypoints") t.kind = TemplateKind::keypoints;
+      else if (kind != "markers")
+        root.at("kind").fail("unknown kind '" + kind + "'", "use \"markers\" or \"keypoints\"");
+    }
     if (root.has("lab_axes")) t.lab_axes = read_lab_axes(root.at("lab_axes"));
     if (root.has("coordinates")) {
       root.at("coordinates").expect_object();
@@ -383,6 +467,10 @@ struct Loader {
     }
     check_tree(segs);
     check_refs();
+    for (const auto& [name, pointer] : rest_from_refs)
+      if (t.find_point(name) < 0)
+        throw ConfigError(t.file, pointer, "'" + name + "' is not a point of the template",
+                          "name a point of the same segment, or its base");
     check_cycles();
     if (root.has("sensors")) {
       std::vector<std::string> names;
@@ -400,7 +488,7 @@ struct Loader {
 }  // namespace
 
 CalibTemplate load_template(const nlohmann::json& doc, const std::string& file) {
-  Loader l{JsonReader(doc, file), {}, 1e-3, {}, {}, {}, {}};
+  Loader l{JsonReader(doc, file), {}, 1e-3, {}, {}, {}, {}, 0, 1.0, {}};
   l.t.file = file;
   l.load();
   return std::move(l.t);

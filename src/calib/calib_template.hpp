@@ -59,6 +59,17 @@ struct PointDef {
   bool right = true;
   PointRef r_asis, l_asis, posterior;  // posterior: the sacral marker or the two PSIS
   std::string pointer;
+  // Keypoint templates ("kind": "keypoints", docs/keypoints.md): what the point's
+  // keypoint lands on ("joint" or "point"; empty: not a target), and the point's rest
+  // position: `rest_m` from the point `rest_from` (the segment's base unless named),
+  // in OpenSim's axes (x anterior, y up, z right). Its direction is kept; its length
+  // is measured from the keypoints. `optional`: the keypoint may be absent.
+  std::string target;
+  bool has_rest = false;
+  Eigen::Vector3d rest_m{0, 0, 0};
+  std::string rest_from;
+  bool optional = false;
+  bool fixed = false;  // seen by no keypoint: at its nominal rest vector (a "~NAME" marker)
 };
 
 struct MarkerDef {
@@ -83,8 +94,13 @@ struct SegmentDef {
   std::string pointer;
 };
 
+// "markers": skin markers with a static trial (the default); "keypoints": markerless
+// keypoints on joint centres and segment points, no static trial (docs/keypoints.md).
+enum class TemplateKind { markers, keypoints };
+
 struct CalibTemplate {
   std::string file;
+  TemplateKind kind = TemplateKind::markers;
   std::string name;
   std::string description;
   int default_level = 0;

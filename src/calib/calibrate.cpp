@@ -52,13 +52,18 @@ std::string fmt(const char* format, double v) {
 
 class Calibrator {
  public:
-  Calibrator(const CalibTemplate& t, const io::MarkerTrial& trial, std::string trial_name)
-      : t_(t), trial_(trial), trial_name_(std::move(trial_name)) {}
+  Calibrator(const CalibTemplate& t, const io::MarkerTrial& trial, std::string trial_name,
+             const BuiltRest* built = nullptr)
+      : t_(t), trial_(trial), trial_name_(std::move(trial_name)), built_(built) {}
 
   CalibrationResult run(const CalibrateOptions& o) {
     match_labels();
     choose_window(o);
-    report_motion();
+    if (built_) {
+      r_.built_rest = true;
+    } else {
+      report_motion();
+    }
     average();
     resolved_.assign(t_.points.size(), std::nullopt);
     for (std::size_t i = 0; i < t_.points.size(); ++i)
@@ -79,7 +84,6 @@ class Calibrator {
     const long long n = static_cast<long long>(trial_.frames());
     if (n == 0) fail("the trial has no frames", "record a static trial");
     const long long first_no = trial_.first_frame;
-    const long long last_no = first_no + n - 1;
     if (o.auto_window > 0) {
       if (o.first_frame >= 0 || o.frames >= 0)
         fail("--auto-window picks the window itself", "give --auto-window N, or --first-frame "
@@ -94,18 +98,10 @@ class Calibrator {
       r_.frames = o.auto_window;
       return;
     }
-    const long long start = o.first_frame < 0 ? first_no : o.first_frame;
-    if (start < first_no || start > last_no)
-      fail("--first-frame " + std::to_string(start) + " is outside the trial (frames " +
-               std::to_string(first_no) + " to " + std::to_string(last_no) + ")",
-           "choose a frame number in that range");
-    const long long count = o.frames < 0 ? last_no - start + 1 : o.frames;
-    if (count < 1 || start + count - 1 > last_no)
-      fail("--frames " + std::to_string(count) + " from frame " + std::to_string(start) +
-               " runs past the last frame " + std::to_string(last_no),
-           "use at most " + std::to_string(last_no - start + 1) + " frames");
-    first_ = static_cast<std::size_t>(start - first_no);
-    count_ = static_cast<std::size_t>(count);
+    const FrameWindow w = frame_window(trial_, trial_name_, o.first_frame, o.frames);
+    first_ = w.first;
+    count_ = w.count;
+    const long long start = w.first_frame_number, count = static_cast<long long>(w.count);
     r_.first_frame = start;
     r_.frames = count;
   }
@@ -312,7 +308,8 @@ class Calibrator {
     for (const auto& [name, p] : r_.points_world_m) points.push_back(p);
     std::vector<std::optional<Eigen::Matrix3d>> given(t_.segments.size());
     for (std::size_t s = 0; s < t_.segments.size(); ++s)
-      if (t_.segments[s].frame >= 0) given[s] = frame(t_.frames[t_.segments[s].frame]);
+      if (built_) given[s] = built_->axes_lab;
+      else if (t_.segments[s].frame >= 0) given[s] = frame(t_.frames[t_.segments[s].frame]);
     derived_ = derive_anatomy(t_, points, mean_, given);
     r_.derived = derived_.report;
   }
@@ -322,6 +319,7 @@ class Calibrator {
   // root's x axis (the pelvis's front), else the sum of the x axes. Zero
   // without segment frames (the template's, else derived ones).
   std::optional<Eigen::Matrix3d> segment_axes(std::size_t s) {
+    if (built_) return built_->axes_lab;
     if (t_.segments[s].frame >= 0) return frame(t_.frames[t_.segments[s].frame]);
     if (s < derived_.frames.size()) return derived_.frames[s];
     return std::nullopt;
@@ -347,15 +345,7 @@ class Calibrator {
     const std::string where = o.lab_axes ? "with --lab-up/--lab-forward" : "in the template";
     const auto [superior, anterior] = static_directions();
     const bool has_frames = superior.norm() > 1e-9;
-    auto nearest_axis = [](const Eigen::Vector3d& v, const Eigen::Vector3d& except) {
-      Eigen::Vector3d best = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k) {
-        if (std::abs(except[k]) > 0.5) continue;
-        const Eigen::Vector3d e = Eigen::Vector3d::Unit(k) * (v[k] < 0.0 ? -1.0 : 1.0);
-        if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
-      }
-      return best;
-    };
+    const auto nearest_axis = nearest_lab_axis;
     auto deg_between = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
       return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / 3.141592653589793;
     };
@@ -436,9 +426,9 @@ class Calibrator {
       }
       if (!pts.empty()) seg["points"] = pts;
       if (!mks.empty()) seg["markers"] = mks;
-      if (sd.frame >= 0 || derived_.frames[s]) {
+      if (const std::optional<Eigen::Matrix3d> axes_at_rest = segment_axes(s)) {
         // The anatomical frame at the static pose, which is the rest pose.
-        const Eigen::Matrix3d axes = sd.frame >= 0 ? frame(t_.frames[sd.frame]) : *derived_.frames[s];
+        const Eigen::Matrix3d axes = *axes_at_rest;
         seg["frame"] = {{"x", unit3(axes.col(0))}, {"y", unit3(axes.col(1))},
                         {"z", unit3(axes.col(2))}};
       }
@@ -448,11 +438,13 @@ class Calibrator {
     const SegmentDef& root = t_.segments[0];
     r_.model["format"] = "fabrikd-model/1";
     r_.model["name"] = t_.name;
-    r_.model["description"] = "Calibrated by fabrik calibrate from template " + t_.file +
-                              " and static trial " + trial_name_ + " (frames " +
-                              std::to_string(r_.first_frame) + " to " +
-                              std::to_string(r_.first_frame + r_.frames - 1) +
-                              "): the rest posture is the averaged static posture.";
+    r_.model["description"] =
+        built_ ? "Calibrated by fabrik calibrate from keypoint template " + t_.file + ": " +
+                     built_->source
+               : "Calibrated by fabrik calibrate from template " + t_.file + " and static trial " +
+                     trial_name_ + " (frames " + std::to_string(r_.first_frame) + " to " +
+                     std::to_string(r_.first_frame + r_.frames - 1) +
+                     "): the rest posture is the averaged static posture.";
     r_.model["units"] = "mm";
     r_.model["root_position"] = mm3(point(t_.find_point(root.base)));
     r_.model["segments"] = segs;
@@ -554,13 +546,17 @@ class Calibrator {
     std::vector<int> count(n, 0);
     double rms_sum = 0.0;
     int frames_with_residual = 0;
-    for (std::size_t f = first_; f < first_ + count_; ++f) {
+    // A built rest posture is fitted to the movement it was measured from.
+    const io::MarkerTrial& fit_trial = built_ ? *built_->fit_trial : trial_;
+    const std::size_t fit_first = built_ ? built_->fit_first : first_;
+    const std::size_t fit_count = built_ ? built_->fit_count : count_;
+    for (std::size_t f = fit_first; f < fit_first + fit_count; ++f) {
       for (std::size_t i = 0; i < n; ++i) {
-        pos[i] = column[i] >= 0 ? trial_.at(f, static_cast<std::size_t>(column[i]))
+        pos[i] = column[i] >= 0 ? fit_trial.at(f, static_cast<std::size_t>(column[i]))
                                 : Eigen::Vector3d::Constant(NAN);
         vis[i] = pos[i].allFinite();
       }
-      const TrackResult& tr = tracker.track(trial_.time_s(f), pos, vis);
+      const TrackResult& tr = tracker.track(fit_trial.time_s(f), pos, vis);
       r_.fit_outlier_samples += tr.outlier_count;
       for (std::size_t i = 0; i < n; ++i) {
         if (tr.occluded[i] || tr.outliers[i]) continue;
@@ -576,7 +572,7 @@ class Calibrator {
       if (tr.residual_max_m > r_.fit_max_m || r_.fit_max_marker.empty()) {
         r_.fit_max_m = tr.residual_max_m;
         r_.fit_max_marker = t_.markers[tmarker[tr.worst_marker]].name;
-        r_.fit_max_frame = trial_.first_frame + static_cast<long long>(f);
+        r_.fit_max_frame = fit_trial.first_frame + static_cast<long long>(f);
       }
     }
     r_.fit_rms_mean_m = frames_with_residual ? rms_sum / frames_with_residual : 0.0;
@@ -590,6 +586,7 @@ class Calibrator {
   const CalibTemplate& t_;
   const io::MarkerTrial& trial_;
   std::string trial_name_;
+  const BuiltRest* built_ = nullptr;
   std::size_t first_ = 0, count_ = 0;
   int prefixed_ = 0;
   std::vector<int> column_;            // per template marker: trial column, -1 if absent
@@ -606,9 +603,47 @@ CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& tr
   return Calibrator(tmpl, trial, trial_name).run(options);
 }
 
+Eigen::Vector3d nearest_lab_axis(const Eigen::Vector3d& v, const Eigen::Vector3d& except) {
+  Eigen::Vector3d best = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(except[k]) > 0.5) continue;
+    const Eigen::Vector3d e = Eigen::Vector3d::Unit(k) * (v[k] < 0.0 ? -1.0 : 1.0);
+    if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
+  }
+  return best;
+}
+
+FrameWindow frame_window(const io::MarkerTrial& trial, const std::string& trial_name,
+                         long long first_frame, long long frames) {
+  const auto fail = [&](const std::string& problem, const std::string& fix) {
+    throw CalibrationError(trial_name + ": " + problem + ". Fix: " + fix);
+  };
+  const long long n = static_cast<long long>(trial.frames());
+  const long long first_no = trial.first_frame, last_no = first_no + n - 1;
+  const long long start = first_frame < 0 ? first_no : first_frame;
+  if (start < first_no || start > last_no)
+    fail("--first-frame " + std::to_string(start) + " is outside the trial (frames " +
+             std::to_string(first_no) + " to " + std::to_string(last_no) + ")",
+         "choose a frame number in that range");
+  const long long count = frames < 0 ? last_no - start + 1 : frames;
+  if (count < 1 || start + count - 1 > last_no)
+    fail("--frames " + std::to_string(count) + " from frame " + std::to_string(start) +
+             " runs past the last frame " + std::to_string(last_no),
+         "use at most " + std::to_string(last_no - start + 1) + " frames");
+  return {static_cast<std::size_t>(start - first_no), static_cast<std::size_t>(count), start};
+}
+
+CalibrationResult calibrate_built_rest(const CalibTemplate& tmpl, const io::MarkerTrial& rest,
+                                       const std::string& trial_name,
+                                       const CalibrateOptions& options, const BuiltRest& built) {
+  if (!built.fit_trial) throw CalibrationError(trial_name + ": no trial to fit the built rest to");
+  return Calibrator(tmpl, rest, trial_name, &built).run(options);
+}
+
 std::string calibration_report(const CalibrationResult& r) {
   std::ostringstream out;
-  out << "Static window: frames " << r.first_frame << " to " << r.first_frame + r.frames - 1 << " ("
+  if (!r.built_rest)
+    out << "Static window: frames " << r.first_frame << " to " << r.first_frame + r.frames - 1 << " ("
       << r.frames << " frames); motion in it "
       << fmt("%.2f", r.window_motion_m * 1e3) << " mm at most ("
       << (r.window_motion_marker.empty() ? "-" : r.window_motion_marker) << ")\n";
@@ -628,8 +663,9 @@ std::string calibration_report(const CalibrationResult& r) {
          "ground frame,\n  X forward and Y up; the config records the axes in its model's "
          "\"lab_axes\". To declare them:\n  --lab-up/--lab-forward, or \"lab_axes\": {\"up\": "
          "\"+z\", \"forward\": \"+x\"} in the template\n";
-  out << "\nMarker fit: the window tracked with the written config, as fabrik solve tracks it "
-         "(per marker: RMS and max over its frames)\n";
+  out << "\nMarker fit: the " << (r.built_rest ? "movement (the lengths' window)" : "window")
+      << " tracked with the written config, as fabrik solve tracks it (per marker: RMS and max "
+         "over its frames)\n";
   out << "  marker               segment          RMS mm   max mm\n";
   for (const MarkerFit& f : r.fits) {
     char line[200];

@@ -79,6 +79,9 @@ struct CalibrationResult {
   // Frames and coordinates derived because the template names no coordinates
   // (derive_anatomy.hpp), or why they could not be: one line each.
   std::vector<std::string> derived;
+  // The rest posture was built (a keypoint template), not averaged from a static trial:
+  // the window is the movement the lengths came from, and it is the one the fit tracks.
+  bool built_rest = false;
 
   const Eigen::Vector3d& point_world_m(const std::string& name) const;
 };
@@ -86,6 +89,32 @@ struct CalibrationResult {
 // `trial_name` is used in messages. Throws CalibrationError.
 CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& trial,
                             const std::string& trial_name, const CalibrateOptions& options = {});
+
+// The signed lab axis (+x, -z, ...) nearest v, other than the axis of `except` (zero: any).
+Eigen::Vector3d nearest_lab_axis(const Eigen::Vector3d& v, const Eigen::Vector3d& except);
+
+// Frames [first, first + count) (indices) of the trial from --first-frame (the file's frame
+// number; -1: the first) and --frames (-1: to the end). Throws CalibrationError.
+struct FrameWindow {
+  std::size_t first = 0, count = 0;
+  long long first_frame_number = 0;
+};
+FrameWindow frame_window(const io::MarkerTrial& trial, const std::string& trial_name,
+                         long long first_frame, long long frames);
+
+// A rest posture built rather than recorded (keypoint templates, keypoint_calibration.hpp):
+// `rest` is one frame of every keypoint at rest, labelled as the movement trial is; every
+// segment's anatomical frame is `axes_lab` (OpenSim's x anterior, y up, z right in the lab),
+// and the fit tracks `fit_trial`'s window [fit_first, fit_first + fit_count).
+struct BuiltRest {
+  Eigen::Matrix3d axes_lab = Eigen::Matrix3d::Identity();
+  const io::MarkerTrial* fit_trial = nullptr;
+  std::size_t fit_first = 0, fit_count = 0;
+  std::string source;  // how the rest posture was made, for the model's description
+};
+CalibrationResult calibrate_built_rest(const CalibTemplate& tmpl, const io::MarkerTrial& rest,
+                                       const std::string& trial_name,
+                                       const CalibrateOptions& options, const BuiltRest& built);
 
 // The human-readable summary `fabrik calibrate` prints.
 std::string calibration_report(const CalibrationResult& result);

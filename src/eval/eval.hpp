@@ -11,6 +11,7 @@
 #include "angles.hpp"
 #include "gaps.hpp"
 #include "imu.hpp"
+#include "markerless.hpp"
 #include "reduction.hpp"
 #include "subject.hpp"
 #include "synthetic.hpp"

@@ -7,11 +7,17 @@
 #include "config/daemon_config.hpp"
 #include "solver/posture.hpp"
 #include "synth/synthetic_motion.hpp"
+#include "solver/joint_angles.hpp"
+#include "io/opensim_table.hpp"
+#include <fstream>
 
 namespace fabrik::tools {
 
 SynthSetup load_synth_setup(const std::string& config_path) {
-  const DaemonConfig config = load_daemon_config_file(config_path);
+  return synth_setup(load_daemon_config_file(config_path));
+}
+
+SynthSetup synth_setup(const DaemonConfig& config) {
   SynthSetup setup;
   setup.model = config.tracker.model;
   for (const MarkerTarget& t : config.tracker.markers) {
@@ -43,12 +49,21 @@ SynthTrial make_synth_trial(const SynthSetup& setup, const SynthOptions& o) {
   ms.seed = o.seed;
   SyntheticMotion motion(m, ms);
   Posture posture = Posture::rest(m);
+  const std::size_t nc = m.coordinates.size();
+  for (const Coordinate& c : m.coordinates) {
+    out.coordinate_names.push_back(c.name);
+    out.coordinate_is_rotation.push_back(c.kind == CoordinateKind::rotation);
+  }
+  out.coordinates.resize(static_cast<std::size_t>(n) * nc);
   for (int f = 0; f < n; ++f) {
     motion.posture_at(f / o.rate_hz, posture);
     motion.sample(posture, setup.marker_points, o.noise_mm * 1e-3,
                   std::span(out.markers.positions_m).subspan(f * markers, markers));
     for (std::size_t j = 0; j < m.joints.size(); ++j)
       out.joints.at(f, j) = posture.point_world_m(m, m.joints[j].point);
+    const std::span<double> c(out.coordinates.data() + f * nc, nc);
+    coordinate_values(m, posture, c);
+    if (f > 0) unwrap_coordinates(m, std::span<const double>(c.data() - nc, nc), c);
   }
 
   // Gap windows: never overlapping or touching on one marker, so each is one run of NaN.
@@ -79,6 +94,50 @@ SynthTrial make_synth_trial(const SynthSetup& setup, const SynthOptions& o) {
     for (int f = w.first_frame; f < w.first_frame + w.frames; ++f)
       out.markers.at(f, w.marker) = Eigen::Vector3d::Constant(nan);
   return out;
+}
+
+KeypointTrial make_keypoint_trial(const SynthSetup& setup, const SynthOptions& o,
+                                  const KeypointCorruption& corruption) {
+  SynthOptions exact = o;
+  exact.noise_mm = 0.0;  // the keypoints' noise is the corruption's jitter
+  exact.gaps = 0;
+  KeypointTrial out;
+  out.truth = make_synth_trial(setup, exact);
+  out.keypoints = out.truth.markers;
+  const std::vector<std::pair<int, int>> pairs = mirrored_pairs(setup.marker_names);
+  const std::vector<int> limb = limbs_of_pairs(*setup.model, setup.marker_points, pairs);
+  out.injected = corrupt_keypoints(out.keypoints.positions_m, setup.marker_names.size(),
+                                   o.rate_hz, pairs, limb, corruption);
+  return out;
+}
+
+void write_injected_csv(const std::string& path, const KeypointTrial& t) {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << "frame,time_s,kind,keypoints\n";
+  const auto& labels = t.keypoints.labels;
+  for (const InjectedRun& r : t.injected) {
+    std::string names;
+    for (std::size_t i = 0; i < r.keypoints.size(); ++i)
+      names += (i ? ";" : "") + labels[static_cast<std::size_t>(r.keypoints[i])];
+    for (int f = r.first_frame; f < r.first_frame + r.frames; ++f)
+      out << t.keypoints.first_frame + f << ',' << t.keypoints.time_s(static_cast<std::size_t>(f))
+          << ',' << injected_kind_name(r.kind) << ',' << names << '\n';
+  }
+  if (!out) throw std::runtime_error(path + ": writing failed");
+}
+
+void write_truth_mot(const std::string& path, const SynthTrial& t) {
+  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
+  io::OpenSimTable table = io::coordinates_table(t.coordinate_names, true);
+  const std::size_t n = t.coordinate_names.size();
+  std::vector<double> row(n);
+  for (std::size_t f = 0; f < t.joints.frames(); ++f) {
+    for (std::size_t c = 0; c < n; ++c)
+      row[c] = t.coordinates[f * n + c] * (t.coordinate_is_rotation[c] ? kDegPerRad : 1.0);
+    table.add_row(t.joints.time_s(f), row);
+  }
+  io::write_opensim_table(path, table);
 }
 
 std::string joints_sidecar_path(const std::string& trc_path) {

@@ -7,8 +7,10 @@
 #include <string>
 #include <vector>
 
+#include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
 #include "solver/model.hpp"
+#include "synth/keypoint_corruption.hpp"
 
 namespace fabrik::tools {
 
@@ -21,6 +23,7 @@ struct SynthSetup {
 // Through the daemon's own loader, so the names are exactly what fabrikd tracks. Throws
 // ConfigError naming the file, the JSON pointer and the fix.
 SynthSetup load_synth_setup(const std::string& config_path);
+SynthSetup synth_setup(const DaemonConfig& config);
 
 struct SynthOptions {
   double seconds = 10.0;
@@ -40,10 +43,30 @@ struct SynthTrial {
   io::MarkerTrial markers;  // metres, NaN inside gaps
   io::MarkerTrial joints;   // true joint centres, no noise, no gaps
   std::vector<GapWindow> gaps;
+  // The true named coordinates (Model::coordinates), per frame [frame * names + c]:
+  // radians (continuous over frames) or metres.
+  std::vector<std::string> coordinate_names;
+  std::vector<std::uint8_t> coordinate_is_rotation;
+  std::vector<double> coordinates;
 };
 
 // Throws std::invalid_argument when the options cannot be met (e.g. more gaps than fit).
 SynthTrial make_synth_trial(const SynthSetup& setup, const SynthOptions& options);
+
+// A markerless trial (docs/keypoints.md): the config's markers are keypoints on joint
+// centres and segment points (a keypoint template calibrated with --nominal); the exact
+// keypoints of the synthetic motion get jitter, dropouts and left/right swaps.
+struct KeypointTrial {
+  SynthTrial truth;                  // exact keypoints, true joint centres and coordinates
+  io::MarkerTrial keypoints;         // what a markerless pipeline would write
+  std::vector<InjectedRun> injected;  // every swap and dropout, in frames
+};
+KeypointTrial make_keypoint_trial(const SynthSetup& setup, const SynthOptions& options,
+                                  const KeypointCorruption& corruption);
+// One line per injected frame: frame (the TRC's Frame#), time_s, kind, keypoints.
+void write_injected_csv(const std::string& path, const KeypointTrial& trial);
+// The true coordinates as an OpenSim Coordinates table (.mot, degrees).
+void write_truth_mot(const std::string& path, const SynthTrial& trial);
 
 // "walk.trc" -> "walk.joints.trc" (any other name gets ".joints.trc" appended).
 std::string joints_sidecar_path(const std::string& trc_path);

@@ -186,8 +186,10 @@ void add_watch_command(CLI::App& app) {
 
 void add_synth_command(CLI::App& app) {
   struct Args {
-    std::string config, output;
+    std::string config, output, units = "mm";
     SynthOptions o;
+    bool keypoints = false;
+    KeypointCorruption k;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
@@ -203,12 +205,55 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--gaps", a->o.gaps, "Occlusion windows of 0.2-1 s on random markers")
       ->check(CLI::Range(0, 1000000));
   cmd->add_option("--seed", a->o.seed, "Motion, noise and gap seed");
+  cmd->add_flag("--keypoints", a->keypoints,
+                "A markerless trial (docs/keypoints.md): the config's markers are keypoints "
+                "(`fabrik calibrate --template config/templates/halpe26.json --nominal`); adds "
+                "jitter, dropouts and left/right swaps; writes FILE.joints.trc, FILE.truth.mot "
+                "(true coordinates) and FILE.injected.csv (where each swap and dropout is)");
+  cmd->add_option("--jitter-mm", a->k.jitter_mm, "--keypoints: jitter, sd per axis (mm)")
+      ->check(CLI::Range(0.0, 200.0));
+  cmd->add_option("--dropouts-per-s", a->k.dropouts_per_s,
+                  "--keypoints: runs of missing samples per second, on random keypoints")
+      ->check(CLI::Range(0.0, 1000.0));
+  cmd->add_option("--dropout-frames-max", a->k.dropout_frames_max,
+                  "--keypoints: each dropout lasts 2 to this many frames")
+      ->check(CLI::Range(2, 100000));
+  cmd->add_option("--swaps-per-s", a->k.swaps_per_s,
+                  "--keypoints: left/right label swaps per second")
+      ->check(CLI::Range(0.0, 1000.0));
+  cmd->add_option("--swap-frames-max", a->k.swap_frames_max,
+                  "--keypoints: each swap lasts 2 to this many frames")
+      ->check(CLI::Range(2, 100000));
+  cmd->add_option("--limb-swap-share", a->k.limb_swap_share,
+                  "--keypoints: share of swaps that swap a whole limb (else one pair)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--units", a->units, "Units of the written TRC files")
+      ->check(CLI::IsMember({"mm", "m"}));
   cmd->callback([a] {
     run_command("synth", [&] {
+      if (a->keypoints) {
+        a->k.seed = a->o.seed;
+        const KeypointTrial t = make_keypoint_trial(load_synth_setup(a->config), a->o, a->k);
+        const std::string joints = joints_sidecar_path(a->output);
+        const std::string stem = joints.substr(0, joints.size() - std::string(".joints.trc").size());
+        io::write_trc(a->output, t.keypoints, a->units);
+        io::write_trc(joints, t.truth.joints, a->units);
+        write_truth_mot(stem + ".truth.mot", t.truth);
+        write_injected_csv(stem + ".injected.csv", t);
+        std::size_t swaps = 0;
+        for (const InjectedRun& r : t.injected) swaps += r.kind != InjectedRun::Kind::dropout;
+        std::fprintf(stderr,
+                     "synth: %s: %zu frames x %zu keypoints at %g Hz, jitter %g mm, %zu dropouts, "
+                     "%zu swaps; truth: %s, %s.truth.mot; injected: %s.injected.csv\n",
+                     safe_lines(a->output).c_str(), t.keypoints.frames(), t.keypoints.markers(),
+                     t.keypoints.rate_hz, a->k.jitter_mm, t.injected.size() - swaps, swaps,
+                     safe_lines(joints).c_str(), safe_lines(stem).c_str(), safe_lines(stem).c_str());
+        return;
+      }
       const SynthTrial t = make_synth_trial(load_synth_setup(a->config), a->o);
       const std::string joints = joints_sidecar_path(a->output);
-      io::write_trc(a->output, t.markers, "mm");
-      io::write_trc(joints, t.joints, "mm");
+      io::write_trc(a->output, t.markers, a->units);
+      io::write_trc(joints, t.joints, a->units);
       std::fprintf(stderr, "synth: %s: %zu frames x %zu markers at %g Hz, %zu gaps; joints: %s\n",
                    safe_lines(a->output).c_str(), t.markers.frames(), t.markers.markers(),
                    t.markers.rate_hz, t.gaps.size(), safe_lines(joints).c_str());
