@@ -154,7 +154,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   const JsonReader root(doc, file);
   root.expect_object();
   root.only_keys({"format", "description", "model", "targets", "sensors", "solver", "input",
-                  "output", "occlusion", "outliers", "quality", "cold_start", "prediction", "stats_interval_s",
+                  "output", "occlusion", "outliers", "quality", "cold_start", "prediction", "confidence", "smoothing", "stats_interval_s",
                   "log_level"});
   if (root.at("format").as_string() != kFormat)
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
