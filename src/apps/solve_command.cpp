@@ -9,6 +9,7 @@
 #include "common/safe_text.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
+#include "offline/trajectory_filter.hpp"
 #include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
@@ -19,6 +20,7 @@ namespace {
 struct SolveOptions {
   std::string config, input, output, markers_output, report, angles, orientations;
   bool quiet = false, keep_zeros = false;
+  double filter_hz = 0.0;  // 0: the trial as recorded
 };
 
 void progress_bar(std::size_t done, std::size_t total) {
@@ -38,6 +40,14 @@ void run(const SolveOptions& o) {
   if (!o.input.empty()) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
     if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
+    if (o.filter_hz > 0.0) {
+      filtfilt_trial(trial, o.filter_hz);
+      if (!o.quiet)
+        std::fprintf(stderr,
+                     "fabrik solve: markers low-pass filtered at %g Hz (Butterworth, forward and "
+                     "backward: no lag), gaps left as gaps\n",
+                     o.filter_hz);
+    }
   }
   std::optional<io::OrientationTable> table;
   if (!o.orientations.empty()) {
@@ -146,6 +156,11 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_option("--angles", o->angles,
                 "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");
+  c->add_option("--filter-hz", o->filter_hz,
+                "Low-pass the markers before the solve at this cutoff: a 2nd-order Butterworth "
+                "forward and backward (zero lag), per run of samples, gaps left as gaps. "
+                "Pose2Sim's default is 6 Hz. 0 (default): as recorded")
+      ->check(CLI::Range(0.0, 1e6));
   c->add_flag("--quiet", o->quiet, "No progress bar");
   c->add_flag("--keep-zeros", o->keep_zeros,
               "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
