@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "config/config_error.hpp"
+#include "config/daemon_config.hpp"
 #include "solver/model_builder.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "test_models.hpp"
@@ -331,4 +333,37 @@ TEST_CASE("A whole leg's keypoints swapped with the other's are relabelled, join
   CHECK(on.worst_swapped_m < 0.03);
   // Today's pairwise rule alone does not undo it: the skeleton follows the swapped leg.
   CHECK(off.worst_swapped_m > 0.1);
+}
+
+TEST_CASE("Config: confidence, smoothing and mirror pairs are read and checked",
+          "[confidence][filter][swap]") {
+  const std::string base = R"({"format": "fabrikd-config/1", "model": "models/fullbody.json",)";
+  const DaemonConfig c = load_daemon_config(
+      base + R"("confidence": {"threshold": 0.5, "scale_weight": false},
+                 "smoothing": {"enabled": true, "min_cutoff_hz": 0.5, "beta_per_m": 10,
+                               "d_cutoff_hz": 2},
+                 "outliers": {"relabel_mirrored": false, "mirror_ratio": 0.3,
+                              "mirror_floor_mm": 80, "mirror_pairs": [["RKNE", "LKNE"]]}})",
+      "<embedded>/test.json");
+  CHECK(c.tracker.confidence.threshold == 0.5);
+  CHECK_FALSE(c.tracker.confidence.scale_weight);
+  CHECK(c.tracker.smoothing.enabled);
+  CHECK(c.tracker.smoothing.min_cutoff_hz == 0.5);
+  CHECK(c.tracker.smoothing.beta_per_m == 10.0);
+  CHECK(c.tracker.smoothing.d_cutoff_hz == 2.0);
+  CHECK_FALSE(c.tracker.outliers.relabel_mirrored);
+  CHECK(c.tracker.outliers.mirror_ratio == 0.3);
+  CHECK(c.tracker.outliers.mirror_floor_m == Approx(0.080));
+  REQUIRE(c.tracker.mirror_pairs.size() == 1);
+  CHECK(c.tracker.markers[c.tracker.mirror_pairs[0][0]].marker == "RKNE");
+  CHECK(c.tracker.markers[c.tracker.mirror_pairs[0][1]].marker == "LKNE");
+  // Absent, the config's smoothing is off and its pairs come from the names.
+  const DaemonConfig d = load_daemon_config(base + R"("log_level": "info"})", "<embedded>/d.json");
+  CHECK_FALSE(d.tracker.smoothing.enabled);
+  CHECK(d.tracker.mirror_pairs.empty());
+  CHECK_THROWS_AS(load_daemon_config(base + R"("outliers": {"mirror_pairs": [["RKNE", "Nope"]]}})",
+                                     "<embedded>/bad.json"),
+                  ConfigError);
+  CHECK_THROWS_AS(load_daemon_config(base + R"("confidence": {"threshold": 2}})", "<embedded>/bad.json"),
+                  ConfigError);
 }
