@@ -12,6 +12,7 @@
 #include "eval/subject.hpp"
 #include "io/marker_trial.hpp"
 #include "offline/solve_trial.hpp"
+#include "tracking/mirror_swap.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "tracking/outlier_filter.hpp"
 #include "tracking/tracker.hpp"
@@ -497,4 +498,23 @@ TEST_CASE("Marker neighbours: a marker moved when its distances to half its neig
   std::vector<std::uint8_t> alone(points.size(), 0);
   alone[knee] = 1;
   CHECK(neighbours.moved(knee, at_m, alone, tolerance_m));
+}
+
+TEST_CASE("walk1 unswapped: the mirror rule relabels nothing, the joints are as without it",
+          "[swap]") {
+  if (!have_walk()) return;
+  std::vector<std::string> names;
+  for (const MarkerTarget& m : walk_config().tracker.markers) names.push_back(m.marker);
+  const std::size_t pairs = mirror_pairs_from_names(names).size();
+  INFO(pairs << " left/right pairs among " << names.size() << " markers");
+  CHECK(pairs >= 10);  // the rule had pairs to judge
+  DaemonConfig off = walk_config();
+  off.tracker.outliers.relabel_mirrored = false;
+  const TrialSolution with = solve_trial(walk_config(), walk());
+  const TrialSolution without = solve_trial(off, walk());
+  REQUIRE(with.joints.positions_m.size() == without.joints.positions_m.size());
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < with.joints.positions_m.size(); ++k)
+    differ += !(with.joints.positions_m[k] == without.joints.positions_m[k]);
+  CHECK(differ == 0);
 }
