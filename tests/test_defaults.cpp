@@ -40,6 +40,7 @@ void check_defaults(const DaemonConfig& loaded) {
   CHECK(loaded.tracker.outliers.relabel_mirrored == d.tracker.outliers.relabel_mirrored);
   CHECK(loaded.tracker.outliers.mirror_ratio == d.tracker.outliers.mirror_ratio);
   CHECK(loaded.tracker.outliers.mirror_floor_m == d.tracker.outliers.mirror_floor_m);
+  CHECK(loaded.tracker.outliers.mirror_max_s == d.tracker.outliers.mirror_max_s);
   CHECK(loaded.tracker.confidence.threshold == d.tracker.confidence.threshold);
   CHECK(loaded.tracker.confidence.scale_weight == d.tracker.confidence.scale_weight);
   CHECK(loaded.tracker.smoothing.enabled == d.tracker.smoothing.enabled);

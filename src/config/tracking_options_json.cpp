@@ -36,7 +36,7 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
   if (root.has("outliers")) {
     const JsonReader o = root.at("outliers");
     o.only_keys({"enabled", "floor_mm", "median_factor", "moved_mm", "max_per_frame", "min_markers",
-                 "relabel_swaps", "relabel_mirrored", "mirror_ratio", "mirror_floor_mm",
+                 "relabel_swaps", "relabel_mirrored", "mirror_ratio", "mirror_floor_mm", "mirror_max_s",
                  "mirror_pairs"});
     OutlierSettings& s = setup.outliers;
     s.enabled = o.get("enabled", s.enabled);
@@ -51,6 +51,7 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
     s.relabel_mirrored = o.get("relabel_mirrored", s.relabel_mirrored);
     s.mirror_ratio = o.get("mirror_ratio", s.mirror_ratio, 0.0, 1.0);
     s.mirror_floor_m = o.get("mirror_floor_mm", s.mirror_floor_m * 1e3, 0.0, 1e6) * 1e-3;
+    s.mirror_max_s = o.get("mirror_max_s", s.mirror_max_s, 0.0, 3600.0);
     if (o.has("mirror_pairs")) setup.mirror_pairs = read_mirror_pairs(o.at("mirror_pairs"), setup.markers);
   }
   if (root.has("confidence")) {

@@ -1,6 +1,7 @@
 #include "mirror_swap.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string_view>
 #include <utility>
 
@@ -47,21 +48,33 @@ std::vector<std::array<int, 2>> mirror_pairs_from_names(const std::vector<std::s
 }
 
 MirrorSwap::MirrorSwap(OutlierSettings settings, std::vector<std::array<int, 2>> pairs)
-    : settings_(settings), pairs_(std::move(pairs)) {}
+    : settings_(settings), pairs_(std::move(pairs)), since_s_(pairs_.size(), NAN) {}
 
-int MirrorSwap::apply(std::span<Eigen::Vector3d> measured_m, std::span<const std::uint8_t> seen,
+void MirrorSwap::reset() {
+  std::fill(since_s_.begin(), since_s_.end(), NAN);
+}
+
+int MirrorSwap::apply(double time_s, std::span<Eigen::Vector3d> measured_m,
+                      std::span<const std::uint8_t> seen,
                       std::span<const Eigen::Vector3d> predicted_m,
-                      std::span<int> relabelled_from) const {
+                      std::span<int> relabelled_from) {
   int swapped = 0;
-  for (const auto& [r, l] : pairs_) {
-    if (!seen[r] || !seen[l]) continue;
+  for (std::size_t k = 0; k < pairs_.size(); ++k) {
+    const auto [r, l] = pairs_[k];
+    if (!seen[r] || !seen[l]) continue;  // an unmeasured side neither starts nor ends a stretch
     const double labelled_m =
         (measured_m[r] - predicted_m[r]).norm() + (measured_m[l] - predicted_m[l]).norm();
     const double mirrored_m =
         (measured_m[l] - predicted_m[r]).norm() + (measured_m[r] - predicted_m[l]).norm();
     if (labelled_m <= 2.0 * settings_.mirror_floor_m ||
-        mirrored_m >= settings_.mirror_ratio * labelled_m)
+        mirrored_m >= settings_.mirror_ratio * labelled_m) {
+      since_s_[k] = NAN;
       continue;
+    }
+    if (std::isnan(since_s_[k])) since_s_[k] = time_s;
+    // Too long at a stretch (or a clock that went back): the labels stand.
+    const double stretch_s = time_s - since_s_[k];
+    if (!(stretch_s >= 0.0 && stretch_s <= settings_.mirror_max_s)) continue;
     std::swap(measured_m[r], measured_m[l]);
     relabelled_from[r] = l;
     relabelled_from[l] = r;

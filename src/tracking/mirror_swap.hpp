@@ -7,7 +7,7 @@
 // compare the labelled assignment's distance to the predicted posture's points (the previous
 // frame's, carried on by the warm start) with the mirrored one's; take the mirror when it is
 // far closer (OutlierSettings::mirror_ratio) and the labelled one is clearly off
-// (mirror_floor_m). Each pair is judged alone, so a whole limb, a part of one, or both arms and
+// (mirror_floor_m), for at most mirror_max_s at a stretch. Each pair is judged alone, so a whole limb, a part of one, or both arms and
 // legs at once are undone alike. Nothing is allocated per frame.
 #pragma once
 
@@ -34,14 +34,18 @@ class MirrorSwap {
   const std::vector<std::array<int, 2>>& pairs() const { return pairs_; }
 
   // Exchanges the measurements of every pair (both `seen`) whose mirror fits `predicted_m`
-  // (per marker: its point in the predicted posture) far better; sets relabelled_from for both
-  // and returns how many markers were relabelled.
-  int apply(std::span<Eigen::Vector3d> measured_m, std::span<const std::uint8_t> seen,
-            std::span<const Eigen::Vector3d> predicted_m, std::span<int> relabelled_from) const;
+  // (per marker: its point in the predicted posture) far better, for at most mirror_max_s at a
+  // stretch; sets relabelled_from for both and returns how many markers were relabelled.
+  int apply(double time_s, std::span<Eigen::Vector3d> measured_m,
+            std::span<const std::uint8_t> seen, std::span<const Eigen::Vector3d> predicted_m,
+            std::span<int> relabelled_from);
+  // Forgets every stretch (a cold frame).
+  void reset();
 
  private:
   OutlierSettings settings_;
   std::vector<std::array<int, 2>> pairs_;
+  std::vector<double> since_s_;  // per pair: when its mirror began to fit better, NaN if not
 };
 
 }  // namespace fabrik

@@ -134,6 +134,7 @@ void TrackerCore::reset() {
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
   predictor_.reset();
   smoother_.reset();
+  mirror_.reset();
 }
 
 const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
@@ -195,7 +196,10 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
   // A clock that went back is a new recording: its coordinates start afresh.
   // After a gap the subject is the same, so they stay continuous across it.
   if (!warm_ || gap_s < 0.0) coordinates_continue_ = false;
-  if (cold) predictor_.reset();
+  if (cold) {
+    predictor_.reset();
+    mirror_.reset();
+  }
   result_.mirrored_count = 0;
   if (!cold) {
     start_ = posture_;
@@ -205,8 +209,8 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
       for (const auto& pair : mirror_.pairs())
         for (const int i : pair)
           predicted_m_[i] = start_.point_world_m(model(), marker_points_[i]);
-      result_.mirrored_count = mirror_.apply(std::span(target_world_m_).first(n_), measured_,
-                                             predicted_m_, relabelled_from_);
+      result_.mirrored_count = mirror_.apply(time_s, std::span(target_world_m_).first(n_),
+                                             measured_, predicted_m_, relabelled_from_);
     }
   }
   std::copy(target_world_m_.begin(), target_world_m_.begin() + n_, input_m_.begin());

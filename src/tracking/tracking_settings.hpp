@@ -80,6 +80,11 @@ struct OutlierSettings {
   /// a keypoint jitters and a limb moves in a frame at walking speed, below the 0.15-0.3 m
   /// between left and right hips, knees and ankles.
   double mirror_floor_m = 0.050;
+  /// A pair is mirrored for at most this long at a stretch (seconds); after that its labels are
+  /// taken as they come until its mirror stops fitting better. Swaps last a few frames; a
+  /// posture that started from swapped labels (a cold frame has nothing to judge against)
+  /// would otherwise keep every later, correct frame mirrored.
+  double mirror_max_s = 0.5;
 };
 
 /// Per-marker confidence (a markerless pipeline's keypoint likelihood, 0-1), given to
