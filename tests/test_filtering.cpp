@@ -255,18 +255,22 @@ std::shared_ptr<const Model> keypoint_model() {
 
 struct SwapRun {
   double worst_swapped_m = 0.0;  // joint centres' largest error over the swapped frames
+  double worst_after_m = 0.0;    // and over the unswapped frames from `check_from` on
   int frames_mirrored = 0;       // swapped frames whose whole leg was relabelled
   int false_mirrors = 0;         // markers relabelled in frames that were not swapped
 };
 
 // 3 s at 100 Hz of smooth motion with 5 mm keypoint noise; in frames [100, 110) and [200, 203)
 // the right leg's keypoints (hip to toe) are exchanged with the left's.
-SwapRun run_leg_swaps(bool relabel_mirrored) {
+// (Or in frames [0, 10) alone when `from_start`.)
+SwapRun run_leg_swaps(bool relabel_mirrored, bool from_start = false, double mirror_max_s = 0.5,
+                      int check_from = 1000) {
   TrackerSetup setup;
   setup.model = keypoint_model();
   for (int p : setup.model->marker_points())
     setup.markers.push_back({setup.model->points[p].name, p, 0, 1.0});
   setup.outliers.relabel_mirrored = relabel_mirrored;
+  setup.outliers.mirror_max_s = mirror_max_s;
   Tracker tracker(setup);
   const Model& model = tracker.model();
   const auto points = points_of(setup);
@@ -284,12 +288,18 @@ SwapRun run_leg_swaps(bool relabel_mirrored) {
   for (int f = 0; f < 300; ++f) {
     motion.posture_at(f / 100.0, truth);
     motion.sample(truth, points, 0.005, measured);
-    const bool swapped = (f >= 100 && f < 110) || (f >= 200 && f < 203);
+    const bool swapped =
+        from_start ? f < 10 : (f >= 100 && f < 110) || (f >= 200 && f < 203);
     if (swapped)
       for (const auto& [r, l] : pairs) std::swap(measured[r], measured[l]);
     const TrackResult& res = tracker.track(f / 100.0, measured, visible);
     if (!swapped) {
       run.false_mirrors += res.mirrored_count;
+      if (f >= check_from)
+        for (std::size_t j = 0; j < model.joints.size(); ++j)
+          run.worst_after_m = std::max(
+              run.worst_after_m,
+              (res.joints_world_m[j] - truth.point_world_m(model, model.joints[j].point)).norm());
       continue;
     }
     run.frames_mirrored += res.mirrored_count == 10;
@@ -335,6 +345,19 @@ TEST_CASE("A whole leg's keypoints swapped with the other's are relabelled, join
   CHECK(off.worst_swapped_m > 0.1);
 }
 
+TEST_CASE("Keypoints swapped from the first frame: the labels stand again after mirror_max_s",
+          "[swap]") {
+  // The cold first frame cannot be judged: the skeleton starts mirrored, and from frame 10 the
+  // correct labels look mirrored to the rule. After mirror_max_s (0.5 s: frame 60) they stand.
+  const SwapRun limited = run_leg_swaps(true, true, 0.5, 80);
+  const SwapRun unlimited = run_leg_swaps(true, true, 1e9, 80);
+  INFO("joint centres from frame 80 at most " << limited.worst_after_m * 1e3
+       << " mm from the truth with mirror_max_s 0.5, " << unlimited.worst_after_m * 1e3
+       << " mm without a limit");
+  CHECK(limited.worst_after_m < 0.03);
+  CHECK(unlimited.worst_after_m > 0.1);  // the lock-in the limit is there for
+}
+
 TEST_CASE("Config: confidence, smoothing and mirror pairs are read and checked",
           "[confidence][filter][swap]") {
   const std::string base = R"({"format": "fabrikd-config/1", "model": "models/fullbody.json",)";
@@ -366,4 +389,64 @@ TEST_CASE("Config: confidence, smoothing and mirror pairs are read and checked",
                   ConfigError);
   CHECK_THROWS_AS(load_daemon_config(base + R"("confidence": {"threshold": 2}})", "<embedded>/bad.json"),
                   ConfigError);
+}
+
+TEST_CASE("Smoothing on a moving subject: joint centres nearer the truth, lag within 2 frames",
+          "[filter]") {
+  TrackerSetup setup = fullbody_setup();
+  const auto points = points_of(setup);
+  const std::vector<std::uint8_t> visible(points.size(), 1);
+  // Joint centres' RMS error against the truth, and the lag (frames) that best aligns the
+  // tracked joint centres with the truth: the shift s of the truth (0 to 4 frames, in steps of
+  // 0.25 by linear interpolation) minimising the error.
+  struct Run {
+    double rms_m = 0.0, lag_frames = 0.0;
+  };
+  const auto run = [&](bool on, double rate_hz) {
+    setup.smoothing.enabled = on;
+    Tracker tracker(setup);
+    const Model& model = tracker.model();
+    SyntheticMotion motion(model, MotionSettings{});
+    SyntheticMotion noisy_motion(model, MotionSettings{});
+    Posture truth = Posture::rest(model);
+    std::vector<Eigen::Vector3d> measured(points.size());
+    const int frames = static_cast<int>(3.0 * rate_hz);
+    std::vector<std::vector<Eigen::Vector3d>> tracked(frames), truth_j(frames);
+    for (int f = 0; f < frames; ++f) {
+      motion.posture_at(f / rate_hz, truth);
+      noisy_motion.sample(truth, points, 0.005, measured);
+      const TrackResult& r = tracker.track(f / rate_hz, measured, visible);
+      tracked[f].assign(r.joints_world_m.begin(), r.joints_world_m.end());
+      for (const Joint& j : model.joints) truth_j[f].push_back(truth.point_world_m(model, j.point));
+    }
+    const auto error_at_shift = [&](double s) {
+      double sum2 = 0.0;
+      int count = 0;
+      for (int f = static_cast<int>(rate_hz * 0.5); f + 1 < frames; ++f) {
+        const double g = f - s;
+        const int g0 = static_cast<int>(std::floor(g));
+        const double w = g - g0;
+        for (std::size_t j = 0; j < tracked[f].size(); ++j) {
+          const Eigen::Vector3d t = (1.0 - w) * truth_j[g0][j] + w * truth_j[g0 + 1][j];
+          sum2 += (tracked[f][j] - t).squaredNorm();
+          ++count;
+        }
+      }
+      return std::sqrt(sum2 / count);
+    };
+    Run out;
+    out.rms_m = error_at_shift(0.0);
+    double best = out.rms_m;
+    for (double s = 0.25; s <= 4.0; s += 0.25)
+      if (error_at_shift(s) < best) best = error_at_shift(s), out.lag_frames = s;
+    return out;
+  };
+  for (const double rate_hz : {60.0, 120.0, 240.0}) {
+    const Run off = run(false, rate_hz), on = run(true, rate_hz);
+    WARN(rate_hz << " Hz, 5 mm noise: joint centre RMS error " << off.rms_m * 1e3 << " mm off, "
+                 << on.rms_m * 1e3 << " mm on; best-aligning lag " << off.lag_frames << " / "
+                 << on.lag_frames << " frames");
+    CHECK(on.rms_m < off.rms_m);
+    CHECK(on.lag_frames <= 2.0);
+  }
 }
