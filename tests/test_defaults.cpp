@@ -37,6 +37,16 @@ void check_defaults(const DaemonConfig& loaded) {
   CHECK(loaded.tracker.outliers.enabled == d.tracker.outliers.enabled);
   CHECK(loaded.tracker.outliers.floor_m == d.tracker.outliers.floor_m);
   CHECK(loaded.tracker.outliers.moved_m == d.tracker.outliers.moved_m);
+  CHECK(loaded.tracker.outliers.relabel_mirrored == d.tracker.outliers.relabel_mirrored);
+  CHECK(loaded.tracker.outliers.mirror_ratio == d.tracker.outliers.mirror_ratio);
+  CHECK(loaded.tracker.outliers.mirror_floor_m == d.tracker.outliers.mirror_floor_m);
+  CHECK(loaded.tracker.outliers.mirror_max_s == d.tracker.outliers.mirror_max_s);
+  CHECK(loaded.tracker.confidence.threshold == d.tracker.confidence.threshold);
+  CHECK(loaded.tracker.confidence.scale_weight == d.tracker.confidence.scale_weight);
+  CHECK(loaded.tracker.smoothing.enabled == d.tracker.smoothing.enabled);
+  CHECK(loaded.tracker.smoothing.min_cutoff_hz == d.tracker.smoothing.min_cutoff_hz);
+  CHECK(loaded.tracker.smoothing.beta_per_m == d.tracker.smoothing.beta_per_m);
+  CHECK(loaded.tracker.smoothing.d_cutoff_hz == d.tracker.smoothing.d_cutoff_hz);
   CHECK(loaded.tracker.quality.rms_m == d.tracker.quality.rms_m);
   CHECK(loaded.tracker.quality.max_m == d.tracker.quality.max_m);
   CHECK(loaded.tracker.cold_start.max_iterations == d.tracker.cold_start.max_iterations);

@@ -21,6 +21,7 @@
 #include "solver/fabrik_solver.hpp"
 #include "solver/jacobian_solver.hpp"
 #include "synth/synthetic_motion.hpp"
+#include "tracking/mirror_swap.hpp"
 #include "test_models.hpp"
 #include "transport/marker_codec.hpp"
 #include "transport/pose_codec.hpp"
@@ -297,6 +298,44 @@ TEST_CASE("The daemon's per-frame path (decode, track, encode) performs no heap 
   CHECK(msgpack_decode_allocations <= 58);
   WARN("MessagePack decode: " << static_cast<double>(msgpack_decode_allocations) / 58.0
                               << " allocations per frame, for one marker name of 22 bytes");
+}
+
+TEST_CASE("Tracking with confidence, smoothing and the mirror rule performs no heap allocation",
+          "[alloc]") {
+  DaemonConfig config = default_daemon_config();
+  config.tracker.smoothing.enabled = true;
+  Tracker tracker(config.tracker);
+  std::vector<int> points;
+  for (const MarkerTarget& m : config.tracker.markers) points.push_back(m.point);
+  SyntheticMotion motion(tracker.model(), MotionSettings{});
+  Posture truth = Posture::rest(tracker.model());
+  std::vector<Eigen::Vector3d> measured(points.size());
+  std::vector<std::uint8_t> visible(points.size(), 1);
+  std::vector<float> confidence(points.size(), 0.9f);
+  std::vector<std::string> names;
+  for (const MarkerTarget& m : config.tracker.markers) names.push_back(m.marker);
+  const auto pairs = mirror_pairs_from_names(names);
+  REQUIRE(pairs.size() >= 2);
+  long allocations = 0;
+  int mirrored = 0;
+  for (int f = 0; f < 60; ++f) {
+    motion.posture_at(f / 100.0, truth);
+    motion.sample(truth, points, 0.002, measured);
+    std::fill(confidence.begin(), confidence.end(), 0.9f);
+    confidence[f % points.size()] = 0.1f;  // a moving low-confidence marker
+    confidence[(f + 5) % points.size()] = 0.6f;
+    visible[(f + 11) % points.size()] = 0;  // gaps reset the filter
+    visible[(f + 10) % points.size()] = 1;
+    // Every left/right pair swapped (the mirror rule's relabelling).
+    if (f >= 20 && f < 25)
+      for (const auto& [r, l] : pairs) std::swap(measured[r], measured[l]);
+    const long before = g_allocations.load();
+    const TrackResult& r = tracker.track(f / 100.0, measured, visible, confidence);
+    allocations += g_allocations.load() - before;
+    mirrored += r.mirrored_count;
+  }
+  CHECK(allocations == 0);
+  CHECK(mirrored > 0);  // the relabelling ran
 }
 
 TEST_CASE("The per-frame path with orientation sensors performs no heap allocation",

@@ -12,6 +12,7 @@
 #include "eval/subject.hpp"
 #include "io/marker_trial.hpp"
 #include "offline/solve_trial.hpp"
+#include "tracking/mirror_swap.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "tracking/outlier_filter.hpp"
 #include "tracking/tracker.hpp"
@@ -497,4 +498,83 @@ TEST_CASE("Marker neighbours: a marker moved when its distances to half its neig
   std::vector<std::uint8_t> alone(points.size(), 0);
   alone[knee] = 1;
   CHECK(neighbours.moved(knee, at_m, alone, tolerance_m));
+}
+
+TEST_CASE("walk1 unswapped: the mirror rule relabels nothing, the joints are as without it",
+          "[swap]") {
+  if (!have_walk()) return;
+  std::vector<std::string> names;
+  for (const MarkerTarget& m : walk_config().tracker.markers) names.push_back(m.marker);
+  const std::size_t pairs = mirror_pairs_from_names(names).size();
+  INFO(pairs << " left/right pairs among " << names.size() << " markers");
+  CHECK(pairs >= 10);  // the rule had pairs to judge
+  DaemonConfig off = walk_config();
+  off.tracker.outliers.relabel_mirrored = false;
+  const TrialSolution with = solve_trial(walk_config(), walk());
+  const TrialSolution without = solve_trial(off, walk());
+  REQUIRE(with.joints.positions_m.size() == without.joints.positions_m.size());
+  std::size_t differ = 0;
+  for (std::size_t k = 0; k < with.joints.positions_m.size(); ++k)
+    differ += !(with.joints.positions_m[k] == without.joints.positions_m[k]);
+  CHECK(differ == 0);
+}
+
+namespace {
+
+// walk1 with the whole right leg's markers (thigh, shank, foot) exchanged with the left's in
+// frames [first, first + 10): the joint centres' worst distance from the unswapped solve over
+// frames [check_first, check_end), metres.
+double whole_leg_swap_error_m(const DaemonConfig& config, std::size_t first,
+                              std::size_t check_first, std::size_t check_end) {
+  MarkerTrial swapped = walk();
+  for (const std::string part : {"Thigh.Upper", "Thigh.Front", "Thigh.Rear", "Shank.Upper",
+                                 "Shank.Front", "Shank.Rear", "Heel", "Midfoot.Sup",
+                                 "Midfoot.Lat", "Toe.Tip", "Toe.Lat", "Toe.Med"}) {
+    const int r = swapped.find("R." + part), l = swapped.find("L." + part);
+    REQUIRE(r >= 0);
+    REQUIRE(l >= 0);
+    for (std::size_t f = first; f < first + 10; ++f)
+      std::swap(swapped.at(f, std::size_t(r)), swapped.at(f, std::size_t(l)));
+  }
+  const TrialSolution clean = solve_trial(config, walk());
+  const TrialSolution s = solve_trial(config, swapped);
+  double worst_m = 0.0;
+  for (std::size_t f = check_first; f < std::min(check_end, s.joints.frames()); ++f)
+    for (std::size_t j = 0; j < s.joints.labels.size(); ++j)
+      if (std::isfinite(joint_distance_m(s, clean, f, j)))
+        worst_m = std::max(worst_m, joint_distance_m(s, clean, f, j));
+  return worst_m;
+}
+
+}  // namespace
+
+TEST_CASE("walk1 with a whole leg's markers swapped with the other's for 10 frames: undone",
+          "[swap]") {
+  if (!have_walk()) return;
+  DaemonConfig off = walk_config();
+  off.tracker.outliers.relabel_mirrored = false;
+  for (const std::size_t first : {std::size_t{40}, std::size_t{70}, std::size_t{100},
+                                  std::size_t{140}}) {
+    const double on_m = whole_leg_swap_error_m(walk_config(), first, first, first + 10);
+    const double off_m = whole_leg_swap_error_m(off, first, first, first + 10);
+    INFO("frames " << first << "-" << first + 9 << ": joint centres at most " << on_m * 1e3
+                   << " mm from the unswapped solve with the mirror rule, " << off_m * 1e3
+                   << " mm without");
+    CHECK(on_m < 0.010);
+    CHECK(off_m > 0.030);
+  }
+}
+
+TEST_CASE("walk1 swapped from the first frame: once mirror_max_s is over, the labels stand",
+          "[swap]") {
+  if (!have_walk()) return;
+  // A cold frame has nothing to judge against: frames 0-9 are tracked swapped, and from
+  // frame 10 the correct labels look mirrored to the rule for at most mirror_max_s (0.5 s,
+  // 30 frames at 60 Hz). After that the skeleton must be back on the labels.
+  const DaemonConfig& c = walk_config();
+  const auto settle = static_cast<std::size_t>(std::ceil(c.tracker.outliers.mirror_max_s * 60.0));
+  const double after_m = whole_leg_swap_error_m(c, 0, 10 + settle + 10, 1000);
+  INFO("joint centres from frame " << 10 + settle + 10 << " at most " << after_m * 1e3
+                                   << " mm from the unswapped solve");
+  CHECK(after_m < 0.010);
 }

@@ -11,6 +11,7 @@
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
 #include "offline/subject_markers.hpp"
+#include "offline/trajectory_filter.hpp"
 #include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
@@ -21,6 +22,7 @@ namespace {
 struct SolveOptions {
   std::string config, input, output, markers_output, report, angles, orientations, subject;
   bool quiet = false, keep_zeros = false;
+  double filter_hz = 0.0;  // 0: the trial as recorded
 };
 
 void progress_bar(std::size_t done, std::size_t total) {
@@ -51,6 +53,14 @@ void run(const SolveOptions& o) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
     if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
     if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
+    if (o.filter_hz > 0.0) {
+      filtfilt_trial(trial, o.filter_hz);
+      if (!o.quiet)
+        std::fprintf(stderr,
+                     "fabrik solve: markers low-pass filtered at %g Hz (Butterworth, forward and "
+                     "backward: no lag), gaps left as gaps\n",
+                     o.filter_hz);
+    }
   }
   std::optional<io::OrientationTable> table;
   if (!o.orientations.empty()) {
@@ -162,6 +172,11 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--subject", o->subject,
                 "Track only this subject's markers, labelled SUBJECT:MARKER (a Vicon C3D of "
                 "several subjects); with a config that lists subjects, also its tracking");
+  c->add_option("--filter-hz", o->filter_hz,
+                "Low-pass the markers before the solve at this cutoff: a 2nd-order Butterworth "
+                "forward and backward (zero lag), per run of samples, gaps left as gaps. "
+                "Pose2Sim's default is 6 Hz. 0 (default): as recorded")
+      ->check(CLI::Range(0.0, 1e6));
   c->add_flag("--quiet", o->quiet, "No progress bar");
   c->add_flag("--keep-zeros", o->keep_zeros,
               "Read exact (0, 0, 0) samples as positions (default: as missing markers)");

@@ -284,7 +284,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   else
     root.only_keys({"format", "description", "model", "targets", "sensors", "solver", "input",
                     "output", "occlusion", "outliers", "quality", "cold_start", "prediction",
-                    "stats_interval_s", "log_level"});
+                    "confidence", "smoothing", "stats_interval_s", "log_level"});
   if (root.at("format").as_string() != kFormat)
     root.at("format").fail("unsupported format '" + root.at("format").as_string() + "'",
                            std::string("use \"") + kFormat + "\"");

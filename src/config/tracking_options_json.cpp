@@ -1,12 +1,43 @@
 #include "tracking_options_json.hpp"
 
+#include <algorithm>
+
 namespace fabrik {
+
+namespace {
+
+// `outliers.mirror_pairs`: [["RHip", "LHip"], ...], names of the targets' markers.
+std::vector<std::array<int, 2>> read_mirror_pairs(const JsonReader& r,
+                                                  const std::vector<MarkerTarget>& markers) {
+  r.expect_array();
+  std::vector<std::array<int, 2>> pairs;
+  for (std::size_t k = 0; k < r.value().size(); ++k) {
+    const JsonReader pair = r.at(k);
+    pair.expect_array();
+    if (pair.value().size() != 2) pair.fail("a mirror pair has two names", "[\"RHip\", \"LHip\"]");
+    std::array<int, 2> idx{};
+    for (std::size_t j = 0; j < 2; ++j) {
+      const std::string name = pair.at(j).as_string();
+      const auto it = std::find_if(markers.begin(), markers.end(),
+                                   [&](const MarkerTarget& m) { return m.marker == name; });
+      if (it == markers.end())
+        pair.at(j).fail("'" + name + "' is no tracked marker", "name a marker of the targets");
+      idx[j] = static_cast<int>(it - markers.begin());
+    }
+    if (idx[0] == idx[1]) pair.fail("a mirror pair names one marker twice", "name two markers");
+    pairs.push_back(idx);
+  }
+  return pairs;
+}
+
+}  // namespace
 
 void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
   if (root.has("outliers")) {
     const JsonReader o = root.at("outliers");
     o.only_keys({"enabled", "floor_mm", "median_factor", "moved_mm", "max_per_frame", "min_markers",
-                 "relabel_swaps"});
+                 "relabel_swaps", "relabel_mirrored", "mirror_ratio", "mirror_floor_mm", "mirror_max_s",
+                 "mirror_pairs"});
     OutlierSettings& s = setup.outliers;
     s.enabled = o.get("enabled", s.enabled);
     s.floor_m = o.get("floor_mm", s.floor_m * 1e3, 1.0, 1e6) * 1e-3;
@@ -17,6 +48,26 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
     s.min_markers =
         static_cast<int>(o.get("min_markers", static_cast<long long>(s.min_markers), 3LL, 10000LL));
     s.relabel_swaps = o.get("relabel_swaps", s.relabel_swaps);
+    s.relabel_mirrored = o.get("relabel_mirrored", s.relabel_mirrored);
+    s.mirror_ratio = o.get("mirror_ratio", s.mirror_ratio, 0.0, 1.0);
+    s.mirror_floor_m = o.get("mirror_floor_mm", s.mirror_floor_m * 1e3, 0.0, 1e6) * 1e-3;
+    s.mirror_max_s = o.get("mirror_max_s", s.mirror_max_s, 0.0, 3600.0);
+    if (o.has("mirror_pairs")) setup.mirror_pairs = read_mirror_pairs(o.at("mirror_pairs"), setup.markers);
+  }
+  if (root.has("confidence")) {
+    const JsonReader c = root.at("confidence");
+    c.only_keys({"threshold", "scale_weight"});
+    setup.confidence.threshold = c.get("threshold", setup.confidence.threshold, 0.0, 1.0);
+    setup.confidence.scale_weight = c.get("scale_weight", setup.confidence.scale_weight);
+  }
+  if (root.has("smoothing")) {
+    const JsonReader f = root.at("smoothing");
+    f.only_keys({"enabled", "min_cutoff_hz", "beta_per_m", "d_cutoff_hz"});
+    SmoothingSettings& s = setup.smoothing;
+    s.enabled = f.get("enabled", s.enabled);
+    s.min_cutoff_hz = f.get("min_cutoff_hz", s.min_cutoff_hz, 1e-3, 1e4);
+    s.beta_per_m = f.get("beta_per_m", s.beta_per_m, 0.0, 1e6);
+    s.d_cutoff_hz = f.get("d_cutoff_hz", s.d_cutoff_hz, 1e-3, 1e4);
   }
   if (root.has("quality")) {
     const JsonReader q = root.at("quality");

@@ -115,6 +115,7 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<T
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
   marked_visible_.assign(targets_.targets().size(), 0);
+  weight_scale_.assign(targets_.targets().size(), 1.0);
   link_.assign(static_cast<std::size_t>(n_seg_), 0);
   for (const Target& t : targets_.targets())
     target_segment_.push_back(model.points[t.point].segment);
@@ -271,8 +272,16 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
   }
 }
 
+void FabrikSolver::set_weight_scale(std::span<const double> scale) {
+  if (scale.size() != weight_scale_.size() ||
+      std::equal(scale.begin(), scale.end(), weight_scale_.begin()))
+    return;
+  std::copy(scale.begin(), scale.end(), weight_scale_.begin());
+  marked_ = false;  // the slots' weights follow
+}
+
 double FabrikSolver::pass_weight(int pass, int t) const {
-  const double w = targets_.targets()[t].weight;
+  const double w = targets_.targets()[t].weight * weight_scale_[t];
   if (!options_.use_priorities) return w;
   const int level = targets_.level_index(t);
   if (level == pass) return w;

@@ -60,6 +60,9 @@ class FabrikSolver {
     options_ = options;
     marked_ = false;  // the marks depend on the options
   }
+  // Per point target, a factor on its weight for the solves that follow (a marker's
+  // confidence); all 1 until set. Same size as targets(), else ignored. Allocates nothing.
+  void set_weight_scale(std::span<const double> scale);
   // Distance of each target to its point after the last solve (NaN if not
   // visible): point targets, then orientation targets (angle times lever).
   std::span<const double> target_distances_m() const { return distances_m_; }
@@ -186,6 +189,7 @@ class FabrikSolver {
   std::vector<Driver> drivers_;       // scratch for one segment
   std::vector<Slot> slots_;           // by segment: slots_[slot_first_[s], slot_first_[s + 1])
   std::vector<int> slot_first_;
+  std::vector<double> weight_scale_;  // per point target: set_weight_scale's factors
   std::vector<double> slot_weight_;  // [pass][slot], per solve: 0 when it does not take part
   std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
   // What the marks above were computed for: skipped when a frame has the same

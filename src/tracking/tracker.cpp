@@ -26,6 +26,21 @@ const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d
   return core_->track(time_s, measured_world_m, visible, q_sensors_sensor, sensor_visible);
 }
 
+const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                                  std::span<const std::uint8_t> visible,
+                                  std::span<const Eigen::Quaterniond> q_sensors_sensor,
+                                  std::span<const std::uint8_t> sensor_visible,
+                                  std::span<const float> confidence) {
+  return core_->track(time_s, measured_world_m, visible, q_sensors_sensor, sensor_visible,
+                      confidence);
+}
+
+const TrackResult& Tracker::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                                  std::span<const std::uint8_t> visible,
+                                  std::span<const float> confidence) {
+  return core_->track(time_s, measured_world_m, visible, {}, {}, confidence);
+}
+
 void Tracker::reset() { core_->reset(); }
 const Posture& Tracker::posture() const { return core_->posture(); }
 

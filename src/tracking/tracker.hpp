@@ -8,6 +8,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -35,6 +36,11 @@ struct TrackerSetup {
   QualitySettings quality;        ///< the bars of a good fit (TrackResult::quality)
   ColdStartSettings cold_start;   ///< how a frame without a previous one is solved
   PredictionSettings prediction;  ///< gap filling from the recent past (gap_predictor.hpp)
+  ConfidenceSettings confidence;  ///< what a marker's confidence does (track() with confidence)
+  SmoothingSettings smoothing;    ///< the causal filter of measured positions (one_euro.hpp)
+  /// Left/right marker pairs (indices into `markers`) tested for mirrored swaps
+  /// (OutlierSettings::relabel_mirrored); empty: found from the markers' names.
+  std::vector<std::array<int, 2>> mirror_pairs;
 };
 
 /// The outcome of one frame. Spans stay valid until the next track() call.
@@ -47,6 +53,11 @@ struct TrackResult {
   std::span<const std::uint8_t> held;                ///< per marker: occluded but held
   std::span<const double> gap_s;  ///< per marker: time since last measured (0 when measured)
   int occluded_count = 0;         ///< markers occluded in this frame
+  /// Of those, markers measured but occluded by a confidence below the threshold.
+  int low_confidence_count = 0;
+  /// Markers relabelled before the solve as a mirrored left/right swap (their pairs are in
+  /// relabelled_from too).
+  int mirrored_count = 0;
   /// Residual between measured and model positions over the markers measured
   /// in this frame and solved with (held ones and outliers left out excluded), metres.
   double residual_rms_m = 0.0;
@@ -130,6 +141,21 @@ class Tracker {
                            std::span<const std::uint8_t> visible,
                            std::span<const Eigen::Quaterniond> q_sensors_sensor,
                            std::span<const std::uint8_t> sensor_visible);
+
+  /// The same with a confidence per marker (0-1, e.g. a keypoint's likelihood): empty means
+  /// all 1; otherwise confidence[i] belongs to setup().markers[i] (another size gives
+  /// SolveStatus::size_mismatch). A marker below setup().confidence.threshold is occluded;
+  /// above it, its weight is scaled by its confidence (ConfidenceSettings).
+  const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                           std::span<const std::uint8_t> visible,
+                           std::span<const Eigen::Quaterniond> q_sensors_sensor,
+                           std::span<const std::uint8_t> sensor_visible,
+                           std::span<const float> confidence);
+
+  /// The same without orientation sensors.
+  const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
+                           std::span<const std::uint8_t> visible,
+                           std::span<const float> confidence);
 
   /// Forget the previous frame: the next one starts cold (cold_start.hpp).
   void reset();

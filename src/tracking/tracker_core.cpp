@@ -56,6 +56,18 @@ std::vector<OrientationTarget> orientation_targets(const SensorTargets& sensors,
   return all;
 }
 
+// The left/right pairs of the mirror rule: the setup's, else those the names give.
+std::vector<std::array<int, 2>> mirror_pairs(const TrackerSetup& s) {
+  const int n = static_cast<int>(s.markers.size());
+  for (const auto& [r, l] : s.mirror_pairs)
+    if (r < 0 || r >= n || l < 0 || l >= n || r == l)
+      throw std::invalid_argument("tracker: a mirror pair names no marker, or one twice");
+  if (!s.mirror_pairs.empty()) return s.mirror_pairs;
+  std::vector<std::string> names;
+  for (const MarkerTarget& m : s.markers) names.push_back(m.marker);
+  return mirror_pairs_from_names(names);
+}
+
 }  // namespace
 
 TrackerCore::TrackerCore(TrackerSetup setup)
@@ -70,8 +82,13 @@ TrackerCore::TrackerCore(TrackerSetup setup)
       outliers_(*setup_.model, setup_.outliers, marker_points(setup_)),
       start_(rest_),
       warm_start_(*setup_.model),
-      n_(static_cast<int>(setup_.markers.size())) {
+      n_(static_cast<int>(setup_.markers.size())),
+      mirror_(setup_.outliers, mirror_pairs(setup_)),
+      smoother_(setup_.smoothing, n_) {
   const int n_targets = static_cast<int>(solver_.targets().size());
+  weight_scale_.assign(n_targets, 1.0);
+  input_m_.assign(n_, Eigen::Vector3d::Zero());
+  predicted_m_.assign(n_, Eigen::Vector3d::Zero());
   target_world_m_.assign(n_targets, Eigen::Vector3d::Zero());
   target_visible_.assign(n_targets, 0);
   last_seen_m_.assign(n_, Eigen::Vector3d::Zero());
@@ -116,6 +133,8 @@ void TrackerCore::reset() {
   warm_start_.reset();
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
   predictor_.reset();
+  smoother_.reset();
+  mirror_.reset();
 }
 
 const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
@@ -126,17 +145,30 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
 const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                                   std::span<const std::uint8_t> visible,
                                   std::span<const Eigen::Quaterniond> q_sensors_sensor,
-                                  std::span<const std::uint8_t> sensor_visible) {
+                                  std::span<const std::uint8_t> sensor_visible,
+                                  std::span<const float> confidence) {
   if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_ ||
+      (!confidence.empty() && static_cast<int>(confidence.size()) != n_) ||
       !sensors_.set_measured(q_sensors_sensor, sensor_visible)) {
     result_.solve = SolveResult{};
     result_.solve.status = SolveStatus::size_mismatch;
     return result_;
   }
   const bool hold = hold_enabled(setup_);
-  int occluded_count = 0;
+  int occluded_count = 0, low_confidence = 0;
+  const ConfidenceSettings& cs = setup_.confidence;
   for (int i = 0; i < n_; ++i) {
-    const bool seen = visible[i] != 0 && finite(measured_world_m[i]);
+    bool seen = visible[i] != 0 && finite(measured_world_m[i]);
+    if (!confidence.empty()) {
+      // A NaN confidence is no confidence: occluded.
+      const double c = confidence[i];
+      const bool trusted = c >= cs.threshold;
+      low_confidence += seen && !trusted;
+      seen = seen && trusted;
+      weight_scale_[i] = cs.scale_weight && trusted ? std::min(c, 1.0) : 1.0;
+    } else {
+      weight_scale_[i] = 1.0;
+    }
     occluded_[i] = seen ? 0 : 1;
     measured_[i] = seen ? 1 : 0;
     target_visible_[i] = seen ? 1 : 0;
@@ -164,7 +196,34 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
   // A clock that went back is a new recording: its coordinates start afresh.
   // After a gap the subject is the same, so they stay continuous across it.
   if (!warm_ || gap_s < 0.0) coordinates_continue_ = false;
-  if (cold) predictor_.reset();
+  if (cold) {
+    predictor_.reset();
+    mirror_.reset();
+  }
+  result_.mirrored_count = 0;
+  if (!cold) {
+    start_ = posture_;
+    // The motion carried on, where markers place the root (warm_start.hpp).
+    warm_start_.predict(time_s, any_point, start_);
+    if (setup_.outliers.enabled && setup_.outliers.relabel_mirrored) {
+      for (const auto& pair : mirror_.pairs())
+        for (const int i : pair)
+          predicted_m_[i] = start_.point_world_m(model(), marker_points_[i]);
+      result_.mirrored_count = mirror_.apply(time_s, std::span(target_world_m_).first(n_),
+                                             measured_, predicted_m_, relabelled_from_);
+    }
+  }
+  std::copy(target_world_m_.begin(), target_world_m_.begin() + n_, input_m_.begin());
+  if (setup_.smoothing.enabled) {
+    if (cold) smoother_.reset();
+    for (int i = 0; i < n_; ++i) {
+      if (measured_[i])
+        target_world_m_[i] = smoother_.filter(i, time_s, target_world_m_[i]);
+      else
+        smoother_.forget(i);
+    }
+  }
+  solver_.set_weight_scale(weight_scale_);
   // The solver's orientation targets: the sensors' as measured, then the predictor's.
   const std::size_t n_sensors = sensors_.visible().size();
   std::copy(sensors_.q_world_segment().begin(), sensors_.q_world_segment().end(),
@@ -181,10 +240,6 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
       align_rigidly(model(), marker_points_, target_world_m_,
                     std::span<const std::uint8_t>(target_visible_).first(n_), start_);
     solver_.set_options(cold_options_);
-  } else {
-    start_ = posture_;
-    // The motion carried on, where markers place the root (warm_start.hpp).
-    warm_start_.predict(time_s, any_point, start_);
   }
   const Eigen::Vector3d root_before_m = start_.segments[0].base_world_m;
   result_.solve = outliers_.solve(solver_, model(), target_world_m_, target_visible_,
@@ -232,8 +287,14 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
     ++count;
     if (worst < 0 || d_m > max_m) max_m = d_m, worst = i;
   }
-  predictor_.after_solve(time_s, posture_, measured_, measured_world_m, markers_m_, gap_s_);
+  predictor_.after_solve(time_s, posture_, measured_, input_m_, markers_m_, gap_s_);
+  // A sample the frame rejected (an outlier, or relabelled by the outlier rule) does not enter
+  // the filter: it holds its state as if the sample had not come.
+  if (setup_.smoothing.enabled)
+    for (int i = 0; i < n_; ++i)
+      if (measured_[i] && !outlier_[i]) smoother_.commit(i);
   result_.occluded_count = occluded_count;
+  result_.low_confidence_count = low_confidence;
   result_.outlier_count = outlier_count;
   result_.residual_count = count;
   result_.residual_rms_m = count > 0 ? std::sqrt(sq_m2 / count) : 0.0;

@@ -9,6 +9,8 @@
 #include "solver/warm_start.hpp"
 #include "tracking/cold_start.hpp"
 #include "tracking/fit_quality.hpp"
+#include "tracking/mirror_swap.hpp"
+#include "tracking/one_euro.hpp"
 #include "tracking/outlier_filter.hpp"
 #include "tracking/sensor_targets.hpp"
 #include "tracking/tracker.hpp"
@@ -33,7 +35,8 @@ class TrackerCore {
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible,
                            std::span<const Eigen::Quaterniond> q_sensors_sensor,
-                           std::span<const std::uint8_t> sensor_visible);
+                           std::span<const std::uint8_t> sensor_visible,
+                           std::span<const float> confidence = {});
 
   void reset();
   const Posture& posture() const { return posture_; }
@@ -71,6 +74,11 @@ class TrackerCore {
   std::vector<std::uint8_t> orient_visible_;
   std::vector<double> gap_s_;
   std::vector<std::uint8_t> measured_;  // per marker, this frame (outliers included)
+  MirrorSwap mirror_;
+  OneEuroFilter smoother_;
+  std::vector<double> weight_scale_;         // per solver target: the markers' confidences, then 1
+  std::vector<Eigen::Vector3d> input_m_;     // [n_]: measured, mirrored swaps undone, unfiltered
+  std::vector<Eigen::Vector3d> predicted_m_;  // [n_]: each marker's point in the warm start
   TrackResult result_;
 };
 

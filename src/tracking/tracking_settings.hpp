@@ -67,6 +67,48 @@ struct OutlierSettings {
   /// Two markers left out that each fit the other's model point are a label swap: they are
   /// put back with their labels exchanged (TrackResult::relabelled_from).
   bool relabel_swaps = true;
+  /// Left/right swaps of whole limbs (a markerless pipeline's keypoints jumping to the other
+  /// leg): before the solve, each left/right pair of markers (TrackerSetup::mirror_pairs, or
+  /// pairs found from the names: R/L, Right/Left, r_/l_ as prefix or suffix) both measured is
+  /// relabelled when its mirrored assignment fits the frame's predicted posture far better
+  /// (mirror_swap.hpp). Never on a cold frame (nothing to predict from).
+  bool relabel_mirrored = true;
+  /// The mirrored assignment is taken when its distance to the predicted points (summed over
+  /// the pair) is below this fraction of the labelled one's ...
+  double mirror_ratio = 0.25;
+  /// ... and the labelled one's mean distance exceeds this (metres): above the few centimetres
+  /// a keypoint jitters and a limb moves in a frame at walking speed, below the 0.15-0.3 m
+  /// between left and right hips, knees and ankles.
+  double mirror_floor_m = 0.050;
+  /// A pair is mirrored for at most this long at a stretch (seconds); after that its labels are
+  /// taken as they come until its mirror stops fitting better. Swaps last a few frames; a
+  /// posture that started from swapped labels (a cold frame has nothing to judge against)
+  /// would otherwise keep every later, correct frame mirrored.
+  double mirror_max_s = 0.5;
+};
+
+/// Per-marker confidence (a markerless pipeline's keypoint likelihood, 0-1), given to
+/// Tracker::track: a marker below `threshold` is occluded; above it, its confidence scales its
+/// weight within its level.
+struct ConfidenceSettings {
+  /// Below this a marker is occluded. 0.3 is Pose2Sim's default likelihood threshold for
+  /// triangulation (Config.toml, `likelihood_threshold_triangulation = 0.3`).
+  double threshold = 0.3;
+  bool scale_weight = true;  ///< false: a marker above the threshold pulls with its full weight
+};
+
+/// A light causal filter of the measured positions before the solve: a One Euro filter (Casiez,
+/// Roussel and Vogel, CHI 2012) per marker, an exponential smoother whose cutoff rises with the
+/// filtered speed, so a still marker is smoothed hard and a moving one lags little. Off by
+/// default (existing configs behave as before); docs/filtering.md has the measured lag and
+/// jitter at these defaults.
+struct SmoothingSettings {
+  bool enabled = false;  ///< false: measurements go to the solver as they are
+  /// Cutoff of a still marker (Hz): lower is smoother at rest, with more lag when slow.
+  double min_cutoff_hz = 1.0;
+  /// Cutoff growth with speed (Hz per m/s, i.e. 1/m): higher lags less in fast movement.
+  double beta_per_m = 40.0;
+  double d_cutoff_hz = 1.0;  ///< cutoff of the speed estimate the cutoff follows (Hz)
 };
 
 /// The bars of a good fit (FitQuality), metres; markers beyond max_m are reported

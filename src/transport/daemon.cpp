@@ -637,13 +637,21 @@ void Daemon::warn_config_mismatch(const MarkerFrame& f) {
       names_beside(config_names, "stream:", stream_names));
 }
 
+namespace {
+// A frame's confidences reach the tracker only when it carried some (the tracker skips them then).
+std::span<const float> confidence_of(const MarkerFrame& f) {
+  return f.confidence_count > 0 ? std::span<const float>(f.confidence) : std::span<const float>();
+}
+}  // namespace
+
 void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
                           Clock::time_point decode_start) {
   State& s = *state_;
   const double time_s = f.has_time ? f.time_s
                                    : std::chrono::duration<double>(received - started_).count();
   track_and_publish(*s.tracker, *s.encoder, "pose", f, time_s,
-                    {f.p_world_m, f.visible, f.q_sensor, f.sensor_visible}, received, decode_start);
+                    {f.p_world_m, f.visible, f.q_sensor, f.sensor_visible, confidence_of(f)},
+                    received, decode_start);
 }
 
 // Presence (docs/multi-subject.md): a subject is seen in a frame when one of
@@ -661,12 +669,15 @@ void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::t
     SubjectState& subject = s.subjects[k];
     if (only && &subject != only) continue;
     const Measurements m =
-        only ? Measurements{f.p_world_m, f.visible, f.q_sensor, f.sensor_visible}
+        only ? Measurements{f.p_world_m, f.visible, f.q_sensor, f.sensor_visible, confidence_of(f)}
              : Measurements{
                    std::span(f.p_world_m).subspan(subject.marker_first, subject.marker_count),
                    std::span(f.visible).subspan(subject.marker_first, subject.marker_count),
                    std::span(f.q_sensor).subspan(subject.sensor_first, subject.sensor_count),
-                   std::span(f.sensor_visible).subspan(subject.sensor_first, subject.sensor_count)};
+                   std::span(f.sensor_visible).subspan(subject.sensor_first, subject.sensor_count),
+                   f.confidence_count > 0 ? std::span<const float>(f.confidence)
+                                                .subspan(subject.marker_first, subject.marker_count)
+                                          : std::span<const float>()};
     const auto any = [](std::span<const std::uint8_t> flags) {
       return std::find(flags.begin(), flags.end(), std::uint8_t{1}) != flags.end();
     };
@@ -698,12 +709,13 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
   FrameStages stages;
   const Clock::time_point solve_start = Clock::now();
   stages[Stage::decode] = us_between(decode_start, solve_start);
-  const TrackResult* r = &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible);
+  const TrackResult* r =
+      &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible, m.confidence);
   if (!all_finite(*r)) {
     // A degenerate solve must not poison the warm start of every later frame.
     internal_error("solve gave a non-finite pose: ", "restarted from the rest posture");
     tracker.reset();
-    r = &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible);
+    r = &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible, m.confidence);
     if (!all_finite(*r)) return false;
   }
   const Clock::time_point encode_start = Clock::now();

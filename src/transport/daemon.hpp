@@ -197,6 +197,7 @@ class Daemon {
     std::span<const std::uint8_t> visible;
     std::span<const Eigen::Quaterniond> q_sensor;
     std::span<const std::uint8_t> sensor_visible;
+    std::span<const float> confidence;  // empty: the frame carried none (all 1)
   };
   bool track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
                          const MarkerFrame& f, double time_s, const Measurements& m,
