@@ -321,6 +321,29 @@ TEST_CASE("Occluded markers are listed and predicted by the model", "[daemon]") 
   }
 }
 
+TEST_CASE("A marker's confidence reaches the tracker: below the threshold it is occluded",
+          "[daemon][confidence]") {
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("inproc://markers-conf", "inproc://poses-conf"));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  const std::uint64_t first = client.handshake();
+  const DaemonConfig& c = d.daemon.config();
+  SyntheticMotion motion(*c.tracker.model, MotionSettings{});
+  const double threshold = c.tracker.confidence.threshold;
+  for (int i = 0; i < 10; ++i) {
+    json m = markers_at(c, motion, i * 0.01);
+    // RKNE's score just below the threshold, LWRA's just above it: only RKNE is occluded.
+    m["RKNE"].push_back(threshold * 0.9);
+    m["LWRA"].push_back(std::min(1.0, threshold * 1.1));
+    client.send(json{{"frame", first + i}, {"time", i * 0.01}, {"markers", m}}.dump());
+    const auto pose = client.receive("pose");
+    REQUIRE(pose);
+    CAPTURE(i, (*pose)["occluded"].dump());
+    CHECK((*pose)["occluded"] == json::array({"RKNE"}));
+    CHECK((*pose)["residual"]["count"] == c.tracker.markers.size() - 1);
+  }
+}
+
 TEST_CASE("Every bad input is counted and the next valid frame is answered", "[daemon]") {
   zmq::context_t context;
   DaemonConfig cfg = config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*");

@@ -188,8 +188,13 @@ void add_markerless(CLI::App* eval) {
   c->add_option("--config-overrides", a->overrides,
                 "JSON (or @FILE) merged into the calibrated config before tracking (RFC 7396 "
                 "merge patch), e.g. tracking options a config sets");
-  c->add_option("--path", a->o.path, "live (frame by frame) or offline (placeholder: as live)")
+  c->add_option("--path", a->o.path,
+                "live (frame by frame as recorded) or offline (low-passed at --filter-hz by a "
+                "zero-lag Butterworth first)")
       ->check(CLI::IsMember({"live", "offline"}))
+      ->capture_default_str();
+  c->add_option("--filter-hz", a->o.filter_hz, "offline path: the low-pass cutoff (Hz)")
+      ->check(CLI::Range(0.1, 1e4))
       ->capture_default_str();
   c->add_option("--trial", a->o.trial_path,
                 "Instead of generating: a trial written by fabrik synth --keypoints (with its "

@@ -12,6 +12,7 @@
 #include "distance_stats.hpp"
 #include "io/opensim_table.hpp"
 #include "offline/solve_trial.hpp"
+#include "offline/trajectory_filter.hpp"
 #include "tools/synth.hpp"
 
 namespace fabrik::eval {
@@ -80,7 +81,9 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
   nlohmann::json cfg = nlohmann::json::parse(cal.result.config.dump());
   cfg.merge_patch(o.config_overrides);
   const DaemonConfig config = load_daemon_config(cfg.dump(), "<calibrated + overrides>");
-  const TrialSolution s = solve_trial(config, trial.keypoints);
+  io::MarkerTrial keypoints = trial.keypoints;
+  if (o.path == "offline") filtfilt_trial(keypoints, o.filter_hz);
+  const TrialSolution s = solve_trial(config, keypoints);
 
   // Joint centres by name.
   DistanceStats all, swapped, clean;
@@ -217,17 +220,24 @@ std::vector<MarkerlessRow> eval_markerless(const MarkerlessOptions& o) {
   return rows;
 }
 
+namespace {
+std::string format_hz(double hz) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", hz);
+  return text;
+}
+}  // namespace
+
 std::string markerless_table(const std::vector<MarkerlessRow>& rows, const MarkerlessOptions& o) {
   std::ostringstream out;
   char line[512];
   std::snprintf(line, sizeof line,
-                "markerless trial: %s at nominal lengths, %.0f s at %.0f Hz, seed %u; path %s%s\n"
+                "markerless trial: %s at nominal lengths, %.0f s at %.0f Hz, seed %u; path %s%s%s\n"
                 "jitter %.1f mm per axis; dropouts %.2f/s of 2-%d frames; swaps %.2f/s of 2-%d "
                 "frames (%.0f %% whole limbs)\n\n",
                 o.template_path.c_str(), o.seconds, o.rate_hz, o.seed, o.path.c_str(),
-                o.path == "offline" ? " (placeholder: tracked as live until an offline filter "
-                                      "exists)"
-                                    : "",
+                o.path == "offline" ? " (zero-lag low-pass at " : "",
+                o.path == "offline" ? (format_hz(o.filter_hz) + " Hz before tracking)").c_str() : "",
                 o.corruption.jitter_mm, o.corruption.dropouts_per_s,
                 o.corruption.dropout_frames_max, o.corruption.swaps_per_s,
                 o.corruption.swap_frames_max, o.corruption.limb_swap_share * 100.0);

@@ -29,7 +29,10 @@ struct MarkerlessOptions {
   // Instead of generating: a trial `fabrik synth --keypoints` wrote (its truth files beside
   // it); evaluated as one case, "file".
   std::string trial_path;
-  std::string path = "live";  // live: frame by frame; offline: (placeholder) the same for now
+  // live: frame by frame as recorded; offline: the keypoints low-passed at filter_hz by a
+  // zero-lag Butterworth (offline/trajectory_filter.hpp) before the same tracking.
+  std::string path = "live";
+  double filter_hz = 6.0;  // offline only; Pose2Sim's default cutoff
 };
 
 struct CoordinateError {
