@@ -117,6 +117,32 @@ TEST_CASE("every keypoint template tracks its rendered trial", "[keypoints]") {
   }
 }
 
+TEST_CASE("keypoint swaps are undone live and offline, and the offline filter does not smear them",
+          "[keypoints][swap][filter]") {
+  eval::MarkerlessOptions o;
+  o.template_path = template_path("halpe26");
+  o.seconds = 6.0;
+  o.cases = {"swaps", "jitter"};
+  o.corruption.jitter_mm = 10.0;
+  o.path = "live";
+  const std::vector<eval::MarkerlessRow> live = eval::eval_markerless(o);
+  o.path = "offline";
+  const std::vector<eval::MarkerlessRow> offline = eval::eval_markerless(o);
+  REQUIRE(live.size() == 2);
+  REQUIRE(offline.size() == 2);
+  REQUIRE(live[0].swaps > 0);
+  INFO("near swaps: live " << live[0].joint_rms_swapped_m * 1e3 << " mm, offline "
+                           << offline[0].joint_rms_swapped_m * 1e3 << " mm; jitter live "
+                           << live[1].joint_rms_m * 1e3 << " mm, offline "
+                           << offline[1].joint_rms_m * 1e3 << " mm");
+  // Without jitter the swapped frames track as the others do (a swap followed is 100s of mm).
+  CHECK(live[0].joint_rms_swapped_m < 5e-3);
+  CHECK(offline[0].joint_rms_swapped_m < 5e-3);
+  // The zero-lag low-pass takes a good part of the jitter out, and adds no lag.
+  CHECK(offline[1].joint_rms_m < 0.75 * live[1].joint_rms_m);
+  CHECK(offline[1].lag_frames == 0);
+}
+
 TEST_CASE("the markerless generator is deterministic and injects what it reports",
           "[keypoints]") {
   const CalibTemplate t = load_template_file(template_path("halpe26"));

@@ -11,7 +11,7 @@
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
 #include "offline/subject_markers.hpp"
-#include "offline/trajectory_filter.hpp"
+#include "offline/prefilter.hpp"
 #include "read_recording.hpp"
 #include "tools/run_command.hpp"
 
@@ -54,12 +54,13 @@ void run(const SolveOptions& o) {
     if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
     if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
     if (o.filter_hz > 0.0) {
-      filtfilt_trial(trial, o.filter_hz);
+      const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);
       if (!o.quiet)
         std::fprintf(stderr,
                      "fabrik solve: markers low-pass filtered at %g Hz (Butterworth, forward and "
-                     "backward: no lag), gaps left as gaps\n",
-                     o.filter_hz);
+                     "backward: no lag), gaps left as gaps, after a first pass (%zu samples "
+                     "relabelled as swapped or left out as outliers)\n",
+                     o.filter_hz, dropped);
     }
   }
   std::optional<io::OrientationTable> table;

@@ -12,7 +12,7 @@
 #include "distance_stats.hpp"
 #include "io/opensim_table.hpp"
 #include "offline/solve_trial.hpp"
-#include "offline/trajectory_filter.hpp"
+#include "offline/prefilter.hpp"
 #include "tools/synth.hpp"
 
 namespace fabrik::eval {
@@ -82,7 +82,7 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
   cfg.merge_patch(o.config_overrides);
   const DaemonConfig config = load_daemon_config(cfg.dump(), "<calibrated + overrides>");
   io::MarkerTrial keypoints = trial.keypoints;
-  if (o.path == "offline") filtfilt_trial(keypoints, o.filter_hz);
+  if (o.path == "offline") drop_left_out_then_filter(config, keypoints, o.filter_hz);
   const TrialSolution s = solve_trial(config, keypoints);
 
   // Joint centres by name.

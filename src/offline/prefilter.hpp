@@ -1,0 +1,20 @@
+// Zero-lag filtering that a swap or an outlier cannot smear. Filtering a recording as it is
+// blends a swapped or wild sample into its neighbours before the tracker's rules (outliers,
+// swapped labels: outlier_filter.hpp, mirror_swap.hpp) can see it standing out. So a first
+// pass tracks the trial as recorded; every sample that pass left out of its solve (an outlier,
+// or a label it took as swapped) becomes a gap; then each run of the remaining samples is
+// low-passed with zero lag (trajectory_filter.hpp). The caller then tracks the result.
+#pragma once
+
+#include <cstddef>
+
+#include "config/daemon_config.hpp"
+#include "io/marker_trial.hpp"
+
+namespace fabrik {
+
+// Returns the samples relabelled or turned into gaps. Throws std::invalid_argument as filtfilt_trial does.
+std::size_t drop_left_out_then_filter(const DaemonConfig& config, io::MarkerTrial& trial,
+                                      double cutoff_hz);
+
+}  // namespace fabrik
