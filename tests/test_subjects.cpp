@@ -207,7 +207,7 @@ TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back c
     }
   }
   // Bob's pose of the last frame follows Alice's.
-  if (client.receive_until("pose/Bob", [&](const json& p) { return p["frame"] == first + 79; }, 5s))
+  if (client.receive_until("pose/Bob", [&, last = first + 79](const json& p) { return p["frame"] == last; }, 5s))
     bob_frames.insert(79);
   // Bob was last seen at frame 19 (t = 10.19): tracked through the occlusion
   // while t - 10.19 <= 0.1 (frames 20..29), absent from frame 30, back at 60.
@@ -237,7 +237,7 @@ TEST_CASE("A subscriber selects one subject by topic prefix, other topics are re
     zmq::socket_t s(zmq_context(), zmq::socket_type::sub);
     s.set(zmq::sockopt::linger, 0);
     s.set(zmq::sockopt::subscribe, prefix);
-    s.connect(d.daemon.output_endpoint());
+    s.connect(two.d.daemon.output_endpoint());
     return s;
   };
   zmq::socket_t bob_only = subscriber("pose/Bob"), all_poses = subscriber("pose"),
