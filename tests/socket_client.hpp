@@ -29,7 +29,8 @@ inline std::optional<zmq::message_t> receive_topic(zmq::socket_t& sub, const std
                                                    std::chrono::milliseconds timeout) {
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+    // Rounded up: truncated, the last millisecond of every wait would spin without polling.
+    const auto left = std::chrono::ceil<std::chrono::milliseconds>(
         deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) return std::nullopt;
     zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
@@ -106,7 +107,7 @@ class SocketClient {
                                               std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     for (;;) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(
           deadline - std::chrono::steady_clock::now());
       if (left.count() <= 0) return std::nullopt;
       auto message = receive(topic, left);
@@ -143,7 +144,7 @@ class SocketClient {
       send_frame(probe_frame + static_cast<std::uint64_t>(i));
       const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(50);
       for (;;) {
-        const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+        const auto left = std::chrono::ceil<std::chrono::milliseconds>(
             deadline - std::chrono::steady_clock::now());
         if (left.count() <= 0) break;
         auto message = receive_any(left);

@@ -128,7 +128,7 @@ constexpr std::int64_t kMaxSubscriptionBytes = 64;
 // bytes in the kernel (ZMQ_RCVBUF; the kernel doubles it). ZeroMQ stores the
 // subscriptions it reads before the loop can refuse them, so these bound
 // what a hostile subscriber costs before it is dropped.
-constexpr int kSubscriptionQueueMessages = 4;
+constexpr int kSubscriptionQueueMessages = 1;
 constexpr int kSubscriberReceiveBufferBytes = 2048;
 // A connection that has not completed ZeroMQ's handshake by then is closed
 // (idle or foreign TCP connections do not hold file descriptors for long).
