@@ -18,7 +18,9 @@
 #include "bridges/qtm/data_packet.hpp"
 #include "bridges/qtm/packet.hpp"
 #include "config/daemon_config.hpp"
+#include "solver/fabrik_plan.hpp"
 #include "solver/fabrik_solver.hpp"
+#include "solver/solver.hpp"
 #include "solver/jacobian_solver.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "tracking/mirror_swap.hpp"
@@ -189,6 +191,36 @@ TEST_CASE("FabrikSolver::solve performs no heap allocation", "[alloc]") {
       CAPTURE(static_cast<int>(fit), prio);
       CHECK(allocations == 0);
     }
+}
+
+TEST_CASE("A workspace shares its plan's tables: making one allocates only its scratch",
+          "[alloc]") {
+  // Counted, not timed: a plan solved by N threads holds its tables once. A workspace that
+  // copied them would allocate what a plan does on top of its scratch.
+  Scene scene;
+  const auto model = std::make_shared<const Model>(scene.model);
+  SolverOptions o;
+  o.root = RootMode::free;
+  const SolverPlan plan(model, scene.targets, o);
+  const auto count = [](const auto& make) {
+    const long before = g_allocations.load();
+    make();
+    return g_allocations.load() - before;
+  };
+  std::vector<Target> copy_a = scene.targets, copy_b = scene.targets;
+  const long tables = count([&] {
+    escape(std::make_shared<const FabrikPlan>(model, std::move(copy_a),
+                                              std::vector<OrientationTarget>{})
+               .get());
+  });
+  const long standalone =
+      count([&] { FabrikSolver solver(model, std::move(copy_b), o); escape(&solver); });
+  const long workspace = count([&] { SolverWorkspace ws(plan); escape(&ws); });
+  CAPTURE(tables, standalone, workspace);
+  REQUIRE(tables > 10);  // the plan's tables are many vectors
+  // standalone = the plan (tables) + the scratch; a workspace = the scratch and its own
+  // FabrikSolver object: one allocation more than the scratch alone.
+  CHECK(workspace + tables <= standalone + 1);
 }
 
 TEST_CASE("JacobianSolver::solve performs no heap allocation", "[alloc]") {

@@ -63,136 +63,81 @@ void add_point(FabrikSolver::Moments& m, const Eigen::Vector3d& d, const Eigen::
 }
 }  // namespace
 
-namespace {
-std::vector<int> levels_of(const std::vector<OrientationTarget>& orientations) {
-  std::vector<int> levels;
-  for (const OrientationTarget& o : orientations) levels.push_back(o.level);
-  return levels;
-}
-}  // namespace
-
 FabrikSolver::FabrikSolver(const Model& model, std::vector<Target> targets, SolverOptions options,
                            std::vector<OrientationTarget> orientations)
     : FabrikSolver(std::make_shared<const Model>(model), std::move(targets), options,
                    std::move(orientations)) {}
 
-FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model_ptr, std::vector<Target> targets,
+FabrikSolver::FabrikSolver(std::shared_ptr<const Model> model, std::vector<Target> targets,
                            SolverOptions options, std::vector<OrientationTarget> orientations)
-    : model_holder_(std::move(model_ptr)),
-      model_(*model_holder_),
-      targets_(model_, std::move(targets), levels_of(orientations)),
-      options_(options),
-      n_seg_(static_cast<int>(model_.segments.size())),
-      orientations_(std::move(orientations)) {
-  const Model& model = model_;
-  n_pass_ = std::max<int>(1, static_cast<int>(targets_.levels().size()));
-  active_.assign(static_cast<std::size_t>(n_pass_ * n_seg_), 0);
-  int max_drivers = 0;
-  for (int s = 0; s < n_seg_; ++s)
-    max_drivers = std::max(max_drivers, static_cast<int>(targets_.on_segment(s).size()) +
-                                            model.segments[s].child_count);
-  drivers_.resize(static_cast<std::size_t>(max_drivers));
-  slot_first_.assign(static_cast<std::size_t>(n_seg_ + 1), 0);
-  for (int s = 0; s < n_seg_; ++s) {
-    slot_first_[s] = static_cast<int>(slots_.size());
-    for (int t : targets_.on_segment(s)) {
-      const Eigen::Vector3d& a = model.points[targets_.targets()[t].point].p_local_m;
-      slots_.push_back({a, a.norm(), t});
-    }
-    const Segment& seg = model.segments[s];
-    for (int k = 0; k < seg.child_count; ++k) {
-      const int c = model.child_ids[seg.first_child + k];
-      const Eigen::Vector3d& a = model.points[model.segments[c].parent_point].p_local_m;
-      slots_.push_back({a, a.norm(), ~c});
-    }
-  }
-  slot_first_[n_seg_] = static_cast<int>(slots_.size());
-  subtree_.resize(static_cast<std::size_t>(n_seg_));
-  own_.resize(static_cast<std::size_t>(n_pass_ * n_seg_));
-  local_.resize(static_cast<std::size_t>(n_seg_));
+    : FabrikSolver(std::make_shared<const FabrikPlan>(std::move(model), std::move(targets),
+                                                      std::move(orientations)),
+                   options) {}
 
-  children_.resize(static_cast<std::size_t>(n_seg_));
+namespace {
+const FabrikPlan& checked(const std::shared_ptr<const FabrikPlan>& plan) {
+  if (!plan) throw std::invalid_argument("FabrikSolver: no plan");
+  return *plan;
+}
+}  // namespace
+
+FabrikSolver::FabrikSolver(std::shared_ptr<const FabrikPlan> plan, SolverOptions options)
+    : plan_(std::move(plan)),
+      model_(checked(plan_).model),
+      targets_(plan_->targets),
+      n_seg_(plan_->n_seg),
+      n_pass_(plan_->n_pass),
+      any_limited_(plan_->any_limited),
+      slots_(plan_->slots),
+      slot_first_(plan_->slot_first),
+      target_segment_(plan_->target_segment),
+      limited_(plan_->limited),
+      parent_of_limited_(plan_->parent_of_limited),
+      joint_parent_(plan_->joint_parent),
+      joint_child_(plan_->joint_child),
+      arcs_(plan_->arcs),
+      hinge_(plan_->hinge),
+      hinge_axis_local_(plan_->hinge_axis_local),
+      orientations_(plan_->orientations),
+      orient_level_(plan_->orient_level),
+      orient_first_(plan_->orient_first),
+      orient_by_segment_(plan_->orient_by_segment),
+      has_orientation_(plan_->has_orientation),
+      options_(options) {
+  const std::size_t n_seg = static_cast<std::size_t>(n_seg_);
+  const std::size_t n_targets = targets_.targets().size();
+  active_.assign(static_cast<std::size_t>(n_pass_) * n_seg, 0);
+  drivers_.resize(static_cast<std::size_t>(plan_->max_drivers));
+  subtree_.resize(n_seg);
+  own_.resize(static_cast<std::size_t>(n_pass_) * n_seg);
+  local_.resize(n_seg);
+  children_.resize(n_seg);
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
-  marked_visible_.assign(targets_.targets().size(), 0);
-  weight_scale_.assign(targets_.targets().size(), 1.0);
-  link_.assign(static_cast<std::size_t>(n_seg_), 0);
-  for (const Target& t : targets_.targets())
-    target_segment_.push_back(model.points[t.point].segment);
-  link_tip_m_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::Zero());
-  start_.resize(model.segments.size());
-  jump_.segments.resize(model.segments.size());
-  jump_turns_.resize(model.segments.size());
-  step_turns_.resize(model.segments.size());
-  step_turn_.resize(model.segments.size());
-  jump_rel_q_.assign(model.segments.size(), Eigen::Quaterniond::Identity());
-  step_rel_q_.assign(model.segments.size(), Eigen::Quaterniond::Identity());
-  last_step_m_.assign(model.segments.size(), Eigen::Vector3d::Zero());
-  const std::size_t n_all = targets_.targets().size() + orientations_.size();
+  marked_visible_.assign(n_targets, 0);
+  weight_scale_.assign(n_targets, 1.0);
+  link_.assign(n_seg, 0);
+  link_tip_m_.assign(n_seg, Eigen::Vector3d::Zero());
+  start_.resize(n_seg);
+  jump_.segments.resize(n_seg);
+  jump_turns_.resize(n_seg);
+  step_turns_.resize(n_seg);
+  step_turn_.resize(n_seg);
+  jump_rel_q_.assign(n_seg, Eigen::Quaterniond::Identity());
+  step_rel_q_.assign(n_seg, Eigen::Quaterniond::Identity());
+  last_step_m_.assign(n_seg, Eigen::Vector3d::Zero());
+  const std::size_t n_all = n_targets + orientations_.size();
   distances_m_.assign(n_all, 0.0);
   previous_m_.assign(n_all, 0.0);
   jump_distances_m_.assign(n_all, 0.0);
   level_previous_m_.assign(n_all, 0.0);
-
-  // Orientation targets, grouped by segment.
-  has_orientation_.assign(static_cast<std::size_t>(n_seg_), 0);
-  orient_first_.assign(static_cast<std::size_t>(n_seg_ + 1), 0);
-  for (const OrientationTarget& o : orientations_) {
-    if (o.segment < 0 || o.segment >= n_seg_)
-      throw std::invalid_argument("orientation target segment index out of range");
-    if (!(o.weight > 0.0) || !std::isfinite(o.weight))
-      throw std::invalid_argument("orientation target weight must be positive and finite");
-    orient_level_.push_back(targets_.index_of_level(o.level));
-    has_orientation_[o.segment] = 1;
-  }
-  for (int s = 0; s < n_seg_; ++s) {
-    orient_first_[s] = static_cast<int>(orient_by_segment_.size());
-    for (int k = 0; k < static_cast<int>(orientations_.size()); ++k)
-      if (orientations_[k].segment == s) orient_by_segment_.push_back(k);
-  }
-  orient_first_[n_seg_] = static_cast<int>(orient_by_segment_.size());
   orient_weight_.assign(static_cast<std::size_t>(n_pass_) * orientations_.size(), 0.0);
   orient_r_.assign(orientations_.size(), Eigen::Matrix3d::Identity());
   orient_q_.assign(orientations_.size(), Eigen::Quaterniond::Identity());
   orient_visible_.assign(orientations_.size(), 0);
   marked_orient_visible_.assign(orientations_.size(), 0);
-
-  limited_.assign(static_cast<std::size_t>(n_seg_), 0);
-  parent_of_limited_.assign(static_cast<std::size_t>(n_seg_), 0);
-  joint_parent_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
-  joint_child_.assign(static_cast<std::size_t>(n_seg_), Eigen::Matrix3d::Identity());
-  for (const Segment& seg : model.segments) {
-    if (seg.joint.type != JointType::hinge) {
-      arcs_.emplace_back(seg.joint);
-      continue;
-    }
-    // A hinge's range as turns about its axis from rest (the angle it fits).
-    JointLimits from_rest = seg.joint;
-    from_rest.min_rad[0] -= seg.joint.rest_rad[0];
-    from_rest.max_rad[0] -= seg.joint.rest_rad[0];
-    from_rest.rest_rad[0] = 0.0;
-    arcs_.emplace_back(from_rest);
-  }
-  turns_.resize(static_cast<std::size_t>(n_seg_));
-  rel_q_.assign(static_cast<std::size_t>(n_seg_), Eigen::Quaterniond::Identity());
-  for (int s = 1; s < n_seg_; ++s) {
-    const Segment& seg = model.segments[s];
-    if (!seg.joint.limited()) continue;
-    limited_[s] = 1;
-    any_limited_ = true;
-    parent_of_limited_[seg.parent] = 1;
-    joint_parent_[s] = model.segments[seg.parent].q_anatomical.toRotationMatrix();
-    joint_child_[s] = seg.q_anatomical.toRotationMatrix();
-  }
-  hinge_.assign(static_cast<std::size_t>(n_seg_), 0);
-  hinge_axis_local_.assign(static_cast<std::size_t>(n_seg_), Eigen::Vector3d::UnitZ());
-  for (int s = 1; s < n_seg_; ++s) {
-    if (model.segments[s].joint.type != JointType::hinge) continue;
-    hinge_[s] = 1;
-    // At rest the child's frame is the parent's: one local axis serves both.
-    const Eigen::Vector3d u = joint_parent_[s].col(2);
-    hinge_axis_local_[s] = u;
-  }
+  turns_.resize(n_seg);
+  rel_q_.assign(n_seg, Eigen::Quaterniond::Identity());
 }
 
 void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {

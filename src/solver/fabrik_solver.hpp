@@ -4,7 +4,9 @@
 // reaching pass (leaves to root) and one backward pass (root to leaves) with
 // that level's targets only, so the last, strongest level is best fulfilled.
 //
-// solve() never allocates: all scratch space is sized in the constructor.
+// The solver is one thread's workspace over a shared, immutable FabrikPlan
+// (fabrik_plan.hpp): the plan's tables are not copied per solver. solve()
+// never allocates: all scratch space is sized in the constructor.
 #pragma once
 
 #include <Eigen/Core>
@@ -13,6 +15,7 @@
 #include <span>
 #include <vector>
 
+#include "fabrik_plan.hpp"
 #include "joint_fit.hpp"
 #include "link_step.hpp"
 #include "model.hpp"
@@ -33,7 +36,9 @@ class FabrikSolver {
     int count = 0;  // points
   };
 
-  // The solver shares ownership of the (immutable) model.
+  // A workspace for a plan other solvers may share (read-only, from any thread).
+  FabrikSolver(std::shared_ptr<const FabrikPlan> plan, SolverOptions options);
+  // The same over a plan of its own; the solver shares ownership of the (immutable) model.
   FabrikSolver(std::shared_ptr<const Model> model, std::vector<Target> targets,
                SolverOptions options, std::vector<OrientationTarget> orientations = {});
   // The same with a copy of `model`.
@@ -53,8 +58,9 @@ class FabrikSolver {
                     std::span<const Eigen::Quaterniond> q_world,
                     std::span<const std::uint8_t> orientation_visible, Posture& posture);
 
+  const std::shared_ptr<const FabrikPlan>& plan() const { return plan_; }
   const std::vector<Target>& targets() const { return targets_.targets(); }
-  const std::vector<OrientationTarget>& orientations() const { return orientations_; }
+  const std::vector<OrientationTarget>& orientations() const { return plan_->orientations; }
   const SolverOptions& options() const { return options_; }
   void set_options(const SolverOptions& options) {
     options_ = options;
@@ -68,13 +74,7 @@ class FabrikSolver {
   std::span<const double> target_distances_m() const { return distances_m_; }
 
  private:
-  // A point of a segment that may drive it: one of its targets or the joint
-  // of one of its children. Grouped by segment, fixed at construction.
-  struct Slot {
-    Eigen::Vector3d a_local;
-    double a_norm_m;
-    int source;  // target index if >= 0, else child segment ~source
-  };
+  using Slot = FabrikPlan::Slot;
   struct Driver {  // one point of a segment pulled towards a position
     const Slot* slot;
     const Eigen::Vector3d* desired;
@@ -151,7 +151,6 @@ class FabrikSolver {
   std::vector<Moments> subtree_;  // per limited segment: its carried subtree, in its parent's frame
   Moments carried_;               // the carry into the segment being fitted, in its frame
   bool carry_on_ = false;         // the fit includes carried_
-  bool any_limited_ = false;
   Eigen::Vector3d carry_origin_m_ = Eigen::Vector3d::Zero();  // the moments' d are from here
   void forward_limited(int pass, int s, Posture& posture) const;
   // SolverOptions::extrapolate (fabrik_extrapolation.cpp).
@@ -179,16 +178,29 @@ class FabrikSolver {
   std::vector<double> jump_distances_m_;
   void rotate_about_base(int n, const Eigen::Vector3d& base_m, SegmentPose& pose) const;
 
-  std::shared_ptr<const Model> model_holder_;
+  // The plan, and views of its parts (fabrik_plan.hpp), all read-only. Spans, not references
+  // to the vectors: an element is one load from the solver as before, not two.
+  std::shared_ptr<const FabrikPlan> plan_;
   const Model& model_;
-  TargetSet targets_;
+  const TargetSet& targets_;
+  const int n_seg_;
+  const int n_pass_;  // priority levels (without priorities, pass_count() is 1)
+  const bool any_limited_;
+  const std::span<const Slot> slots_;
+  const std::span<const int> slot_first_;
+  const std::span<const int> target_segment_;
+  const std::span<const std::uint8_t> limited_, parent_of_limited_;
+  const std::span<const Eigen::Matrix3d> joint_parent_, joint_child_;
+  const std::span<const JointArcs> arcs_;
+  const std::span<const std::uint8_t> hinge_;
+  const std::span<const Eigen::Vector3d> hinge_axis_local_;
+  const std::span<const OrientationTarget> orientations_;
+  const std::span<const int> orient_level_, orient_first_, orient_by_segment_;
+  const std::span<const std::uint8_t> has_orientation_;
+
   SolverOptions options_;
-  int n_seg_ = 0;
-  int n_pass_ = 0;                    // priority levels, or 1 without priorities
   std::vector<std::uint8_t> active_;  // [pass][segment]: a visible target in the subtree
   std::vector<Driver> drivers_;       // scratch for one segment
-  std::vector<Slot> slots_;           // by segment: slots_[slot_first_[s], slot_first_[s + 1])
-  std::vector<int> slot_first_;
   std::vector<double> weight_scale_;  // per point target: set_weight_scale's factors
   std::vector<double> slot_weight_;  // [pass][slot], per solve: 0 when it does not take part
   std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
@@ -202,33 +214,19 @@ class FabrikSolver {
   std::vector<std::uint8_t> link_;
   bool any_link_ = false;
   std::vector<Eigen::Vector3d> link_tip_m_;
-  std::vector<int> target_segment_;  // the segment of each target's point
-  // Joint limits: per segment, whether its base joint is limited or it is
-  // the parent of a limited joint (then never a link: the child's limit needs
-  // its full rotation), and the anatomical frames of both sides.
-  std::vector<std::uint8_t> limited_, parent_of_limited_;
-  std::vector<Eigen::Matrix3d> joint_parent_, joint_child_;
-  std::vector<JointArcs> arcs_;  // per segment
-  std::vector<Turns> turns_;     // per limited segment: its joint angles at its latest fit
+  // A hinge's turns_[s][0] and arcs_[s] are its angle from rest.
+  std::vector<Turns> turns_;  // per limited segment: its joint angles at its latest fit
   std::vector<Eigen::Quaterniond> rel_q_;  // and its rotation relative to the parent then
-  // Hinges: the axis (parent frame); a hinge's turns_[s][0] and arcs_[s] are its angle from
-  // rest.
-  std::vector<std::uint8_t> hinge_;
-  std::vector<Eigen::Vector3d> hinge_axis_local_;
   std::vector<SegmentPose> start_;   // posture at the start of a pass
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
-  // Orientation targets: by segment (orient_first_[s] .. orient_first_[s + 1]
-  // into orient_by_segment_), their level indices and per-pass weights, and
-  // per solve their desired rotations and visibility. gather() sums the terms
-  // that take part in a pass for one segment: sum of w lever^2 R_desired.
-  std::vector<OrientationTarget> orientations_;
-  std::vector<int> orient_level_, orient_first_, orient_by_segment_;
+  // Orientation targets: per-pass weights, and per solve their desired
+  // rotations and visibility. gather() sums the terms that take part in a
+  // pass for one segment: sum of w lever^2 R_desired.
   std::vector<double> orient_weight_;  // [pass][orientation target]
   std::vector<Eigen::Matrix3d> orient_r_;
   std::vector<Eigen::Quaterniond> orient_q_;
   std::vector<std::uint8_t> orient_visible_;
-  std::vector<std::uint8_t> has_orientation_;  // per segment
   Eigen::Matrix3d orient_m_ = Eigen::Matrix3d::Zero();
   bool orient_on_ = false;
 };

@@ -1,7 +1,9 @@
 #include "solver.hpp"
 
 #include <atomic>
+#include <stdexcept>
 
+#include "fabrik_plan.hpp"
 #include "fabrik_solver.hpp"
 
 namespace fabrik {
@@ -15,21 +17,24 @@ std::uint64_t next_plan_id() {
 
 SolverPlan::SolverPlan(std::shared_ptr<const Model> model, std::vector<Target> targets,
                        SolverOptions options, std::vector<OrientationTarget> orientations)
-    : model_(std::move(model)),
-      targets_(std::move(targets)),
-      orientations_(std::move(orientations)),
-      options_(options),
-      id_(next_plan_id()) {
-  if (!model_) throw std::invalid_argument("SolverPlan: no model");
-  // The solver checks targets against the model when made: one made here rejects a bad plan
-  // at setup, not at its first solve.
-  FabrikSolver check(model_, targets_, options_, orientations_);
+    : options_(options), id_(next_plan_id()) {
+  if (!model) throw std::invalid_argument("SolverPlan: no model");
+  // Checks the targets against the model: a bad plan is refused at setup, not at its first solve.
+  fabrik_ = std::make_shared<const FabrikPlan>(std::move(model), std::move(targets),
+                                               std::move(orientations));
+}
+
+const Model& SolverPlan::model() const { return fabrik_->model; }
+const std::shared_ptr<const Model>& SolverPlan::shared_model() const {
+  return fabrik_->model_holder;
+}
+const std::vector<Target>& SolverPlan::targets() const { return fabrik_->targets.targets(); }
+const std::vector<OrientationTarget>& SolverPlan::orientations() const {
+  return fabrik_->orientations;
 }
 
 SolverWorkspace::SolverWorkspace(const SolverPlan& plan)
-    : plan_id_(plan.id()),
-      solver_(std::make_unique<FabrikSolver>(plan.shared_model(), plan.targets(), plan.options(),
-                                             plan.orientations())) {}
+    : plan_id_(plan.id()), solver_(std::make_unique<FabrikSolver>(plan.fabrik_, plan.options())) {}
 SolverWorkspace::~SolverWorkspace() = default;
 SolverWorkspace::SolverWorkspace(SolverWorkspace&&) noexcept = default;
 SolverWorkspace& SolverWorkspace::operator=(SolverWorkspace&&) noexcept = default;

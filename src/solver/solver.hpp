@@ -21,6 +21,7 @@
 namespace fabrik {
 
 class FabrikSolver;
+struct FabrikPlan;
 
 /// The problem: which model points are pulled (targets), which segments are turned
 /// (orientation targets), and how the loop runs (options). Immutable once made.
@@ -31,26 +32,28 @@ class SolverPlan {
   SolverPlan(std::shared_ptr<const Model> model, std::vector<Target> targets,
              SolverOptions options = {}, std::vector<OrientationTarget> orientations = {});
 
-  const Model& model() const { return *model_; }  ///< the model the targets index into
+  const Model& model() const;  ///< the model the targets index into
   /// The same model, shared (for holders that must keep it alive).
-  const std::shared_ptr<const Model>& shared_model() const { return model_; }
+  const std::shared_ptr<const Model>& shared_model() const;
   /// The point targets, in the order solve() takes their positions.
-  const std::vector<Target>& targets() const { return targets_; }
+  const std::vector<Target>& targets() const;
   /// The orientation targets, in the order solve() takes their rotations.
-  const std::vector<OrientationTarget>& orientations() const { return orientations_; }
+  const std::vector<OrientationTarget>& orientations() const;
   const SolverOptions& options() const { return options_; }  ///< how the loop runs
   /// Unique among the plans made in this process (copies share it: they are the same problem).
   std::uint64_t id() const { return id_; }
 
  private:
-  std::shared_ptr<const Model> model_;
-  std::vector<Target> targets_;
-  std::vector<OrientationTarget> orientations_;
+  friend class SolverWorkspace;
+  // The tables derived from model and targets, made once and shared read-only by every copy
+  // of the plan and every workspace made for it.
+  std::shared_ptr<const FabrikPlan> fabrik_;
   SolverOptions options_;
   std::uint64_t id_;
 };
 
-/// One thread's scratch space for one plan, sized when made. Movable, not copyable.
+/// One thread's scratch space for one plan, sized when made; it shares the plan's tables
+/// (read-only) instead of copying them. Movable, not copyable.
 class SolverWorkspace {
  public:
   /// Allocates everything a solve of `plan` needs (at setup, not on the frame path).
