@@ -18,6 +18,7 @@
 #include "transport/model_codec.hpp"
 #include "transport/pose_codec.hpp"
 #include "transport/safe_text.hpp"
+#include "transport/wire_writer.hpp"
 
 using namespace fabrik;
 using namespace fabrik::wire;
@@ -498,6 +499,48 @@ TEST_CASE("to_fixed_chars writes what to_chars writes with fixed decimals", "[co
   }
   INFO(first_mismatch);
   CHECK(mismatches == 0);
+}
+
+TEST_CASE("JsonWriter writes each number as to_chars does, alone and as a point's triple",
+          "[codec][numbers]") {
+  // The oracle: fixed decimals where they fit in 64 characters, else the shortest form
+  // (what the writer has always written), null for what JSON cannot hold.
+  const auto expected = [](double v, int decimals) -> std::string {
+    if (!std::isfinite(v)) return "null";
+    char b[64];
+    auto r = std::to_chars(b, b + sizeof b, v, std::chars_format::fixed, decimals);
+    if (r.ec != std::errc()) r = std::to_chars(b, b + sizeof b, v);
+    return std::string(b, r.ptr);
+  };
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> exponent(-9.0, 60.0), unit(-1.0, 1.0);
+  std::vector<double> values = {0.0, -0.0, 0.375, -1e-9, 1e50, -1e59, 1e300,
+                                std::numeric_limits<double>::quiet_NaN(),
+                                std::numeric_limits<double>::infinity()};
+  for (int i = 0; i < 3000; ++i) values.push_back(unit(rng) * std::pow(10.0, exponent(rng)));
+  std::string out, reference;
+  for (const int decimals : {4, 7}) {
+    for (std::size_t i = 0; i + 2 < values.size(); i += 3) {
+      const double a = values[i], b = values[i + 1], c = values[i + 2];
+      {
+        JsonWriter w(out, decimals);
+        w.begin_map(2);
+        w.key("p");
+        w.number_triple(a, b, c);
+        w.key("q");
+        w.begin_array(2);
+        w.number(a);
+        w.number_triple(b, c, a);
+        w.end_array();
+        w.end_map();
+      }
+      const auto e = [&](double v) { return expected(v, decimals); };
+      reference = "{\"p\":[" + e(a) + "," + e(b) + "," + e(c) + "],\"q\":[" + e(a) + ",[" +
+                  e(b) + "," + e(c) + "," + e(a) + "]]}";
+      CAPTURE(a, b, c, decimals);
+      REQUIRE(out == reference);
+    }
+  }
 }
 
 TEST_CASE("The JSON reader accepts exactly what nlohmann::json accepts", "[codec][json]") {

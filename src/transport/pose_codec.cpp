@@ -59,9 +59,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.end_array();
   };
   auto vec = [&](const Eigen::Vector3d& p_m) {
-    w.begin_array(3);
-    for (int k = 0; k < 3; ++k) w.number(p_m[k] * scale_);
-    w.end_array();
+    w.number_triple(p_m[0] * scale_, p_m[1] * scale_, p_m[2] * scale_);
   };
   const auto has = [&](PosePart p) { return content_.has(p); };
   w.begin_map(pose_keys_ + (header.has_time ? 1 : 0) + (header.has_stamp ? 1 : 0));

@@ -64,10 +64,39 @@ class JsonWriter {
       out_ += "null";
       return;
     }
-    char buf[64];
-    auto r = to_fixed_chars(buf, buf + sizeof buf, v, decimals);
-    if (r.ec != std::errc()) r = std::to_chars(buf, buf + sizeof buf, v);
-    out_.append(buf, r.ptr);
+    // Formatted in place: the string grows by the most a number takes, then is cut back
+    // (its capacity stays between frames, so this neither allocates nor copies).
+    const std::size_t at = out_.size();
+    out_.resize(at + kNumberRoom);
+    char* first = out_.data() + at;
+    auto r = to_fixed_chars(first, first + kNumberRoom, v, decimals);
+    if (r.ec != std::errc()) r = std::to_chars(first, first + kNumberRoom, v);
+    out_.resize(static_cast<std::size_t>(r.ptr - out_.data()));
+  }
+  // [a, b, c] with the writer's decimals: a point, in one step (most of a pose's numbers).
+  void number_triple(double a, double b, double c) {
+    if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(c)) {
+      begin_array(3);
+      number(a);
+      number(b);
+      number(c);
+      end_array();
+      return;
+    }
+    separate();
+    const std::size_t at = out_.size();
+    out_.resize(at + 3 * (kNumberRoom + 1) + 1);
+    char* p = out_.data() + at;
+    *p++ = '[';
+    for (const double v : {a, b, c}) {
+      auto r = to_fixed_chars(p, p + kNumberRoom, v, decimals_);
+      if (r.ec != std::errc()) r = std::to_chars(p, p + kNumberRoom, v);
+      p = r.ptr;
+      *p++ = ',';
+    }
+    p[-1] = ']';
+    out_.resize(static_cast<std::size_t>(p - out_.data()));
+    first_ = false;
   }
   // The JSON form of a key, for named_key(): "name": with JSON escaping.
   static std::string json_key(std::string_view k) {
@@ -114,6 +143,9 @@ class JsonWriter {
     out_ += '"';
   }
 
+  // What one number may take: to_fixed_chars needs 32; to_chars with fixed decimals writes up
+  // to 64 here before it gives way to the shortest form (as the writer always did).
+  static constexpr std::size_t kNumberRoom = 64;
   std::string& out_;
   int decimals_;
   bool first_ = true;
@@ -168,6 +200,12 @@ class MsgpackWriter {
     std::uint64_t bits;
     std::memcpy(&bits, &v, sizeof bits);
     tagged_be64(0xcb, bits);
+  }
+  void number_triple(double a, double b, double c) {
+    begin_array(3);
+    number(a);
+    number(b);
+    number(c);
   }
 
  private:
