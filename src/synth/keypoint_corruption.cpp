@@ -7,6 +7,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "random_draws.hpp"
+
 namespace fabrik {
 
 const char* injected_kind_name(InjectedRun::Kind kind) {
@@ -127,15 +129,9 @@ std::vector<InjectedRun> corrupt_keypoints(std::vector<Eigen::Vector3d>& pos,
 
   if (c.jitter_mm > 0.0) {
     std::normal_distribution<double> g(0.0, c.jitter_mm * 1e-3);
-    for (Eigen::Vector3d& p : pos) {
-      // One statement a draw (random_draws.hpp): in one call's arguments the order is the
-      // compiler's, and a Clang build wrote other trials than a GCC build. Drawn z, y, x: the
-      // order GCC took, so the trials (and the figures in docs/keypoints.md) stay as they were.
-      const double z = g(jitter_rng);
-      const double y = g(jitter_rng);
-      const double x = g(jitter_rng);
-      p += Eigen::Vector3d(x, y, z);
-    }
+    // Reversed: the trials were made with the first draw on z (GCC's order for three draws in
+    // one call's arguments), and the figures in docs/keypoints.md come from them.
+    for (Eigen::Vector3d& p : pos) p += draw_vector3(g, jitter_rng).reverse();
   }
 
   const int n_drops = static_cast<int>(std::lround(c.dropouts_per_s * seconds));

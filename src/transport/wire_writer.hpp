@@ -68,10 +68,8 @@ class JsonWriter {
     // (its capacity stays between frames, so this neither allocates nor copies).
     const std::size_t at = out_.size();
     out_.resize(at + kNumberRoom);
-    char* first = out_.data() + at;
-    auto r = to_fixed_chars(first, first + kNumberRoom, v, decimals);
-    if (r.ec != std::errc()) r = std::to_chars(first, first + kNumberRoom, v);
-    out_.resize(static_cast<std::size_t>(r.ptr - out_.data()));
+    char* const end = format(out_.data() + at, v, decimals);
+    out_.resize(static_cast<std::size_t>(end - out_.data()));
   }
   // [a, b, c] with the writer's decimals: a point, in one step (most of a pose's numbers).
   void number_triple(double a, double b, double c) {
@@ -89,9 +87,7 @@ class JsonWriter {
     char* p = out_.data() + at;
     *p++ = '[';
     for (const double v : {a, b, c}) {
-      auto r = to_fixed_chars(p, p + kNumberRoom, v, decimals_);
-      if (r.ec != std::errc()) r = std::to_chars(p, p + kNumberRoom, v);
-      p = r.ptr;
+      p = format(p, v, decimals_);
       *p++ = ',';
     }
     p[-1] = ']';
@@ -143,6 +139,12 @@ class JsonWriter {
     out_ += '"';
   }
 
+  // A finite number with `decimals` at p (kNumberRoom there); returns its end.
+  static char* format(char* p, double v, int decimals) {
+    auto r = to_fixed_chars(p, p + kNumberRoom, v, decimals);
+    if (r.ec != std::errc()) r = std::to_chars(p, p + kNumberRoom, v);
+    return r.ptr;
+  }
   // What one number may take: to_fixed_chars needs 32; to_chars with fixed decimals writes up
   // to 64 here before it gives way to the shortest form (as the writer always did).
   static constexpr std::size_t kNumberRoom = 64;
