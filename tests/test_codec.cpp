@@ -124,7 +124,7 @@ TEST_CASE("A 4th value is a keypoint's confidence, clamped, 1 without one, in bo
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (const bool fast : {true, false}) {
     MarkerDecoder d(kNames, 1e-3, 1 << 20);
-    d.set_json_fast_path(fast);
+    d.set_fast_path(fast);
     MarkerFrame f = d.make_frame();
     std::string err;
     CAPTURE(fast);

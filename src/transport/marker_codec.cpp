@@ -4,7 +4,9 @@
 #include <nlohmann/json.hpp>
 
 #include "json_sax_reader.hpp"
+#include "marker_frame_fill.hpp"
 #include "marker_json_fast.hpp"
+#include "marker_msgpack_fast.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -23,7 +25,7 @@ constexpr std::size_t kMaxUnknownNameBytes = 64;  // longer names are cut in lis
 // JSON reader (a template on the handler) calls it without virtual dispatch.
 class FrameSax final : public nlohmann::json_sax<json> {
  public:
-  FrameSax(const MarkerNameIndex& index, const MarkerNameIndex& sensor_index, MarkerFrame& out,
+  FrameSax(MarkerNameIndex& index, const MarkerNameIndex& sensor_index, MarkerFrame& out,
            std::string& error, std::string& name_scratch)
       : index_(index),
         sensor_index_(sensor_index),
@@ -59,12 +61,8 @@ class FrameSax final : public nlohmann::json_sax<json> {
   }
   bool string(string_t& s) override {
     if (state_ == State::units) {
-      if (s == "mm")
-        m_per_unit = 1e-3;
-      else if (s == "m")
-        m_per_unit = 1.0;
-      else
-        return fail("\"units\" must be \"mm\" or \"m\", got \"" + s + "\"");
+      m_per_unit = metres_per_unit(s);
+      if (m_per_unit == 0.0) return fail("\"units\" must be \"mm\" or \"m\", got \"" + s + "\"");
       return top_value_done();
     }
     if (state_ == State::subject) {
@@ -78,7 +76,10 @@ class FrameSax final : public nlohmann::json_sax<json> {
   bool start_object(std::size_t) override {
     if (!enter()) return false;
     if (state_ == State::start) return to(State::top_key);
-    if (state_ == State::markers) return to(State::marker_key);
+    if (state_ == State::markers) {
+      marker_position_ = 0;  // the name hints count positions from each map's start
+      return to(State::marker_key);
+    }
     if (state_ == State::orientations) return to(State::sensor_key);
     return skipping() || scalar("an object");
   }
@@ -114,11 +115,7 @@ class FrameSax final : public nlohmann::json_sax<json> {
       if (coord_ != 3 && coord_ != 4)
         return fail("marker \"" + marker_name_ + "\": expected [x, y, z] or [x, y, z, confidence], got " +
                     std::to_string(coord_) + " numbers");
-      if (marker_ >= 0) {
-        out_.visible[marker_] = p_.allFinite() ? 1 : 0;
-        out_.p_world_m[marker_] = p_;
-        if (coord_ == 4) set_confidence(out_, marker_, c_);
-      }
+      if (marker_ >= 0) set_marker(out_, marker_, p_, coord_ == 4 ? &c_ : nullptr);
       state_ = State::marker_key;
     }
     if (state_ == State::quat) {
@@ -148,12 +145,7 @@ class FrameSax final : public nlohmann::json_sax<json> {
       return true;
     }
     if (state_ == State::marker_key) {
-      marker_ = index_.find(k);
-      if (marker_ >= 0) ++out_.known_count;
-      if (marker_ < 0) {
-        ++out_.unknown_count;
-        list_unknown_name(out_.unknown_names, out_.unknown_listed, k);
-      }
+      marker_ = count_marker(index_, marker_position_++, k, out_);
       // Kept for messages only, cut to its reserved capacity: no allocation.
       marker_name_.assign(k, 0, std::min(k.size(), marker_name_.capacity()));
       state_ = State::marker_value;
@@ -318,13 +310,14 @@ class FrameSax final : public nlohmann::json_sax<json> {
     return false;
   }
 
-  const MarkerNameIndex& index_;
+  MarkerNameIndex& index_;
   const MarkerNameIndex& sensor_index_;
   MarkerFrame& out_;
   std::string& error_;
   State state_ = State::start;
   int depth_ = 0, skip_depth_ = 0;
   int marker_ = -1, sensor_ = -1;
+  std::size_t marker_position_ = 0;  // of the marker being read, among the frame's names
   std::string& marker_name_;  // the decoder's, so its buffer is reused (also sensor names)
   int coord_ = 0;
   Eigen::Vector3d p_{0, 0, 0};
@@ -374,7 +367,7 @@ MarkerDecoder::MarkerDecoder(std::span<const std::string> names, double default_
       max_payload_bytes_(max_payload_bytes),
       plausible_(plausible) {
   marker_name_.reserve(kMaxUnknownNameBytes);
-  // Most frames take the JSON fast path, so the full reader may first see
+  // Most frames take a fast path, so the full reader may first see
   // one when memory is short: its token buffer is grown here, not then.
   json_reader_.reserve(std::min<std::size_t>(max_payload_bytes_, 4096));
 }
@@ -414,17 +407,18 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
   const std::string_view text(reinterpret_cast<const char*>(payload.data()), payload.size());
   FastFrameTop top;
-  bool try_fast = !msgpack && json_fast_path_;
-  if (try_fast && json_fast_skip_ > 0) {
-    --json_fast_skip_;
+  bool try_fast = fast_path_;
+  if (try_fast && fast_skip_ > 0) {
+    --fast_skip_;
     try_fast = false;
   }
-  if (try_fast && read_common_marker_json(text, index_, out, top)) {
-    ++json_fast_frames_;
+  if (try_fast && (msgpack ? read_common_marker_msgpack(payload, index_, out, top)
+                           : read_common_marker_json(text, index_, out, top))) {
+    ++fast_frames_;
   } else {
     if (try_fast) {  // declined: the full reader, from scratch
       start_frame(out);
-      json_fast_skip_ = kFastPathPause - 1;
+      fast_skip_ = kFastPathPause - 1;
     }
     FrameSax sax(index_, sensor_index_, out, error, marker_name_);
     sax.quaternion_tolerance_ = plausible_.quaternion_tolerance;

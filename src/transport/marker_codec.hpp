@@ -2,8 +2,9 @@
 // decoding into the tracker's marker order, and encoding (for replay tools,
 // benchmarks and tests). Decoding is a SAX pass over JSON or MessagePack
 // (told apart by the first byte) straight into preallocated arrays, so a bad
-// payload is rejected at the first wrong token and nesting is bounded. JSON
-// of the common shape takes a faster path first (marker_json_fast.hpp).
+// payload is rejected at the first wrong token and nesting is bounded. A
+// payload of the common shape takes a faster path first (marker_json_fast.hpp,
+// marker_msgpack_fast.hpp).
 #pragma once
 
 #include <Eigen/Core>
@@ -96,10 +97,10 @@ class MarkerDecoder {
   bool decode(std::span<const std::uint8_t> payload, MarkerFrame& out, std::string& error) const;
   int index_of(const std::string& name) const;
 
-  // Off: every JSON payload goes through the full reader (tests compare the two).
-  void set_json_fast_path(bool on) { json_fast_path_ = on, json_fast_skip_ = 0; }
-  // Payloads the JSON fast path decoded (not declined), since construction.
-  std::uint64_t json_fast_path_frames() const { return json_fast_frames_; }
+  // Off: every payload goes through the full reader (tests compare the two).
+  void set_fast_path(bool on) { fast_path_ = on, fast_skip_ = 0; }
+  // Payloads a fast path (JSON or MessagePack) decoded, not declined, since construction.
+  std::uint64_t fast_path_frames() const { return fast_frames_; }
 
  private:
   mutable MarkerNameIndex index_;  // its previous-frame hints change as frames arrive
@@ -111,13 +112,13 @@ class MarkerDecoder {
   // Its buffers are reused from frame to frame: one decoder per thread.
   mutable JsonSaxReader json_reader_;
   mutable std::string marker_name_;  // the marker being read, for messages
-  bool json_fast_path_ = true;
-  mutable std::uint64_t json_fast_frames_ = 0;
+  bool fast_path_ = true;
+  mutable std::uint64_t fast_frames_ = 0;
   // After a declined payload the next ones skip the fast path for a while: a
   // source whose frames always decline (e.g. with orientations) pays for the
   // wasted scan once in kFastPathPause frames, not on every frame.
   static constexpr int kFastPathPause = 16;
-  mutable int json_fast_skip_ = 0;
+  mutable int fast_skip_ = 0;
 };
 
 // A `markers` payload: names[i] at p[i] in `units` ("mm" or "m"; positions are

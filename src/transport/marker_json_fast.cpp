@@ -56,7 +56,7 @@ class CommonShapeReader {
     if (key == "units") {
       std::string_view units;
       if (!string(units)) return false;
-      top_.m_per_unit = units == "mm" ? 1e-3 : units == "m" ? 1.0 : 0.0;
+      top_.m_per_unit = metres_per_unit(units);
       return top_.m_per_unit > 0.0;
     }
     if (key == "subject") {
@@ -78,12 +78,7 @@ class CommonShapeReader {
       ws();
       if (!eat(':')) return false;
       ws();
-      const int i = names_.find_at(position, name);
-      if (i >= 0)
-        ++out_.known_count;
-      else
-        ++out_.unknown_count, list_unknown_name(out_.unknown_names, out_.unknown_listed, name);
-      if (!marker_value(i)) return false;
+      if (!marker_value(count_marker(names_, position, name, out_))) return false;
       ws();
       if (eat(',')) {
         ws();
@@ -117,11 +112,7 @@ class CommonShapeReader {
       ws();
       if (!eat(']')) return false;
     }
-    if (i >= 0) {
-      out_.p_world_m[i] = {xyz[0], xyz[1], xyz[2]};
-      out_.visible[i] = 1;  // finite: number() takes no overflow
-      if (with_confidence) set_confidence(out_, i, confidence);
-    }
+    if (i >= 0) set_marker(out_, i, {xyz[0], xyz[1], xyz[2]}, with_confidence ? &confidence : nullptr);
     return true;
   }
 

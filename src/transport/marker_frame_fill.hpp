@@ -1,0 +1,72 @@
+// What every reader of a markers payload (the full reader and the fast paths
+// of marker_json_fast.hpp and marker_msgpack_fast.hpp) does the same way when
+// it fills a MarkerFrame, so the readers cannot drift apart on it.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "marker_codec.hpp"
+#include "marker_name_index.hpp"
+
+namespace fabrik::wire {
+
+// What the decoder needs from a fast path besides the frame: as the full
+// reader's SAX handler gives it.
+struct FastFrameTop {
+  bool has_frame = false;
+  double m_per_unit = 0.0;  // 0: not given
+};
+
+// Lists a name not in the config, cut to the list entry's reserved capacity,
+// so listing never allocates (up to the list's length, then only counted).
+inline void list_unknown_name(std::vector<std::string>& list, int& listed, std::string_view name) {
+  if (listed >= static_cast<int>(list.size())) return;
+  std::string& entry = list[listed++];
+  entry.assign(name.data(), std::min(name.size(), entry.capacity()));
+}
+
+// Marker i's 4th value, as every reader takes it: clamped to [0, 1] (detectors'
+// scores may stray a little past 1); one that is not finite says nothing about
+// the marker, so the marker is occluded.
+inline void set_confidence(MarkerFrame& out, int i, double confidence) {
+  ++out.confidence_count;
+  if (!std::isfinite(confidence)) {
+    out.visible[i] = 0;
+    out.confidence[i] = 0.0f;
+    return;
+  }
+  out.confidence[i] = static_cast<float>(std::clamp(confidence, 0.0, 1.0));
+}
+
+// A frame's "units": metres per unit, 0 for anything but "mm" and "m".
+inline double metres_per_unit(std::string_view units) {
+  return units == "mm" ? 1e-3 : units == "m" ? 1.0 : 0.0;
+}
+
+// The config's index of the frame's marker at `position` (0, 1, ...) named
+// `name`, or -1, counted as known or unknown (and listed) in `out`.
+inline int count_marker(MarkerNameIndex& names, std::size_t position, std::string_view name,
+                        MarkerFrame& out) {
+  const int i = names.find_at(position, name);
+  if (i >= 0)
+    ++out.known_count;
+  else
+    ++out.unknown_count, list_unknown_name(out.unknown_names, out.unknown_listed, name);
+  return i;
+}
+
+// Known marker i measured at p (payload units), with its confidence if one
+// was given: a position that is not finite is an occlusion.
+inline void set_marker(MarkerFrame& out, int i, const Eigen::Vector3d& p, const double* confidence) {
+  out.p_world_m[i] = p;
+  out.visible[i] = p.allFinite() ? 1 : 0;
+  if (confidence) set_confidence(out, i, *confidence);
+}
+
+}  // namespace fabrik::wire
