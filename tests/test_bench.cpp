@@ -7,6 +7,7 @@
 #include "bench/bench.hpp"
 #include "bench/generic_static.hpp"
 #include "bench/latency_bench.hpp"
+#include "bench/pipeline_bench.hpp"
 #include "bench/subjects_bench.hpp"
 #include "bench/zmq_floor.hpp"
 #include "calib/calibrate.hpp"
@@ -247,6 +248,34 @@ TEST_CASE("bench latency reports the daemon and the floor for each transport and
     CHECK(f["pose_bytes"].get<double>() ==
           Approx(d["pose_bytes_mean"].get<double>()).epsilon(0.02));
     CHECK(d["decode_errors"] == 0);
+  }
+}
+
+TEST_CASE("bench pipeline reports each stage, and the solve split into the solver and the rest",
+          "[bench][pipeline]") {
+  for (const char* encoding : {"json", "msgpack"}) {
+    CAPTURE(encoding);
+    bench::PipelineOptions o;
+    o.frames = 300;  // the report, not the times
+    o.encoding = encoding;
+    const nlohmann::json r = bench::run_pipeline(o);
+    REQUIRE(r["models"].size() == 1);
+    const nlohmann::json& m = r["models"][0];
+    CAPTURE(m.dump());
+    CHECK(m["frames"].get<int>() + m["lost"].get<int>() == 300);
+    REQUIRE(m["frames"].get<int>() > 0);
+    CHECK(m["pose_bytes"].get<int>() > 1000);
+    for (const char* stage : {"decode", "solve", "encode", "send"})
+      CHECK(m["stages_us"][stage]["p50"].get<double>() > 0.0);
+    // The solver is part of the solve stage, frame by frame, so of its quantiles too.
+    const double solve = m["stages_us"]["solve"]["p50"], solver = m["solver_us"]["p50"];
+    CHECK(solver > 0.0);
+    CHECK(solver <= solve);
+    CHECK(m["tracker_besides_solver_us"]["p50"].get<double>() >= 0.0);
+    CHECK(m["tracker_besides_solver_us"]["p50"].get<double>() <= solve);
+    // Warm frames at 1 kHz: at least one iteration, within the warm budget at p50.
+    CHECK(m["iterations"]["mean"].get<double>() >= 1.0);
+    CHECK(m["iterations"]["p50"].get<double>() <= 50.0);
   }
 }
 

@@ -42,6 +42,7 @@ struct Run {
   zmq::message_t topic, pose;
   std::array<std::vector<double>, 4> us;  // per stage, in wire::Stage order
   std::vector<double> around_us;
+  std::vector<double> solver_us, tracker_rest_us, iterations;  // the solve stage, split
   std::size_t pose_bytes = 0;
   int lost = 0;
 };
@@ -160,6 +161,9 @@ json run_pipeline(const PipelineOptions& o) {
       }
       for (std::size_t k = 0; k < r.us.size(); ++k) r.us[k].push_back(s.us[k]);
       r.around_us.push_back(s.around_solve_us());
+      r.solver_us.push_back(s.solver_us);
+      r.tracker_rest_us.push_back(s[wire::Stage::solve] - s.solver_us);
+      r.iterations.push_back(s.iterations);
     }
   }
 
@@ -176,6 +180,9 @@ json run_pipeline(const PipelineOptions& o) {
                       {"lost", r->lost},
                       {"stages_us", stages},
                       {"around_solve_us", quantiles(r->around_us)},
+                      {"solver_us", quantiles(r->solver_us)},
+                      {"tracker_besides_solver_us", quantiles(r->tracker_rest_us)},
+                      {"iterations", quantiles(r->iterations)},
                       {"around_over_solve_p50",
                        solve_p50 > 0 ? quantile(r->around_us, 0.5) / solve_p50 : 0.0}});
     r->sub.close();
@@ -220,6 +227,13 @@ std::string pipeline_table(const json& r) {
                   m["pose_bytes"].get<int>(), cell(s["decode"]).c_str(), cell(s["solve"]).c_str(),
                   cell(s["encode"]).c_str(), cell(s["send"]).c_str(),
                   cell(m["around_solve_us"]).c_str(), m["around_over_solve_p50"].get<double>());
+    out += line;
+    std::snprintf(line, sizeof line,
+                  "  of solve: the solver %s, %.1f iterations a frame (p99 %.0f); the tracker "
+                  "besides %s\n",
+                  cell(m["solver_us"]).c_str(), m["iterations"]["mean"].get<double>(),
+                  m["iterations"]["p99"].get<double>(),
+                  cell(m["tracker_besides_solver_us"]).c_str());
     out += line;
     if (m["lost"].get<int>() > 0) {
       std::snprintf(line, sizeof line, "  (%d frames without a pose left out)\n",

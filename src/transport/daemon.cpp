@@ -732,6 +732,8 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
   stages[Stage::solve] = us_between(solve_start, encode_start);
   stages[Stage::encode] = us_between(encode_start, send_start);
   stages[Stage::send] = us_between(send_start, sent);
+  stages.solver_us = r->solve_us;
+  stages.iterations = r->solve.iterations;
   solve_us_.add(r->solve_us);
   queue_us_.add(us_between(received, sent));
   stages_us_.add(stages);

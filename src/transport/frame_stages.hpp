@@ -20,6 +20,10 @@ inline constexpr std::array<const char*, 4> kStageNames = {"decode", "solve", "e
 // send: the frame's counts, then the pose handed to ZeroMQ.
 struct FrameStages {
   std::array<double, 4> us{};
+  // Of solve: the solver's own time (TrackResult::solve_us) and the iterations
+  // of the frame's last solve; the rest of solve is the tracker's work around it.
+  double solver_us = 0.0;
+  int iterations = 0;
   double& operator[](Stage s) { return us[static_cast<std::size_t>(s)]; }
   double operator[](Stage s) const { return us[static_cast<std::size_t>(s)]; }
   // Everything but the solve: what the pipeline adds around it.
