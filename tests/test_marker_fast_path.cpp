@@ -465,3 +465,28 @@ TEST_CASE("The encoder's own MessagePack frames take the fast path", "[codec][fa
     CHECK((f.p_world_m[2] - p_m[2]).norm() < 1e-12);
   }
 }
+
+TEST_CASE("The MessagePack fast path reads each width to its known value", "[codec][fast]") {
+  const std::vector<std::string> names = {"A", "B"};
+  MarkerDecoder d(names, 1e-3, 1 << 20);
+  MarkerFrame f = d.make_frame();
+  std::string error;
+  // {"frame": uint16 513, "units": str8 "m", "markers": map16 {"A": [int8 -2, float32 0.5,
+  //  uint8 20, float64 2.0 (confidence, clamped to 1)], "B": nil}}
+  const std::string p(
+      "\x83"
+      "\xa5" "frame" "\xcd\x02\x01"
+      "\xa5" "units" "\xd9\x01" "m"
+      "\xa7" "markers" "\xde\x00\x02"
+      "\xa1" "A" "\x94" "\xd0\xfe" "\xca\x3f\x00\x00\x00" "\xcc\x14" "\xcb\x40\x00\x00\x00\x00\x00\x00\x00"
+      "\xa1" "B" "\xc0",
+      1 + 6 + 3 + 6 + 3 + 8 + 3 + 2 + 1 + 2 + 5 + 2 + 9 + 2 + 1);
+  REQUIRE(d.decode(bytes(p), f, error));
+  CHECK(d.fast_path_frames() == 1);
+  CHECK(f.frame == 513);
+  CHECK(f.visible == std::vector<std::uint8_t>{1, 0});
+  CHECK(f.p_world_m[0] == Eigen::Vector3d(-2.0, 0.5, 20.0));  // "m": no scaling
+  CHECK(f.confidence[0] == 1.0f);
+  CHECK(f.confidence_count == 1);
+  CHECK(f.known_count == 2);
+}

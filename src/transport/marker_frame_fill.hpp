@@ -49,6 +49,18 @@ inline double metres_per_unit(std::string_view units) {
   return units == "mm" ? 1e-3 : units == "m" ? 1.0 : 0.0;
 }
 
+// A fast path's "units" or "subject" member, whose string value it has read,
+// as the full reader takes it. False: units the full reader refuses.
+inline bool set_units_or_subject(std::string_view key, std::string_view value, MarkerFrame& out,
+                                 FastFrameTop& top) {
+  if (key == "units") {
+    top.m_per_unit = metres_per_unit(value);
+    return top.m_per_unit > 0.0;
+  }
+  set_frame_subject(out, value);
+  return true;
+}
+
 // The config's index of the frame's marker at `position` (0, 1, ...) named
 // `name`, or -1, counted as known or unknown (and listed) in `out`.
 inline int count_marker(MarkerNameIndex& names, std::size_t position, std::string_view name,

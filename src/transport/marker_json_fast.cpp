@@ -53,17 +53,9 @@ class CommonShapeReader {
     bool integer;
     if (key == "time") return out_.has_time = number(out_.time_s, integer);
     if (key == "stamp_us") return out_.has_stamp = number(out_.stamp_us, integer);
-    if (key == "units") {
-      std::string_view units;
-      if (!string(units)) return false;
-      top_.m_per_unit = metres_per_unit(units);
-      return top_.m_per_unit > 0.0;
-    }
-    if (key == "subject") {
-      std::string_view subject;
-      if (!string(subject)) return false;
-      set_frame_subject(out_, subject);
-      return true;
+    if (key == "units" || key == "subject") {
+      std::string_view value;
+      return string(value) && set_units_or_subject(key, value, out_, top_);
     }
     return false;  // other keys, "orientations" included: the full reader
   }
@@ -112,7 +104,8 @@ class CommonShapeReader {
       ws();
       if (!eat(']')) return false;
     }
-    if (i >= 0) set_marker(out_, i, {xyz[0], xyz[1], xyz[2]}, with_confidence ? &confidence : nullptr);
+    if (i >= 0)
+      set_marker(out_, i, {xyz[0], xyz[1], xyz[2]}, with_confidence ? &confidence : nullptr);
     return true;
   }
 

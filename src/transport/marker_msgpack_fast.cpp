@@ -23,9 +23,8 @@ class CommonShapeReader {
     for (std::uint32_t k = 0; k < members; ++k) {
       std::string_view key;
       if (!string(key) || !top_value(key)) return false;
-      // Bytes left after the last member: the full reader's error (strict), so decline.
     }
-    return p_ == end_;
+    return p_ == end_;  // bytes after the frame: the full reader's error (strict), so decline
   }
 
  private:
@@ -38,17 +37,9 @@ class CommonShapeReader {
     }
     if (key == "time") return out_.has_time = finite_number(out_.time_s);
     if (key == "stamp_us") return out_.has_stamp = finite_number(out_.stamp_us);
-    if (key == "units") {
-      std::string_view units;
-      if (!string(units)) return false;
-      top_.m_per_unit = metres_per_unit(units);
-      return top_.m_per_unit > 0.0;
-    }
-    if (key == "subject") {
-      std::string_view subject;
-      if (!string(subject)) return false;
-      set_frame_subject(out_, subject);
-      return true;
+    if (key == "units" || key == "subject") {
+      std::string_view value;
+      return string(value) && set_units_or_subject(key, value, out_, top_);
     }
     return false;  // other keys, "orientations" included: the full reader
   }
