@@ -44,6 +44,16 @@ inline std::optional<zmq::message_t> receive_topic(zmq::socket_t& sub, const std
   }
 }
 
+// A SUB socket of `prefix` connected to `endpoint` (it drops nothing at close).
+inline zmq::socket_t subscriber(zmq::context_t& context, const std::string& endpoint,
+                                const char* prefix) {
+  zmq::socket_t s(context, zmq::socket_type::sub);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::subscribe, prefix);
+  s.connect(endpoint);
+  return s;
+}
+
 class SocketClient {
  public:
   // Connects a PUB to the daemon's input and a SUB (every topic: pose, stats, model) to its

@@ -41,6 +41,8 @@ using Clock = std::chrono::steady_clock;
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
 #endif
+using test::subscriber;
+
 namespace {
 std::atomic<bool> g_fail_allocations{false};
 std::atomic<std::thread::id> g_fail_thread{};
@@ -196,14 +198,6 @@ zmq::socket_t real_time_subscriber(zmq::context_t& context, const std::string& e
 }
 
 // A plain subscriber to `prefix`.
-zmq::socket_t subscriber(zmq::context_t& context, const std::string& endpoint, const char* prefix) {
-  zmq::socket_t s(context, zmq::socket_type::sub);
-  s.set(zmq::sockopt::linger, 0);
-  s.set(zmq::sockopt::subscribe, prefix);
-  s.connect(endpoint);
-  return s;
-}
-
 std::uint64_t counter(const json& stats, const char* key) {
   return stats.at(key).get<std::uint64_t>();
 }

@@ -571,3 +571,44 @@ TEST_CASE("A multi-subject frame allocates nothing beyond ZeroMQ's copy of each 
   CHECK(prefix_allocations == 2 * single_allocations);
   CHECK(field_allocations == single_allocations);
 }
+
+// Views (output.views) that no subscription selects are not encoded: a daemon
+// configured with some allocates on its frame path what one without does.
+TEST_CASE("Pose views nobody subscribes to add no allocation to the frame path", "[alloc][views]") {
+  zmq::context_t context;
+  DaemonConfig plain = default_daemon_config();
+  DaemonConfig viewed = plain;
+  viewed.output_views = {{"joints", PoseContent::none().with(PosePart::angles), false, Encoding::json},
+                         {"lean", PoseContent::none(), true, Encoding::msgpack}};
+  plain.input = {"inproc://alloc-plain-in", SocketMode::bind};
+  plain.output = {"inproc://alloc-plain-out", SocketMode::bind};
+  viewed.input = {"inproc://alloc-viewed-in", SocketMode::bind};
+  viewed.output = {"inproc://alloc-viewed-out", SocketMode::bind};
+  wire::Daemon a(context, plain), b(context, viewed);
+  SyntheticMotion motion(*plain.tracker.model, MotionSettings{});
+  long plain_allocations = 0, viewed_allocations = 0;
+  const int frames = 30, warm_up = 5;
+  for (int f = 0; f < frames + warm_up; ++f) {
+    const double t = f / 100.0;
+    const std::string payload =
+        nlohmann::json{{"frame", f},
+                       {"time", t},
+                       {"markers", test::subject_markers(plain.tracker, motion, t,
+                                                         Eigen::Vector3d::Zero(), "")}}
+            .dump();
+    const std::span<const std::uint8_t> bytes(reinterpret_cast<const std::uint8_t*>(payload.data()),
+                                              payload.size());
+    long before = g_allocations.load();
+    a.serve_payload(bytes);
+    const long a_plain = g_allocations.load() - before;
+    before = g_allocations.load();
+    b.serve_payload(bytes);
+    const long a_viewed = g_allocations.load() - before;
+    if (f < warm_up) continue;
+    plain_allocations += a_plain;
+    viewed_allocations += a_viewed;
+  }
+  CHECK(b.counters().frames_out == static_cast<std::uint64_t>(frames + warm_up));
+  CHECK(plain_allocations <= frames);  // at most ZeroMQ's one per pose
+  CHECK(viewed_allocations == plain_allocations);
+}

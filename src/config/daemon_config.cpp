@@ -203,7 +203,8 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
   }
   if (root.has("output")) {
     const JsonReader out = root.at("output");
-    out.only_keys({"endpoint", "mode", "encoding", "units", "measured_markers", "pose_content"});
+    out.only_keys({"endpoint", "mode", "encoding", "units", "measured_markers", "pose_content",
+                   "views"});
     c.output = read_endpoint(out, c.output);
     if (out.has("units")) {
       c.output_m_per_unit = metres_per_unit(out.at("units"));
@@ -215,6 +216,7 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
                                 {{"json", Encoding::json}, {"msgpack", Encoding::msgpack}});
     c.output_measured_markers = out.get("measured_markers", c.output_measured_markers);
     if (out.has("pose_content")) c.output_pose_content = read_pose_content(out.at("pose_content"));
+    if (out.has("views")) c.output_views = read_pose_views(out.at("views"), c.output_encoding);
   }
   if (c.input.address == c.output.address)
     root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",

@@ -6,7 +6,9 @@
 #include <memory>
 #include <string>
 
+#include "encoding.hpp"
 #include "pose_content.hpp"
+#include "pose_views.hpp"
 #include "sensors_json.hpp"
 #include "source_config.hpp"
 #include "tracking/tracker.hpp"
@@ -14,7 +16,6 @@
 namespace fabrik {
 
 enum class SocketMode { bind, connect };
-enum class Encoding { json, msgpack };
 
 struct Endpoint {
   std::string address;
@@ -51,6 +52,8 @@ struct DaemonConfig {
   bool output_measured_markers = false;
   // The pose's optional parts that poses carry (output.pose_content); all by default.
   PoseContent output_pose_content = PoseContent::all();
+  // More poses of each frame, on topics of their own (output.views); none by default.
+  std::vector<PoseViewConfig> output_views;
   std::size_t max_payload_bytes = 1 << 20;
   // Input coordinates farther than this from the origin on any axis are not
   // plausible measurements: the marker is taken as occluded (and counted).

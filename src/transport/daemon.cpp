@@ -22,6 +22,7 @@
 #include "model_codec.hpp"
 #include "socket_monitor.hpp"
 #include "socket_options.hpp"
+#include "subscription_book.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -111,6 +112,9 @@ struct StatsFields {
   // Multi-subject configs: writes stats.subjects (a map) when set.
   std::function<void(JsonWriter&)> subjects_json;
   std::function<void(MsgpackWriter&)> subjects_msgpack;
+  // Pose views (output.views): writes stats.views (a map by topic) when set.
+  std::function<void(JsonWriter&)> views_json;
+  std::function<void(MsgpackWriter&)> views_msgpack;
 };
 
 // stats.source (proto/stats.schema.json): the vendor server's connection.
@@ -164,8 +168,9 @@ void write_stats(Writer& w, const StatsFields& s) {
   };
   constexpr bool json = std::is_same_v<Writer, JsonWriter>;
   const bool subjects = json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
+  const bool views = json ? bool(s.views_json) : bool(s.views_msgpack);
   // MessagePack needs the exact count of the keys below
-  w.begin_map(27 + (s.source ? 1 : 0) + (subjects ? 2 : 0));
+  w.begin_map(27 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -218,6 +223,13 @@ void write_stats(Writer& w, const StatsFields& s) {
     else
       s.subjects_msgpack(w);
   }
+  if (views) {
+    w.key("views");
+    if constexpr (json)
+      s.views_json(w);
+    else
+      s.views_msgpack(w);
+  }
   w.end_map();
 }
 
@@ -228,11 +240,21 @@ bool subscribes_to_our_topics(std::string_view prefix) {
                      [&](std::string_view topic) { return topic.starts_with(prefix); });
 }
 
-bool subscribes_to_our_topics(std::string_view prefix, std::span<const std::string> subject_topics) {
+bool subscribes_to_our_topics(std::string_view prefix, std::span<const std::string> extra_topics) {
   return subscribes_to_our_topics(prefix) ||
-         std::any_of(subject_topics.begin(), subject_topics.end(),
+         std::any_of(extra_topics.begin(), extra_topics.end(),
                      [&](const std::string& topic) { return topic.starts_with(prefix); });
 }
+
+// One pose view (output.views) of one tracker: its topic (TOPIC/NAME for a
+// subject's), its encoder, the live subscriptions that select it (it is
+// encoded only while there are some) and the poses it has sent.
+struct Daemon::ViewState {
+  std::string topic;
+  std::unique_ptr<PoseEncoder> encoder;
+  int subscribers = 0;
+  std::uint64_t frames_out = 0;
+};
 
 // One subject of a multi-subject config: its tracker, its pose encoder, its
 // slice of the combined frame (names NAME:Marker) and a decoder of its bare
@@ -242,6 +264,7 @@ struct Daemon::SubjectState {
   std::unique_ptr<Tracker> tracker;
   std::unique_ptr<PoseEncoder> encoder;
   std::unique_ptr<MarkerDecoder> decoder;
+  std::vector<ViewState> views;
   MarkerFrame frame;  // decoded into by `decoder`
   std::size_t marker_first = 0, marker_count = 0, sensor_first = 0, sensor_count = 0;
   bool present = false;
@@ -255,6 +278,7 @@ struct Daemon::State {
   std::unique_ptr<Tracker> tracker;
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
+  std::vector<ViewState> views;  // one subject's (multi-subject: each subject has its own)
   std::string model_out;  // the `model` payload of this config, made once
   MarkerFrame frame;  // decoded into, one at a time
   NameMismatchWatch names;  // does the stream use the config's marker names?
@@ -265,12 +289,15 @@ struct Daemon::State {
   int first = 0, count = 0;
   std::size_t bytes = 0;
   zmq::socket_t sub, pub;
+  SubscriptionBook subscriptions;  // pub's live ones (kept with pub across a reload)
   SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
   // Multi-subject configs: one per subject (empty: tracker, encoder and
-  // model_out above serve the one subject), and their topics (pose/NAME, model/NAME).
+  // model_out above serve the one subject).
   std::vector<SubjectState> subjects;
-  std::vector<std::string> subject_topics;
+  // The topics published besides pose, stats and model: the subjects' (pose/NAME,
+  // model/NAME) and the views'.
+  std::vector<std::string> extra_topics;
 };
 
 struct Daemon::ReloadJob {
@@ -304,6 +331,23 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
                                          config.output_measured_markers,
                                          config.output_pose_content);
   };
+  // A tracker's views; `subject`: its name in a multi-subject config (topic
+  // TOPIC/NAME, poses carry "subject"), empty otherwise.
+  const auto make_views = [&](const Tracker& tracker, const std::string& subject) {
+    std::vector<ViewState> views;
+    for (const PoseViewConfig& v : config.output_views) {
+      ViewState view;
+      view.topic = subject.empty() ? v.topic : v.topic + "/" + subject;
+      view.encoder = std::make_unique<PoseEncoder>(
+          tracker, config.output_units,
+          v.encoding == Encoding::msgpack ? PayloadEncoding::msgpack : PayloadEncoding::json,
+          v.measured_markers, v.content);
+      if (!subject.empty()) view.encoder->set_subject(subject);
+      s->extra_topics.push_back(view.topic);
+      views.push_back(std::move(view));
+    }
+    return views;
+  };
   // The names a decoder takes for one subject's setup, each after `prefix`.
   const auto names_of = [](const TrackerSetup& setup, const std::string& prefix,
                            std::vector<std::string>& names, std::vector<std::string>& sensors) {
@@ -314,6 +358,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   if (config.subjects.empty()) {
     s->tracker = std::make_unique<Tracker>(config.tracker);
     s->encoder = make_encoder(*s->tracker);
+    s->views = make_views(*s->tracker, "");
     names_of(config.tracker, "", names, sensor_names);
   }
   s->subjects.resize(config.subjects.size());
@@ -323,11 +368,12 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
     subject.name = c.name;
     subject.pose_topic = "pose/" + c.name;
     subject.model_topic = "model/" + c.name;
-    s->subject_topics.push_back(subject.pose_topic);
-    s->subject_topics.push_back(subject.model_topic);
+    s->extra_topics.push_back(subject.pose_topic);
+    s->extra_topics.push_back(subject.model_topic);
     subject.tracker = std::make_unique<Tracker>(c.tracker);
     subject.encoder = make_encoder(*subject.tracker);
     subject.encoder->set_subject(c.name);
+    subject.views = make_views(*subject.tracker, c.name);
     std::vector<std::string> bare, bare_sensors;
     names_of(c.tracker, "", bare, bare_sensors);
     subject.decoder = std::make_unique<MarkerDecoder>(bare, config.input_m_per_unit,
@@ -377,7 +423,9 @@ void Daemon::attach_sockets(State& next, State* old) {
   if (keep_pub) {
     set_output_limits(old->pub, next.config);
     next.pub = std::move(old->pub);
+    next.subscriptions = std::move(old->subscriptions);
   }
+  count_view_subscribers(next);
   // A source keeps its connection while neither it nor the lab's axes changed.
   const SourceConfig& source = next.config.source;
   const LabAxes& lab = next.config.tracker.model->lab_axes;
@@ -400,6 +448,7 @@ Daemon::Daemon(zmq::context_t& context, DaemonConfig config, SourceClientFactory
   subject_counts_.assign(state_->subjects.size(), {});
   subject_snapshot_ = subject_counts_;
   out_.reserve(1 << 16);
+  view_out_.reserve(1 << 16);
   stats_out_.reserve(4096);
 }
 
@@ -649,7 +698,7 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
   State& s = *state_;
   const double time_s = f.has_time ? f.time_s
                                    : std::chrono::duration<double>(received - started_).count();
-  track_and_publish(*s.tracker, *s.encoder, "pose", f, time_s,
+  track_and_publish(*s.tracker, *s.encoder, "pose", s.views, f, time_s,
                     {f.p_world_m, f.visible, f.q_sensor, f.sensor_visible, confidence_of(f)},
                     received, decode_start);
 }
@@ -696,16 +745,17 @@ void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::t
       subject.last_seen_at = received;
     }
     if (!subject.present) continue;
-    if (track_and_publish(*subject.tracker, *subject.encoder, subject.pose_topic.c_str(), f,
-                          time_s, m, received, decode_start))
+    if (track_and_publish(*subject.tracker, *subject.encoder, subject.pose_topic.c_str(),
+                          subject.views, f, time_s, m, received, decode_start))
       ++c.frames_out;
     decode_start = Clock::now();  // the next subject's stages start here
   }
 }
 
 bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
-                               const MarkerFrame& f, double time_s, const Measurements& m,
-                               Clock::time_point received, Clock::time_point decode_start) {
+                               std::span<ViewState> views, const MarkerFrame& f, double time_s,
+                               const Measurements& m, Clock::time_point received,
+                               Clock::time_point decode_start) {
   FrameStages stages;
   const Clock::time_point solve_start = Clock::now();
   stages[Stage::decode] = us_between(decode_start, solve_start);
@@ -719,8 +769,8 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
     if (!all_finite(*r)) return false;
   }
   const Clock::time_point encode_start = Clock::now();
-  encoder.encode({f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us}, *r, out_,
-                 {m.p_world_m, m.visible});
+  const PoseHeader header{f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us};
+  encoder.encode(header, *r, out_, {m.p_world_m, m.visible});
   const Clock::time_point send_start = Clock::now();
   counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
   counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
@@ -738,7 +788,20 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
   queue_us_.add(us_between(received, sent));
   stages_us_.add(stages);
   last_stages_ = stages;
+  // After the pose, so that the pose's latency does not grow with its views.
+  for (ViewState& view : views) {
+    if (view.subscribers == 0) continue;
+    view.encoder->encode(header, *r, view_out_, {m.p_world_m, m.visible});
+    send(view.topic.c_str(), view_out_);
+    ++view.frames_out;
+  }
   return true;
+}
+
+void Daemon::count_view_subscribers(State& s) {
+  for (ViewState& view : s.views) view.subscribers = s.subscriptions.selecting(view.topic);
+  for (SubjectState& subject : s.subjects)
+    for (ViewState& view : subject.views) view.subscribers = s.subscriptions.selecting(view.topic);
 }
 
 void Daemon::read_monitor() {
@@ -805,9 +868,13 @@ void Daemon::read_subscriptions() {
   for (int n = 0; n < kMaxBatch; ++n) {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
-    if (!m.empty() && m[0] == 0) continue;  // an unsubscription: nothing to hold
-    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1), s.subject_topics)) {
+    if (!m.empty() && m[0] == 0) {  // an unsubscription (or a subscriber gone): nothing to hold
+      s.subscriptions.unsubscribed(m.substr(1));
+      continue;
+    }
+    if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1), s.extra_topics)) {
       const std::string_view prefix = m.substr(1);
+      s.subscriptions.subscribed(prefix);
       model_wanted = model_wanted ||
                      (s.subjects.empty() ? subscribes_to_model(prefix)
                                          : std::any_of(s.subjects.begin(), s.subjects.end(),
@@ -835,6 +902,7 @@ void Daemon::read_subscriptions() {
         std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "",
         s.subjects.empty() ? "" : ", and pose/NAME and model/NAME for its subjects");
   }
+  count_view_subscribers(s);
   update_snapshot();
   if (model_wanted) want_model(Clock::now());
 }
@@ -871,6 +939,8 @@ void Daemon::publish_stats(double interval_s) {
       s.config_name,
       s.source.get(),
       {},
+      {},
+      {},
       {}};
   const Clock::time_point now = Clock::now();
   const auto subjects = [&](auto& w) {
@@ -900,6 +970,28 @@ void Daemon::publish_stats(double interval_s) {
   if (!s.subjects.empty()) {
     fields.subjects_json = subjects;
     fields.subjects_msgpack = subjects;
+  }
+  const auto views = [&](auto& w) {
+    std::size_t n = s.views.size();
+    for (const SubjectState& subject : s.subjects) n += subject.views.size();
+    w.begin_map(n);
+    const auto write = [&](const ViewState& view) {
+      w.key(view.topic);  // a checked topic and subject name
+      w.begin_map(2);
+      w.key("subscribers");
+      w.uint(static_cast<std::uint64_t>(view.subscribers));
+      w.key("frames_out");
+      w.uint(view.frames_out);
+      w.end_map();
+    };
+    for (const ViewState& view : s.views) write(view);
+    for (const SubjectState& subject : s.subjects)
+      for (const ViewState& view : subject.views) write(view);
+    w.end_map();
+  };
+  if (!s.config.output_views.empty()) {
+    fields.views_json = views;
+    fields.views_msgpack = views;
   }
   if (s.config.output_encoding == Encoding::msgpack) {
     MsgpackWriter w(stats_out_);

@@ -109,8 +109,9 @@ constexpr int kInputReceiveBufferBytes = 256 * 1024;
 // refusing them is what bounds a subscriber's memory.
 inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats", "model"};
 bool subscribes_to_our_topics(std::string_view prefix);
-// The same with a multi-subject config's topics too (pose/NAME, model/NAME).
-bool subscribes_to_our_topics(std::string_view prefix, std::span<const std::string> subject_topics);
+// The same with a config's other topics too: a multi-subject config's
+// (pose/NAME, model/NAME) and its views' (output.views).
+bool subscribes_to_our_topics(std::string_view prefix, std::span<const std::string> extra_topics);
 // Whether a subscription to `prefix` receives the topic `model` (sent to it
 // when the subscription arrives: Daemon::read_subscriptions).
 inline bool subscribes_to_model(std::string_view prefix) {
@@ -199,12 +200,17 @@ class Daemon {
     std::span<const std::uint8_t> sensor_visible;
     std::span<const float> confidence;  // empty: the frame carried none (all 1)
   };
+  // Then each of `views` that a subscription selects, on its own topic.
+  struct ViewState;
   bool track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
-                         const MarkerFrame& f, double time_s, const Measurements& m,
+                         std::span<ViewState> views, const MarkerFrame& f, double time_s,
+                         const Measurements& m,
                          std::chrono::steady_clock::time_point received,
                          std::chrono::steady_clock::time_point decoded);
   void read_monitor();
   void read_subscriptions();
+  // Each view's subscribers, from the output's live subscriptions.
+  static void count_view_subscribers(State& s);
   void publish_stats(double interval_s);
   void publish_model();
   // Publishes the model now, or within kModelInterval of the last one: a
@@ -244,7 +250,7 @@ class Daemon {
   RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_, subscriber_log_;
   bool overloaded_ = false;  // behind the input: answer only the newest frame
   zmq::message_t topic_, payload_, extra_, subscription_;
-  std::string out_, stats_out_, decode_error_;
+  std::string out_, view_out_, stats_out_, decode_error_;
 };
 
 }  // namespace fabrik::wire

@@ -117,7 +117,7 @@ class Daemon:
     """One fabrikd process with its config, log and sockets."""
 
     def __init__(self, fabrikd, workdir, output_encoding="json", output_units="mm",
-                 measured_markers=False, pose_content=None, subjects=None):
+                 measured_markers=False, pose_content=None, subjects=None, views=None):
         self.in_ep = f"tcp://127.0.0.1:{free_port()}"
         self.out_ep = f"tcp://127.0.0.1:{free_port()}"
         self.output_units = output_units
@@ -141,6 +141,8 @@ class Daemon:
         }
         if pose_content is not None:
             config["output"]["pose_content"] = pose_content
+        if views is not None:
+            config["output"]["views"] = views
         if subjects:
             # Several subjects (docs/multi-subject.md): the tracking parts of
             # the config above become each subject's own config file.
@@ -152,7 +154,7 @@ class Daemon:
             config["subjects"] = [{"name": n, "config": f"subject-{n}.json"} for n in subjects]
         load_schema("daemon-config.schema.json").validate(config)
         tag = f"{output_encoding}-{output_units}" + ("" if pose_content is None else "-content") + \
-            ("-subjects" if subjects else "")
+            ("-subjects" if subjects else "") + ("-views" if views else "")
         self.config_path = pathlib.Path(workdir) / f"fabrikd-{tag}.json"
         self.config_path.write_text(json.dumps(config, indent=2))
         self.log_path = pathlib.Path(workdir) / f"fabrikd-{tag}.log"
@@ -721,6 +723,57 @@ def run_pose_content(args, workdir, model_markers_rest, rest_joints, root):
           "required fields and angles only, and validate")
 
 
+def run_views(args, workdir, model_markers_rest, rest_joints, root):
+    """output.views: a subscriber of a view's topic gets, per frame, a pose in
+    the view's encoding with the view's parts, valid against the pose schema;
+    stats count the view's subscriber and validate."""
+    schema = json.loads((ROOT / "proto" / "pose.schema.json").read_text())
+    required = set(schema["required"])
+    views = [{"topic": "joints", "pose_content": ["angles"], "encoding": "msgpack"}]
+    with Daemon(args.fabrikd, workdir, views=views) as d:
+        d.join()
+        view_sub = d.ctx.socket(zmq.SUB)
+        view_sub.setsockopt(zmq.LINGER, 0)
+        view_sub.setsockopt(zmq.SUBSCRIBE, b"joints")
+        view_sub.connect(d.out_ep)
+        try:
+            deadline = time.monotonic() + 15.0
+            frame = PROBE_BASE + 5000
+            while not view_sub.poll(50):  # slow joiner
+                check(time.monotonic() < deadline, "no view pose within 15 s of subscribing")
+                d.send(json.dumps({"frame": frame, "markers": {}}).encode())
+                frame += 1
+                d.pump(0)
+            while view_sub.poll(100):
+                view_sub.recv_multipart()
+            for i in range(10):
+                frame, t = 500 + i, i / 100.0
+                d.send(json.dumps(marker_frame(frame, moved(model_markers_rest, root, t), t,
+                                               "mm")).encode())
+                pose = d.wait_pose(frame)
+                check(view_sub.poll(int(ANSWER_TIMEOUT_S * 1000)), f"no view pose of frame {frame}")
+                topic, payload = view_sub.recv_multipart()
+                check(topic == b"joints", f"view topic {topic!r}")
+                view, enc = decode(payload)
+                check(enc == "msgpack", f"view encoding {enc}, the view says msgpack")
+                errors = list(d.pose_schema.iter_errors(view))
+                check(not errors, f"view pose violates proto/pose.schema.json: {errors[:1]}")
+                check(view["frame"] == frame, f"view of frame {view['frame']}, expected {frame}")
+                check(set(view) == required | {"time", "angles"}, f"view keys {sorted(view)}")
+                # The same solve; JSON writes fixed decimals, MessagePack the double.
+                check(set(view["angles"]) == set(pose["angles"]) and
+                      all(abs(view["angles"][k] - v) < 0.01 for k, v in pose["angles"].items()),
+                      "view angles differ from the pose's")
+            stats = d.stats_after(time.monotonic())  # validated on arrival
+            check(stats.get("views", {}).get("joints", {}).get("subscribers") == 1,
+                  f"stats.views: {stats.get('views')}")
+        finally:
+            view_sub.close()
+        d.stop()
+    print("contract: output.views: a view's subscriber gets valid poses in its encoding with its "
+          "parts; stats.views valid")
+
+
 def run_subjects(args, workdir, model_markers_rest, rest_joints, root):
     """Two subjects (docs/multi-subject.md): markers named SUBJECT:MARKER, and a
     frame with "subject"; each pose on pose/NAME with its subject, each model on
@@ -777,6 +830,7 @@ def main():
         run_main(args, workdir, markers, joints, root)
         run_msgpack_metres(args, workdir, markers, joints, root)
         run_pose_content(args, workdir, markers, joints, root)
+        run_views(args, workdir, markers, joints, root)
         run_subjects(args, workdir, markers, joints, root)
     print("contract: all checks passed")
 

@@ -1,0 +1,8 @@
+// A payload encoding of the output (output.encoding).
+#pragma once
+
+namespace fabrik {
+
+enum class Encoding { json, msgpack };
+
+}  // namespace fabrik

@@ -1,0 +1,47 @@
+// The output's live subscriptions, as the loop sees them (XPUB_VERBOSER
+// passes every subscription and every unsubscription, including those ZeroMQ
+// makes for a subscriber that went away): which topics someone selects, so
+// that a pose view (output.views) is encoded only while it has a subscriber.
+// A subscription selects a topic when it is a prefix of it and is not one of
+// the daemon's own topics' prefixes (so "" and "p" do not: they ask for every
+// pose, not for a view). Changes only when a subscription arrives; the frame
+// path reads a flag the loop keeps per view.
+#pragma once
+
+#include <algorithm>
+#include <iterator>
+#include <map>
+#include <string>
+#include <string_view>
+
+namespace fabrik::wire {
+
+class SubscriptionBook {
+ public:
+  void subscribed(std::string_view prefix) { ++count_[std::string(prefix)]; }
+  // An unsubscription of what was never counted (a refused subscription's, as
+  // ZeroMQ reports it when that subscriber is dropped) changes nothing.
+  void unsubscribed(std::string_view prefix) {
+    const auto it = count_.find(prefix);
+    if (it == count_.end()) return;
+    if (--it->second == 0) count_.erase(it);
+  }
+  // The live subscriptions that select `topic`, each counted as often as it was made.
+  int selecting(std::string_view topic) const {
+    int n = 0;
+    for (const auto& [prefix, count] : count_)
+      if (!prefix.empty() && topic.starts_with(prefix) && !prefixes_own_topic(prefix)) n += count;
+    return n;
+  }
+  void clear() { count_.clear(); }
+
+ private:
+  static bool prefixes_own_topic(std::string_view prefix) {
+    constexpr std::string_view own[] = {"pose", "stats", "model"};
+    return std::any_of(std::begin(own), std::end(own),
+                       [&](std::string_view t) { return t.starts_with(prefix); });
+  }
+  std::map<std::string, int, std::less<>> count_;
+};
+
+}  // namespace fabrik::wire

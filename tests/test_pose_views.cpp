@@ -1,0 +1,218 @@
+// Pose views (output.views): a subscriber chooses what its poses carry by
+// subscribing to a view's topic; the daemon encodes a view only while a
+// subscription selects it, and stops when its last subscriber goes.
+#include <catch2/catch.hpp>
+#include <chrono>
+#include <optional>
+#include <spdlog/spdlog.h>
+#include <string>
+
+#include "config/config_error.hpp"
+#include "config/daemon_config.hpp"
+#include "daemon_thread.hpp"
+#include "socket_client.hpp"
+#include "subjects_fixture.hpp"
+#include "transport/subscription_book.hpp"
+
+using namespace fabrik;
+using namespace std::chrono_literals;
+using json = nlohmann::json;
+
+using test::subscriber;
+
+namespace {
+
+DaemonConfig config_with_views(const json& output) {
+  json root{{"format", "fabrikd-config/1"}, {"model", "models/fullbody.json"}, {"output", output}};
+  return load_daemon_config(root.dump(), "views.json");
+}
+
+// The message ConfigError gives for `output`, or "" when it loads.
+std::string config_error(const json& output) {
+  try {
+    (void)config_with_views(output);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+DaemonConfig on_free_ports(DaemonConfig c) {
+  c.input = {"tcp://127.0.0.1:*", SocketMode::bind};
+  c.output = {"tcp://127.0.0.1:*", SocketMode::bind};
+  c.stats_interval_s = 0.02;
+  spdlog::set_level(spdlog::level::err);
+  return c;
+}
+
+// stats.views[topic][key] of the first stats for which `done` holds while
+// frames keep coming (so the loop keeps serving), or nothing after 5 s.
+template <class Done>
+std::optional<json> view_stats_until(test::SocketClient& client, std::uint64_t& frame,
+                                     Done done) {
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    client.send_frame(++frame);
+    auto stats = client.receive("stats", 100ms);
+    if (stats && stats->contains("views") && done((*stats)["views"])) return (*stats)["views"];
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+TEST_CASE("output.views reads each view's topic, parts, measured switch and encoding",
+          "[views][config]") {
+  const DaemonConfig c = config_with_views(
+      {{"encoding", "msgpack"},
+       {"views", json::array({{{"topic", "joints"}, {"pose_content", {"angles"}}},
+                              {{"topic", "lab.full"},
+                               {"pose_content", {"segments", "gap_s"}},
+                               {"measured_markers", true},
+                               {"encoding", "json"}}})}});
+  REQUIRE(c.output_views.size() == 2);
+  CHECK(c.output_views[0].topic == "joints");
+  CHECK(c.output_views[0].content == PoseContent::none().with(PosePart::angles));
+  CHECK_FALSE(c.output_views[0].measured_markers);
+  CHECK(c.output_views[0].encoding == Encoding::msgpack);  // output.encoding's
+  CHECK(c.output_views[1].content ==
+        PoseContent::none().with(PosePart::segments).with(PosePart::gap_s));
+  CHECK(c.output_views[1].measured_markers);
+  CHECK(c.output_views[1].encoding == Encoding::json);
+  CHECK(config_with_views(json::object()).output_views.empty());  // none by default
+}
+
+TEST_CASE("A view topic that a subscriber of pose, stats, model or another view would also "
+          "receive is refused with the reason",
+          "[views][config]") {
+  const auto view = [](const std::string& topic) {
+    return json{{"views", json::array({{{"topic", topic}}})}};
+  };
+  CHECK(config_error(view("joints")).empty());
+  for (const char* topic : {"pose", "pose2", "p", "posed", "stats.lean", "model", "mark", ""}) {
+    CAPTURE(topic);
+    CHECK_THAT(config_error(view(topic)), Catch::Contains("cannot be used"));
+  }
+  CHECK_THAT(config_error(view("has space")), Catch::Contains("letters, digits"));
+  CHECK_THAT(config_error(view(std::string(33, 'j'))), Catch::Contains("1 to 32"));
+  CHECK_THAT(config_error({{"views", json::array({{{"topic", "joints"}},
+                                                   {{"topic", "joints.fast"}}})}}),
+             Catch::Contains("start alike"));
+  CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"units", "m"}}})}}),
+             Catch::Contains("units"));
+  CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"pose_content", {"wings"}}}})}}),
+             Catch::Contains("unknown pose part 'wings'"));
+  json many = json::array();
+  for (int i = 0; i < 17; ++i) many.push_back({{"topic", "v" + std::to_string(i) + "x"}});
+  CHECK_THAT(config_error({{"views", many}}), Catch::Contains("at most 16"));
+}
+
+TEST_CASE("A subscription selects a view when it starts the view's topic and is no start of "
+          "the daemon's own topics",
+          "[views]") {
+  wire::SubscriptionBook book;
+  book.subscribed("");
+  book.subscribed("p");
+  book.subscribed("pose");
+  CHECK(book.selecting("joints") == 0);  // every topic, or every pose: not a view's choice
+  book.subscribed("jo");
+  book.subscribed("joints");
+  book.subscribed("joints");
+  CHECK(book.selecting("joints") == 3);
+  CHECK(book.selecting("joints/alice") == 3);
+  CHECK(book.selecting("lean") == 0);
+  book.unsubscribed("joints");
+  book.unsubscribed("never-counted");
+  CHECK(book.selecting("joints") == 2);
+  book.unsubscribed("joints");
+  book.unsubscribed("joints");  // one more than was made: stays at none
+  book.unsubscribed("jo");
+  CHECK(book.selecting("joints") == 0);
+  book.subscribed("joints/alice");
+  CHECK(book.selecting("joints/alice") == 1);
+  CHECK(book.selecting("joints/bob") == 0);
+}
+
+TEST_CASE("A view is encoded only while someone subscribes to it, carries the parts it names, "
+          "and stops when its subscriber goes",
+          "[views][daemon]") {
+  zmq::context_t context;
+  test::DaemonThread d(
+      context, on_free_ports(config_with_views(
+                   {{"views", json::array({{{"topic", "joints"}, {"pose_content", {"angles"}}},
+                                           {{"topic", "lean"}, {"encoding", "msgpack"}}})}})));
+  // Subscribed to everything (""): that asks for no view.
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  const auto none_sent = view_stats_until(client, frame, [](const json& views) {
+    return views["joints"]["frames_out"] == 0 && views["lean"]["frames_out"] == 0;
+  });
+  REQUIRE(none_sent);
+  CHECK((*none_sent)["joints"]["subscribers"] == 0);
+  const std::uint64_t poses_before = d.daemon.counters().frames_out;
+  CHECK(poses_before > 0);
+
+  {
+    zmq::socket_t joints = subscriber(context, d.daemon.output_endpoint(), "joints");
+    const auto counted = view_stats_until(
+        client, frame, [](const json& views) { return views["joints"]["subscribers"] == 1; });
+    REQUIRE(counted);
+    CHECK((*counted)["lean"]["subscribers"] == 0);
+    // Views of earlier frames may still be queued: the one of this frame.
+    client.send_frame(++frame);
+    std::optional<json> view;
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    while (!view && std::chrono::steady_clock::now() < deadline) {
+      auto m = test::receive_topic(joints, "joints", 100ms);
+      if (m && test::decode_payload(*m)["frame"] == frame) view = test::decode_payload(*m);
+    }
+    REQUIRE(view);
+    const json& lean = *view;
+    // The pose's required fields and the angles, nothing else it could carry.
+    for (const char* key : {"frame", "units", "joints", "markers", "occluded", "residual", "solver",
+                            "angles"})
+      CHECK(lean.contains(key));
+    for (const char* key : {"segments", "translations", "gap_s", "held", "outliers", "measured"})
+      CHECK_FALSE(lean.contains(key));
+    // The pose of the same frame is as the config says (every part).
+    const auto pose = client.pose_of(frame);
+    REQUIRE(pose);
+    CHECK(pose->contains("segments"));
+    CHECK(pose->contains("gap_s"));
+    CHECK((*pose)["angles"] == lean["angles"]);
+    CHECK((*pose)["joints"] == lean["joints"]);
+  }  // the subscriber goes: ZeroMQ unsubscribes it
+
+  const auto gone = view_stats_until(
+      client, frame, [](const json& views) { return views["joints"]["subscribers"] == 0; });
+  REQUIRE(gone);
+  const std::uint64_t sent = (*gone)["joints"]["frames_out"].get<std::uint64_t>();
+  CHECK(sent > 0);
+  // Poses go on; the view does not.
+  const auto later = view_stats_until(client, frame, [&](const json&) {
+    return d.daemon.counters().frames_out > poses_before + 50;
+  });
+  REQUIRE(later);
+  CHECK((*later)["joints"]["frames_out"] == sent);
+  CHECK((*later)["lean"]["frames_out"] == 0);
+  CHECK(d.daemon.counters().subscriptions_refused == 0);
+}
+
+TEST_CASE("A multi-subject daemon publishes each subject's view on TOPIC/NAME, selected apart",
+          "[views][daemon][subjects]") {
+  test::SubjectsDir dir;
+  DaemonConfig c = load_daemon_config_file(dir.write(
+      {"alice", "bob"}, {{"output", {{"views", json::array({{{"topic", "joints"}}})}}}}));
+  zmq::context_t context;
+  test::DaemonThread d(context, on_free_ports(std::move(c)));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  zmq::socket_t alice = subscriber(context, d.daemon.output_endpoint(), "joints/alice");
+  std::uint64_t frame = 0;
+  const auto counted = view_stats_until(client, frame, [](const json& views) {
+    return views.contains("joints/alice") && views["joints/alice"]["subscribers"] == 1;
+  });
+  REQUIRE(counted);
+  CHECK((*counted)["joints/bob"]["subscribers"] == 0);
+  CHECK_FALSE(counted->contains("joints"));
+  CHECK(d.daemon.counters().subscriptions_refused == 0);
+}
