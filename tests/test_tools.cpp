@@ -2,6 +2,7 @@
 // (inproc and tcp, JSON and MessagePack), --drop parsing, and the watch decoder and tally.
 #include <catch2/catch.hpp>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -328,6 +329,44 @@ TEST_CASE("watch decodes JSON and MessagePack payloads by their first byte") {
   std::string truncated = encode_payload(pose, WireEncoding::msgpack);
   truncated.resize(truncated.size() / 2);
   CHECK_THROWS_WITH(decode_payload(truncated), Catch::Contains("bad msgpack"));
+}
+
+TEST_CASE("watch --topic tallies the poses of its topic only, not of topics it starts") {
+  zmq::context_t context;
+  zmq::socket_t pub(context, zmq::socket_type::pub);
+  pub.set(zmq::sockopt::linger, 0);
+  pub.bind("inproc://watch-topic");
+  WatchOptions o;
+  o.endpoint = "inproc://watch-topic";
+  o.topic = "joints";
+  o.seconds = 20.0;  // a bound: it stops at 20 poses long before
+  WatchTally tally;
+  o.stop_requested = [&] { return tally.poses() >= 20; };
+  std::atomic<bool> done{false};
+  std::thread publisher([&] {
+    // Until the subscription has propagated, PUB drops: publish until the watch has enough.
+    for (std::uint64_t f = 1; !done && f < 10000000; ++f) {
+      const std::pair<const char*, std::uint64_t> messages[] = {
+          {"pose", f}, {"joints", 100000000 + f}, {"joints.mp", 200000000 + f}};
+      for (const auto& [topic, frame] : messages) {
+        const std::string pose = json{{"frame", frame},
+                                      {"units", "mm"},
+                                      {"occluded", json::array()},
+                                      {"residual", {{"rms", 1.0}, {"max", 2.0}, {"count", 3}}},
+                                      {"solver", {{"status", "converged"}, {"solve_us", 5.0}}}}
+                                     .dump();
+        pub.send(zmq::buffer(std::string_view(topic)), zmq::send_flags::sndmore);
+        pub.send(zmq::buffer(pose));
+      }
+      std::this_thread::yield();
+    }
+  });
+  const json s = watch(context, o, tally);
+  done = true;
+  publisher.join();
+  CHECK(tally.poses() >= 20);
+  CHECK(s["first_frame"].get<std::uint64_t>() > 100000000);
+  CHECK(s["last_frame"].get<std::uint64_t>() < 200000000);
 }
 
 TEST_CASE("watch tally: a vendor source's connection shows in the live line, its error when it is down") {

@@ -145,7 +145,7 @@ void add_replay_command(CLI::App& app) {
 
 void add_watch_command(CLI::App& app) {
   struct Args {
-    std::string from;
+    std::string from, topic = "pose";
     bool bind = false, json = false;
     double seconds = 0.0;
   };
@@ -158,6 +158,10 @@ void add_watch_command(CLI::App& app) {
   cmd->add_flag("--bind", a->bind, "Bind the endpoint instead of connecting to it");
   cmd->add_option("--seconds", a->seconds, "Stop after S seconds (0: at Ctrl-C)")
       ->check(CLI::Range(0.0, 1e9));
+  cmd->add_option("--topic", a->topic,
+                  "The poses' topic: pose, a subject's pose/NAME or a pose view's (output.views)")
+      ->capture_default_str()
+      ->check([](const std::string& t) { return t.empty() ? std::string("is empty") : std::string(); });
   cmd->add_flag("--json", a->json,
                 "Print the final summary as one JSON object on stdout (live lines go to stderr)");
   cmd->callback([a] {
@@ -166,6 +170,7 @@ void add_watch_command(CLI::App& app) {
       o.endpoint = a->from;
       o.bind = a->bind;
       o.seconds = a->seconds;
+      o.topic = a->topic;
       catch_stop_signals();
       o.stop_requested = [] { return g_stop.load(); };
       FILE* live = a->json ? stderr : stdout;

@@ -220,7 +220,7 @@ json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tal
   zmq::socket_t sub(context, zmq::socket_type::sub);
   sub.set(zmq::sockopt::linger, 0);
   sub.set(zmq::sockopt::rcvhwm, 100000);
-  sub.set(zmq::sockopt::subscribe, "pose");
+  sub.set(zmq::sockopt::subscribe, options.topic);
   sub.set(zmq::sockopt::subscribe, "stats");
   open_endpoint(sub, options.endpoint, options.bind, "--from");
 
@@ -257,7 +257,7 @@ json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tal
       continue;
     }
     const std::string_view topic = parts[0].to_string_view();
-    if (topic == "pose") {
+    if (topic == options.topic) {  // exactly: a subscription also takes longer topics
       tally.add_pose(doc, t_s);
     } else if (topic == "stats") {
       tally.add_stats(doc, t_s);

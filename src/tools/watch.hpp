@@ -52,6 +52,8 @@ struct WatchOptions {
   std::string endpoint;
   bool bind = false;     // default: connect (fabrikd binds its output)
   double seconds = 0.0;  // 0: until stop_requested
+  // The poses' topic: `pose`, a subject's `pose/NAME`, or a view's (config output.views).
+  std::string topic = "pose";
   std::function<bool()> stop_requested;
   std::function<void(const std::string&)> live;  // one line per stats interval
 };
