@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <future>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -17,11 +18,13 @@ namespace fabrik::test {
 // Stops the daemon on destruction; a daemon that does not stop within 5 s
 // aborts the test run with a message (a wedged loop must fail, not hang).
 struct DaemonThread {
+  // `load`: what a reload (control.reload) reads; empty: reloads are refused.
   DaemonThread(zmq::context_t& context, DaemonConfig config,
-               wire::Daemon::SourceClientFactory source_client = {})
-      : daemon(context, std::move(config), std::move(source_client)) {
+               wire::Daemon::SourceClientFactory source_client = {},
+               std::function<DaemonConfig()> load = {})
+      : daemon(context, std::move(config), std::move(source_client)), load_config(std::move(load)) {
     thread = std::thread([this] {
-      daemon.run(control);
+      daemon.run(control, load_config);
       done.set_value();
     });
   }
@@ -43,6 +46,7 @@ struct DaemonThread {
   DaemonThread& operator=(const DaemonThread&) = delete;
 
   wire::Daemon daemon;
+  std::function<DaemonConfig()> load_config;
   wire::DaemonControl control;
   std::promise<void> done;
   std::future<void> finished = done.get_future();

@@ -216,3 +216,29 @@ TEST_CASE("A multi-subject daemon publishes each subject's view on TOPIC/NAME, s
   CHECK_FALSE(counted->contains("joints"));
   CHECK(d.daemon.counters().subscriptions_refused == 0);
 }
+
+TEST_CASE("A reload that keeps the output keeps its subscribers' views selected, and starts new "
+          "views",
+          "[views][daemon][reload]") {
+  const json joints{{"topic", "joints"}, {"pose_content", {"angles"}}};
+  const DaemonConfig before = on_free_ports(config_with_views({{"views", json::array({joints})}}));
+  const DaemonConfig after = on_free_ports(
+      config_with_views({{"views", json::array({joints, {{"topic", "lean"}}})}}));
+  zmq::context_t context;
+  test::DaemonThread d(context, before, {}, [&] { return after; });
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  zmq::socket_t viewer = subscriber(context, d.daemon.output_endpoint(), "joints");
+  std::uint64_t frame = 0;
+  REQUIRE(view_stats_until(client, frame,
+                           [](const json& views) { return views["joints"]["subscribers"] == 1; }));
+  d.control.reload = true;
+  const auto reloaded =
+      view_stats_until(client, frame, [](const json& views) { return views.contains("lean"); });
+  REQUIRE(reloaded);
+  CHECK(d.daemon.counters().reloads == 1);
+  CHECK((*reloaded)["joints"]["subscribers"] == 1);  // the subscriber did not resubscribe
+  CHECK((*reloaded)["lean"]["subscribers"] == 0);
+  // And its view still comes.
+  client.send_frame(++frame);
+  CHECK(test::receive_topic(viewer, "joints", 5000ms));
+}
