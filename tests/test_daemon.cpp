@@ -708,6 +708,36 @@ TEST_CASE("A subscriber that never reads does not block the daemon", "[daemon]")
   CHECK(d.daemon.counters().frames_dropped == 0);
 }
 
+// Serving stops after kMaxServe (20 ms) to look at stats and signals; frames
+// still waiting then must be served without more input to wake the loop (the
+// end of a burst, or of a recording). Each solve here runs its whole budget
+// (no tolerance can be met), so a burst takes far longer than one serving.
+TEST_CASE("The last frames of a burst longer to solve than one serving are answered without "
+          "more input",
+          "[daemon][limits]") {
+  zmq::context_t context;
+  DaemonConfig cfg = config_on("tcp://127.0.0.1:*", "tcp://127.0.0.1:*");
+  cfg.max_backlog_frames = 10000;  // every frame of the burst is kept
+  cfg.max_payload_bytes = 64 * 1024;
+  cfg.tracker.solver.tolerance_m = 1e-15;
+  cfg.tracker.solver.stall_tolerance_m = 0.0;
+  cfg.tracker.solver.max_iterations = 400;
+  RunningDaemon d(context, std::move(cfg));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  const std::string markers = rest_markers(d.daemon.config()).dump();
+  const std::uint64_t first = frame + 1;
+  const int burst = 100;
+  for (int i = 0; i < burst; ++i)
+    client.send(R"({"frame": )" + std::to_string(++frame) + R"(, "markers": )" + markers + "}");
+  // No more input: the last pose must still come (10 s: far beyond the burst's solves).
+  const auto last = client.pose_of(frame, 10000ms);
+  REQUIRE(last);
+  CHECK((*last)["solver"]["iterations"].get<int>() >= 100);  // slow solves, as meant
+  CHECK(d.daemon.counters().frames_dropped == 0);
+  CHECK(frame - first + 1 == static_cast<std::uint64_t>(burst));
+}
+
 TEST_CASE("A subscriber that stalls gets fresh poses after the few queued for it",
           "[daemon][limits]") {
   const int backlog = GENERATE(16, 1);

@@ -1106,11 +1106,16 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
         std::chrono::duration<double>(state_->config.stats_interval_s));
     const auto next_stats = last_stats + interval;
     // Wake at least every 100 ms so a stop request is seen promptly, and
-    // every 10 ms while a reload is being read.
-    const auto wait = std::clamp(
-        std::chrono::duration_cast<std::chrono::milliseconds>(next_stats - Clock::now()),
-        std::chrono::milliseconds(0), std::chrono::milliseconds(reload_ ? 10 : 100));
+    // every 10 ms while a reload is being read. Frames still waiting in the
+    // ring (serving stopped at kMaxServe) are served at once: no more input
+    // may come to wake the loop (the end of a burst or of a recording).
     State& s = *state_;
+    const bool waiting = s.count > 0;
+    const auto wait = waiting ? std::chrono::milliseconds(0)
+                              : std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                               next_stats - Clock::now()),
+                                           std::chrono::milliseconds(0),
+                                           std::chrono::milliseconds(reload_ ? 10 : 100));
     zmq::pollitem_t items[5] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
                                 {s.pub.handle(), 0, ZMQ_POLLIN, 0}};
     int n_items = 2;
@@ -1120,7 +1125,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
     if (s.monitor) items[n_items++] = {s.monitor.events().handle(), 0, ZMQ_POLLIN, 0};
     try {
       zmq::poll(items, n_items, wait);
-      if (items[0].revents & ZMQ_POLLIN) serve_input(s.sub);
+      if ((items[0].revents & ZMQ_POLLIN) || waiting) serve_input(s.sub);
       if (items[1].revents & ZMQ_POLLIN) read_subscriptions();
       if (fixed_items == 3 && (items[2].revents & ZMQ_POLLIN)) serve_input(state_->source->socket());
       if (state_->source) state_->source->log_changes();
