@@ -521,16 +521,21 @@ TEST_CASE("The QTM stream path (split, decode data, encode data) allocates nothi
 // sends (a message over 33 bytes), so a frame of two subjects (and another
 // process's third) costs exactly what two single-subject frames cost, and
 // one with "subject" one.
+namespace {
+// `c` on in-process endpoints of its own, named after `name`.
+DaemonConfig on_inproc(DaemonConfig c, const std::string& name) {
+  c.input = {"inproc://alloc-" + name + "-in", SocketMode::bind};
+  c.output = {"inproc://alloc-" + name + "-out", SocketMode::bind};
+  return c;
+}
+}  // namespace
+
 TEST_CASE("A multi-subject frame allocates nothing beyond ZeroMQ's copy of each pose sent",
           "[alloc][subjects]") {
   zmq::context_t context;
   test::SubjectsDir dir;
-  DaemonConfig single = default_daemon_config();
-  DaemonConfig multi = load_daemon_config_file(dir.write({"Alice", "Bob"}));
-  single.input = {"inproc://alloc-single-in", SocketMode::bind};
-  single.output = {"inproc://alloc-single-out", SocketMode::bind};
-  multi.input = {"inproc://alloc-multi-in", SocketMode::bind};
-  multi.output = {"inproc://alloc-multi-out", SocketMode::bind};
+  const DaemonConfig single = on_inproc(default_daemon_config(), "single");
+  const DaemonConfig multi = on_inproc(load_daemon_config_file(dir.write({"Alice", "Bob"})), "multi");
   wire::Daemon one(context, single), two(context, multi);
   SyntheticMotion motion(*single.tracker.model, MotionSettings{});
   const auto bytes = [](const std::string& s) {
@@ -576,14 +581,10 @@ TEST_CASE("A multi-subject frame allocates nothing beyond ZeroMQ's copy of each 
 // configured with some allocates on its frame path what one without does.
 TEST_CASE("Pose views nobody subscribes to add no allocation to the frame path", "[alloc][views]") {
   zmq::context_t context;
-  DaemonConfig plain = default_daemon_config();
-  DaemonConfig viewed = plain;
+  const DaemonConfig plain = on_inproc(default_daemon_config(), "plain");
+  DaemonConfig viewed = on_inproc(default_daemon_config(), "viewed");
   viewed.output_views = {{"joints", PoseContent::none().with(PosePart::angles), false, Encoding::json},
                          {"lean", PoseContent::none(), true, Encoding::msgpack}};
-  plain.input = {"inproc://alloc-plain-in", SocketMode::bind};
-  plain.output = {"inproc://alloc-plain-out", SocketMode::bind};
-  viewed.input = {"inproc://alloc-viewed-in", SocketMode::bind};
-  viewed.output = {"inproc://alloc-viewed-out", SocketMode::bind};
   wire::Daemon a(context, plain), b(context, viewed);
   SyntheticMotion motion(*plain.tracker.model, MotionSettings{});
   long plain_allocations = 0, viewed_allocations = 0;

@@ -2,22 +2,23 @@
 
 #include <algorithm>
 #include <cctype>
+#include <iterator>
+
+#include "topics.hpp"
 
 namespace fabrik {
-
-namespace {
-// The daemon's own topics (input and output): a view may not collide with them by prefix.
-constexpr std::string_view kOwnTopics[] = {"markers", "pose", "stats", "model"};
-}  // namespace
 
 bool view_topic_ok(std::string_view topic) {
   if (topic.empty() || topic.size() > kMaxViewTopicBytes) return false;
   const bool chars_ok = std::all_of(topic.begin(), topic.end(), [](char ch) {
     return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '.';
   });
-  return chars_ok && std::none_of(std::begin(kOwnTopics), std::end(kOwnTopics), [&](std::string_view own) {
-           return own.starts_with(topic) || topic.starts_with(own);
-         });
+  // The daemon's own topics, in and out: a view may not collide with them by prefix.
+  const auto collides = [&](std::string_view own) {
+    return own.starts_with(topic) || topic.starts_with(own);
+  };
+  return chars_ok && !collides(kMarkersTopic) &&
+         std::none_of(std::begin(kPublishedTopics), std::end(kPublishedTopics), collides);
 }
 
 std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding default_encoding) {

@@ -547,7 +547,7 @@ int Daemon::drain_input(zmq::socket_t& in, int budget) {
       bad_input("expected 2 message frames [topic, payload], got ", std::to_string(parts));
       continue;
     }
-    if (view(topic_) != "markers") {
+    if (view(topic_) != kMarkersTopic) {
       bad_input("unknown topic '", view(topic_).substr(0, 64), "'");
       continue;
     }

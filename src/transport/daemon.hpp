@@ -26,6 +26,7 @@
 #include <zmq.hpp>
 
 #include "config/daemon_config.hpp"
+#include "config/topics.hpp"
 #include "frame_stages.hpp"
 #include "interval_stats.hpp"
 #include "marker_codec.hpp"
@@ -107,7 +108,7 @@ constexpr int kInputReceiveBufferBytes = 256 * 1024;
 // connection dropped. ZeroMQ keeps every subscription it is sent in a tree
 // (about 32 bytes per subscribed byte, never given back while connected), so
 // refusing them is what bounds a subscriber's memory.
-inline constexpr std::string_view kPublishedTopics[] = {"pose", "stats", "model"};
+// (kPublishedTopics: config/topics.hpp.)
 bool subscribes_to_our_topics(std::string_view prefix);
 // The same with a config's other topics too: a multi-subject config's
 // (pose/NAME, model/NAME) and its views' (output.views).

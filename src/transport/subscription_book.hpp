@@ -14,6 +14,8 @@
 #include <string>
 #include <string_view>
 
+#include "config/topics.hpp"
+
 namespace fabrik::wire {
 
 class SubscriptionBook {
@@ -37,8 +39,7 @@ class SubscriptionBook {
 
  private:
   static bool prefixes_own_topic(std::string_view prefix) {
-    constexpr std::string_view own[] = {"pose", "stats", "model"};
-    return std::any_of(std::begin(own), std::end(own),
+    return std::any_of(std::begin(kPublishedTopics), std::end(kPublishedTopics),
                        [&](std::string_view t) { return t.starts_with(prefix); });
   }
   std::map<std::string, int, std::less<>> count_;
