@@ -710,8 +710,9 @@ TEST_CASE("A subscriber that never reads does not block the daemon", "[daemon]")
 
 // Serving stops after kMaxServe (20 ms) to look at stats and signals; frames
 // still waiting then must be served without more input to wake the loop (the
-// end of a burst, or of a recording). Each solve here runs its whole budget
-// (no tolerance can be met), so a burst takes far longer than one serving.
+// end of a burst, or of a recording). Solves here run long (a tolerance no
+// solve meets; they end at the budget or an exact fixed point), and the burst
+// is long, so it takes far longer than one serving.
 TEST_CASE("The last frames of a burst longer to solve than one serving are answered without "
           "more input",
           "[daemon][limits]") {
@@ -727,13 +728,15 @@ TEST_CASE("The last frames of a burst longer to solve than one serving are answe
   std::uint64_t frame = client.handshake();
   const std::string markers = rest_markers(d.daemon.config()).dump();
   const std::uint64_t first = frame + 1;
-  const int burst = 100;
+  const int burst = 500;  // within the input queue (max_payload_bytes above) and the ring
+  const auto start = std::chrono::steady_clock::now();
   for (int i = 0; i < burst; ++i)
     client.send(R"({"frame": )" + std::to_string(++frame) + R"(, "markers": )" + markers + "}");
-  // No more input: the last pose must still come (10 s: far beyond the burst's solves).
-  const auto last = client.pose_of(frame, 10000ms);
+  // No more input: the last pose must still come (20 s: far beyond the burst's solves).
+  const auto last = client.pose_of(frame, 20000ms);
   REQUIRE(last);
-  CHECK((*last)["solver"]["iterations"].get<int>() >= 100);  // slow solves, as meant
+  // The burst took longer than one serving (20 ms), as meant.
+  CHECK(std::chrono::steady_clock::now() - start > 40ms);
   CHECK(d.daemon.counters().frames_dropped == 0);
   CHECK(frame - first + 1 == static_cast<std::uint64_t>(burst));
 }
