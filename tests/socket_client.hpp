@@ -54,6 +54,14 @@ inline zmq::socket_t subscriber(zmq::context_t& context, const std::string& endp
   return s;
 }
 
+// Receives every message waiting on `sub` without waiting; how many there were.
+inline int drain(zmq::socket_t& sub) {
+  int n = 0;
+  zmq::message_t part;
+  while (sub.recv(part, zmq::recv_flags::dontwait)) n += part.more() ? 0 : 1;
+  return n;
+}
+
 class SocketClient {
  public:
   // Connects a PUB to the daemon's input and a SUB (every topic: pose, stats, model) to its

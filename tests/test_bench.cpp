@@ -279,6 +279,28 @@ TEST_CASE("bench pipeline reports each stage, and the solve split into the solve
   }
 }
 
+TEST_CASE("bench latency --view subscribes to a view alone, and the floor answers with its size",
+          "[bench][latency][views]") {
+  bench::LatencyOptions o;
+  o.transports = {"tcp"};
+  o.seconds = 0.2;
+  o.encoding = "msgpack";
+  const nlohmann::json full = bench::run_latency(o);
+  o.view_parts = {"none"};
+  const nlohmann::json lean = bench::run_latency(o);
+  CAPTURE(full.dump(), lean.dump());
+  CHECK(full["subscribed_to"] == "pose");
+  CHECK(lean["subscribed_to"]["view"] == nlohmann::json::array({"none"}));
+  const nlohmann::json& d = lean["runs"][0]["daemon"];
+  REQUIRE(d["poses_received"].get<int>() > 0);
+  CHECK(d["decode_errors"] == 0);
+  // The required fields only: well under the full pose.
+  const double full_bytes = full["runs"][0]["daemon"]["pose_bytes_mean"].get<double>();
+  CHECK(d["pose_bytes_mean"].get<double>() < 0.8 * full_bytes);
+  CHECK(lean["runs"][0]["floor"]["pose_bytes"].get<double>() ==
+        Approx(d["pose_bytes_mean"].get<double>()).epsilon(0.02));
+}
+
 TEST_CASE("bench latency --config runs that config's model against the floor", "[bench][latency]") {
   const calib::CalibTemplate tmpl =
       calib::load_template_file(std::string(FABRIK_SOURCE_DIR) + "/config/templates/gait2354.json");

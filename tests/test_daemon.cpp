@@ -598,6 +598,7 @@ TEST_CASE("Stats arrive every interval with values that match the traffic", "[da
   CHECK(counter(*stats, "frames_dropped") == before.frames_dropped);
   CHECK(counter(*stats, "unknown_markers") - before.unknown_markers == 10);
   CHECK(counter(*stats, "internal_errors") == 0);
+  CHECK(counter(*stats, "pose_subscribers") == 1);  // the client's, to everything
   CHECK_THAT((*stats)["last_error"].get<std::string>(), Catch::Contains("not valid JSON"));
   CHECK((*stats)["config"] == "<embedded>/default.json");
   // Stats follow each other at the configured interval (0.05 s), uptime grows.

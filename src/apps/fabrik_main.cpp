@@ -115,6 +115,12 @@ int main(int argc, char** argv) {
                    "--rate then the total (default 500)")
       ->delimiter(',')
       ->check(CLI::IsMember({"qtm", "natnet"}));
+  b_latency
+      ->add_option("--view", latency.view_parts,
+                   "Subscribe to a pose view (output.views) of these optional parts (e.g. "
+                   "angles; none: the required fields only) instead of to pose, as a client "
+                   "that wants only them: the full pose is then not made")
+      ->delimiter(',');
   b_latency->add_flag("--json", latency_json, "Print one JSON object instead of a table");
 
   fabrik::bench::PipelineOptions pipeline;

@@ -20,7 +20,9 @@
 #include "bridges/natnet_sim_server.hpp"
 #include "bridges/qtm/sim_server.hpp"
 #include "config/daemon_config.hpp"
+#include "config/json_reader.hpp"
 #include "config/lab_axes_json.hpp"
+#include "config/pose_content.hpp"
 #include "stats.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
@@ -33,6 +35,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 using nlohmann::json;
+
+// The topic of `--view`'s view.
+constexpr const char* kViewTopic = "bench";
 
 // Issue 22's goals against the floor: the daemon's p50 at most this far
 // above the floor's p50, its p99 at most this far above the floor's p99.
@@ -53,17 +58,18 @@ struct Peer {
   zmq::socket_t pub, sub;
   zmq::message_t topic, body;
 
-  Peer(zmq::context_t& context, const std::string& input, const std::string& output)
+  Peer(zmq::context_t& context, const std::string& input, const std::string& output,
+       const char* subscribe_to = "pose")
       : pub(context, zmq::socket_type::pub), sub(context, zmq::socket_type::sub) {
     pub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::linger, 0);
-    sub.set(zmq::sockopt::subscribe, "pose");
+    sub.set(zmq::sockopt::subscribe, subscribe_to);
     sub.set(zmq::sockopt::rcvhwm, 0);
     pub.connect(input);
     sub.connect(output);
   }
-  Peer(zmq::context_t& context, wire::Daemon& daemon)
-      : Peer(context, daemon.input_endpoint(), daemon.output_endpoint()) {}
+  Peer(zmq::context_t& context, wire::Daemon& daemon, const char* subscribe_to = "pose")
+      : Peer(context, daemon.input_endpoint(), daemon.output_endpoint(), subscribe_to) {}
   void send(const std::string& payload) {
     pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
     pub.send(zmq::buffer(payload));
@@ -176,6 +182,14 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
   config.output_encoding = o.encoding == "msgpack" ? Encoding::msgpack : Encoding::json;
   const wire::PayloadEncoding in_encoding =
       o.encoding == "msgpack" ? wire::PayloadEncoding::msgpack : wire::PayloadEncoding::json;
+  const char* topic = o.view_parts.empty() ? "pose" : kViewTopic;
+  if (!o.view_parts.empty()) {
+    json names = json::array();
+    for (const std::string& n : o.view_parts)
+      if (n != "none") names.push_back(n);
+    config.output_views = {{kViewTopic, read_pose_content(JsonReader(names, "--view")), false,
+                            config.output_encoding}};
+  }
 
   // Marker frames of one second of synthetic motion of the config's model.
   const Model& model = *config.tracker.model;
@@ -250,7 +264,7 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
   zmq::context_t daemon_context(1), client_context(1);
   wire::Daemon daemon(daemon_context, config);
   DaemonThread daemon_thread(daemon);
-  Peer daemon_peer(client_context, daemon);
+  Peer daemon_peer(client_context, daemon, topic);
   connect(daemon_peer, "the daemon");
   // The floor answers with a pose of the daemon's, renumbered.
   ZmqFloor floor(config, floor_in, floor_out, daemon_peer.body_text());
@@ -611,6 +625,7 @@ json run_latency(const LatencyOptions& o) {
               {"block_seconds", o.block_seconds},
               {"encoding", o.encoding},
               {"orientations", o.orientations},
+              {"subscribed_to", o.view_parts.empty() ? json("pose") : json{{"view", o.view_parts}}},
               {"config", o.config.empty() ? "built-in default (config/default.json)" : o.config},
               {"model",
                {{"name", m.name},
@@ -693,10 +708,14 @@ std::string latency_table(const json& r) {
   }
   std::snprintf(buf, sizeof buf,
                 "End-to-end latency against the ZeroMQ floor: %g Hz, %g s each, %s, %s;\n"
-                "  config %s; daemon and floor alternate in %g s blocks\n",
+                "  config %s; daemon and floor alternate in %g s blocks; subscribed to %s\n",
                 r["rate_hz"].get<double>(), r["seconds"].get<double>(),
                 r["encoding"].get<std::string>().c_str(), model_text(r).c_str(),
-                r["config"].get<std::string>().c_str(), r["block_seconds"].get<double>());
+                r["config"].get<std::string>().c_str(), r["block_seconds"].get<double>(),
+                r["subscribed_to"].is_string()
+                    ? "pose"
+                    : ("a view of " + r["subscribed_to"]["view"].dump() + " alone (no full pose made)")
+                          .c_str());
   s += buf;
   s += "  transport  path      sent  received  lost  dropped   p50 us   p99 us   max us  bytes "
        "in/out\n";

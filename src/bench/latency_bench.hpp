@@ -35,6 +35,10 @@ struct LatencyOptions {
   // source and the ZeroMQ input (moderate: the comparison is of latency, not
   // of throughput).
   double source_rate_hz = 500.0;
+  // Subscribe to a pose view (output.views, topic "bench") of these optional
+  // pose parts ("none": the required fields only) instead of to `pose`, as a
+  // client that wants only them: the full pose is then not made. Empty: `pose`.
+  std::vector<std::string> view_parts;
 };
 nlohmann::json run_latency(const LatencyOptions& options);
 std::string latency_table(const nlohmann::json& result);

@@ -170,7 +170,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   const bool subjects = json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
   const bool views = json ? bool(s.views_json) : bool(s.views_msgpack);
   // MessagePack needs the exact count of the keys below
-  w.begin_map(27 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
+  w.begin_map(28 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -207,6 +207,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("outliers", s.c.outliers);
   count("poor_frames", s.c.poor_frames);
   count("subscriptions_refused", s.c.subscriptions_refused);
+  count("pose_subscribers", s.c.pose_subscribers);
   w.key("stages_us");
   w.begin_map(kStageNames.size());
   for (std::size_t k = 0; k < kStageNames.size(); ++k) quantiles(kStageNames[k], s.stages_us[k]);
@@ -265,6 +266,7 @@ struct Daemon::SubjectState {
   std::unique_ptr<PoseEncoder> encoder;
   std::unique_ptr<MarkerDecoder> decoder;
   std::vector<ViewState> views;
+  int pose_subscribers = 0;  // live subscriptions that receive pose_topic
   MarkerFrame frame;  // decoded into by `decoder`
   std::size_t marker_first = 0, marker_count = 0, sensor_first = 0, sensor_count = 0;
   bool present = false;
@@ -279,6 +281,9 @@ struct Daemon::State {
   std::unique_ptr<MarkerDecoder> decoder;
   std::unique_ptr<PoseEncoder> encoder;
   std::vector<ViewState> views;  // one subject's (multi-subject: each subject has its own)
+  // Live subscriptions that receive `pose` (multi-subject: some subject's
+  // pose/NAME; each subject counts its own). No one: no pose is encoded.
+  int pose_subscribers = 0;
   std::string model_out;  // the `model` payload of this config, made once
   MarkerFrame frame;  // decoded into, one at a time
   NameMismatchWatch names;  // does the stream use the config's marker names?
@@ -425,7 +430,7 @@ void Daemon::attach_sockets(State& next, State* old) {
     next.pub = std::move(old->pub);
     next.subscriptions = std::move(old->subscriptions);
   }
-  count_view_subscribers(next);
+  count_subscribers(next);
   // A source keeps its connection while neither it nor the lab's axes changed.
   const SourceConfig& source = next.config.source;
   const LabAxes& lab = next.config.tracker.model->lab_axes;
@@ -595,6 +600,7 @@ void Daemon::serve_input(zmq::socket_t& in) {
 }
 
 FrameStages Daemon::serve_payload(std::span<const std::uint8_t> payload) {
+  read_subscriptions();  // as the loop would: poses go to those who subscribe
   serve_frame(payload, Clock::now());
   return last_stages_;
 }
@@ -698,7 +704,7 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
   State& s = *state_;
   const double time_s = f.has_time ? f.time_s
                                    : std::chrono::duration<double>(received - started_).count();
-  track_and_publish(*s.tracker, *s.encoder, "pose", s.views, f, time_s,
+  track_and_publish(*s.tracker, *s.encoder, "pose", s.pose_subscribers, s.views, f, time_s,
                     {f.p_world_m, f.visible, f.q_sensor, f.sensor_visible, confidence_of(f)},
                     received, decode_start);
 }
@@ -746,16 +752,17 @@ void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::t
     }
     if (!subject.present) continue;
     if (track_and_publish(*subject.tracker, *subject.encoder, subject.pose_topic.c_str(),
-                          subject.views, f, time_s, m, received, decode_start))
+                          subject.pose_subscribers, subject.views, f, time_s, m, received,
+                          decode_start))
       ++c.frames_out;
     decode_start = Clock::now();  // the next subject's stages start here
   }
 }
 
 bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
-                               std::span<ViewState> views, const MarkerFrame& f, double time_s,
-                               const Measurements& m, Clock::time_point received,
-                               Clock::time_point decode_start) {
+                               int pose_subscribers, std::span<ViewState> views,
+                               const MarkerFrame& f, double time_s, const Measurements& m,
+                               Clock::time_point received, Clock::time_point decode_start) {
   FrameStages stages;
   const Clock::time_point solve_start = Clock::now();
   stages[Stage::decode] = us_between(decode_start, solve_start);
@@ -768,17 +775,37 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
     r = &tracker.track(time_s, m.p_world_m, m.visible, m.q_sensor, m.sensor_visible, m.confidence);
     if (!all_finite(*r)) return false;
   }
-  const Clock::time_point encode_start = Clock::now();
+  Clock::time_point encode_start = Clock::now();
   const PoseHeader header{f.frame, f.has_time, f.time_s, f.has_stamp, f.stamp_us};
-  encoder.encode(header, *r, out_, {m.p_world_m, m.visible});
-  const Clock::time_point send_start = Clock::now();
   counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
   counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
   ++interval_frames_out_;
-  update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it
-  send(topic, out_);
-  const Clock::time_point sent = Clock::now();
+  // The frame's first message out ends its stages and its latency: the pose,
+  // or, when no subscription receives it, the first view one selects. What
+  // no one receives is not made (ZeroMQ would drop it unsent).
+  Clock::time_point send_start = encode_start, sent = encode_start;
+  bool first = true;
+  const auto publish = [&](const PoseEncoder& e, std::string& payload, const char* t) {
+    const Clock::time_point e0 = Clock::now();
+    e.encode(header, *r, payload, {m.p_world_m, m.visible});
+    const Clock::time_point e1 = Clock::now();
+    if (first) update_snapshot();  // counters first: whoever has seen a pose sees the counts that include it
+    send(t, payload);
+    if (first) encode_start = e0, send_start = e1, sent = Clock::now();
+    first = false;
+  };
+  if (pose_subscribers > 0) publish(encoder, out_, topic);
+  // After the pose, so that the pose's latency does not grow with its views.
+  for (ViewState& view : views) {
+    if (view.subscribers == 0) continue;
+    publish(*view.encoder, view_out_, view.topic.c_str());
+    ++view.frames_out;
+  }
+  if (first) {  // nothing made: encode 0, send the counts' update
+    update_snapshot();
+    sent = Clock::now();
+  }
   stages[Stage::solve] = us_between(solve_start, encode_start);
   stages[Stage::encode] = us_between(encode_start, send_start);
   stages[Stage::send] = us_between(send_start, sent);
@@ -788,21 +815,27 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
   queue_us_.add(us_between(received, sent));
   stages_us_.add(stages);
   last_stages_ = stages;
-  // After the pose, so that the pose's latency does not grow with its views.
-  for (ViewState& view : views) {
-    if (view.subscribers == 0) continue;
-    view.encoder->encode(header, *r, view_out_, {m.p_world_m, m.visible});
-    send(view.topic.c_str(), view_out_);
-    ++view.frames_out;
-  }
   return true;
 }
 
-void Daemon::count_view_subscribers(State& s) {
-  for (ViewState& view : s.views) view.subscribers = s.subscriptions.selecting(view.topic);
+void Daemon::count_subscribers(State& s) {
+  const SubscriptionBook& book = s.subscriptions;
+  if (s.subjects.empty()) {
+    s.pose_subscribers = book.receiving("pose");
+  } else {
+    s.pose_subscribers = book.count_if([&](std::string_view prefix) {
+      return std::any_of(s.subjects.begin(), s.subjects.end(), [&](const SubjectState& subject) {
+        return subject.pose_topic.starts_with(prefix);
+      });
+    });
+    for (SubjectState& subject : s.subjects) subject.pose_subscribers = book.receiving(subject.pose_topic);
+  }
+  counters_.pose_subscribers = static_cast<std::uint64_t>(s.pose_subscribers);
+  for (ViewState& view : s.views) view.subscribers = book.selecting(view.topic);
   for (SubjectState& subject : s.subjects)
-    for (ViewState& view : subject.views) view.subscribers = s.subscriptions.selecting(view.topic);
+    for (ViewState& view : subject.views) view.subscribers = book.selecting(view.topic);
 }
+
 
 void Daemon::read_monitor() {
   State& s = *state_;
@@ -865,7 +898,8 @@ void Daemon::read_subscriptions() {
   int shut[16];
   int n_shut = 0;
   bool model_wanted = false;
-  for (int n = 0; n < kMaxBatch; ++n) {
+  int n = 0;
+  for (; n < kMaxBatch; ++n) {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
     if (!m.empty() && m[0] == 0) {  // an unsubscription (or a subscriber gone): nothing to hold
@@ -902,7 +936,8 @@ void Daemon::read_subscriptions() {
         std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "",
         s.subjects.empty() ? "" : ", and pose/NAME and model/NAME for its subjects");
   }
-  count_view_subscribers(s);
+  if (n == 0) return;
+  count_subscribers(s);
   update_snapshot();
   if (model_wanted) want_model(Clock::now());
 }

@@ -40,7 +40,7 @@ namespace fabrik::wire {
 
 struct DaemonCounters {
   std::uint64_t frames_in = 0;        // messages received on the input
-  std::uint64_t frames_out = 0;       // poses published
+  std::uint64_t frames_out = 0;       // poses made (encoded and sent only while pose_subscribers > 0)
   std::uint64_t frames_dropped = 0;   // frames superseded by newer ones before solving
   std::uint64_t decode_errors = 0;    // messages refused (format, types, size, parts, topic)
   std::uint64_t unknown_markers = 0;  // marker entries whose name is not in the model
@@ -58,6 +58,7 @@ struct DaemonCounters {
   std::uint64_t poor_frames = 0;       // poses whose residual.quality was poor
   std::uint64_t subscriptions_refused = 0;  // output subscriptions to no topic of ours (peer dropped)
   std::uint64_t other_subject_frames = 0;  // frames whose "subject" the config does not list
+  std::uint64_t pose_subscribers = 0;  // live output subscriptions that receive poses (a gauge)
 };
 
 // One subject's counts (multi-subject configs; DaemonConfig::subjects order).
@@ -201,17 +202,19 @@ class Daemon {
     std::span<const std::uint8_t> sensor_visible;
     std::span<const float> confidence;  // empty: the frame carried none (all 1)
   };
-  // Then each of `views` that a subscription selects, on its own topic.
+  // The pose only while `pose_subscribers` > 0, then each of `views` that a
+  // subscription selects, on its own topic.
   struct ViewState;
   bool track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
-                         std::span<ViewState> views, const MarkerFrame& f, double time_s,
+                         int pose_subscribers, std::span<ViewState> views,
+                         const MarkerFrame& f, double time_s,
                          const Measurements& m,
                          std::chrono::steady_clock::time_point received,
                          std::chrono::steady_clock::time_point decoded);
   void read_monitor();
   void read_subscriptions();
-  // Each view's subscribers, from the output's live subscriptions.
-  static void count_view_subscribers(State& s);
+  // Who receives each pose topic and each view, from the output's live subscriptions.
+  void count_subscribers(State& s);
   void publish_stats(double interval_s);
   void publish_model();
   // Publishes the model now, or within kModelInterval of the last one: a

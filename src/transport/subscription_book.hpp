@@ -1,11 +1,12 @@
 // The output's live subscriptions, as the loop sees them (XPUB_VERBOSER
 // passes every subscription and every unsubscription, including those ZeroMQ
-// makes for a subscriber that went away): which topics someone selects, so
-// that a pose view (output.views) is encoded only while it has a subscriber.
-// A subscription selects a topic when it is a prefix of it and is not one of
-// the daemon's own topics' prefixes (so "" and "p" do not: they ask for every
-// pose, not for a view). Changes only when a subscription arrives; the frame
-// path reads a flag the loop keeps per view.
+// makes for a subscriber that went away): who receives a topic, so that a
+// pose (or a pose view, output.views) is encoded only while someone does.
+// A subscription receives a topic when it is a prefix of it (ZeroMQ's rule);
+// it selects a view's topic when it also is not a prefix of one of the
+// daemon's own topics (so "" and "p" do not: they ask for every pose, not for
+// a view). Changes only when a subscription arrives; the frame path reads
+// counts the loop keeps.
 #pragma once
 
 #include <algorithm>
@@ -33,6 +34,19 @@ class SubscriptionBook {
     int n = 0;
     for (const auto& [prefix, count] : count_)
       if (!prefix.empty() && topic.starts_with(prefix) && !prefixes_own_topic(prefix)) n += count;
+    return n;
+  }
+  // The live subscriptions that receive `topic` (as ZeroMQ matches them),
+  // each counted as often as it was made.
+  int receiving(std::string_view topic) const {
+    return count_if([&](std::string_view prefix) { return topic.starts_with(prefix); });
+  }
+  // The live subscriptions for which receives(prefix) holds, each counted as often as it was made.
+  template <class Receives>
+  int count_if(Receives receives) const {
+    int n = 0;
+    for (const auto& [prefix, count] : count_)
+      if (receives(std::string_view(prefix))) n += count;
     return n;
   }
   void clear() { count_.clear(); }
