@@ -61,15 +61,17 @@ std::optional<json> view_stats_until(test::SocketClient& client, std::uint64_t& 
 
 }  // namespace
 
-TEST_CASE("output.views reads each view's topic, parts, measured switch and encoding",
+TEST_CASE("output.views reads each view's topic, parts, measured switch, encoding and units",
           "[views][config]") {
   const DaemonConfig c = config_with_views(
       {{"encoding", "msgpack"},
+       {"units", "mm"},
        {"views", json::array({{{"topic", "joints"}, {"pose_content", {"angles"}}},
                               {{"topic", "lab.full"},
                                {"pose_content", {"segments", "gap_s"}},
                                {"measured_markers", true},
-                               {"encoding", "json"}}})}});
+                               {"encoding", "json"},
+                               {"units", "m"}}})}});
   REQUIRE(c.output_views.size() == 2);
   CHECK(c.output_views[0].topic == "joints");
   CHECK(c.output_views[0].content == PoseContent::none().with(PosePart::angles));
@@ -79,6 +81,11 @@ TEST_CASE("output.views reads each view's topic, parts, measured switch and enco
         PoseContent::none().with(PosePart::segments).with(PosePart::gap_s));
   CHECK(c.output_views[1].measured_markers);
   CHECK(c.output_views[1].encoding == Encoding::json);
+  CHECK(c.output_views[0].units == "mm");  // output.units
+  CHECK(c.output_views[1].units == "m");
+  CHECK(config_with_views({{"units", "m"}, {"views", json::array({{{"topic", "j"}}})}})
+            .output_views[0]
+            .units == "m");
   CHECK(config_with_views(json::object()).output_views.empty());  // none by default
 }
 
@@ -98,8 +105,10 @@ TEST_CASE("A view topic that a subscriber of pose, stats, model or another view 
   CHECK_THAT(config_error({{"views", json::array({{{"topic", "joints"}},
                                                    {{"topic", "joints.fast"}}})}}),
              Catch::Contains("start alike"));
-  CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"units", "m"}}})}}),
-             Catch::Contains("units"));
+  CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"units", "cm"}}})}}),
+             Catch::Contains("unknown unit 'cm'"));
+  CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"axes", "y_up"}}})}}),
+             Catch::Contains("axes"));
   CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"pose_content", {"wings"}}}})}}),
              Catch::Contains("unknown pose part 'wings'"));
   json many = json::array();
@@ -139,7 +148,9 @@ TEST_CASE("A view is encoded only while someone subscribes to it, carries the pa
   zmq::context_t context;
   test::DaemonThread d(
       context, on_free_ports(config_with_views(
-                   {{"views", json::array({{{"topic", "joints"}, {"pose_content", {"angles"}}},
+                   {{"views", json::array({{{"topic", "joints"},
+                                            {"pose_content", {"angles"}},
+                                            {"units", "m"}},
                                            {{"topic", "lean"}, {"encoding", "msgpack"}}})}})));
   // Subscribed to everything (""): that asks for no view.
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
@@ -180,7 +191,14 @@ TEST_CASE("A view is encoded only while someone subscribes to it, carries the pa
     CHECK(pose->contains("segments"));
     CHECK(pose->contains("gap_s"));
     CHECK((*pose)["angles"] == lean["angles"]);
-    CHECK((*pose)["joints"] == lean["joints"]);
+    // In the view's units (metres; the pose's are output.units, mm).
+    CHECK((*pose)["units"] == "mm");
+    CHECK(lean["units"] == "m");
+    REQUIRE(lean["joints"].size() == (*pose)["joints"].size());
+    for (const auto& [name, p_mm] : (*pose)["joints"].items())
+      for (int k = 0; k < 3; ++k)
+        CHECK(lean["joints"][name][k].get<double>() ==
+              Approx(p_mm[k].get<double>() * 1e-3).margin(1e-7));
   }  // the subscriber goes: ZeroMQ unsubscribes it
 
   const auto gone = view_stats_until(

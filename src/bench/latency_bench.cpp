@@ -188,7 +188,7 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
     for (const std::string& n : o.view_parts)
       if (n != "none") names.push_back(n);
     config.output_views = {{kViewTopic, read_pose_content(JsonReader(names, "--view")), false,
-                            config.output_encoding}};
+                            config.output_encoding, config.output_units}};
   }
 
   // Marker frames of one second of synthetic motion of the config's model.

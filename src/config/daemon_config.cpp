@@ -216,7 +216,8 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
                                 {{"json", Encoding::json}, {"msgpack", Encoding::msgpack}});
     c.output_measured_markers = out.get("measured_markers", c.output_measured_markers);
     if (out.has("pose_content")) c.output_pose_content = read_pose_content(out.at("pose_content"));
-    if (out.has("views")) c.output_views = read_pose_views(out.at("views"), c.output_encoding);
+    if (out.has("views"))
+      c.output_views = read_pose_views(out.at("views"), c.output_encoding, c.output_units);
   }
   if (c.input.address == c.output.address)
     root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <iterator>
 
+#include "model_loader.hpp"
 #include "topics.hpp"
 
 namespace fabrik {
@@ -21,7 +22,8 @@ bool view_topic_ok(std::string_view topic) {
          std::none_of(std::begin(kPublishedTopics), std::end(kPublishedTopics), collides);
 }
 
-std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding default_encoding) {
+std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding default_encoding,
+                                            const std::string& default_units) {
   list.expect_array();
   const std::size_t n = list.value().size();
   if (n > kMaxPoseViews)
@@ -30,7 +32,7 @@ std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding def
   std::vector<PoseViewConfig> views;
   for (std::size_t i = 0; i < n; ++i) {
     const JsonReader e = list.at(i);
-    e.only_keys({"topic", "pose_content", "measured_markers", "encoding"});
+    e.only_keys({"topic", "pose_content", "measured_markers", "encoding", "units"});
     PoseViewConfig v;
     v.topic = e.at("topic").as_string();
     if (!view_topic_ok(v.topic))
@@ -50,6 +52,11 @@ std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding def
                      ? read_choice<Encoding>(e.at("encoding"), "encoding",
                                              {{"json", Encoding::json}, {"msgpack", Encoding::msgpack}})
                      : default_encoding;
+    v.units = default_units;
+    if (e.has("units")) {
+      (void)metres_per_unit(e.at("units"));  // refuses any other unit, with the fix
+      v.units = e.at("units").as_string();
+    }
     views.push_back(std::move(v));
   }
   return views;

@@ -22,6 +22,7 @@ struct PoseViewConfig {
   PoseContent content = PoseContent::none();  // the required fields always
   bool measured_markers = false;
   Encoding encoding = Encoding::json;
+  std::string units = "mm";  // of positions and translations: "mm" or "m"
 };
 
 constexpr std::size_t kMaxPoseViews = 16;
@@ -33,9 +34,11 @@ constexpr std::size_t kMaxViewTopicBytes = 32;
 // would receive it too, by prefix).
 bool view_topic_ok(std::string_view topic);
 
-// output.views: an array of {topic, pose_content, measured_markers, encoding};
-// an absent encoding is `default_encoding` (output.encoding). No topic may be
-// a prefix of another's (a subscriber of one would receive both).
-std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding default_encoding);
+// output.views: an array of {topic, pose_content, measured_markers, encoding,
+// units}; an absent encoding is `default_encoding` (output.encoding), absent
+// units `default_units` (output.units). No topic may be a prefix of
+// another's (a subscriber of one would receive both).
+std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding default_encoding,
+                                            const std::string& default_units);
 
 }  // namespace fabrik

@@ -344,7 +344,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
       ViewState view;
       view.topic = subject.empty() ? v.topic : v.topic + "/" + subject;
       view.encoder = std::make_unique<PoseEncoder>(
-          tracker, config.output_units,
+          tracker, v.units,
           v.encoding == Encoding::msgpack ? PayloadEncoding::msgpack : PayloadEncoding::json,
           v.measured_markers, v.content);
       if (!subject.empty()) view.encoder->set_subject(subject);

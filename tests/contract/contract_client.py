@@ -729,7 +729,7 @@ def run_views(args, workdir, model_markers_rest, rest_joints, root):
     stats count the view's subscriber and validate."""
     schema = json.loads((ROOT / "proto" / "pose.schema.json").read_text())
     required = set(schema["required"])
-    views = [{"topic": "joints", "pose_content": ["angles"], "encoding": "msgpack"}]
+    views = [{"topic": "joints", "pose_content": ["angles"], "encoding": "msgpack", "units": "m"}]
     with Daemon(args.fabrikd, workdir, views=views) as d:
         d.join()
         view_sub = d.ctx.socket(zmq.SUB)
@@ -760,6 +760,11 @@ def run_views(args, workdir, model_markers_rest, rest_joints, root):
                 check(not errors, f"view pose violates proto/pose.schema.json: {errors[:1]}")
                 check(view["frame"] == frame, f"view of frame {view['frame']}, expected {frame}")
                 check(set(view) == required | {"time", "angles"}, f"view keys {sorted(view)}")
+                check(view["units"] == "m" and pose["units"] == "mm",
+                      f"view units {view['units']}, pose units {pose['units']}")
+                check(all(abs(view["joints"][k][a] - v[a] / 1000.0) < 1e-6
+                          for k, v in pose["joints"].items() for a in range(3)),
+                      "view joints are not the pose's in metres")
                 # The same solve; JSON writes fixed decimals, MessagePack the double.
                 check(set(view["angles"]) == set(pose["angles"]) and
                       all(abs(view["angles"][k] - v) < 0.01 for k, v in pose["angles"].items()),
@@ -770,8 +775,8 @@ def run_views(args, workdir, model_markers_rest, rest_joints, root):
         finally:
             view_sub.close()
         d.stop()
-    print("contract: output.views: a view's subscriber gets valid poses in its encoding with its "
-          "parts; stats.views valid")
+    print("contract: output.views: a view's subscriber gets valid poses in its encoding, units and "
+          "with its parts; stats.views valid")
 
 
 def run_subjects(args, workdir, model_markers_rest, rest_joints, root):
