@@ -836,7 +836,6 @@ void Daemon::count_subscribers(State& s) {
     for (ViewState& view : subject.views) view.subscribers = book.selecting(view.topic);
 }
 
-
 void Daemon::read_monitor() {
   State& s = *state_;
   for (int n = 0; n < kMaxBatch; ++n) {

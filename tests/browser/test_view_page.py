@@ -289,8 +289,19 @@ def check_rate(page, rate_hz, reference, seconds=5.0):
           f'{sent}: the page should have {should:.0f}; painted {s1["painted"] - s0["painted"]}; '
           f'arrival -> painted p50 {s1["paint_ms"]["p50"]:.1f} ms, p95 {s1["paint_ms"]["p95"]:.1f} ms')
     check(got >= 0.95 * should, f'received >= 95 % of the poses it should ({got} of {should:.0f})')
-    check(got <= 1.05 * rate_hz * (t1 - t0) + 3,
-          f'received no more than the cap allows ({got} <= {1.05 * rate_hz * (t1 - t0) + 3:.0f})')
+    # The poses received between the two snapshots were sent between the sends
+    # of the newest pose at each; with fabrik view's arrival stamps the span is
+    # taken on its clock (a send is at most a period after its pose's
+    # arrival), so a page that lagged at the first snapshot and caught up in
+    # the window (seen in CI: 325 in 5.05 s at 60/s) does not count as a burst.
+    v0, v1 = s0.get('latest_view_ms'), s1.get('latest_view_ms')
+    if v0 is not None and v1 is not None:
+        span_s, clock = (v1 - v0) / 1000 + 1 / rate_hz, "fabrik view's clock"
+    else:
+        span_s, clock = t1 - t0, "the test's clock"
+    allowed = 1.05 * rate_hz * span_s + 3
+    check(got <= allowed,
+          f'received no more than the cap allows ({got} <= {allowed:.0f}, sent over {span_s:.2f} s by {clock})')
     check(sent >= 0.5 * rate_hz * (t1 - t0), f'the server sent at least half its cap ({sent} poses)')
     check(s1['painted'] > s0['painted'], 'painted new poses')
 

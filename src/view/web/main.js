@@ -51,6 +51,7 @@ function onMessage(topic, data, arrivedAtMs, viewAtMs) {
       state.received++;
       state.latest = data;
       state.latestAtMs = arrivedAtMs;
+      state.latestViewMs = viewAtMs;
       status.onPose(arrivedAtMs);
       history.push(data, arrivedAtMs, viewAtMs);
       break;

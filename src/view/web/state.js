@@ -8,6 +8,7 @@ export const state = {
   labUp: null,           // the scene's up axis, from model.lab_axes
   latest: null,          // newest live pose (newest wins)
   latestAtMs: 0,         // performance.now() when it arrived
+  latestViewMs: null,    // its arrival at fabrik view (view_ms, page clock), when stamped
   stats: null,           // last `stats` data
   status: null,          // last `status` data (from fabrik view)
   received: 0,           // pose messages received (live)
@@ -57,6 +58,7 @@ export function snapshot() {
     lab_up: state.labUp,
     drawn: state.drawn,
     received: state.received,
+    latest_view_ms: state.latestViewMs,
     messages: state.messages,
     garbage: state.garbage,
     painted: state.painted,
