@@ -5,6 +5,7 @@
 // does not allocate.
 #pragma once
 
+#include <algorithm>
 #include <bit>
 #include <charconv>
 #include <cmath>
@@ -18,12 +19,21 @@
 namespace fabrik::wire {
 
 // JSON: maps and arrays need separators, so it tracks nesting; sizes given
-// to begin_map/begin_array are ignored.
+// to begin_map/begin_array are ignored. It writes through a cursor into the
+// buffer, grown a chunk at a time, and cuts the buffer to what it wrote when
+// it goes out of scope: read the buffer after the writer's scope ends.
+// (Appending to the string piece by piece, its size kept at each step, and a
+// number's room zero-filled and cut back, were half of a pose's encoding.)
 class JsonWriter {
  public:
   explicit JsonWriter(std::string& out, int decimals) : out_(out), decimals_(decimals) {
     out_.clear();
+    grow(0);
   }
+  ~JsonWriter() { out_.resize(static_cast<std::size_t>(p_ - out_.data())); }
+  JsonWriter(const JsonWriter&) = delete;
+  JsonWriter& operator=(const JsonWriter&) = delete;
+
   void begin_map(std::size_t) { open('{'); }
   void end_map() { close('}'); }
   void begin_array(std::size_t) { open('['); }
@@ -31,13 +41,13 @@ class JsonWriter {
   // A key whose JSON form ("name":) was made once, at setup, by json_key().
   void named_key(std::string_view, std::string_view quoted_key_colon) {
     separate();
-    out_ += quoted_key_colon;
+    put(quoted_key_colon);
     after_key_ = true;
   }
   void key(std::string_view k) {
     separate();
     quoted(k);
-    out_ += ':';
+    put(':');
     after_key_ = true;
   }
   void string(std::string_view s) {
@@ -46,31 +56,27 @@ class JsonWriter {
   }
   void null() {
     separate();
-    out_ += "null";
+    put("null");
   }
   void boolean(bool b) {
     separate();
-    out_ += b ? "true" : "false";
+    put(b ? std::string_view("true") : std::string_view("false"));
   }
   void uint(std::uint64_t v) {
     separate();
-    char buf[24];
-    out_.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+    room(24);
+    p_ = std::to_chars(p_, p_ + 24, v).ptr;
   }
   // Fixed decimals; JSON has no NaN or infinity, so those become null.
   void number(double v) { number(v, decimals_); }
   void number(double v, int decimals) {
     separate();
     if (!std::isfinite(v)) {
-      out_ += "null";
+      put("null");
       return;
     }
-    // Formatted in place: the string grows by the most a number takes, then is cut back
-    // (its capacity stays between frames, so this neither allocates nor copies).
-    const std::size_t at = out_.size();
-    out_.resize(at + kNumberRoom);
-    char* const end = format(out_.data() + at, v, decimals);
-    out_.resize(static_cast<std::size_t>(end - out_.data()));
+    room(kNumberRoom);
+    p_ = format(p_, v, decimals);
   }
   // [a, b, c] with the writer's decimals: a point, in one step (most of a pose's numbers).
   void number_triple(double a, double b, double c) {
@@ -83,34 +89,33 @@ class JsonWriter {
       return;
     }
     separate();
-    const std::size_t at = out_.size();
-    out_.resize(at + 3 * (kNumberRoom + 1) + 1);
-    char* p = out_.data() + at;
-    *p++ = '[';
+    room(3 * (kNumberRoom + 1) + 1);
+    *p_++ = '[';
     for (const double v : {a, b, c}) {
-      p = format(p, v, decimals_);
-      *p++ = ',';
+      p_ = format(p_, v, decimals_);
+      *p_++ = ',';
     }
-    p[-1] = ']';
-    out_.resize(static_cast<std::size_t>(p - out_.data()));
+    p_[-1] = ']';
     first_ = false;
   }
   // The JSON form of a key, for named_key(): "name": with JSON escaping.
   static std::string json_key(std::string_view k) {
     std::string s;
-    JsonWriter w(s, 0);
-    w.key(k);
+    {
+      JsonWriter w(s, 0);
+      w.key(k);
+    }
     return s;
   }
 
  private:
   void open(char c) {
     separate();
-    out_ += c;
+    put(c);
     first_ = true;
   }
   void close(char c) {
-    out_ += c;
+    put(c);
     first_ = false;
   }
   void separate() {
@@ -118,26 +123,49 @@ class JsonWriter {
       after_key_ = false;
       return;
     }
-    if (!first_) out_ += ',';
+    if (!first_) put(',');
     first_ = false;
   }
   void quoted(std::string_view s) {
-    out_ += '"';
+    room(2 + 6 * s.size());  // each character escaped as \u00XX at most
+    *p_++ = '"';
     for (char ch : s) {
       const auto c = static_cast<unsigned char>(ch);
       if (c == '"' || c == '\\') {
-        out_ += '\\';
-        out_ += ch;
+        *p_++ = '\\';
+        *p_++ = ch;
       } else if (c < 0x20) {
         static constexpr char hex[] = "0123456789abcdef";
-        out_ += "\\u00";
-        out_ += hex[c >> 4];
-        out_ += hex[c & 15];
+        std::memcpy(p_, "\\u00", 4);
+        p_[4] = hex[c >> 4];
+        p_[5] = hex[c & 15];
+        p_ += 6;
       } else {
-        out_ += ch;
+        *p_++ = ch;
       }
     }
-    out_ += '"';
+    *p_++ = '"';
+  }
+  void put(char c) {
+    room(1);
+    *p_++ = c;
+  }
+  void put(std::string_view s) {
+    room(s.size());
+    std::memcpy(p_, s.data(), s.size());
+    p_ += s.size();
+  }
+  // At least n characters writable at the cursor.
+  void room(std::size_t n) {
+    if (static_cast<std::size_t>(end_ - p_) < n) grow(n);
+  }
+  // The buffer's size is what may be written; only the new part is zero-filled, and
+  // within its capacity (kept between payloads) nothing is allocated.
+  void grow(std::size_t n) {
+    const std::size_t used = out_.empty() ? 0 : static_cast<std::size_t>(p_ - out_.data());
+    out_.resize(out_.size() + std::max(n, kChunk));
+    p_ = out_.data() + used;
+    end_ = out_.data() + out_.size();
   }
 
   // A finite number with `decimals` at p (kNumberRoom there); returns its end.
@@ -149,7 +177,10 @@ class JsonWriter {
   // What one number may take: to_fixed_chars needs 32; to_chars with fixed decimals writes up
   // to 64 here before it gives way to the shortest form (as the writer always did).
   static constexpr std::size_t kNumberRoom = 64;
+  static constexpr std::size_t kChunk = 1024;
   std::string& out_;
+  char* p_ = nullptr;
+  char* end_ = nullptr;
   int decimals_;
   bool first_ = true;
   bool after_key_ = false;
