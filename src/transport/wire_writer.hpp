@@ -22,8 +22,8 @@ namespace fabrik::wire {
 // to begin_map/begin_array are ignored. It writes through a cursor into the
 // buffer, grown a chunk at a time, and cuts the buffer to what it wrote when
 // it goes out of scope: read the buffer after the writer's scope ends.
-// (Appending to the string piece by piece, its size kept at each step, and a
-// number's room zero-filled and cut back, were half of a pose's encoding.)
+// (So a number is formatted in place, with no room zero-filled and cut back
+// for each of a pose's few hundred values.)
 class JsonWriter {
  public:
   explicit JsonWriter(std::string& out, int decimals) : out_(out), decimals_(decimals) {
