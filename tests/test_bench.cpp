@@ -8,6 +8,7 @@
 #include "bench/generic_static.hpp"
 #include "bench/latency_bench.hpp"
 #include "bench/pipeline_bench.hpp"
+#include "bench/wake_probe.hpp"
 #include "bench/subjects_bench.hpp"
 #include "bench/zmq_floor.hpp"
 #include "calib/calibrate.hpp"
@@ -276,6 +277,20 @@ TEST_CASE("bench pipeline reports each stage, and the solve split into the solve
     // Warm frames at 1 kHz: at least one iteration, within the warm budget at p50.
     CHECK(m["iterations"]["mean"].get<double>() >= 1.0);
     CHECK(m["iterations"]["p50"].get<double>() <= 50.0);
+    // The machine's wake-up price, sampled between the frames.
+    CHECK(r["wake_us"]["sleeping_thread"]["p50"].get<double>() > 0.0);
+    CHECK(r["wake_us"]["write_alone"]["p50"].get<double>() > 0.0);
+  }
+}
+
+TEST_CASE("The wake probe's sleeper takes each wake, so every sample finds it asleep again",
+          "[bench][pipeline]") {
+  bench::WakeProbe probe;
+  for (int i = 0; i < 200; ++i) {
+    CAPTURE(i);
+    // Negative: the previous wake was not taken within 10 ms (the sleeper lost it).
+    REQUIRE(probe.wake_sleeping_us() >= 0.0);
+    CHECK(probe.write_alone_us() >= 0.0);
   }
 }
 

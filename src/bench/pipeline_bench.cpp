@@ -15,6 +15,7 @@
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
 #include "transport/marker_codec.hpp"
+#include "wake_probe.hpp"
 
 namespace fabrik::bench {
 
@@ -146,6 +147,10 @@ json run_pipeline(const PipelineOptions& o) {
     while (receive_pose(*r, 50)) {
     }
   }
+  // One wake-up sampled per round of frames, in the same run: the machine's
+  // price for what each send does once (ZeroMQ waking its idle I/O thread).
+  WakeProbe probe;
+  std::vector<double> wake_sleeping_us, write_alone_us;
   const int total = kWarmUpFrames + o.frames;
   for (int i = 0; i < total; ++i, ++frame) {
     // Alternate which model goes first: neither always follows the other.
@@ -165,6 +170,9 @@ json run_pipeline(const PipelineOptions& o) {
       r.tracker_rest_us.push_back(s[wire::Stage::solve] - s.solver_us);
       r.iterations.push_back(s.iterations);
     }
+    if (i < kWarmUpFrames) continue;
+    if (const double us = probe.wake_sleeping_us(); us >= 0.0) wake_sleeping_us.push_back(us);
+    write_alone_us.push_back(probe.write_alone_us());
   }
 
   json models = json::array();
@@ -194,7 +202,10 @@ json run_pipeline(const PipelineOptions& o) {
           {"transport", o.transport},
           {"encoding", o.encoding},
           {"pose_content", o.pose_content.empty() ? json("each config's") : json(o.pose_content)},
-          {"models", models}};
+          {"models", models},
+          {"wake_us",
+           {{"sleeping_thread", quantiles(wake_sleeping_us)},
+            {"write_alone", quantiles(write_alone_us)}}}};
 }
 
 std::string pipeline_table(const json& r) {
@@ -241,6 +252,13 @@ std::string pipeline_table(const json& r) {
       out += line;
     }
   }
+  const json& wake = r["wake_us"];
+  std::snprintf(line, sizeof line,
+                "\nthis machine, between the frames: an eventfd write that wakes a thread asleep "
+                "in epoll_wait (as each send wakes ZeroMQ's idle I/O thread) takes the writer %s; "
+                "the same write with no thread waiting %s\n",
+                cell(wake["sleeping_thread"]).c_str(), cell(wake["write_alone"]).c_str());
+  out += line;
   return out;
 }
 
