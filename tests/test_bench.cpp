@@ -249,6 +249,14 @@ TEST_CASE("bench latency reports the daemon and the floor for each transport and
     CHECK(f["pose_bytes"].get<double>() ==
           Approx(d["pose_bytes_mean"].get<double>()).epsilon(0.02));
     CHECK(d["decode_errors"] == 0);
+    // The daemon's own stages, read from the stats it published during the run (JSON here).
+    const nlohmann::json& st = run["daemon_stages_us"];
+    REQUIRE(st["intervals"].get<int>() > 0);
+    for (const char* stage : {"decode", "solve", "encode", "send"})
+      CHECK(st[stage].get<double>() > 0.0);
+    CHECK(st["decode_solve_encode"].get<double>() ==
+          Approx(st["decode"].get<double>() + st["solve"].get<double>() +
+                 st["encode"].get<double>()));
   }
 }
 
@@ -308,6 +316,8 @@ TEST_CASE("bench latency --view subscribes to a view alone, and the floor answer
   CHECK(lean["subscribed_to"]["view"] == nlohmann::json::array({"none"}));
   const nlohmann::json& d = lean["runs"][0]["daemon"];
   REQUIRE(d["poses_received"].get<int>() > 0);
+  // Its stats read in MessagePack, the output's encoding.
+  CHECK(lean["runs"][0]["daemon_stages_us"]["solve"].get<double>() > 0.0);
   CHECK(d["decode_errors"] == 0);
   // The required fields only: well under the full pose.
   const double full_bytes = full["runs"][0]["daemon"]["pose_bytes_mean"].get<double>();

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -57,6 +58,9 @@ bool pose_frame(const zmq::message_t& m, std::uint64_t& frame) {
 struct Peer {
   zmq::socket_t pub, sub;
   zmq::message_t topic, body;
+  // Where the daemon's stats messages go while measuring (subscribe to "stats" first);
+  // null: dropped.
+  std::vector<std::string>* stats = nullptr;
 
   Peer(zmq::context_t& context, const std::string& input, const std::string& output,
        const char* subscribe_to = "pose")
@@ -84,6 +88,10 @@ struct Peer {
   bool read(std::uint64_t& frame) {
     if (!sub.recv(topic, zmq::recv_flags::dontwait) || !topic.more()) return false;
     (void)sub.recv(body);
+    if (topic.to_string_view() == "stats") {
+      if (stats) stats->push_back(body_text());
+      return false;
+    }
     return pose_frame(body, frame);
   }
   std::string body_text() const { return {static_cast<const char*>(body.data()), body.size()}; }
@@ -154,6 +162,42 @@ std::vector<Slot> alternate_blocks(int n, int block) {
   return schedule;
 }
 
+// The daemon's own stages over the run, from its stats (stages_us): per stage
+// the median over the stats intervals of the interval's p50, and
+// `decode_solve_encode`, their sum (the work the floor does not do; both send).
+// Intervals that served no frame are left out.
+json daemon_stages(const std::vector<std::string>& bodies, const std::string& encoding) {
+  std::array<std::vector<double>, 4> p50;
+  const char* names[] = {"decode", "solve", "encode", "send"};
+  for (const std::string& b : bodies) {
+    const json stats = encoding == "msgpack" ? json::from_msgpack(b, true, false)
+                                             : json::parse(b, nullptr, false);
+    // The interval's p50 of a stage; NaN where the stats do not hold one.
+    const auto stage_p50 = [&](const char* name) {
+      const json* q = &stats;
+      for (const char* key : {"stages_us", name, "p50"}) {
+        if (!q->is_object() || !q->contains(key)) return std::nan("");
+        q = &(*q)[key];
+      }
+      return q->is_number() ? q->get<double>() : std::nan("");
+    };
+    std::array<double, 4> v;
+    for (std::size_t k = 0; k < v.size(); ++k) v[k] = stage_p50(names[k]);
+    if (!(v[1] > 0.0) || !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
+      continue;
+    for (std::size_t k = 0; k < v.size(); ++k) p50[k].push_back(v[k]);
+  }
+  json out = {{"intervals", p50[0].size()}};
+  double sum = 0.0;
+  for (std::size_t k = 0; k < p50.size(); ++k) {
+    const double v = p50[k].empty() ? 0.0 : quantile(p50[k], 0.5);
+    out[names[k]] = v;
+    if (k < 3) sum += v;
+  }
+  out["decode_solve_encode"] = sum;
+  return out;
+}
+
 // One transport: the daemon and the floor (zmq_floor.hpp), both up for the
 // whole run, fed the same marker frames at `rate_hz` in alternating blocks.
 // Latency: from just before the source's send (the frame already encoded)
@@ -179,6 +223,9 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
     throw std::invalid_argument("unknown transport '" + transport + "' (use tcp or ipc)");
   }
   config.source = {};  // the ZeroMQ input alone
+  // A few stats intervals within the run, for the daemon's own stages (1 s, the default,
+  // from 4 s a path up).
+  config.stats_interval_s = std::clamp(o.seconds / 4.0, 0.01, 1.0);
   config.output_encoding = o.encoding == "msgpack" ? Encoding::msgpack : Encoding::json;
   const wire::PayloadEncoding in_encoding =
       o.encoding == "msgpack" ? wire::PayloadEncoding::msgpack : wire::PayloadEncoding::json;
@@ -269,7 +316,10 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
   // The floor answers with a pose of the daemon's, renumbered.
   ZmqFloor floor(config, floor_in, floor_out, daemon_peer.body_text());
   Peer floor_peer(client_context, floor.input_endpoint(), floor.output_endpoint());
+  daemon_peer.sub.set(zmq::sockopt::subscribe, "stats");
   connect(floor_peer, "the floor");
+  std::vector<std::string> stats_bodies;
+  daemon_peer.stats = &stats_bodies;
 
   const wire::DaemonCounters before = daemon.counters();
   const std::uint64_t floor_before = floor.answered();
@@ -323,7 +373,9 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
     }
   }
   sender.join();
+  daemon_peer.stats = nullptr;
   const wire::DaemonCounters after = daemon.counters();
+  const json stages = daemon_stages(stats_bodies, o.encoding);
 
   json d = input_figures(sent_at[kDaemon], sent[kDaemon], received_at[kDaemon], got[kDaemon]);
   json f = input_figures(sent_at[kFloor], sent[kFloor], received_at[kFloor], got[kFloor]);
@@ -345,6 +397,7 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
           {"daemon", d},
           {"floor", f},
           {"daemon_minus_floor_us", {{"p50", p50_us}, {"p99", p99_us}}},
+          {"daemon_stages_us", stages},
           {"goals",
            {{"p50_within_us", kGoalP50Us},
             {"p99_within_us", kGoalP99Us},
@@ -746,6 +799,16 @@ std::string latency_table(const json& r) {
                   goals["p50_met"].get<bool>() ? "met" : "NOT met",
                   goals["p99_met"].get<bool>() ? "met" : "NOT met");
     s += buf;
+    const json& st = run["daemon_stages_us"];
+    if (st["intervals"].get<int>() > 0) {
+      std::snprintf(buf, sizeof buf,
+                    "  %-9s  the daemon's own stages (its stats, p50 us): decode %.1f, solve %.1f, "
+                    "encode %.1f, send %.1f; the gap's p50 less decode + solve + encode: %+.1f\n",
+                    "", st["decode"].get<double>(), st["solve"].get<double>(),
+                    st["encode"].get<double>(), st["send"].get<double>(),
+                    diff["p50"].get<double>() - st["decode_solve_encode"].get<double>());
+      s += buf;
+    }
   }
   return s;
 }
