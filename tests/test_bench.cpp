@@ -8,8 +8,8 @@
 #include "bench/generic_static.hpp"
 #include "bench/latency_bench.hpp"
 #include "bench/pipeline_bench.hpp"
-#include "bench/wake_probe.hpp"
 #include "bench/subjects_bench.hpp"
+#include "bench/wake_probe.hpp"
 #include "bench/zmq_floor.hpp"
 #include "calib/calibrate.hpp"
 #include "config/daemon_config.hpp"
@@ -258,6 +258,47 @@ TEST_CASE("bench latency reports the daemon and the floor for each transport and
           Approx(st["decode"].get<double>() + st["solve"].get<double>() +
                  st["encode"].get<double>()));
   }
+}
+
+TEST_CASE("daemon_stages: per stage the median of the intervals' p50s, idle intervals left out",
+          "[bench][latency]") {
+  const auto stats = [](double decode, double solve, double encode, double send) {
+    const auto q = [](double p50) {
+      return nlohmann::json{{"p50", p50}, {"p99", 2 * p50}, {"max", 3 * p50}};
+    };
+    return nlohmann::json{
+        {"frames_out", 10},
+        {"stages_us",
+         {{"decode", q(decode)}, {"solve", q(solve)}, {"encode", q(encode)}, {"send", q(send)}}}};
+  };
+  const std::vector<nlohmann::json> intervals = {
+      stats(1, 10, 5, 7),
+      stats(6, 40, 1, 20),
+      stats(2, 20, 2, 8),                             // medians, not means
+      stats(0, 0, 0, 0),                              // served no frame: left out
+      {{"stages_us", {{"solve", {{"p50", 99.0}}}}}},  // stages missing: left out
+      {{"frames_out", 0}}};                           // no stages at all: left out
+  for (const char* encoding : {"json", "msgpack"}) {
+    CAPTURE(encoding);
+    std::vector<std::string> bodies;
+    for (const nlohmann::json& j : intervals) {
+      if (std::string(encoding) == "json") {
+        bodies.push_back(j.dump());
+      } else {
+        const std::vector<std::uint8_t> b = nlohmann::json::to_msgpack(j);
+        bodies.emplace_back(b.begin(), b.end());
+      }
+    }
+    bodies.push_back("not stats");  // unreadable: left out
+    const nlohmann::json st = bench::daemon_stages(bodies, encoding);
+    CHECK(st["intervals"] == 3);
+    CHECK(st["decode"].get<double>() == 2.0);
+    CHECK(st["solve"].get<double>() == 20.0);
+    CHECK(st["encode"].get<double>() == 2.0);
+    CHECK(st["send"].get<double>() == 8.0);
+    CHECK(st["decode_solve_encode"].get<double>() == 24.0);
+  }
+  CHECK(bench::daemon_stages({}, "json")["intervals"] == 0);
 }
 
 TEST_CASE("bench pipeline reports each stage, and the solve split into the solver and the rest",

@@ -162,42 +162,6 @@ std::vector<Slot> alternate_blocks(int n, int block) {
   return schedule;
 }
 
-// The daemon's own stages over the run, from its stats (stages_us): per stage
-// the median over the stats intervals of the interval's p50, and
-// `decode_solve_encode`, their sum (the work the floor does not do; both send).
-// Intervals that served no frame are left out.
-json daemon_stages(const std::vector<std::string>& bodies, const std::string& encoding) {
-  std::array<std::vector<double>, 4> p50;
-  const char* names[] = {"decode", "solve", "encode", "send"};
-  for (const std::string& b : bodies) {
-    const json stats = encoding == "msgpack" ? json::from_msgpack(b, true, false)
-                                             : json::parse(b, nullptr, false);
-    // The interval's p50 of a stage; NaN where the stats do not hold one.
-    const auto stage_p50 = [&](const char* name) {
-      const json* q = &stats;
-      for (const char* key : {"stages_us", name, "p50"}) {
-        if (!q->is_object() || !q->contains(key)) return std::nan("");
-        q = &(*q)[key];
-      }
-      return q->is_number() ? q->get<double>() : std::nan("");
-    };
-    std::array<double, 4> v;
-    for (std::size_t k = 0; k < v.size(); ++k) v[k] = stage_p50(names[k]);
-    if (!(v[1] > 0.0) || !std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); }))
-      continue;
-    for (std::size_t k = 0; k < v.size(); ++k) p50[k].push_back(v[k]);
-  }
-  json out = {{"intervals", p50[0].size()}};
-  double sum = 0.0;
-  for (std::size_t k = 0; k < p50.size(); ++k) {
-    const double v = p50[k].empty() ? 0.0 : quantile(p50[k], 0.5);
-    out[names[k]] = v;
-    if (k < 3) sum += v;
-  }
-  out["decode_solve_encode"] = sum;
-  return out;
-}
-
 // One transport: the daemon and the floor (zmq_floor.hpp), both up for the
 // whole run, fed the same marker frames at `rate_hz` in alternating blocks.
 // Latency: from just before the source's send (the frame already encoded)
@@ -666,6 +630,38 @@ json run_source(const LatencyOptions& o, DaemonConfig config, const std::string&
 }
 
 }  // namespace
+
+json daemon_stages(const std::vector<std::string>& bodies, const std::string& encoding) {
+  std::array<std::vector<double>, 4> p50;
+  const char* names[] = {"decode", "solve", "encode", "send"};
+  for (const std::string& b : bodies) {
+    const json stats = encoding == "msgpack" ? json::from_msgpack(b, true, false)
+                                             : json::parse(b, nullptr, false);
+    // The interval's p50 of a stage; NaN where the stats do not hold one.
+    const auto stage_p50 = [&](const char* name) {
+      const json* q = &stats;
+      for (const char* key : {"stages_us", name, "p50"}) {
+        if (!q->is_object() || !q->contains(key)) return std::nan("");
+        q = &(*q)[key];
+      }
+      return q->is_number() ? q->get<double>() : std::nan("");
+    };
+    std::array<double, 4> v;
+    for (std::size_t k = 0; k < v.size(); ++k) v[k] = stage_p50(names[k]);
+    const bool finite = std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+    if (!finite || !(v[1] > 0.0)) continue;
+    for (std::size_t k = 0; k < v.size(); ++k) p50[k].push_back(v[k]);
+  }
+  json out = {{"intervals", p50[0].size()}};
+  double sum = 0.0;
+  for (std::size_t k = 0; k < p50.size(); ++k) {
+    const double v = p50[k].empty() ? 0.0 : quantile(p50[k], 0.5);
+    out[names[k]] = v;
+    if (k < 3) sum += v;
+  }
+  out["decode_solve_encode"] = sum;
+  return out;
+}
 
 json run_latency(const LatencyOptions& o) {
   spdlog::set_level(spdlog::level::warn);

@@ -42,5 +42,12 @@ struct LatencyOptions {
 };
 nlohmann::json run_latency(const LatencyOptions& options);
 std::string latency_table(const nlohmann::json& result);
+// The daemon's own stages over a run, from the stats messages it published
+// (`bodies`, in the output's `encoding`, json or msgpack): per stage the median
+// over the intervals of each interval's stages_us p50, `decode_solve_encode`
+// their sum but the send's (what the floor does not do), and `intervals`, how
+// many counted. An interval that served no frame (solve p50 not above zero) or
+// that lacks a stage is left out.
+nlohmann::json daemon_stages(const std::vector<std::string>& bodies, const std::string& encoding);
 
 }  // namespace fabrik::bench

@@ -1,8 +1,8 @@
 // What this machine charges a thread for waking another that sleeps in
 // epoll_wait: an eventfd write, as ZeroMQ wakes its I/O thread once per
-// send when the I/O thread is idle. On a virtual machine an idle vCPU is
-// woken by an interrupt the hypervisor delivers, and the writer pays for it;
-// `fabrik bench pipeline` samples it between frames so that its send figure
+// send when the I/O thread is idle. On a virtual machine this can cost the
+// writer several microseconds (waking an idle vCPU likely goes through the
+// hypervisor); `fabrik bench pipeline` samples it between frames so that its send figure
 // can be read against it.
 #pragma once
 
