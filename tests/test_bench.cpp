@@ -435,3 +435,27 @@ TEST_CASE("bench subjects answers every frame for every count and reports it", "
   }
   CHECK(bench::subjects_table(r).find("subjects  frames") != std::string::npos);
 }
+
+TEST_CASE("QuietDeadline: a run stops waiting half a second after its last frame, stats or not",
+          "[bench]") {
+  using namespace std::chrono_literals;
+  using bench::QuietDeadline;
+  const QuietDeadline::Clock::time_point t0{};
+  QuietDeadline quiet(500ms);
+  // While sending, a late answer is no reason to stop, however long it takes.
+  quiet.frame(t0 + 1s);
+  CHECK_FALSE(quiet.expired(t0 + 10s));
+  // Sending done at 10 s: the wait ends 500 ms later unless a frame comes.
+  quiet.sending_done(t0 + 10s);
+  CHECK_FALSE(quiet.expired(t0 + 10s + 499ms));
+  quiet.frame(t0 + 10s + 400ms);
+  CHECK_FALSE(quiet.expired(t0 + 10s + 899ms));
+  CHECK(quiet.expired(t0 + 10s + 900ms));
+  // Seeing "done" again (each pass of the loop) does not move the deadline.
+  quiet.sending_done(t0 + 10s + 800ms);
+  CHECK(quiet.expired(t0 + 10s + 900ms));
+  // No frame at all after sending: lost frames end the wait at 500 ms, not never.
+  QuietDeadline lost(500ms);
+  lost.sending_done(t0);
+  CHECK(lost.expired(t0 + 500ms));
+}

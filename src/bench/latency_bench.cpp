@@ -318,13 +318,12 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
   int received = 0;
   zmq::pollitem_t items[] = {{daemon_peer.sub.handle(), 0, ZMQ_POLLIN, 0},
                              {floor_peer.sub.handle(), 0, ZMQ_POLLIN, 0}};
+  // No frame for half a second once sending is done: the rest is lost.
+  QuietDeadline quiet(std::chrono::milliseconds(500));
   while (received < 2 * n) {
-    // Nothing for half a second after the last frame: the rest is lost.
-    const bool done = sending_done;
-    if (zmq::poll(items, 2, std::chrono::milliseconds(done ? 500 : 1000)) <= 0) {
-      if (done) break;
-      continue;
-    }
+    if (sending_done) quiet.sending_done(Clock::now());
+    if (quiet.expired(Clock::now())) break;
+    if (zmq::poll(items, 2, std::chrono::milliseconds(100)) <= 0) continue;
     for (int p : {kDaemon, kFloor}) {
       std::uint64_t f = 0;
       if (!(items[p].revents & ZMQ_POLLIN) || !peers[p]->read(f)) continue;
@@ -333,6 +332,7 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
       got[p][f - first] = 1;
       received_at[p][f - first] = now;
       ++received;
+      quiet.frame(now);
       if (p == kDaemon) pose_bytes += static_cast<double>(peers[p]->body.size());
     }
   }

@@ -8,6 +8,7 @@
 // decodes, against frames on the ZeroMQ input of the same daemon.
 #pragma once
 
+#include <chrono>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -49,5 +50,25 @@ std::string latency_table(const nlohmann::json& result);
 // many counted. An interval that served no frame (solve p50 not above zero) or
 // that lacks a stage is left out.
 nlohmann::json daemon_stages(const std::vector<std::string>& bodies, const std::string& encoding);
+
+// When a run stops waiting for answers: once sending is done, after `quiet` without a frame.
+// Kept in time, not in polls that time out: the daemon's stats keep its socket busy while
+// frames no longer come, and a lost frame must not hold the run open.
+class QuietDeadline {
+ public:
+  using Clock = std::chrono::steady_clock;
+  explicit QuietDeadline(Clock::duration quiet) : quiet_(quiet) {}
+  void sending_done(Clock::time_point now) {
+    if (give_up_ == Clock::time_point::max()) give_up_ = now + quiet_;
+  }
+  void frame(Clock::time_point now) {
+    if (give_up_ != Clock::time_point::max()) give_up_ = now + quiet_;
+  }
+  bool expired(Clock::time_point now) const { return now >= give_up_; }
+
+ private:
+  Clock::duration quiet_;
+  Clock::time_point give_up_ = Clock::time_point::max();
+};
 
 }  // namespace fabrik::bench
