@@ -27,7 +27,7 @@ constexpr int kWarmUpFrames = 200;  // buffers grown, caches and the subscriber'
 constexpr int kPoseTimeoutMs = 1000;
 
 // One config's daemon, its subscriber and its marker frames.
-struct Run {
+struct StageRun {
   std::string name;
   std::shared_ptr<const Model> model;  // outlives `motion`, which refers to it
   std::unique_ptr<wire::Daemon> daemon;
@@ -50,10 +50,10 @@ struct Run {
 
 // The daemon and its subscriber have contexts (I/O threads) of their own, as
 // fabrikd and its clients in their own processes.
-std::unique_ptr<Run> make_run(zmq::context_t& daemon_context, zmq::context_t& client_context,
+std::unique_ptr<StageRun> make_run(zmq::context_t& daemon_context, zmq::context_t& client_context,
                               DaemonConfig config, std::string name, const PipelineOptions& o,
                               int k) {
-  auto run = std::make_unique<Run>();
+  auto run = std::make_unique<StageRun>();
   run->name = std::move(name);
   config.input = {"inproc://fabrik-bench-pipeline-in-" + std::to_string(k), SocketMode::bind};
   if (o.transport == "tcp") {
@@ -92,7 +92,7 @@ std::unique_ptr<Run> make_run(zmq::context_t& daemon_context, zmq::context_t& cl
 }
 
 // Frame f of the run's motion, as a source would send it (not timed).
-void make_payload(Run& r, std::uint64_t f, const PipelineOptions& o) {
+void make_payload(StageRun& r, std::uint64_t f, const PipelineOptions& o) {
   const double t_s = static_cast<double>(f) / o.rate_hz;
   r.motion->posture_at(t_s, r.truth);
   r.motion->sample(r.truth, r.points, 0.5e-3, r.p_m);
@@ -102,7 +102,7 @@ void make_payload(Run& r, std::uint64_t f, const PipelineOptions& o) {
                             r.payload);
 }
 
-bool receive_pose(Run& r, int timeout_ms) {
+bool receive_pose(StageRun& r, int timeout_ms) {
   zmq::pollitem_t items[] = {{r.sub.handle(), 0, ZMQ_POLLIN, 0}};
   if (zmq::poll(items, 1, std::chrono::milliseconds(timeout_ms)) <= 0) return false;
   (void)r.sub.recv(r.topic);
@@ -112,7 +112,7 @@ bool receive_pose(Run& r, int timeout_ms) {
   return true;
 }
 
-wire::FrameStages serve(Run& r) {
+wire::FrameStages serve(StageRun& r) {
   return r.daemon->serve_payload(
       {reinterpret_cast<const std::uint8_t*>(r.payload.data()), r.payload.size()});
 }
@@ -127,7 +127,7 @@ json run_pipeline(const PipelineOptions& o) {
   if (o.encoding != "json" && o.encoding != "msgpack")
     throw std::invalid_argument("unknown encoding '" + o.encoding + "' (use json or msgpack)");
   zmq::context_t daemon_context(1), client_context(1);
-  std::vector<std::unique_ptr<Run>> runs;
+  std::vector<std::unique_ptr<StageRun>> runs;
   runs.push_back(make_run(daemon_context, client_context, default_daemon_config(), "default", o, 0));
   for (const std::string& file : o.configs)
     runs.push_back(make_run(daemon_context, client_context, load_daemon_config_file(file), file, o,
@@ -155,7 +155,7 @@ json run_pipeline(const PipelineOptions& o) {
   for (int i = 0; i < total; ++i, ++frame) {
     // Alternate which model goes first: neither always follows the other.
     for (std::size_t j = 0; j < runs.size(); ++j) {
-      Run& r = *runs[(j + static_cast<std::size_t>(i)) % runs.size()];
+      StageRun& r = *runs[(j + static_cast<std::size_t>(i)) % runs.size()];
       make_payload(r, frame, o);
       const wire::FrameStages s = serve(r);
       const bool got = receive_pose(r, kPoseTimeoutMs);

@@ -20,7 +20,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using natnet::MessageId;
 
-constexpr auto kSlice = std::chrono::milliseconds(100);
+constexpr auto kServerSlice = std::chrono::milliseconds(100);
 constexpr auto kClientTimeout = std::chrono::seconds(10);
 constexpr auto kModelsChangedFor = std::chrono::seconds(1);
 constexpr std::size_t kMaxDatagramBytes = 65503;  // PacketClient's MAX_PACKETSIZE
@@ -45,7 +45,7 @@ natnet::Version motive_version(const natnet::Version& v) {
   return {2, static_cast<std::uint8_t>(v.minor == 0 ? 1 : 3), 0, 0};
 }
 
-Clock::duration seconds(double s) {
+Clock::duration duration_of_s(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(std::max(0.0, s)));
 }
 
@@ -284,7 +284,7 @@ struct NatNetSimServer::Impl {
       std::erase_if(clients, [&](const Client& c) { return now - c.last_heard > kClientTimeout; });
       client_count = static_cast<int>(clients.size());
       if (now >= until) return;
-      const auto slice = std::min<Clock::duration>(kSlice, until - now);
+      const auto slice = std::min<Clock::duration>(kServerSlice, until - now);
       UdpEndpoint from;
       std::size_t bytes = 0;
       std::string error;
@@ -336,19 +336,19 @@ struct NatNetSimServer::Impl {
       std::mutex m;
       std::condition_variable_any cv;
       std::unique_lock lock(m);
-      cv.wait_for(lock, stop, seconds(script.restarts[i].down_seconds), [] { return false; });
+      cv.wait_for(lock, stop, duration_of_s(script.restarts[i].down_seconds), [] { return false; });
       std::string error;
       if (!open_sockets(error)) throw std::runtime_error("NatNet simulator restart: " + error);
     }
     for (std::size_t i = 0; i < script.pauses.size(); ++i) {
       if (pause_done[i] || script.pauses[i].at_frame > index) continue;
       pause_done[i] = true;
-      serve_commands(Clock::now() + seconds(script.pauses[i].seconds), stop);
+      serve_commands(Clock::now() + duration_of_s(script.pauses[i].seconds), stop);
     }
   }
 
   void run(const std::stop_token& stop) {
-    const auto period = seconds(1.0 / (rec.rate_hz * script.rate_scale));
+    const auto period = duration_of_s(1.0 / (rec.rate_hz * script.rate_scale));
     const auto frames = static_cast<std::int64_t>(rec.p_mm.size());
     std::int64_t index = 0;
     std::uint64_t sent = 0;

@@ -6,12 +6,12 @@
 #include <numbers>
 
 #include "calibrate.hpp"
+#include "solver/units.hpp"
 
 namespace fabrik::calib {
 
 namespace {
 
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 // Below this horizontal share (sin of the angle to the vertical: 10 deg), an
 // axis has no heading worth the name.
 constexpr double kMinHorizontal = 0.17;

@@ -7,6 +7,7 @@
 #include "json_reader.hpp"
 #include "lab_axes_json.hpp"
 #include "solver/model_builder.hpp"
+#include "solver/units.hpp"
 
 namespace fabrik {
 
@@ -18,8 +19,6 @@ double metres_per_unit(const JsonReader& units) {
 }
 
 namespace {
-
-constexpr double kRadPerDeg = 3.141592653589793 / 180.0;
 
 // {"x": [..], "y": [..], "z": [..]}: the anatomical axes in the rest frame.
 // Two axes are enough (the third completes a right-handed frame); a third,

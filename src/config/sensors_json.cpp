@@ -4,11 +4,11 @@
 #include <cmath>
 #include <numbers>
 
+#include "solver/units.hpp"
+
 namespace fabrik {
 
 namespace {
-
-constexpr double kRadPerDeg = std::numbers::pi / 180.0;
 
 std::string joined(const std::vector<std::string>& names) {
   std::string s;
@@ -17,7 +17,7 @@ std::string joined(const std::vector<std::string>& names) {
   return s;
 }
 
-std::string read_axis(const JsonReader& r) {
+std::string read_axis_name(const JsonReader& r) {
   const std::string name = r.as_string();
   if (!is_axis_name(name))
     r.fail("'" + name + "' is not an axis", "write \"x\", \"y\" or \"z\", optionally with a sign (\"-z\")");
@@ -65,13 +65,13 @@ SensorSection read_sensor_section(const JsonReader& sensors,
         w.at("rotation_deg").fail("angles beyond 360 deg", "give each angle in [-360, 360] degrees");
       out.world.rotation_xyz_rad = deg * kRadPerDeg;
     }
-    if (w.has("up")) out.world.up = read_axis(w.at("up"));
+    if (w.has("up")) out.world.up = read_axis_name(w.at("up"));
     out.world.heading_rad = w.get("heading_deg", 0.0, -360.0, 360.0) * kRadPerDeg;
     if (w.has("heading_from") && !w.at("heading_from").value().is_null()) {
       const JsonReader h = w.at("heading_from");
       h.only_keys({"sensor", "axis"});
       out.world.heading_sensor = h.at("sensor").as_string();
-      if (h.has("axis")) out.world.heading_axis = read_axis(h.at("axis"));
+      if (h.has("axis")) out.world.heading_axis = read_axis_name(h.at("axis"));
     }
   }
   SensorEntry base;
@@ -142,7 +142,6 @@ SensorSetup sensor_setup(const SensorSection& section, const Model& model) {
 }
 
 nlohmann::ordered_json sensor_section_json(const SensorSection& section) {
-  constexpr double kDegPerRad = 180.0 / std::numbers::pi;
   const auto round = [](double v, double scale) { return std::round(v * scale) / scale; };
   nlohmann::ordered_json world;
   world["rotation_deg"] = {round(section.world.rotation_xyz_rad.x() * kDegPerRad, 1e9),

@@ -10,6 +10,7 @@
 #include "calib/sensor_calibration.hpp"
 #include "config/model_loader.hpp"
 #include "distance_stats.hpp"
+#include "solver/units.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "synth/synthetic_sensors.hpp"
 #include "tracking/tracker.hpp"
@@ -18,7 +19,6 @@ namespace fabrik::eval {
 
 namespace {
 
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 // A knee flexion above this starts a swing phase's peak search (well above
 // stance flexion, ~15-25 deg, and below any swing peak worth the name).
 constexpr double kSwingKneeDeg = 35.0;

@@ -13,13 +13,13 @@
 #include "io/opensim_table.hpp"
 #include "offline/solve_trial.hpp"
 #include "offline/prefilter.hpp"
+#include "solver/units.hpp"
 #include "tools/synth.hpp"
 
 namespace fabrik::eval {
 
 namespace {
 
-constexpr double kDegPerRad = 180.0 / 3.141592653589793;
 
 DaemonConfig load_json_config(const nlohmann::ordered_json& j, const std::string& name) {
   return load_daemon_config(j.dump(), name);
@@ -59,7 +59,7 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
       continue;
     }
     ++row.swaps;
-    for (int f = r.first_frame; f < std::min<int>(r.first_frame + r.frames + 5, row.frames); ++f)
+    for (int f = r.first_frame; f < std::min<int>(r.first_frame + r.frames + 5, static_cast<int>(row.frames)); ++f)
       near_swap[static_cast<std::size_t>(f)] = 1;
   }
   for (std::uint8_t s : near_swap) row.swapped_frames += s;

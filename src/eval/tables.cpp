@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "text_format.hpp"
+#include "solver/units.hpp"
 
 namespace fabrik::eval {
 
@@ -230,7 +231,6 @@ nlohmann::json synthetic_json(const std::vector<SyntheticRow>& rows) {
 
 namespace {
 
-constexpr double kDegPerRad = 180.0 / 3.141592653589793;
 
 // Display units: degrees for rotations, millimetres for translations.
 double display(const CoordinateComparison& c, double si) {

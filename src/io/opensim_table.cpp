@@ -17,7 +17,7 @@ namespace fabrik::io {
 namespace {
 
 constexpr std::size_t kMaxHeaderLines = 10000;
-constexpr std::size_t kMaxHeaderLineBytes = std::size_t{16} << 20;
+constexpr std::size_t kMaxTableHeaderLineBytes = std::size_t{16} << 20;
 // A cell holds a number or a short tuple of them.
 constexpr std::size_t kMaxBytesPerCell = 1024;
 
@@ -154,7 +154,7 @@ OpenSimTable read_opensim_table(const std::string& path) {
     }
     return true;
   };
-  while (line_number < kMaxHeaderLines && next(kMaxHeaderLineBytes)) {
+  while (line_number < kMaxHeaderLines && next(kMaxTableHeaderLineBytes)) {
     const std::string_view text = detail::trim(line);
     if (text == "endheader") {
       ended = true;
@@ -173,7 +173,7 @@ OpenSimTable read_opensim_table(const std::string& path) {
     throw FormatError(path, "no 'endheader' line in the first " + std::to_string(line_number) +
                                 " lines: not an OpenSim table (.sto/.mot)");
   }
-  while (next(kMaxHeaderLineBytes) && detail::trim(line).empty()) {
+  while (next(kMaxTableHeaderLineBytes) && detail::trim(line).empty()) {
   }
   for (const std::string_view c : fields_of(line)) {
     if (!c.empty()) t.columns.emplace_back(c);

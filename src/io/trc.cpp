@@ -26,7 +26,7 @@ using detail::trim;
 // Line 4 may hold thousands of marker names (line 5 their X/Y/Z), but not more than this; the
 // other header lines hold a few words.
 constexpr std::size_t kMaxNamesLineBytes = std::size_t{16} << 20;
-constexpr std::size_t kMaxHeaderLineBytes = std::size_t{64} << 10;
+constexpr std::size_t kMaxTrcHeaderLineBytes = std::size_t{64} << 10;
 // Short rows are missing markers, so a row's text can be much smaller than what it costs in
 // memory (24 bytes a marker): the positions may take this many times the file's size, or
 // kMinPositionBudgetBytes, before the file is refused as not a recording.
@@ -396,7 +396,7 @@ class TrcParser {
     return true;
   }
 
-  void header_line(std::string& line, std::size_t max_bytes = kMaxHeaderLineBytes) {
+  void header_line(std::string& line, std::size_t max_bytes = kMaxTrcHeaderLineBytes) {
     if (!next_line(line, max_bytes)) {
       fail("file ends inside the header, at line " + std::to_string(line_number_ + 1) + " of 5");
     }

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "common/quantile.hpp"
+#include "solver/units.hpp"
 #include "tracking/tracker.hpp"
 #include "tracking/two_sided_fill.hpp"
 
@@ -205,7 +206,6 @@ nlohmann::json solution_summary(const TrialSolution& s) {
   std::size_t with_sensors = 0;
   for (double e : s.sensor_rms_rad)
     if (std::isfinite(e)) sensor_sum += e, sensor_max = std::max(sensor_max, e), ++with_sensors;
-  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
   nlohmann::json summary = {{"frames", frames},
           {"frames_without_markers", frames - with_markers},
           {"residual_mm",
@@ -250,7 +250,6 @@ nlohmann::json solution_summary(const TrialSolution& s) {
 }
 
 io::OpenSimTable angles_table(const TrialSolution& s) {
-  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
   io::OpenSimTable t = io::coordinates_table(s.coordinate_names, true);
   const std::size_t n = s.coordinate_names.size();
   std::vector<double> row(n);

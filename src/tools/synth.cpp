@@ -6,6 +6,7 @@
 
 #include "config/daemon_config.hpp"
 #include "solver/posture.hpp"
+#include "solver/units.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "solver/joint_angles.hpp"
 #include "io/opensim_table.hpp"
@@ -128,7 +129,6 @@ void write_injected_csv(const std::string& path, const KeypointTrial& t) {
 }
 
 void write_truth_mot(const std::string& path, const SynthTrial& t) {
-  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
   io::OpenSimTable table = io::coordinates_table(t.coordinate_names, true);
   const std::size_t n = t.coordinate_names.size();
   std::vector<double> row(n);

@@ -166,9 +166,9 @@ void write_stats(Writer& w, const StatsFields& s) {
     w.number(q.max(), 2);
     w.end_map();
   };
-  constexpr bool json = std::is_same_v<Writer, JsonWriter>;
-  const bool subjects = json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
-  const bool views = json ? bool(s.views_json) : bool(s.views_msgpack);
+  constexpr bool is_json = std::is_same_v<Writer, JsonWriter>;
+  const bool subjects = is_json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
+  const bool views = is_json ? bool(s.views_json) : bool(s.views_msgpack);
   // MessagePack needs the exact count of the keys below
   w.begin_map(28 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
   w.key("uptime_s");
@@ -219,14 +219,14 @@ void write_stats(Writer& w, const StatsFields& s) {
   if (subjects) {
     count("other_subject_frames", s.c.other_subject_frames);
     w.key("subjects");
-    if constexpr (json)
+    if constexpr (is_json)
       s.subjects_json(w);
     else
       s.subjects_msgpack(w);
   }
   if (views) {
     w.key("views");
-    if constexpr (json)
+    if constexpr (is_json)
       s.views_json(w);
     else
       s.views_msgpack(w);

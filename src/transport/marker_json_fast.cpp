@@ -11,9 +11,9 @@ namespace {
 constexpr double kPow10[] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
                              1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
-class CommonShapeReader {
+class JsonShapeReader {
  public:
-  CommonShapeReader(std::string_view text, MarkerNameIndex& names, MarkerFrame& out,
+  JsonShapeReader(std::string_view text, MarkerNameIndex& names, MarkerFrame& out,
                     FastFrameTop& top)
       : p_(text.data()), end_(text.data() + text.size()), names_(names), out_(out), top_(top) {}
 
@@ -202,7 +202,7 @@ class CommonShapeReader {
 
 bool read_common_marker_json(std::string_view text, MarkerNameIndex& names, MarkerFrame& out,
                              FastFrameTop& top) {
-  return CommonShapeReader(text, names, out, top).frame();
+  return JsonShapeReader(text, names, out, top).frame();
 }
 
 }  // namespace fabrik::wire

@@ -10,9 +10,9 @@ namespace fabrik::wire {
 
 namespace {
 
-class CommonShapeReader {
+class MsgpackShapeReader {
  public:
-  CommonShapeReader(std::span<const std::uint8_t> payload, MarkerNameIndex& names,
+  MsgpackShapeReader(std::span<const std::uint8_t> payload, MarkerNameIndex& names,
                     MarkerFrame& out, FastFrameTop& top)
       : p_(payload.data()), end_(payload.data() + payload.size()), names_(names), out_(out),
         top_(top) {}
@@ -205,7 +205,7 @@ class CommonShapeReader {
 
 bool read_common_marker_msgpack(std::span<const std::uint8_t> payload, MarkerNameIndex& names,
                                 MarkerFrame& out, FastFrameTop& top) {
-  return CommonShapeReader(payload, names, out, top).frame();
+  return MsgpackShapeReader(payload, names, out, top).frame();
 }
 
 }  // namespace fabrik::wire

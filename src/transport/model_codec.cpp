@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "solver/units.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
 
 namespace {
 
-constexpr double kDegPerRad = 180.0 / 3.141592653589793;
 
 // Model::joints index of the joint at each segment's base (every base is one).
 std::vector<int> base_joints(const Model& model) {

@@ -1,5 +1,6 @@
 #include "pose_codec.hpp"
 
+#include "solver/units.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -166,7 +167,6 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     flagged_names(r.beyond, static_cast<std::size_t>(r.beyond_count));
   }
   w.end_map();
-  constexpr double kDegPerRad = 180.0 / 3.141592653589793;
   if (has(PosePart::angles)) {
     w.key("angles");  // addition: rotational coordinates, degrees
     w.begin_map(angle_names_.size());
