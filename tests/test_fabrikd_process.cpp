@@ -787,6 +787,32 @@ TEST_CASE("A subscriber can neither stall the daemon nor grow its memory: subscr
   WARN("SIGTERM to exit: " << ms(Clock::now() - t0) << " ms");
 }
 
+TEST_CASE("A raw peer's unsubscriptions of what others subscribed to do not stop their poses",
+          "[fabrikd][limits]") {
+  // Counted, three of them stopped every pose: the subscription count fell to 0
+  // while the client (subscribed to "") was still there.
+  json c = good_config("unsubs");
+  const int port = free_tcp_port();
+  c["output"]["endpoint"] = "tcp://127.0.0.1:" + std::to_string(port);
+  Running r(write_file("unsubs.json", c.dump()), c);
+  SocketClient& client = *r.client;
+  std::uint64_t frame = r.frame;
+  RawSubscriber raw(port);
+  for (int k = 0; k < 3; ++k) {
+    raw.subscribe("", false);
+    raw.subscribe("pose", false);
+  }
+  raw.subscribe("zz");  // refused: once counted, the unsubscriptions before it were read
+  REQUIRE(raw.flush());
+  const auto stats = client.stats_until([](const json& s) { return s["subscriptions_refused"] >= 1; });
+  REQUIRE(stats);
+  CHECK((*stats)["pose_subscribers"] == 1);
+  client.send_frame(++frame);
+  const auto pose = client.pose_of(frame, 5000ms);
+  REQUIRE(pose);
+  CHECK((*pose)["frame"] == frame);
+}
+
 TEST_CASE("SIGTERM ends fabrikd within 100 ms at any moment: while it reads a large config, "
           "while it runs, and while it reads a reload",
           "[fabrikd][signals]") {

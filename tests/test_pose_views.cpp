@@ -142,6 +142,42 @@ TEST_CASE("A subscription selects a view when it starts the view's topic and is 
   CHECK(book.selecting("joints/bob") == 0);
 }
 
+TEST_CASE("A connection's subscriptions count once per prefix, and it gives up only what it "
+          "holds",
+          "[views][subscriptions]") {
+  using wire::SubscriberConnection;
+  wire::SubscriptionBook book;
+  const SubscriberConnection b{7, 1001}, raw{8, 1002}, gone{9, 1003}, reuse{9, 1004};
+  bool gone_alive = true;
+  const auto alive = [&](const SubscriberConnection& c) { return c != gone || gone_alive; };
+  book.subscribed("pose", b);
+  // A raw peer's unsubscriptions of what another connection holds change nothing.
+  for (int k = 0; k < 3; ++k) book.unsubscribed("pose", raw, alive);
+  CHECK(book.receiving("pose") == 1);
+  // A SUB socket that subscribes twice sends both, and one unsubscription.
+  book.subscribed("joints", b);
+  book.subscribed("joints", b);
+  CHECK(book.selecting("joints") == 1);
+  book.unsubscribed("joints", b, alive);
+  CHECK(book.selecting("joints") == 0);
+  // A connection gone: ZeroMQ's unsubscription names none; a new connection on the
+  // same descriptor holds nothing of the old one's.
+  book.subscribed("joints", gone);
+  book.subscribed("joints", b);
+  CHECK(book.selecting("joints") == 2);
+  gone_alive = false;
+  book.unsubscribed("joints", {}, alive);
+  CHECK(book.selecting("joints") == 1);
+  book.unsubscribed("joints", reuse, alive);
+  CHECK(book.selecting("joints") == 1);
+  book.subscribed("joints", reuse);
+  CHECK(book.selecting("joints") == 2);
+  book.unsubscribed("joints", reuse, alive);
+  book.unsubscribed("joints", b, alive);
+  CHECK(book.selecting("joints") == 0);
+  CHECK(book.receiving("pose") == 1);
+}
+
 TEST_CASE("A view is encoded only while someone subscribes to it, carries the parts it names, "
           "and stops when its subscriber goes",
           "[views][daemon]") {
@@ -214,6 +250,31 @@ TEST_CASE("A view is encoded only while someone subscribes to it, carries the pa
   CHECK((*later)["joints"]["frames_out"] == sent);
   CHECK((*later)["lean"]["frames_out"] == 0);
   CHECK(d.daemon.counters().subscriptions_refused == 0);
+}
+
+TEST_CASE("A SUB socket that subscribes to a view twice is one subscriber, and none once it goes",
+          "[views][daemon][subscriptions]") {
+  // ZeroMQ's SUB sends both subscriptions but one unsubscription: counted twice, the view
+  // stayed selected, and encoded, for no one after it went.
+  zmq::context_t context;
+  test::DaemonThread d(context, on_free_ports(config_with_views(
+                                    {{"views", json::array({{{"topic", "joints"}},
+                                                            {{"topic", "lean"}}})}})));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  {
+    zmq::socket_t twice = subscriber(context, d.daemon.output_endpoint(), "joints");
+    twice.set(zmq::sockopt::subscribe, "joints");
+    twice.set(zmq::sockopt::subscribe, "lean");  // in order on one connection: read after both
+    const auto counted = view_stats_until(
+        client, frame, [](const json& views) { return views["lean"]["subscribers"] == 1; });
+    REQUIRE(counted);
+    CHECK((*counted)["joints"]["subscribers"] == 1);
+  }  // the subscriber goes
+  const auto gone = view_stats_until(client, frame, [](const json& views) {
+    return views["joints"]["subscribers"] == 0 && views["lean"]["subscribers"] == 0;
+  });
+  CHECK(gone);
 }
 
 TEST_CASE("A multi-subject daemon publishes each subject's view on TOPIC/NAME, selected apart",

@@ -576,10 +576,11 @@ json run_source(const LatencyOptions& o, DaemonConfig config, const std::string&
       if (!source_poses.contains(first + static_cast<std::uint64_t>(i))) return false;
     return true;
   };
-  // Receive until every pose of both windows is in, or for at most a second
-  // after the last send (the rest is lost); the server keeps streaming.
-  Clock::time_point give_up = Clock::time_point::max();
-  while (Clock::now() < give_up) {
+  // Receive until every pose of both windows is in, or until a second after
+  // the last send (the rest is lost). The server keeps streaming, so poses
+  // keep coming: the wait is not extended per frame.
+  QuietDeadline give_up(std::chrono::seconds(1));
+  while (!give_up.expired(Clock::now())) {
     std::uint64_t f = 0;
     if (receive(20, f)) {
       const Clock::time_point now = Clock::now();
@@ -595,7 +596,7 @@ json run_source(const LatencyOptions& o, DaemonConfig config, const std::string&
       }
     }
     if (sending_done) {
-      if (give_up == Clock::time_point::max()) give_up = Clock::now() + std::chrono::seconds(1);
+      give_up.sending_done(Clock::now());
       if (zmq_received == n && source_complete()) break;
     }
   }

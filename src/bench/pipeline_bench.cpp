@@ -51,8 +51,8 @@ struct StageRun {
 // The daemon and its subscriber have contexts (I/O threads) of their own, as
 // fabrikd and its clients in their own processes.
 std::unique_ptr<StageRun> make_run(zmq::context_t& daemon_context, zmq::context_t& client_context,
-                              DaemonConfig config, std::string name, const PipelineOptions& o,
-                              int k) {
+                                   DaemonConfig config, std::string name, const PipelineOptions& o,
+                                   int k) {
   auto run = std::make_unique<StageRun>();
   run->name = std::move(name);
   config.input = {"inproc://fabrik-bench-pipeline-in-" + std::to_string(k), SocketMode::bind};

@@ -14,6 +14,7 @@
 
 #include <netinet/in.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
@@ -882,6 +883,21 @@ bool connected_to(int fd, std::string_view endpoint) {
   return false;
 }
 
+namespace {
+// The connection a subscription message came from (SubscriptionBook): ZeroMQ names its
+// descriptor, the descriptor's socket tells it apart from a later one on the same number.
+SubscriberConnection subscription_sender(zmq::message_t& message) {
+  const int fd = zmq_msg_get(message.handle(), ZMQ_SRCFD);
+  struct stat st{};
+  if (fd < 0 || ::fstat(fd, &st) != 0) return {};
+  return {fd, static_cast<std::uint64_t>(st.st_ino)};
+}
+bool subscriber_still_connected(const SubscriberConnection& c) {
+  struct stat st{};
+  return ::fstat(c.fd, &st) == 0 && static_cast<std::uint64_t>(st.st_ino) == c.inode;
+}
+}  // namespace
+
 // ZeroMQ applies every subscription itself; the loop sees each one too
 // (XPUB_VERBOSER) and refuses any that is not a prefix of a topic we
 // publish, and any other message: on a bound socket, the connection that
@@ -902,12 +918,13 @@ void Daemon::read_subscriptions() {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
     if (!m.empty() && m[0] == 0) {  // an unsubscription (or a subscriber gone): nothing to hold
-      s.subscriptions.unsubscribed(m.substr(1));
+      s.subscriptions.unsubscribed(m.substr(1), subscription_sender(subscription_),
+                                     subscriber_still_connected);
       continue;
     }
     if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1), s.extra_topics)) {
       const std::string_view prefix = m.substr(1);
-      s.subscriptions.subscribed(prefix);
+      s.subscriptions.subscribed(prefix, subscription_sender(subscription_));
       model_wanted = model_wanted ||
                      (s.subjects.empty() ? subscribes_to_model(prefix)
                                          : std::any_of(s.subjects.begin(), s.subjects.end(),
