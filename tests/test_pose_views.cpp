@@ -178,6 +178,25 @@ TEST_CASE("A connection's subscriptions count once per prefix, and it gives up o
   CHECK(book.receiving("pose") == 1);
 }
 
+TEST_CASE("What the subscription book keeps of connections gone stays bounded", "[subscriptions]") {
+  using wire::SubscriberConnection;
+  wire::SubscriptionBook book;
+  const SubscriberConnection stays{3, 1};
+  book.subscribed("pose", stays);
+  const auto only_stays = [&](const SubscriberConnection& c) { return c == stays; };
+  // Connections that come, subscribe and go, on the same descriptor number, 10000 times.
+  std::size_t most_held = 0;
+  for (std::uint64_t k = 0; k < 10000; ++k) {
+    book.subscribed("pose", {4, 100 + k});
+    book.unsubscribed("pose", {}, only_stays);
+    most_held = std::max(most_held, book.connections_held());
+  }
+  CHECK(most_held <= 2 * 16);  // the live one, and those gone since the last sweep
+  CHECK(book.receiving("pose") == 1);
+  book.unsubscribed("pose", stays, only_stays);
+  CHECK(book.receiving("pose") == 0);
+}
+
 TEST_CASE("A view is encoded only while someone subscribes to it, carries the parts it names, "
           "and stops when its subscriber goes",
           "[views][daemon]") {

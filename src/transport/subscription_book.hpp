@@ -15,8 +15,8 @@
 // which, counted, stopped their poses. A connection is its descriptor
 // (ZMQ_SRCFD) and its socket's inode, so a new connection on a reused
 // descriptor holds nothing of the last one's. ZeroMQ's own unsubscriptions,
-// for a connection gone, name none: they end one count, and the holders that
-// are no longer alive are forgotten.
+// for a connection gone, name none: they end one count, and now and then the
+// holders that are no longer alive are forgotten.
 #pragma once
 
 #include <algorithm>
@@ -42,7 +42,7 @@ struct SubscriberConnection {
 class SubscriptionBook {
  public:
   void subscribed(std::string_view prefix, SubscriberConnection from = {}) {
-    if (from.fd >= 0 && !holders_[std::string(prefix)].insert(from).second) return;  // a repeat
+    if (from.fd >= 0 && !holders_[std::string(prefix)].held.insert(from).second) return;  // a repeat
     ++count_[std::string(prefix)];
   }
   // An unsubscription of what was never counted (a refused subscription's, as
@@ -53,11 +53,18 @@ class SubscriptionBook {
   void unsubscribed(std::string_view prefix, SubscriberConnection from, Alive alive) {
     const auto holders = holders_.find(prefix);
     if (from.fd >= 0) {
-      if (holders == holders_.end() || holders->second.erase(from) == 0) return;
+      if (holders == holders_.end() || holders->second.held.erase(from) == 0) return;
     } else if (holders != holders_.end()) {
-      std::erase_if(holders->second, [&](const SubscriberConnection& c) { return !alive(c); });
+      // A connection gone stays among the holders (it can never match again: its inode
+      // was its own) until they have doubled since the last sweep: a sweep on every such
+      // unsubscription would ask the kernel about every holder each time one goes.
+      Holders& h = holders->second;
+      if (h.held.size() >= h.sweep_at) {
+        std::erase_if(h.held, [&](const SubscriberConnection& c) { return !alive(c); });
+        h.sweep_at = std::max<std::size_t>(kFirstSweep, 2 * h.held.size());
+      }
     }
-    if (holders != holders_.end() && holders->second.empty()) holders_.erase(holders);
+    if (holders != holders_.end() && holders->second.held.empty()) holders_.erase(holders);
     const auto it = count_.find(prefix);
     if (it == count_.end()) return;
     if (--it->second == 0) count_.erase(it);
@@ -87,6 +94,12 @@ class SubscriptionBook {
       if (receives(std::string_view(prefix))) n += count;
     return n;
   }
+  // Connections held per prefix, summed (what the book keeps of them).
+  std::size_t connections_held() const {
+    std::size_t n = 0;
+    for (const auto& [prefix, h] : holders_) n += h.held.size();
+    return n;
+  }
   void clear() {
     count_.clear();
     holders_.clear();
@@ -98,7 +111,12 @@ class SubscriptionBook {
                        [&](std::string_view t) { return t.starts_with(prefix); });
   }
   std::map<std::string, int, std::less<>> count_;
-  std::map<std::string, std::set<SubscriberConnection>, std::less<>> holders_;
+  static constexpr std::size_t kFirstSweep = 16;
+  struct Holders {
+    std::set<SubscriberConnection> held;
+    std::size_t sweep_at = kFirstSweep;
+  };
+  std::map<std::string, Holders, std::less<>> holders_;
 };
 
 }  // namespace fabrik::wire
