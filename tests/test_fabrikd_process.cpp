@@ -797,16 +797,29 @@ TEST_CASE("A raw peer's unsubscriptions of what others subscribed to do not stop
   Running r(write_file("unsubs.json", c.dump()), c);
   SocketClient& client = *r.client;
   std::uint64_t frame = r.frame;
+  // Peers that send them and close at once: the loop may read their messages after
+  // ZeroMQ has closed the descriptor (counted as ZeroMQ's own then, they did the same).
+  // Whether it does is a race; the book's test ("A connection's unsubscription counts
+  // only against what it subscribed to") holds the rule for it in any case.
+  for (int i = 0; i < 10; ++i) {
+    RawSubscriber closing(port);
+    for (int k = 0; k < 3; ++k) {
+      closing.subscribe("", false);
+      closing.subscribe("pose", false);
+    }
+    REQUIRE(closing.flush());
+  }
   RawSubscriber raw(port);
   for (int k = 0; k < 3; ++k) {
     raw.subscribe("", false);
     raw.subscribe("pose", false);
   }
-  raw.subscribe("zz");  // refused: once counted, the unsubscriptions before it were read
+  raw.subscribe("zz");  // refused: once counted, this peer's unsubscriptions were read
   REQUIRE(raw.flush());
   const auto stats = client.stats_until([](const json& s) { return s["subscriptions_refused"] >= 1; });
   REQUIRE(stats);
   CHECK((*stats)["pose_subscribers"] == 1);
+  CHECK((*stats)["unsubscriptions_ignored"] >= 6);
   client.send_frame(++frame);
   const auto pose = client.pose_of(frame, 5000ms);
   REQUIRE(pose);

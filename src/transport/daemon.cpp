@@ -208,6 +208,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("outliers", s.c.outliers);
   count("poor_frames", s.c.poor_frames);
   count("subscriptions_refused", s.c.subscriptions_refused);
+  count("unsubscriptions_ignored", s.c.unsubscriptions_ignored);
   count("pose_subscribers", s.c.pose_subscribers);
   w.key("stages_us");
   w.begin_map(kStageNames.size());
@@ -884,15 +885,16 @@ bool connected_to(int fd, std::string_view endpoint) {
 }
 
 namespace {
-// The connection a subscription message came from (SubscriptionBook): ZeroMQ names its
-// descriptor, the descriptor's socket tells it apart from a later one on the same number.
-SubscriberConnection subscription_sender(zmq::message_t& message) {
+// Who sent a subscription message (SubscriptionBook): ZeroMQ names its descriptor,
+// the descriptor's socket tells it apart from a later one on the same number.
+SubscriptionSender subscription_sender(zmq::message_t& message) {
   const int fd = zmq_msg_get(message.handle(), ZMQ_SRCFD);
+  if (fd < 0) return {};
   struct stat st{};
-  if (fd < 0 || ::fstat(fd, &st) != 0) return {};
-  return {fd, static_cast<std::uint64_t>(st.st_ino)};
+  if (::fstat(fd, &st) != 0) return {SubscriptionSender::Kind::gone, fd, 0};
+  return {SubscriptionSender::Kind::connection, fd, static_cast<std::uint64_t>(st.st_ino)};
 }
-bool subscriber_still_connected(const SubscriberConnection& c) {
+bool descriptor_still_that_socket(const SubscriptionSender& c) {
   struct stat st{};
   return ::fstat(c.fd, &st) == 0 && static_cast<std::uint64_t>(st.st_ino) == c.inode;
 }
@@ -918,8 +920,9 @@ void Daemon::read_subscriptions() {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
     if (!m.empty() && m[0] == 0) {  // an unsubscription (or a subscriber gone): nothing to hold
-      s.subscriptions.unsubscribed(m.substr(1), subscription_sender(subscription_),
-                                     subscriber_still_connected);
+      if (!s.subscriptions.unsubscribed(m.substr(1), subscription_sender(subscription_),
+                                        descriptor_still_that_socket))
+        ++counters_.unsubscriptions_ignored;
       continue;
     }
     if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1), s.extra_topics)) {

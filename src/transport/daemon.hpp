@@ -57,6 +57,7 @@ struct DaemonCounters {
   std::uint64_t outliers = 0;          // measured markers left out of a solve as outliers
   std::uint64_t poor_frames = 0;       // poses whose residual.quality was poor
   std::uint64_t subscriptions_refused = 0;  // output subscriptions to no topic of ours (peer dropped)
+  std::uint64_t unsubscriptions_ignored = 0;  // of nothing counted, or not its sender's (SubscriptionBook)
   std::uint64_t other_subject_frames = 0;  // frames whose "subject" the config does not list
   std::uint64_t pose_subscribers = 0;  // live output subscriptions that receive poses (a gauge)
 };

@@ -8,22 +8,25 @@
 // a view). Changes only when a subscription arrives; the frame path reads
 // counts the loop keeps.
 //
-// Per connection, as the XPUB holds them (one entry per connection and
-// prefix): a connection's repeated subscription counts once, and it can only
-// give up what it holds. A SUB socket subscribing twice sends both, but one
-// unsubscription; a raw peer may send unsubscriptions of what others hold,
-// which, counted, stopped their poses. A connection is its descriptor
-// (ZMQ_SRCFD) and its socket's inode, so a new connection on a reused
-// descriptor holds nothing of the last one's. ZeroMQ's own unsubscriptions,
-// for a connection gone, name none: they end one count, and now and then the
-// holders that are no longer alive are forgotten.
+// Unsubscriptions count only when they can be told to give up something
+// held: XPUB_VERBOSER passes every unsubscription a peer sends, held or not,
+// and a raw peer's unsubscriptions of what others held, counted, brought the
+// count to 0 and stopped their poses. A peer's subscription is kept against
+// its connection (the descriptor ZeroMQ names, ZMQ_SRCFD, and that socket's
+// inode, as the loop finds them when it reads the message), and its
+// unsubscription counts only against such a record; one from a connection
+// already closed when the loop reads it does not count. ZeroMQ's own
+// unsubscriptions, for a connection gone (and an inproc peer's messages),
+// name no descriptor and count as they come. Where the loop cannot tell, it
+// errs on the side of a count too high (a pose made for no one), never too
+// low (a subscriber's poses not made): a connection that subscribes twice
+// counts twice, and ZeroMQ sends one unsubscription for both.
 #pragma once
 
 #include <algorithm>
 #include <cstdint>
 #include <iterator>
 #include <map>
-#include <set>
 #include <string>
 #include <string_view>
 
@@ -31,49 +34,56 @@
 
 namespace fabrik::wire {
 
-// Who sent a subscription message: fd < 0 when ZeroMQ names no connection (its
-// own unsubscriptions for a connection gone, an inproc peer's messages).
-struct SubscriberConnection {
+// Who sent a subscription message, as far as the loop can tell when it reads it.
+struct SubscriptionSender {
+  enum class Kind : std::uint8_t {
+    zeromq,      // no descriptor: ZeroMQ's own unsubscription for a connection gone, or inproc
+    connection,  // a descriptor still open: fd and its socket's inode
+    gone,        // a descriptor already closed
+  };
+  Kind kind = Kind::zeromq;
   int fd = -1;
   std::uint64_t inode = 0;
-  auto operator<=>(const SubscriberConnection&) const = default;
+  auto operator<=>(const SubscriptionSender&) const = default;
 };
 
 class SubscriptionBook {
  public:
-  void subscribed(std::string_view prefix, SubscriberConnection from = {}) {
-    if (from.fd >= 0 && !holders_[std::string(prefix)].held.insert(from).second) return;  // a repeat
+  void subscribed(std::string_view prefix, SubscriptionSender from = {}) {
     ++count_[std::string(prefix)];
+    if (from.kind == SubscriptionSender::Kind::connection) ++held_[std::string(prefix)].by[from];
   }
-  // An unsubscription of what was never counted (a refused subscription's, as
-  // ZeroMQ reports it when that subscriber is dropped), or of what the sending
-  // connection does not hold, changes nothing. `alive(connection)`: whether
-  // that connection is still the one on its descriptor.
-  template <class Alive>
-  void unsubscribed(std::string_view prefix, SubscriberConnection from, Alive alive) {
-    const auto holders = holders_.find(prefix);
-    if (from.fd >= 0) {
-      if (holders == holders_.end() || holders->second.held.erase(from) == 0) return;
-    } else if (holders != holders_.end()) {
-      // A connection gone stays among the holders (it can never match again: its inode
-      // was its own) until they have doubled since the last sweep: a sweep on every such
-      // unsubscription would ask the kernel about every holder each time one goes.
-      Holders& h = holders->second;
-      if (h.held.size() >= h.sweep_at) {
-        std::erase_if(h.held, [&](const SubscriberConnection& c) { return !alive(c); });
-        h.sweep_at = std::max<std::size_t>(kFirstSweep, 2 * h.held.size());
+  // Counts only what can be told to be held (above); an unsubscription of what
+  // was never counted (a refused subscription's, as ZeroMQ reports it when that
+  // subscriber is dropped) changes nothing. `still_open(sender)`: whether that
+  // descriptor is still that socket (records of those that are not are dropped).
+  template <class StillOpen>
+  bool unsubscribed(std::string_view prefix, SubscriptionSender from, StillOpen still_open) {
+    const auto held = held_.find(prefix);
+    if (from.kind == SubscriptionSender::Kind::gone) return false;
+    if (from.kind == SubscriptionSender::Kind::connection) {
+      if (held == held_.end()) return false;
+      const auto it = held->second.by.find(from);
+      if (it == held->second.by.end()) return false;
+      if (--it->second == 0) held->second.by.erase(it);
+    } else if (held != held_.end()) {
+      // Records of connections gone can never match again (a later socket has another
+      // inode); they go when a prefix's records have doubled since the last look, so
+      // the kernel is asked about each at most as often as records come.
+      Held& h = held->second;
+      if (h.by.size() >= h.look_at) {
+        std::erase_if(h.by, [&](const auto& record) { return !still_open(record.first); });
+        h.look_at = std::max<std::size_t>(kFirstLook, 2 * h.by.size());
       }
     }
-    if (holders != holders_.end() && holders->second.held.empty()) holders_.erase(holders);
+    if (held != held_.end() && held->second.by.empty()) held_.erase(held);
     const auto it = count_.find(prefix);
-    if (it == count_.end()) return;
+    if (it == count_.end()) return false;
     if (--it->second == 0) count_.erase(it);
+    return true;
   }
-  void unsubscribed(std::string_view prefix) {
-    unsubscribed(prefix, {}, [](const SubscriberConnection&) { return true; });
-  }
-  // The live subscriptions that select `topic`, each counted once per connection that
-  // made it.
+  // The live subscriptions that select `topic`, each counted as often as it was
+  // made.
   int selecting(std::string_view topic) const {
     int n = 0;
     for (const auto& [prefix, count] : count_)
@@ -81,12 +91,12 @@ class SubscriptionBook {
     return n;
   }
   // The live subscriptions that receive `topic` (as ZeroMQ matches them),
-  // each counted once per connection that made it.
+  // each counted as often as it was made.
   int receiving(std::string_view topic) const {
     return count_if([&](std::string_view prefix) { return topic.starts_with(prefix); });
   }
-  // The live subscriptions for which receives(prefix) holds, each counted once per
-  // connection that made it.
+  // The live subscriptions for which receives(prefix) holds, each counted as often as
+  // it was made.
   template <class Receives>
   int count_if(Receives receives) const {
     int n = 0;
@@ -94,15 +104,15 @@ class SubscriptionBook {
       if (receives(std::string_view(prefix))) n += count;
     return n;
   }
-  // Connections held per prefix, summed (what the book keeps of them).
-  std::size_t connections_held() const {
+  // The records of connections kept, over every prefix.
+  std::size_t connection_records() const {
     std::size_t n = 0;
-    for (const auto& [prefix, h] : holders_) n += h.held.size();
+    for (const auto& [prefix, h] : held_) n += h.by.size();
     return n;
   }
   void clear() {
     count_.clear();
-    holders_.clear();
+    held_.clear();
   }
 
  private:
@@ -111,12 +121,12 @@ class SubscriptionBook {
                        [&](std::string_view t) { return t.starts_with(prefix); });
   }
   std::map<std::string, int, std::less<>> count_;
-  static constexpr std::size_t kFirstSweep = 16;
-  struct Holders {
-    std::set<SubscriberConnection> held;
-    std::size_t sweep_at = kFirstSweep;
+  static constexpr std::size_t kFirstLook = 16;
+  struct Held {
+    std::map<SubscriptionSender, int> by;  // subscriptions per connection
+    std::size_t look_at = kFirstLook;
   };
-  std::map<std::string, Holders, std::less<>> holders_;
+  std::map<std::string, Held, std::less<>> held_;
 };
 
 }  // namespace fabrik::wire
