@@ -729,7 +729,7 @@ TEST_CASE("The last frames of a burst longer to solve than one serving are answe
   cfg.max_payload_bytes = 64 * 1024;
   cfg.tracker.solver.tolerance_m = 1e-15;
   cfg.tracker.solver.stall_tolerance_m = 0.0;
-  cfg.tracker.solver.max_iterations = 100;
+  cfg.tracker.solver.max_iterations = 300;  // a release build's 400-frame burst outlasts a serving
   RunningDaemon d(context, std::move(cfg));
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   std::uint64_t frame = client.handshake();
@@ -745,16 +745,24 @@ TEST_CASE("The last frames of a burst longer to solve than one serving are answe
   const int probe_frames = 20;
   const auto probe = burst(probe_frames, 30000ms);
   REQUIRE(probe);
-  const auto per_frame = *probe / probe_frames;
-  // Within the input queue (max_payload_bytes above: about 490 messages) and the ring.
-  const int n = static_cast<int>(std::clamp<std::int64_t>(150ms / per_frame + 1, probe_frames, 400));
-  INFO("per frame " << per_frame.count() / 1000 << " us, burst of " << n);
-  // No more input: the last pose must still come, however long the burst's
-  // solves take (20 times what they should, and at least 10 s).
-  const auto deadline = std::max<std::chrono::milliseconds>(
-      10000ms, std::chrono::ceil<std::chrono::milliseconds>(20 * n * per_frame));
-  const auto took = burst(n, deadline);
-  REQUIRE(took);
+  auto per_frame = *probe / probe_frames;
+  // Sized from the last burst's cost a frame, again while a burst ends sooner than meant
+  // (the machine was busier during the last one: once a 299-frame burst sized from a
+  // 502 us probe took 37 ms), at most 4 times.
+  std::optional<std::chrono::nanoseconds> took;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    // Within the input queue (max_payload_bytes above: about 490 messages) and the ring.
+    const int n = static_cast<int>(std::clamp<std::int64_t>(150ms / per_frame + 1, probe_frames, 400));
+    INFO("per frame " << per_frame.count() / 1000 << " us, burst of " << n);
+    // No more input: the last pose must still come, however long the burst's
+    // solves take (20 times what they should, and at least 10 s).
+    const auto deadline = std::max<std::chrono::milliseconds>(
+        10000ms, std::chrono::ceil<std::chrono::milliseconds>(20 * n * per_frame));
+    took = burst(n, deadline);
+    REQUIRE(took);
+    if (*took > 40ms || n == 400) break;
+    per_frame = *took / n;
+  }
   // The burst took longer than one serving (20 ms), as meant.
   CHECK(*took > 40ms);
   CHECK(d.daemon.counters().frames_dropped == 0);
