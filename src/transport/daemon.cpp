@@ -171,7 +171,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   const bool subjects = is_json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
   const bool views = is_json ? bool(s.views_json) : bool(s.views_msgpack);
   // MessagePack needs the exact count of the keys below
-  w.begin_map(28 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
+  w.begin_map(29 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
