@@ -45,6 +45,17 @@ DaemonConfig on_free_ports(DaemonConfig c) {
   return c;
 }
 
+// The view of frame `frame` on `sub` (views of earlier frames may still be queued), or
+// nothing after 5 s.
+std::optional<json> view_of(zmq::socket_t& sub, const std::string& topic, std::uint64_t frame) {
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    auto m = test::receive_topic(sub, topic, 100ms);
+    if (m && test::decode_payload(*m)["frame"] == frame) return test::decode_payload(*m);
+  }
+  return std::nullopt;
+}
+
 // stats.views[topic][key] of the first stats for which `done` holds while
 // frames keep coming (so the loop keeps serving), or nothing after 5 s.
 template <class Done>
@@ -109,6 +120,15 @@ TEST_CASE("A view topic that a subscriber of pose, stats, model or another view 
              Catch::Contains("unknown unit 'cm'"));
   CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"axes", "y_up"}}})}}),
              Catch::Contains("axes"));
+  const auto with_axes = [](const json& axes) {
+    return json{{"views", json::array({{{"topic", "j"}, {"axes", axes}}})}};
+  };
+  CHECK(config_error(with_axes({{"up", "+z"}, {"forward", "-y"}})).empty());
+  CHECK(config_error(with_axes({{"up", "z"}})).empty());  // forward +x
+  CHECK_THAT(config_error(with_axes({{"up", "x"}})), Catch::Contains("no forward axis"));
+  CHECK_THAT(config_error(with_axes({{"up", "+w"}})), Catch::Contains("not an axis"));
+  CHECK_THAT(config_error(with_axes({{"up", "z"}, {"forward", "-z"}})),
+             Catch::Contains("forward is along the up axis"));
   CHECK_THAT(config_error({{"views", json::array({{{"topic", "j"}, {"pose_content", {"wings"}}}})}}),
              Catch::Contains("unknown pose part 'wings'"));
   json many = json::array();
@@ -229,14 +249,8 @@ TEST_CASE("A view is encoded only while someone subscribes to it, carries the pa
         client, frame, [](const json& views) { return views["joints"]["subscribers"] == 1; });
     REQUIRE(counted);
     CHECK((*counted)["lean"]["subscribers"] == 0);
-    // Views of earlier frames may still be queued: the one of this frame.
     client.send_frame(++frame);
-    std::optional<json> view;
-    const auto deadline = std::chrono::steady_clock::now() + 5s;
-    while (!view && std::chrono::steady_clock::now() < deadline) {
-      auto m = test::receive_topic(joints, "joints", 100ms);
-      if (m && test::decode_payload(*m)["frame"] == frame) view = test::decode_payload(*m);
-    }
+    const std::optional<json> view = view_of(joints, "joints", frame);
     REQUIRE(view);
     const json& lean = *view;
     // The pose's required fields and the angles, nothing else it could carry.
@@ -274,6 +288,58 @@ TEST_CASE("A view is encoded only while someone subscribes to it, carries the pa
   CHECK((*later)["joints"]["frames_out"] == sent);
   CHECK((*later)["lean"]["frames_out"] == 0);
   CHECK(d.daemon.counters().subscriptions_refused == 0);
+}
+
+TEST_CASE("A view with axes carries positions and segment rotations turned into them, and "
+          "says which",
+          "[views][daemon]") {
+  // The model's lab: y up, x forward. The view's: z up, x forward, so a lab vector
+  // (x, y, z) is (x, -z, y) in it.
+  zmq::context_t context;
+  test::DaemonThread d(context, on_free_ports(config_with_views(
+                                    {{"views", json::array({{{"topic", "zup"},
+                                                            {"pose_content", {"segments", "angles"}},
+                                                            {"axes", {{"up", "+z"}}}}})}})));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  zmq::socket_t zup = subscriber(context, d.daemon.output_endpoint(), "zup");
+  REQUIRE(view_stats_until(client, frame,
+                           [](const json& views) { return views["zup"]["subscribers"] == 1; }));
+  client.send_frame(++frame);  // no markers: the rest posture, positions and rotations all the same
+  const std::optional<json> view = view_of(zup, "zup", frame);
+  REQUIRE(view);
+  const auto pose = client.pose_of(frame);
+  REQUIRE(pose);
+  CHECK_FALSE(pose->contains("axes"));
+  CHECK((*view)["axes"] == json{{"up", "+z"}, {"forward", "+x"}});
+  const Eigen::Matrix3d r_view_lab = (Eigen::Matrix3d() << 1, 0, 0, 0, 0, -1, 0, 1, 0).finished();
+  const auto turned = [&](const json& p_lab) {
+    return Eigen::Vector3d(r_view_lab * Eigen::Vector3d(p_lab[0].get<double>(), p_lab[1].get<double>(),
+                                                        p_lab[2].get<double>()));
+  };
+  REQUIRE((*view)["joints"].size() == (*pose)["joints"].size());
+  for (const auto& [name, p_lab] : (*pose)["joints"].items()) {
+    CAPTURE(name);
+    const Eigen::Vector3d expected = turned(p_lab);
+    for (int k = 0; k < 3; ++k)
+      CHECK((*view)["joints"][name][k].get<double>() == Approx(expected[k]).margin(2e-4));
+  }
+  for (const auto& [name, p_lab] : (*pose)["markers"].items())
+    CHECK((*view)["markers"][name][1].get<double>() == Approx(turned(p_lab)[1]).margin(2e-4));
+  for (const auto& [name, seg] : (*pose)["segments"].items()) {
+    CAPTURE(name);
+    const auto q_of = [](const json& q) {
+      return Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(),
+                                q[3].get<double>());
+    };
+    const Eigen::Matrix3d expected = r_view_lab * q_of(seg["q"]).toRotationMatrix();
+    const Eigen::Matrix3d got = q_of((*view)["segments"][name]["q"]).toRotationMatrix();
+    CHECK((got - expected).norm() < 1e-5);
+    const Eigen::Vector3d origin = turned(seg["origin"]);
+    for (int k = 0; k < 3; ++k)
+      CHECK((*view)["segments"][name]["origin"][k].get<double>() == Approx(origin[k]).margin(2e-4));
+  }
+  CHECK((*view)["angles"] == (*pose)["angles"]);  // angles are the lab's own, whatever the axes
 }
 
 TEST_CASE("A multi-subject daemon publishes each subject's view on TOPIC/NAME, selected apart",

@@ -32,6 +32,14 @@ LabAxesSpec read_lab_axes(const JsonReader& r) {
   return spec;
 }
 
+LabAxes read_whole_lab_axes(const JsonReader& r, const std::string& problem, const std::string& fix) {
+  const LabAxesSpec spec = read_lab_axes(r);
+  const std::optional<Eigen::Vector3d> forward =
+      spec.forward_lab ? spec.forward_lab : default_forward_lab(spec.up_lab);
+  if (!forward) r.fail(problem, fix);
+  return LabAxes{spec.up_lab, *forward};
+}
+
 std::optional<Eigen::Vector3d> default_forward_lab(const Eigen::Vector3d& up_lab) {
   if (std::abs(up_lab.x()) > 0.5) return std::nullopt;
   return Eigen::Vector3d::UnitX();

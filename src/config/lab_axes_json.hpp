@@ -24,6 +24,9 @@ struct LabAxesSpec {
 // Reads {"up": AXIS, "forward": AXIS}; AXIS is "x", "y" or "z" with an
 // optional sign. Up and forward must be different lab axes.
 LabAxesSpec read_lab_axes(const JsonReader& r);
+// The same, whole: an absent forward is default_forward_lab's; with x up and
+// none, fails with `problem` and `fix`.
+LabAxes read_whole_lab_axes(const JsonReader& r, const std::string& problem, const std::string& fix);
 
 // The forward axis when none is declared: +x while x is horizontal (up is y
 // or z), so a lab with X forward keeps its numbers. Empty when up is along x:

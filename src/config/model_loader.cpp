@@ -255,15 +255,9 @@ Model load_model(const JsonReader& root) {
       root.has("coordinates") ? read_coordinates(root.at("coordinates"), specs, scale)
                               : std::vector<CoordinateSpec>{};
   LabAxes lab_axes;
-  if (root.has("lab_axes")) {
-    const LabAxesSpec spec = read_lab_axes(root.at("lab_axes"));
-    const std::optional<Eigen::Vector3d> forward =
-        spec.forward_lab ? spec.forward_lab : default_forward_lab(spec.up_lab);
-    if (!forward)
-      root.at("lab_axes").fail("with x up, the lab's forward axis is not clear",
-                               "add \"forward\": \"+y\" (or \"+z\", \"-y\", \"-z\")");
-    lab_axes = LabAxes{spec.up_lab, *forward};
-  }
+  if (root.has("lab_axes"))
+    lab_axes = read_whole_lab_axes(root.at("lab_axes"), "with x up, the lab's forward axis is not clear",
+                                   "add \"forward\": \"+y\" (or \"+z\", \"-y\", \"-z\")");
   try {
     return build_model(name, specs, root_m, coordinates, lab_axes);
   } catch (const ModelError& e) {

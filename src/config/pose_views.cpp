@@ -4,6 +4,7 @@
 #include <cctype>
 #include <iterator>
 
+#include "lab_axes_json.hpp"
 #include "model_loader.hpp"
 #include "topics.hpp"
 
@@ -32,7 +33,7 @@ std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding def
   std::vector<PoseViewConfig> views;
   for (std::size_t i = 0; i < n; ++i) {
     const JsonReader e = list.at(i);
-    e.only_keys({"topic", "pose_content", "measured_markers", "encoding", "units"});
+    e.only_keys({"topic", "pose_content", "measured_markers", "encoding", "units", "axes"});
     PoseViewConfig v;
     v.topic = e.at("topic").as_string();
     if (!view_topic_ok(v.topic))
@@ -57,6 +58,9 @@ std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding def
       (void)metres_per_unit(e.at("units"));  // refuses any other unit, with the fix
       v.units = e.at("units").as_string();
     }
+    if (e.has("axes"))
+      v.axes = read_whole_lab_axes(e.at("axes"), "the view's up axis is x and no forward axis is given",
+                                   "add \"forward\": \"+y\" or \"+z\" (the view's axis pointing forward)");
     views.push_back(std::move(v));
   }
   return views;

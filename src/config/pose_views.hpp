@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "encoding.hpp"
 #include "json_reader.hpp"
 #include "pose_content.hpp"
+#include "solver/model.hpp"
 
 namespace fabrik {
 
@@ -23,6 +25,7 @@ struct PoseViewConfig {
   bool measured_markers = false;
   Encoding encoding = Encoding::json;
   std::string units = "mm";  // of positions and translations: "mm" or "m"
+  std::optional<LabAxes> axes;  // positions and rotations in these axes; absent: the lab's
 };
 
 constexpr std::size_t kMaxPoseViews = 16;
@@ -35,7 +38,7 @@ constexpr std::size_t kMaxViewTopicBytes = 32;
 bool view_topic_ok(std::string_view topic);
 
 // output.views: an array of {topic, pose_content, measured_markers, encoding,
-// units}; an absent encoding is `default_encoding` (output.encoding), absent
+// units, axes}; an absent encoding is `default_encoding` (output.encoding), absent
 // units `default_units` (output.units). No topic may be a prefix of
 // another's (a subscriber of one would receive both).
 std::vector<PoseViewConfig> read_pose_views(const JsonReader& list, Encoding default_encoding,

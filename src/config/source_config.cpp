@@ -85,15 +85,10 @@ SourceConfig read_source_config(const JsonReader& input) {
   for (const char* key : {"natnet_data", "multicast_group", "data_port", "local_interface"})
     only_for(key, SourceKind::natnet, "natnet://");
   c.subject_prefix = o.get("subject_prefix", c.subject_prefix);
-  if (o.has("axes")) {
-    const LabAxesSpec spec = read_lab_axes(o.at("axes"));
-    const std::optional<Eigen::Vector3d> forward =
-        spec.forward_lab ? spec.forward_lab : default_forward_lab(spec.up_lab);
-    if (!forward)
-      o.at("axes").fail("the server's up axis is x and no forward axis is given",
-                        "add \"forward\": \"+y\" or \"+z\" (the server's axis pointing forward)");
-    c.axes = LabAxes{spec.up_lab, *forward};
-  }
+  if (o.has("axes"))
+    c.axes = read_whole_lab_axes(
+        o.at("axes"), "the server's up axis is x and no forward axis is given",
+        "add \"forward\": \"+y\" or \"+z\" (the server's axis pointing forward)");
   c.frequency_divisor =
       static_cast<int>(o.get("frequency_divisor", static_cast<long long>(1), 1LL, 1000LL));
   if (o.has("natnet_data"))

@@ -350,6 +350,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
           v.encoding == Encoding::msgpack ? PayloadEncoding::msgpack : PayloadEncoding::json,
           v.measured_markers, v.content);
       if (!subject.empty()) view.encoder->set_subject(subject);
+      if (v.axes) view.encoder->set_axes(*v.axes);
       s->extra_topics.push_back(view.topic);
       views.push_back(std::move(view));
     }

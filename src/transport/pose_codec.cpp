@@ -1,6 +1,8 @@
 #include "pose_codec.hpp"
 
+#include "config/lab_axes_json.hpp"
 #include "solver/units.hpp"
+#include "source_frames.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -12,6 +14,7 @@ std::string_view wire_status(SolveStatus status) {
 PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncoding encoding,
                          bool measured_markers, PoseContent content)
     : units_(std::move(units)),
+      lab_axes_(tracker.model().lab_axes),
       scale_(units_ == "m" ? 1.0 : 1e3),
       decimals_(units_ == "m" ? 7 : 4),  // 0.1 micrometre either way
       encoding_(encoding),
@@ -43,6 +46,15 @@ PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncod
     segment_names_.push_back({seg.name, JsonWriter::json_key(seg.name)});
 }
 
+void PoseEncoder::set_axes(const LabAxes& out) {
+  if (!turned_) ++pose_keys_;
+  turned_ = true;
+  r_out_lab_ = r_lab_server(lab_axes_, out);
+  q_out_lab_ = Eigen::Quaterniond(r_out_lab_).normalized();
+  up_out_ = signed_axis_name(out.up_lab);
+  forward_out_ = signed_axis_name(out.forward_lab);
+}
+
 void PoseEncoder::set_subject(std::string name) {
   if (subject_.empty() && !name.empty()) ++pose_keys_;
   if (!subject_.empty() && name.empty()) --pose_keys_;
@@ -59,7 +71,8 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
       if (flags[i]) w.string(markers_[i].plain);
     w.end_array();
   };
-  auto vec = [&](const Eigen::Vector3d& p_m) {
+  auto vec = [&](const Eigen::Vector3d& p_lab_m) {
+    const Eigen::Vector3d p_m = turned_ ? Eigen::Vector3d(r_out_lab_ * p_lab_m) : p_lab_m;
     w.number_triple(p_m[0] * scale_, p_m[1] * scale_, p_m[2] * scale_);
   };
   const auto has = [&](PosePart p) { return content_.has(p); };
@@ -80,6 +93,15 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   }
   w.key("units");
   w.string(units_);
+  if (turned_) {
+    w.key("axes");  // addition: the axes of the positions and rotations (a view's)
+    w.begin_map(2);
+    w.key("up");
+    w.string(up_out_);
+    w.key("forward");
+    w.string(forward_out_);
+    w.end_map();
+  }
   w.key("joints");
   w.begin_map(joints_.size());
   for (std::size_t j = 0; j < joints_.size(); ++j) {
@@ -190,7 +212,7 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
     w.begin_map(segment_names_.size());
     for (std::size_t s = 0; s < segment_names_.size(); ++s) {
       w.named_key(segment_names_[s].plain, segment_names_[s].json_key);
-      const Eigen::Quaterniond& q = r.segment_q_world[s];
+      const Eigen::Quaterniond q = turned_ ? q_out_lab_ * r.segment_q_world[s] : r.segment_q_world[s];
       w.begin_map(2);
       w.key("q");
       w.begin_array(4);

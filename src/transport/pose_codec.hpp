@@ -3,6 +3,7 @@
 // Names are escaped once, at construction.
 #pragma once
 
+#include <Eigen/Geometry>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -50,6 +51,11 @@ class PoseEncoder {
   // Addition: each pose carries "subject": `name` (multi-subject configs);
   // never called: no such key, as before subjects existed.
   void set_subject(std::string name);
+  // Addition (a view's output.views[].axes): positions and segment rotations
+  // are written in axes whose up and forward are `out`'s, turned from the
+  // model's lab axes, and each pose carries "axes" to say so. Angles and
+  // translations (OpenSim's ground frame already) do not change.
+  void set_axes(const LabAxes& out);
 
  private:
   template <class Writer>
@@ -67,6 +73,11 @@ class PoseEncoder {
   std::vector<int> angle_index_, translation_index_;
   std::string units_;
   std::string subject_;  // empty: no "subject" key
+  LabAxes lab_axes_;     // the model's
+  bool turned_ = false;  // set_axes: r_out_lab_ applies and "axes" is written
+  Eigen::Matrix3d r_out_lab_ = Eigen::Matrix3d::Identity();
+  Eigen::Quaterniond q_out_lab_ = Eigen::Quaterniond::Identity();
+  std::string up_out_, forward_out_;  // the axes' names, as configured
   double scale_;  // output units per metre
   int decimals_;
   PayloadEncoding encoding_;
