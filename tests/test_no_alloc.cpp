@@ -600,8 +600,8 @@ TEST_CASE("Pose views nobody subscribes to add no allocation to the frame path",
   zmq::context_t context;
   const DaemonConfig plain = on_inproc(default_daemon_config(), "plain");
   DaemonConfig viewed = on_inproc(default_daemon_config(), "viewed");
-  viewed.output_views = {{"joints", PoseContent::none().with(PosePart::angles), false, Encoding::json},
-                         {"lean", PoseContent::none(), true, Encoding::msgpack}};
+  viewed.output_views = {{"joints", PoseContent::none().with(PosePart::angles), false, Encoding::json, "mm", {}},
+                         {"lean", PoseContent::none(), true, Encoding::msgpack, "mm", {}}};
   wire::Daemon a(context, plain), b(context, viewed);
   zmq::socket_t a_sub = test::subscriber(context, plain.output.address, "pose");
   zmq::socket_t b_sub = test::subscriber(context, viewed.output.address, "pose");
@@ -644,7 +644,9 @@ TEST_CASE("A frame's pose and views are made only while a subscription receives 
           "[alloc][views]") {
   zmq::context_t context;
   DaemonConfig c = on_inproc(default_daemon_config(), "receivers");
-  c.output_views = {{"joints", PoseContent::none().with(PosePart::angles), false, Encoding::json}};
+  // In axes of its own (z up): turning positions allocates nothing either.
+  c.output_views = {{"joints", PoseContent::all(), false, Encoding::json, "mm",
+                     LabAxes{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()}}};
   wire::Daemon d(context, c);
   SyntheticMotion motion(*c.tracker.model, MotionSettings{});
   int f = 0;

@@ -9,9 +9,11 @@
 
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
+#include "config/resources.hpp"
 #include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "subjects_fixture.hpp"
+#include "synth/synthetic_motion.hpp"
 #include "transport/subscription_book.hpp"
 
 using namespace fabrik;
@@ -293,53 +295,78 @@ TEST_CASE("A view is encoded only while someone subscribes to it, carries the pa
 TEST_CASE("A view with axes carries positions and segment rotations turned into them, and "
           "says which",
           "[views][daemon]") {
-  // The model's lab: y up, x forward. The view's: z up, x forward, so a lab vector
-  // (x, y, z) is (x, -z, y) in it.
+  // The model's lab: z up, y forward (as a Z-up lab's). The view's: y up, x forward, so a
+  // lab vector (x, y, z) is (y, z, x) in it. The view is MessagePack in metres, with the
+  // measured markers; the full pose JSON in millimetres.
+  json model = json::parse(*embedded_config("models/fullbody.json"));
+  model["lab_axes"] = {{"up", "+z"}, {"forward", "+y"}};
+  const json output{{"views", json::array({{{"topic", "yup"},
+                                            {"pose_content", {"segments", "angles"}},
+                                            {"measured_markers", true},
+                                            {"encoding", "msgpack"},
+                                            {"units", "m"},
+                                            {"axes", {{"up", "+y"}, {"forward", "+x"}}}}})},
+                    {"measured_markers", true}};
+  const json root{{"format", "fabrikd-config/1"}, {"model", model}, {"output", output}};
   zmq::context_t context;
-  test::DaemonThread d(context, on_free_ports(config_with_views(
-                                    {{"views", json::array({{{"topic", "zup"},
-                                                            {"pose_content", {"segments", "angles"}},
-                                                            {"axes", {{"up", "+z"}}}}})}})));
+  test::DaemonThread d(context, on_free_ports(load_daemon_config(root.dump(), "axes.json")));
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   std::uint64_t frame = client.handshake();
-  zmq::socket_t zup = subscriber(context, d.daemon.output_endpoint(), "zup");
+  zmq::socket_t yup = subscriber(context, d.daemon.output_endpoint(), "yup");
   REQUIRE(view_stats_until(client, frame,
-                           [](const json& views) { return views["zup"]["subscribers"] == 1; }));
-  client.send_frame(++frame);  // no markers: the rest posture, positions and rotations all the same
-  const std::optional<json> view = view_of(zup, "zup", frame);
+                           [](const json& views) { return views["yup"]["subscribers"] == 1; }));
+  // Segments away from their rest rotations, and measured markers to turn.
+  SyntheticMotion motion(*d.daemon.config().tracker.model, MotionSettings{});
+  client.send_frame(++frame, test::subject_markers(d.daemon.config().tracker, motion, 0.3,
+                                                   Eigen::Vector3d::Zero(), ""));
+  const std::optional<json> view = view_of(yup, "yup", frame);
   REQUIRE(view);
   const auto pose = client.pose_of(frame);
   REQUIRE(pose);
   CHECK_FALSE(pose->contains("axes"));
-  CHECK((*view)["axes"] == json{{"up", "+z"}, {"forward", "+x"}});
-  const Eigen::Matrix3d r_view_lab = (Eigen::Matrix3d() << 1, 0, 0, 0, 0, -1, 0, 1, 0).finished();
-  const auto turned = [&](const json& p_lab) {
-    return Eigen::Vector3d(r_view_lab * Eigen::Vector3d(p_lab[0].get<double>(), p_lab[1].get<double>(),
-                                                        p_lab[2].get<double>()));
+  CHECK((*view)["axes"] == json{{"up", "+y"}, {"forward", "+x"}});
+  const Eigen::Matrix3d r_view_lab = (Eigen::Matrix3d() << 0, 1, 0, 0, 0, 1, 1, 0, 0).finished();
+  // Each position of `part` in the view, in metres, against the pose's (mm) turned.
+  const auto turned_alike = [&](const json& view_points, const json& pose_points) {
+    REQUIRE(view_points.size() == pose_points.size());
+    REQUIRE(pose_points.size() > 0);
+    for (const auto& [name, p_mm] : pose_points.items()) {
+      CAPTURE(name);
+      const Eigen::Vector3d expected_m =
+          r_view_lab * Eigen::Vector3d(p_mm[0].get<double>(), p_mm[1].get<double>(),
+                                       p_mm[2].get<double>()) * 1e-3;
+      for (int k = 0; k < 3; ++k)
+        CHECK(view_points[name][k].get<double>() == Approx(expected_m[k]).margin(2e-7));
+    }
   };
-  REQUIRE((*view)["joints"].size() == (*pose)["joints"].size());
-  for (const auto& [name, p_lab] : (*pose)["joints"].items()) {
-    CAPTURE(name);
-    const Eigen::Vector3d expected = turned(p_lab);
-    for (int k = 0; k < 3; ++k)
-      CHECK((*view)["joints"][name][k].get<double>() == Approx(expected[k]).margin(2e-4));
-  }
-  for (const auto& [name, p_lab] : (*pose)["markers"].items())
-    CHECK((*view)["markers"][name][1].get<double>() == Approx(turned(p_lab)[1]).margin(2e-4));
+  turned_alike((*view)["joints"], (*pose)["joints"]);
+  turned_alike((*view)["markers"], (*pose)["markers"]);
+  turned_alike((*view)["measured"], (*pose)["measured"]);
+  const auto q_of = [](const json& q) {
+    return Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(),
+                              q[3].get<double>());
+  };
+  int turned_segments = 0;
+  json origins_pose = json::object(), origins_view = json::object();
   for (const auto& [name, seg] : (*pose)["segments"].items()) {
     CAPTURE(name);
-    const auto q_of = [](const json& q) {
-      return Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(),
-                                q[3].get<double>());
-    };
-    const Eigen::Matrix3d expected = r_view_lab * q_of(seg["q"]).toRotationMatrix();
-    const Eigen::Matrix3d got = q_of((*view)["segments"][name]["q"]).toRotationMatrix();
-    CHECK((got - expected).norm() < 1e-5);
-    const Eigen::Vector3d origin = turned(seg["origin"]);
-    for (int k = 0; k < 3; ++k)
-      CHECK((*view)["segments"][name]["origin"][k].get<double>() == Approx(origin[k]).margin(2e-4));
+    const Eigen::Matrix3d r_lab = q_of(seg["q"]).toRotationMatrix();
+    turned_segments += r_lab.isIdentity(1e-3) ? 0 : 1;
+    const Eigen::Matrix3d expected = r_view_lab * r_lab;
+    CHECK((q_of((*view)["segments"][name]["q"]).toRotationMatrix() - expected).norm() < 1e-5);
+    origins_pose[name] = seg["origin"];
+    origins_view[name] = (*view)["segments"][name]["origin"];
   }
-  CHECK((*view)["angles"] == (*pose)["angles"]);  // angles are the lab's own, whatever the axes
+  CHECK(turned_segments > 0);  // the order of the two rotations shows
+  turned_alike(origins_view, origins_pose);
+  // Angles are the lab's own, whatever the axes (and not all zero here).
+  REQUIRE((*view)["angles"].size() == (*pose)["angles"].size());
+  double largest_deg = 0.0;
+  for (const auto& [name, a] : (*pose)["angles"].items()) {
+    CHECK((*view)["angles"][name].get<double>() == Approx(a.get<double>()).margin(1e-3));
+    largest_deg = std::max(largest_deg, std::abs(a.get<double>()));
+  }
+  CHECK(largest_deg > 1.0);
 }
 
 TEST_CASE("A multi-subject daemon publishes each subject's view on TOPIC/NAME, selected apart",

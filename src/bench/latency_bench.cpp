@@ -198,8 +198,12 @@ json run_one(const LatencyOptions& o, DaemonConfig config, const std::string& tr
     json names = json::array();
     for (const std::string& n : o.view_parts)
       if (n != "none") names.push_back(n);
-    config.output_views = {{kViewTopic, read_pose_content(JsonReader(names, "--view")), false,
-                            config.output_encoding, config.output_units}};
+    PoseViewConfig view;
+    view.topic = kViewTopic;
+    view.content = read_pose_content(JsonReader(names, "--view"));
+    view.encoding = config.output_encoding;
+    view.units = config.output_units;
+    config.output_views = {view};
   }
 
   // Marker frames of one second of synthetic motion of the config's model.
