@@ -9,6 +9,7 @@
 #include <type_traits>
 #include <cstring>
 #include <iterator>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 
@@ -888,17 +889,19 @@ bool connected_to(int fd, std::string_view endpoint) {
 namespace {
 // Who sent a subscription message (SubscriptionBook): ZeroMQ names its descriptor,
 // the descriptor's socket tells it apart from a later one on the same number.
+std::optional<std::uint64_t> inode_of(int fd) {
+  struct stat st{};
+  if (::fstat(fd, &st) != 0) return std::nullopt;
+  return static_cast<std::uint64_t>(st.st_ino);
+}
 SubscriptionSender subscription_sender(zmq::message_t& message) {
   const int fd = zmq_msg_get(message.handle(), ZMQ_SRCFD);
   if (fd < 0) return {};
-  struct stat st{};
-  if (::fstat(fd, &st) != 0) return {SubscriptionSender::Kind::gone, fd, 0};
-  return {SubscriptionSender::Kind::connection, fd, static_cast<std::uint64_t>(st.st_ino)};
+  const std::optional<std::uint64_t> inode = inode_of(fd);
+  if (!inode) return {SubscriptionSender::Kind::gone, fd, 0};
+  return {SubscriptionSender::Kind::connection, fd, *inode};
 }
-bool descriptor_still_that_socket(const SubscriptionSender& c) {
-  struct stat st{};
-  return ::fstat(c.fd, &st) == 0 && static_cast<std::uint64_t>(st.st_ino) == c.inode;
-}
+bool descriptor_still_that_socket(const SubscriptionSender& c) { return inode_of(c.fd) == c.inode; }
 }  // namespace
 
 // ZeroMQ applies every subscription itself; the loop sees each one too
