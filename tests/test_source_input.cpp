@@ -92,15 +92,15 @@ TEST_CASE("Subject prefixes come off marker names as configured", "[source]") {
 TEST_CASE("A server's axes rotate into the lab's: Motive's Y up into a Z-up lab", "[source]") {
   const LabAxes motive{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX()};
   const LabAxes z_up{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitX()};
-  const Eigen::Matrix3d r = wire::r_lab_server(motive, z_up);
+  const Eigen::Matrix3d r = z_up.r_from(motive);
   // Forward stays x, Motive's up (y) becomes z, Motive's z (to the right of
   // forward in a Y-up right-handed frame... its -right) becomes -y.
   CHECK((r * Eigen::Vector3d(1, 2, 3) - Eigen::Vector3d(1, -3, 2)).norm() < 1e-12);
   CHECK(std::abs(r.determinant() - 1.0) < 1e-12);
-  CHECK((wire::r_lab_server(z_up, z_up) - Eigen::Matrix3d::Identity()).norm() < 1e-12);
+  CHECK((z_up.r_from(z_up) - Eigen::Matrix3d::Identity()).norm() < 1e-12);
   // A lab with forward along y and a server with forward along x: a quarter turn about up.
   const LabAxes z_up_y_forward{Eigen::Vector3d::UnitZ(), Eigen::Vector3d::UnitY()};
-  CHECK((wire::r_lab_server(z_up, z_up_y_forward) * Eigen::Vector3d(1, 0, 0) -
+  CHECK((z_up_y_forward.r_from(z_up) * Eigen::Vector3d(1, 0, 0) -
          Eigen::Vector3d(0, 1, 0)).norm() < 1e-12);
 }
 
@@ -158,7 +158,7 @@ TEST_CASE(
       R"({"source": "natnet://127.0.0.1", "source_options": {"axes": {"up": "+z", "forward": "-x"}}})");
   const Model& model = *with_source.tracker.model;
   const LabAxes server{Eigen::Vector3d::UnitZ(), -Eigen::Vector3d::UnitX()};
-  const Eigen::Matrix3d r_server_lab = wire::r_lab_server(server, model.lab_axes).transpose();
+  const Eigen::Matrix3d r_server_lab = model.lab_axes.r_from(server).transpose();
   REQUIRE((r_server_lab - Eigen::Matrix3d::Identity()).norm() > 1.0);  // the rotation matters
 
   // 60 frames of synthetic motion; marker 2 hidden in frames 20-29.

@@ -238,7 +238,7 @@ TEST_CASE("walk1 through the simulated QTM and Motive gives the poses of the sam
   // A TRC is in the lab's axes; Motive's default (Y up, forward +x) must be
   // the calibrated lab's for the NatNet frames to need no rotation.
   const LabAxes motive{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitX()};
-  REQUIRE(wire::r_lab_server(motive, config.tracker.model->lab_axes).isIdentity(0.0));
+  REQUIRE(config.tracker.model->lab_axes.r_from(motive).isIdentity(0.0));
 
   for (const Protocol p : {Protocol::qtm, Protocol::natnet}) {
     INFO((p == Protocol::qtm ? "QTM" : "NatNet"));

@@ -125,6 +125,12 @@ struct LabAxes {
     r.row(2) = forward_lab.cross(up_lab).transpose();
     return r;
   }
+  /// The rotation that takes a vector in `from`'s axes into these: from's up to
+  /// this up, from's forward to this forward (a server's or a lab's axes to
+  /// the lab's or a view's).
+  Eigen::Matrix3d r_from(const LabAxes& from) const {
+    return r_reference_lab().transpose() * from.r_reference_lab();
+  }
   /// Same axes, compared exactly.
   bool operator==(const LabAxes& o) const {
     return up_lab == o.up_lab && forward_lab == o.forward_lab;

@@ -2,7 +2,6 @@
 
 #include "config/lab_axes_json.hpp"
 #include "solver/units.hpp"
-#include "source_frames.hpp"
 #include "wire_writer.hpp"
 
 namespace fabrik::wire {
@@ -49,7 +48,7 @@ PoseEncoder::PoseEncoder(const Tracker& tracker, std::string units, PayloadEncod
 void PoseEncoder::set_axes(const LabAxes& out) {
   if (!turned_) ++pose_keys_;
   turned_ = true;
-  r_out_lab_ = r_lab_server(lab_axes_, out);
+  r_out_lab_ = out.r_from(lab_axes_);
   q_out_lab_ = Eigen::Quaterniond(r_out_lab_).normalized();
   up_out_ = signed_axis_name(out.up_lab);
   forward_out_ = signed_axis_name(out.forward_lab);

@@ -16,11 +16,6 @@ std::string strip_subject_prefix(const std::string& name, const std::string& pre
   return name;
 }
 
-Eigen::Matrix3d r_lab_server(const LabAxes& server, const LabAxes& lab) {
-  // r_reference_lab() maps lab vectors to a common reference (forward, up, right).
-  return lab.r_reference_lab().transpose() * server.r_reference_lab();
-}
-
 namespace {
 
 LabAxes server_axes(const SourceConfig& source, const LabAxes& lab) {
@@ -32,7 +27,7 @@ LabAxes server_axes(const SourceConfig& source, const LabAxes& lab) {
 }  // namespace
 
 SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab)
-    : prefix_(source.subject_prefix), r_lab_server_(r_lab_server(server_axes(source, lab), lab)) {}
+    : prefix_(source.subject_prefix), r_lab_server_(lab.r_from(server_axes(source, lab))) {}
 
 void SourceFrames::labels(std::span<const std::string> server_names) {
   names_.clear();

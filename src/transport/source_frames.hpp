@@ -22,10 +22,6 @@ namespace fabrik::wire {
 // of the model unless the model names it so).
 std::string strip_subject_prefix(const std::string& name, const std::string& prefix);
 
-// The rotation from the server's axes into the lab's: server up to lab up,
-// server forward to lab forward.
-Eigen::Matrix3d r_lab_server(const LabAxes& server, const LabAxes& lab);
-
 class SourceFrames {
  public:
   SourceFrames(const SourceConfig& source, const LabAxes& lab);
