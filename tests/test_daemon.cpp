@@ -1421,3 +1421,68 @@ TEST_CASE("Poses carry measured when the config asks: the frame's visible marker
     CHECK(std::count((*pose)["occluded"].begin(), (*pose)["occluded"].end(), name) == 1);
   for (const std::string& name : got) CHECK((*pose)["markers"].contains(name));
 }
+
+TEST_CASE("A connected output counts its peer's subscription once however often the peer "
+          "reconnects, and not at all after the peer unsubscribes",
+          "[daemon][subscriptions]") {
+  zmq::context_t context;
+  // The operator's proxy, as the output sees it: a SUB socket bound where the output connects,
+  // restarted (closed, and a new one bound on the same port) three times.
+  const auto proxy_on = [&](const std::string& endpoint) {
+    zmq::socket_t s(context, zmq::socket_type::sub);
+    s.set(zmq::sockopt::linger, 0);
+    for (const char* topic : {"", "model", "stats"}) s.set(zmq::sockopt::subscribe, topic);
+    s.bind(endpoint);
+    return s;
+  };
+  zmq::socket_t proxy = proxy_on("tcp://127.0.0.1:*");
+  const std::string endpoint = proxy.get(zmq::sockopt::last_endpoint);
+  DaemonConfig c = config_on("inproc://markers-peer", endpoint);
+  c.output.mode = SocketMode::connect;
+  const Clock::time_point t0 = Clock::now();  // the daemon's uptime is at most the time since
+  RunningDaemon d(context, std::move(c));
+  // The first stats made after `since` (by its uptime), or nothing within 5 s.
+  const auto stats_after = [&](Clock::time_point since) -> std::optional<json> {
+    const double after_s = std::chrono::duration<double>(since - t0).count();
+    const auto deadline = Clock::now() + 5s;
+    while (Clock::now() < deadline) {
+      const auto m = test::receive_topic(proxy, "stats", 1s);
+      if (!m) continue;
+      json s = test::decode_payload(*m);
+      if (s["uptime_s"].get<double>() > after_s) return s;
+    }
+    return std::nullopt;
+  };
+  // The port is free again once the listener says it closed (a monitor's event, not a wait).
+  const auto restart_proxy = [&](int n) {
+    const std::string monitor = "inproc://proxy-monitor-" + std::to_string(n);
+    REQUIRE(zmq_socket_monitor(proxy.handle(), monitor.c_str(), ZMQ_EVENT_CLOSED) == 0);
+    zmq::socket_t events(context, zmq::socket_type::pair);
+    events.set(zmq::sockopt::linger, 0);
+    events.connect(monitor);
+    proxy.unbind(endpoint);
+    zmq::pollitem_t items[] = {{events.handle(), 0, ZMQ_POLLIN, 0}};
+    REQUIRE(zmq::poll(items, 1, 5s) == 1);
+    proxy.close();
+    proxy = proxy_on(endpoint);
+  };
+  for (int restart = 0; restart <= 3; ++restart) {
+    if (restart > 0) restart_proxy(restart);
+    // The model answers the subscriptions the new connection brings, read in order: by the
+    // time it comes, the loop has read the subscription to "" too.
+    REQUIRE(test::receive_topic(proxy, "model", 5s));
+    const auto stats = stats_after(Clock::now());
+    REQUIRE(stats);
+    INFO("after " << restart << " restarts of the peer");
+    CHECK(counter(*stats, "pose_subscribers") == 1);
+  }
+  // Its unsubscription of "" ends what it held, however often it was sent.
+  proxy.set(zmq::sockopt::unsubscribe, "");
+  const auto before = Clock::now();
+  std::optional<json> stats = stats_after(before);
+  for (const auto deadline = before + 5s;
+       stats && counter(*stats, "pose_subscribers") != 0 && Clock::now() < deadline;)
+    stats = stats_after(before);
+  REQUIRE(stats);
+  CHECK(counter(*stats, "pose_subscribers") == 0);
+}

@@ -205,6 +205,28 @@ TEST_CASE("A connection's unsubscription counts only against what it subscribed 
   CHECK(book.receiving("pose") == 1);
 }
 
+TEST_CASE("A connected output's peer holds a prefix or not: sent again, it counts once",
+          "[views][subscriptions]") {
+  wire::SubscriptionBook book;
+  const wire::SubscriptionSender peer{wire::SubscriptionSender::Kind::peer};
+  const auto never_open = [](const wire::SubscriptionSender&) { return false; };
+  for (int k = 0; k < 3; ++k) book.subscribed("", peer);  // each reconnection sends it again
+  book.subscribed("joints", peer);
+  CHECK(book.receiving("pose") == 1);
+  CHECK(book.selecting("joints") == 1);
+  CHECK_FALSE(book.unsubscribed("pose", peer, never_open));  // never held
+  CHECK(book.unsubscribed("", peer, never_open));
+  CHECK(book.receiving("pose") == 0);
+  CHECK_FALSE(book.unsubscribed("", peer, never_open));
+  CHECK(book.selecting("joints") == 1);
+  book.subscribed("", peer);
+  CHECK(book.receiving("pose") == 1);
+  book.clear();
+  CHECK(book.receiving("pose") == 0);
+  book.subscribed("", peer);  // a new output socket's peer starts afresh
+  CHECK(book.receiving("pose") == 1);
+}
+
 TEST_CASE("What the subscription book keeps of connections gone stays bounded", "[subscriptions]") {
   using Kind = wire::SubscriptionSender::Kind;
   wire::SubscriptionBook book;

@@ -909,7 +909,8 @@ bool descriptor_still_that_socket(const SubscriptionSender& c) { return inode_of
 // publish, and any other message: on a bound socket, the connection that
 // sent it is shut down, which is what frees what ZeroMQ stored for it. A
 // connected output's peer is the operator's own (a proxy), so it is only
-// counted there. A subscription that covers `model` has been applied by the
+// counted there; every message there is that one peer's (SubscriptionBook).
+// A subscription that covers `model` has been applied by the
 // time the loop sees it, so the model published then reaches it (once per
 // batch of subscriptions, however many of them ask).
 void Daemon::read_subscriptions() {
@@ -923,15 +924,16 @@ void Daemon::read_subscriptions() {
   for (; n < kMaxBatch; ++n) {
     if (!s.pub.recv(subscription_, zmq::recv_flags::dontwait)) break;
     const std::string_view m = view(subscription_);
+    const SubscriptionSender sender =
+        bound ? subscription_sender(subscription_) : SubscriptionSender{SubscriptionSender::Kind::peer};
     if (!m.empty() && m[0] == 0) {  // an unsubscription (or a subscriber gone): nothing to hold
-      if (!s.subscriptions.unsubscribed(m.substr(1), subscription_sender(subscription_),
-                                        descriptor_still_that_socket))
+      if (!s.subscriptions.unsubscribed(m.substr(1), sender, descriptor_still_that_socket))
         ++counters_.unsubscriptions_ignored;
       continue;
     }
     if (!m.empty() && m[0] == 1 && subscribes_to_our_topics(m.substr(1), s.extra_topics)) {
       const std::string_view prefix = m.substr(1);
-      s.subscriptions.subscribed(prefix, subscription_sender(subscription_));
+      s.subscriptions.subscribed(prefix, sender);
       model_wanted = model_wanted ||
                      (s.subjects.empty() ? subscribes_to_model(prefix)
                                          : std::any_of(s.subjects.begin(), s.subjects.end(),

@@ -21,12 +21,19 @@
 // errs on the side of a count too high (a pose made for no one), never too
 // low (a subscriber's poses not made): a connection that subscribes twice
 // counts twice, and ZeroMQ sends one unsubscription for both.
+//
+// A connected output has one peer (the operator's proxy) on one ZeroMQ pipe,
+// whatever connections carry it: every message is that peer's, and ZeroMQ
+// holds a prefix for a pipe or not. The peer's prefixes are kept as a set,
+// so a subscription sent again (at each reconnection, or twice) counts once
+// and its unsubscription ends it: the count is exact there.
 #pragma once
 
 #include <algorithm>
 #include <cstdint>
 #include <iterator>
 #include <map>
+#include <set>
 #include <string>
 #include <string_view>
 
@@ -40,6 +47,7 @@ struct SubscriptionSender {
     zeromq,      // no descriptor: ZeroMQ's own unsubscription for a connection gone, or inproc
     connection,  // a descriptor still open: fd and its socket's inode
     gone,        // a descriptor already closed
+    peer,        // a connected output's one peer (its pipe holds a prefix or not)
   };
   Kind kind = Kind::zeromq;
   int fd = -1;
@@ -50,6 +58,7 @@ struct SubscriptionSender {
 class SubscriptionBook {
  public:
   void subscribed(std::string_view prefix, SubscriptionSender from = {}) {
+    if (from.kind == SubscriptionSender::Kind::peer && !peer_holds_.emplace(prefix).second) return;
     ++count_[std::string(prefix)];
     if (from.kind == SubscriptionSender::Kind::connection) ++held_[std::string(prefix)].by[from];
   }
@@ -61,7 +70,11 @@ class SubscriptionBook {
   bool unsubscribed(std::string_view prefix, SubscriptionSender from, StillOpen still_open) {
     const auto held = held_.find(prefix);
     if (from.kind == SubscriptionSender::Kind::gone) return false;
-    if (from.kind == SubscriptionSender::Kind::connection) {
+    if (from.kind == SubscriptionSender::Kind::peer) {
+      const auto it = peer_holds_.find(prefix);
+      if (it == peer_holds_.end()) return false;
+      peer_holds_.erase(it);
+    } else if (from.kind == SubscriptionSender::Kind::connection) {
       if (held == held_.end()) return false;
       const auto it = held->second.by.find(from);
       if (it == held->second.by.end()) return false;
@@ -113,6 +126,7 @@ class SubscriptionBook {
   void clear() {
     count_.clear();
     held_.clear();
+    peer_holds_.clear();
   }
 
  private:
@@ -127,6 +141,7 @@ class SubscriptionBook {
     std::size_t look_at = kFirstLook;
   };
   std::map<std::string, Held, std::less<>> held_;
+  std::set<std::string, std::less<>> peer_holds_;  // a connected output's peer's prefixes
 };
 
 }  // namespace fabrik::wire
