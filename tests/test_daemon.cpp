@@ -16,6 +16,7 @@
 #include <fstream>
 #include <future>
 #include <limits>
+#include <map>
 #include <new>
 #include <optional>
 #include <random>
@@ -1485,4 +1486,52 @@ TEST_CASE("A connected output counts its peer's subscription once however often 
     stats = stats_after(before);
   REQUIRE(stats);
   CHECK(counter(*stats, "pose_subscribers") == 0);
+}
+
+// A pose held for a subscriber that lags must not be written over by the frames after it,
+// over inproc (where the subscriber's queue holds the message the daemon made) and tcp
+// (where it waits in the daemon's queue while the subscriber's connection is full). ZeroMQ
+// copies each pose today; a send without a copy (buffers lent to ZeroMQ, reused only once
+// released: tried, docs/pipeline.md "Allocation") must hold this too: reusing a buffer
+// still held, it failed, over both.
+TEST_CASE("Poses held for a subscriber that lags arrive as they were made, inproc and tcp",
+          "[daemon][lent]") {
+  zmq::context_t context;
+  for (auto [in, out] : {std::pair{"inproc://markers-lag", "inproc://poses-lag"},
+                         std::pair{"tcp://127.0.0.1:*", "tcp://127.0.0.1:*"}}) {
+    INFO(out);
+    RunningDaemon d(context, config_on(in, out));
+    test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+    std::uint64_t frame = client.handshake();
+    zmq::socket_t lagging(context, zmq::socket_type::sub);
+    lagging.set(zmq::sockopt::linger, 0);
+    lagging.set(zmq::sockopt::rcvhwm, 1);
+    lagging.set(zmq::sockopt::rcvbuf, 4096);
+    lagging.set(zmq::sockopt::subscribe, "pose");
+    lagging.connect(d.daemon.output_endpoint());
+    REQUIRE(client.stats_until([](const json& s) { return counter(s, "pose_subscribers") == 2; }));
+    // More poses than the daemon lends buffers (16), fewer than its queue for one
+    // subscriber drops (docs/overload.md): every one reaches the one that lags.
+    const int n = 30;
+    std::map<std::uint64_t, std::string> made;
+    SyntheticMotion motion(*d.daemon.config().tracker.model, MotionSettings{});
+    for (int i = 0; i < n; ++i) {
+      client.send(json{{"frame", ++frame},
+                       {"time", i * 0.01},
+                       {"markers", markers_at(d.daemon.config(), motion, i * 0.01)}}
+                      .dump());
+      const auto pose = client.receive_raw("pose");
+      REQUIRE(pose);
+      made[pose_frame(*pose)] = pose->to_string();
+    }
+    REQUIRE(made.size() == static_cast<std::size_t>(n));
+    auto expected = made.begin();
+    for (int i = 0; i < n; ++i, ++expected) {
+      const auto pose = test::receive_topic(lagging, "pose", 5s);
+      REQUIRE(pose);
+      INFO("pose " << i << " of those held");
+      CHECK(pose_frame(*pose) == expected->first);
+      CHECK(pose->to_string_view() == expected->second);
+    }
+  }
 }
