@@ -1424,7 +1424,8 @@ TEST_CASE("Poses carry measured when the config asks: the frame's visible marker
 }
 
 TEST_CASE("A connected output counts its peer's subscription once however often the peer "
-          "reconnects, and not at all after the peer unsubscribes",
+          "reconnects and not at all after the peer unsubscribes; a long subscription does not "
+          "silence it",
           "[daemon][subscriptions]") {
   zmq::context_t context;
   // The operator's proxy, as the output sees it: a SUB socket bound where the output connects,
@@ -1475,6 +1476,21 @@ TEST_CASE("A connected output counts its peer's subscription once however often 
     const auto stats = stats_after(Clock::now());
     REQUIRE(stats);
     INFO("after " << restart << " restarts of the peer");
+    CHECK(counter(*stats, "pose_subscribers") == 1);
+  }
+  // A subscription longer than a bound output takes (64 bytes) from one of the proxy's
+  // clients is refused, and the output goes on (ZeroMQ's limit there would end the
+  // session for good).
+  const std::string long_prefix = "pose" + std::string(100, 'x');
+  proxy.set(zmq::sockopt::subscribe, long_prefix);
+  {
+    const auto since = Clock::now();
+    std::optional<json> stats = stats_after(since);
+    for (const auto deadline = since + 5s;
+         stats && counter(*stats, "subscriptions_refused") == 0 && Clock::now() < deadline;)
+      stats = stats_after(since);
+    REQUIRE(stats);
+    CHECK(counter(*stats, "subscriptions_refused") == 1);
     CHECK(counter(*stats, "pose_subscribers") == 1);
   }
   // Its unsubscription of "" ends what it held, however often it was sent.

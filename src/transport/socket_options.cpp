@@ -49,7 +49,14 @@ void set_output_options(zmq::socket_t& s, const DaemonConfig& c) {
   // apply them itself, but libzmq 4.3 then pairs a message that is not a
   // subscription with the next subscription's connection.)
   s.set(zmq::sockopt::xpub_verboser, true);
-  s.set(zmq::sockopt::maxmsgsize, kMaxSubscriptionBytes);
+  // On a bound output, a subscriber's long message drops only that subscriber.
+  // A connected output's one peer is the operator's proxy, which forwards its own
+  // clients' subscriptions: there a message too long is a protocol error that ends
+  // the session for good (libzmq 4.3.4 does not reconnect after one), so one
+  // client's long subscription would silence the output. Its size is left to the
+  // proxy (its own ZMQ_MAXMSGSIZE). (ZMQ_IMMEDIATE stays 0: the connecting pipe
+  // outlives each connection, which the subscription book relies on.)
+  if (c.output.mode == SocketMode::bind) s.set(zmq::sockopt::maxmsgsize, kMaxSubscriptionBytes);
   s.set(zmq::sockopt::rcvhwm, kSubscriptionQueueMessages);
   s.set(zmq::sockopt::rcvbuf, kSubscriberReceiveBufferBytes);
 }

@@ -23,10 +23,11 @@
 // counts twice, and ZeroMQ sends one unsubscription for both.
 //
 // A connected output has one peer (the operator's proxy) on one ZeroMQ pipe,
-// whatever connections carry it: every message is that peer's, and ZeroMQ
-// holds a prefix for a pipe or not. The peer's prefixes are kept as a set,
-// so a subscription sent again (at each reconnection, or twice) counts once
-// and its unsubscription ends it: the count is exact there.
+// which its socket keeps across reconnections (ZMQ_IMMEDIATE 0): every
+// message is that peer's, and ZeroMQ holds a prefix for a pipe or not. The
+// peer's prefixes are kept as a set, so a subscription sent again (at each
+// reconnection, or twice) counts once and its unsubscription ends it
+// (docs/hardening.md: the cases where it is still not exact).
 #pragma once
 
 #include <algorithm>
