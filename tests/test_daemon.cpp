@@ -1424,7 +1424,7 @@ TEST_CASE("Poses carry measured when the config asks: the frame's visible marker
 }
 
 TEST_CASE("A connected output counts its peer's subscription once however often the peer "
-          "reconnects and not at all after the peer unsubscribes; a long subscription does not "
+          "reconnects and not at all after the peer unsubscribes, and a long subscription does not "
           "silence it",
           "[daemon][subscriptions]") {
   zmq::context_t context;

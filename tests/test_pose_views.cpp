@@ -225,6 +225,21 @@ TEST_CASE("A connected output's peer holds a prefix or not: sent again, it count
   CHECK(book.receiving("pose") == 0);
   book.subscribed("", peer);  // a new output socket's peer starts afresh
   CHECK(book.receiving("pose") == 1);
+  // What the daemon refused from it counts once a reload makes it a topic (and once only);
+  // one it gave up does not, nor one longer than any topic.
+  book.refused_by_peer("joints");
+  book.refused_by_peer("lean");
+  CHECK_FALSE(book.unsubscribed("lean", peer, never_open));
+  book.refused_by_peer(std::string(200, 'j'));
+  const auto any = [](std::string_view) { return true; };
+  const auto total = [&] { return book.count_if([](std::string_view) { return true; }); };
+  CHECK(total() == 1);
+  book.revalidate([](std::string_view p) { return p == "joints"; });
+  CHECK(book.selecting("joints") == 1);
+  book.revalidate(any);
+  CHECK(book.selecting("joints") == 1);
+  CHECK(book.selecting("lean") == 0);
+  CHECK(total() == 2);
 }
 
 TEST_CASE("What the subscription book keeps of connections gone stays bounded", "[subscriptions]") {
@@ -434,4 +449,52 @@ TEST_CASE("A reload that keeps the output keeps its subscribers' views selected,
   // And its view still comes.
   client.send_frame(++frame);
   CHECK(test::receive_topic(viewer, "joints", 5000ms));
+}
+
+// A connected output's peer (the operator's proxy) is not dropped for a subscription the
+// daemon refuses, and ZeroMQ keeps it: a reload that makes it one of the daemon's topics
+// must count it, or the view would not be made until the proxy reconnects.
+TEST_CASE("A connected output's refused subscription that a reload makes a view's topic selects it",
+          "[views][daemon][reload][subscriptions]") {
+  zmq::context_t context;
+  zmq::socket_t proxy(context, zmq::socket_type::sub);
+  proxy.set(zmq::sockopt::linger, 0);
+  for (const char* topic : {"stats", "joints"}) proxy.set(zmq::sockopt::subscribe, topic);
+  proxy.bind("tcp://127.0.0.1:*");
+  const auto connected = [&](DaemonConfig c) {
+    c = on_free_ports(std::move(c));
+    c.output = {proxy.get(zmq::sockopt::last_endpoint), SocketMode::connect};
+    return c;
+  };
+  const DaemonConfig before = connected(config_with_views(json::object()));
+  const DaemonConfig after = connected(config_with_views(
+      {{"views", json::array({{{"topic", "joints"}, {"pose_content", {"angles"}}}})}}));
+  test::DaemonThread d(context, before, {}, [&] { return after; });
+  zmq::socket_t source(context, zmq::socket_type::pub);
+  source.set(zmq::sockopt::linger, 0);
+  source.connect(d.daemon.input_endpoint());
+  // The first stats for which done(stats) holds, within 5 s.
+  const auto stats_until = [&](auto done) -> std::optional<json> {
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    while (std::chrono::steady_clock::now() < deadline) {
+      auto m = test::receive_topic(proxy, "stats", 100ms);
+      if (m && done(test::decode_payload(*m))) return test::decode_payload(*m);
+    }
+    return std::nullopt;
+  };
+  REQUIRE(stats_until([](const json& s) { return s["subscriptions_refused"] == 1; }));
+  d.control.reload = true;
+  const auto reloaded = stats_until([](const json& s) { return s.contains("views"); });
+  REQUIRE(reloaded);
+  CHECK((*reloaded)["views"]["joints"]["subscribers"] == 1);  // the proxy did not resubscribe
+  // And the view comes to it.
+  std::optional<zmq::message_t> view;
+  std::uint64_t frame = 0;
+  for (const auto deadline = std::chrono::steady_clock::now() + 5s;
+       !view && std::chrono::steady_clock::now() < deadline;) {
+    source.send(zmq::str_buffer("markers"), zmq::send_flags::sndmore);
+    source.send(zmq::buffer(json{{"frame", ++frame}, {"units", "mm"}, {"markers", json::object()}}.dump()));
+    view = test::receive_topic(proxy, "joints", 50ms);
+  }
+  CHECK(view);
 }

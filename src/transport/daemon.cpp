@@ -433,6 +433,8 @@ void Daemon::attach_sockets(State& next, State* old) {
     set_output_limits(old->pub, next.config);
     next.pub = std::move(old->pub);
     next.subscriptions = std::move(old->subscriptions);
+    next.subscriptions.revalidate(
+        [&](std::string_view prefix) { return subscribes_to_our_topics(prefix, next.extra_topics); });
   }
   count_subscribers(next);
   // A source keeps its connection while neither it nor the lab's axes changed.
@@ -943,6 +945,7 @@ void Daemon::read_subscriptions() {
       continue;
     }
     ++counters_.subscriptions_refused;
+    if (!bound && !m.empty() && m[0] == 1) s.subscriptions.refused_by_peer(m.substr(1));
     // The deprecated ZMQ_SRCFD is the only way ZeroMQ names the connection.
     const int fd = zmq_msg_get(subscription_.handle(), ZMQ_SRCFD);
     bool dropped = false;

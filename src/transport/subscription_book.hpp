@@ -27,7 +27,9 @@
 // message is that peer's, and ZeroMQ holds a prefix for a pipe or not. The
 // peer's prefixes are kept as a set, so a subscription sent again (at each
 // reconnection, or twice) counts once and its unsubscription ends it
-// (docs/hardening.md: the cases where it is still not exact).
+// (docs/hardening.md: the cases where it is still not exact). What the
+// daemon refused from that peer ZeroMQ keeps too (the proxy is not dropped):
+// it is kept here, short ones only, should a reload make it select a topic.
 #pragma once
 
 #include <algorithm>
@@ -63,6 +65,24 @@ class SubscriptionBook {
     ++count_[std::string(prefix)];
     if (from.kind == SubscriptionSender::Kind::connection) ++held_[std::string(prefix)].by[from];
   }
+  // A connected output's peer's subscription the daemon refused (a prefix of
+  // none of its topics), kept if no longer than any topic can be.
+  void refused_by_peer(std::string_view prefix) {
+    if (prefix.size() <= kLongestTopicBytes) peer_refused_.emplace(prefix);
+  }
+  // After a reload that kept the output: the peer's refused subscriptions that
+  // now select a topic (`valid`) count.
+  template <class Valid>
+  void revalidate(Valid valid) {
+    for (auto it = peer_refused_.begin(); it != peer_refused_.end();) {
+      if (!valid(std::string_view(*it))) {
+        ++it;
+        continue;
+      }
+      subscribed(*it, SubscriptionSender{SubscriptionSender::Kind::peer});
+      it = peer_refused_.erase(it);
+    }
+  }
   // Counts only what can be told to be held (above); an unsubscription of what
   // was never counted (a refused subscription's, as ZeroMQ reports it when that
   // subscriber is dropped) changes nothing. `still_open(sender)`: whether that
@@ -72,6 +92,8 @@ class SubscriptionBook {
     const auto held = held_.find(prefix);
     if (from.kind == SubscriptionSender::Kind::gone) return false;
     if (from.kind == SubscriptionSender::Kind::peer) {
+      if (const auto refused = peer_refused_.find(prefix); refused != peer_refused_.end())
+        peer_refused_.erase(refused);
       const auto it = peer_holds_.find(prefix);
       if (it == peer_holds_.end()) return false;
       peer_holds_.erase(it);
@@ -128,6 +150,7 @@ class SubscriptionBook {
     count_.clear();
     held_.clear();
     peer_holds_.clear();
+    peer_refused_.clear();
   }
 
  private:
@@ -143,6 +166,9 @@ class SubscriptionBook {
   };
   std::map<std::string, Held, std::less<>> held_;
   std::set<std::string, std::less<>> peer_holds_;  // a connected output's peer's prefixes
+  std::set<std::string, std::less<>> peer_refused_;  // and those the daemon refused
+  // Longer than any topic the daemon publishes: a view's topic and a subject's name.
+  static constexpr std::size_t kLongestTopicBytes = 128;
 };
 
 }  // namespace fabrik::wire
