@@ -240,6 +240,14 @@ TEST_CASE("A connected output's peer holds a prefix or not: sent again, it count
   CHECK(book.selecting("joints") == 1);
   CHECK(book.selecting("lean") == 0);
   CHECK(total() == 2);
+  // The longest topic is a view's (32 bytes), '/' and a subject's name (32): one that
+  // long is kept, one byte more is not.
+  CHECK(kLongestTopicBytes == 65);
+  book.refused_by_peer(std::string(kLongestTopicBytes, 'k'));
+  book.refused_by_peer(std::string(kLongestTopicBytes + 1, 'm'));
+  book.revalidate(any);
+  CHECK(total() == 3);
+  CHECK(book.selecting(std::string(kLongestTopicBytes, 'k')) == 1);
 }
 
 TEST_CASE("What the subscription book keeps of connections gone stays bounded", "[subscriptions]") {

@@ -11,6 +11,7 @@
 #include "pose_views.hpp"
 #include "sensors_json.hpp"
 #include "source_config.hpp"
+#include "topics.hpp"
 #include "tracking/tracker.hpp"
 
 namespace fabrik {
@@ -32,8 +33,7 @@ struct SubjectConfig {
   SensorSection sensors;
 };
 
-// What a subject's name may be: it is a topic suffix and a marker-name prefix.
-constexpr std::size_t kMaxSubjectNameBytes = 32;
+// A subject's name is a topic suffix (kMaxSubjectNameBytes, topics.hpp) and a marker-name prefix.
 constexpr std::size_t kMaxSubjects = 64;
 
 struct DaemonConfig {

@@ -15,6 +15,7 @@
 #include "encoding.hpp"
 #include "json_reader.hpp"
 #include "pose_content.hpp"
+#include "topics.hpp"
 #include "solver/model.hpp"
 
 namespace fabrik {
@@ -29,7 +30,6 @@ struct PoseViewConfig {
 };
 
 constexpr std::size_t kMaxPoseViews = 16;
-constexpr std::size_t kMaxViewTopicBytes = 32;
 
 // Whether `topic` may name a view: 1 to kMaxViewTopicBytes letters, digits,
 // '_', '-' or '.', and neither a prefix of a topic the daemon has of its own

@@ -74,14 +74,11 @@ class SubscriptionBook {
   // now select a topic (`valid`) count.
   template <class Valid>
   void revalidate(Valid valid) {
-    for (auto it = peer_refused_.begin(); it != peer_refused_.end();) {
-      if (!valid(std::string_view(*it))) {
-        ++it;
-        continue;
-      }
-      subscribed(*it, SubscriptionSender{SubscriptionSender::Kind::peer});
-      it = peer_refused_.erase(it);
-    }
+    std::erase_if(peer_refused_, [&](const std::string& prefix) {
+      if (!valid(std::string_view(prefix))) return false;
+      subscribed(prefix, SubscriptionSender{SubscriptionSender::Kind::peer});
+      return true;
+    });
   }
   // Counts only what can be told to be held (above); an unsubscription of what
   // was never counted (a refused subscription's, as ZeroMQ reports it when that
@@ -167,8 +164,6 @@ class SubscriptionBook {
   std::map<std::string, Held, std::less<>> held_;
   std::set<std::string, std::less<>> peer_holds_;  // a connected output's peer's prefixes
   std::set<std::string, std::less<>> peer_refused_;  // and those the daemon refused
-  // Longer than any topic the daemon publishes: a view's topic and a subject's name.
-  static constexpr std::size_t kLongestTopicBytes = 128;
 };
 
 }  // namespace fabrik::wire
