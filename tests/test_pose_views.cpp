@@ -227,10 +227,10 @@ TEST_CASE("A connected output's peer holds a prefix or not: sent again, it count
   CHECK(book.receiving("pose") == 1);
   // What the daemon refused from it counts once a reload makes it a topic (and once only);
   // one it gave up does not, nor one longer than any topic.
-  book.refused_by_peer("joints");
-  book.refused_by_peer("lean");
+  book.refused("joints", peer);
+  book.refused("lean", peer);
   CHECK_FALSE(book.unsubscribed("lean", peer, never_open));
-  book.refused_by_peer(std::string(200, 'j'));
+  book.refused(std::string(200, 'j'), peer);
   const auto any = [](std::string_view) { return true; };
   const auto total = [&] { return book.count_if([](std::string_view) { return true; }); };
   CHECK(total() == 1);
@@ -243,11 +243,39 @@ TEST_CASE("A connected output's peer holds a prefix or not: sent again, it count
   // The longest topic is a view's (32 bytes), '/' and a subject's name (32): one that
   // long is kept, one byte more is not.
   CHECK(kLongestTopicBytes == 65);
-  book.refused_by_peer(std::string(kLongestTopicBytes, 'k'));
-  book.refused_by_peer(std::string(kLongestTopicBytes + 1, 'm'));
+  book.refused(std::string(kLongestTopicBytes, 'k'), peer);
+  book.refused(std::string(kLongestTopicBytes + 1, 'm'), peer);
   book.revalidate(any);
   CHECK(total() == 3);
   CHECK(book.selecting(std::string(kLongestTopicBytes, 'k')) == 1);
+}
+
+TEST_CASE("A refused subscription to a topic a reload dropped is counted until ZeroMQ drops it",
+          "[views][subscriptions]") {
+  using Kind = wire::SubscriptionSender::Kind;
+  wire::SubscriptionBook book;
+  const wire::SubscriptionSender earlier{Kind::connection, 7, 1001}, refused{Kind::connection, 8, 1002},
+      another{Kind::connection, 8, 1003};
+  const auto open = [](const wire::SubscriptionSender&) { return true; };
+  book.subscribed("joints", earlier);
+  // A reload dropped the view: a new subscriber of it is refused and dropped, and ZeroMQ
+  // then unsubscribes it as its own (no descriptor). The earlier subscriber stays counted.
+  book.refused("joints", refused);
+  CHECK(book.selecting("joints") == 2);
+  CHECK(book.unsubscribed("joints", {}, open));
+  CHECK(book.selecting("joints") == 1);
+  // Or another one unsubscribes itself before it is dropped.
+  book.refused("joints", another);
+  CHECK(book.unsubscribed("joints", another, open));
+  CHECK_FALSE(book.unsubscribed("joints", another, open));
+  CHECK(book.selecting("joints") == 1);
+  // A prefix nobody holds is not counted (the book does not grow with what senders choose),
+  // and its unsubscription changes nothing.
+  book.refused("lean", another);
+  CHECK(book.count_if([](std::string_view) { return true; }) == 1);
+  CHECK_FALSE(book.unsubscribed("lean", {}, open));
+  CHECK(book.unsubscribed("joints", earlier, open));
+  CHECK(book.selecting("joints") == 0);
 }
 
 TEST_CASE("What the subscription book keeps of connections gone stays bounded", "[subscriptions]") {
@@ -505,4 +533,54 @@ TEST_CASE("A connected output's refused subscription that a reload makes a view'
     view = test::receive_topic(proxy, "joints", 50ms);
   }
   CHECK(view);
+}
+
+// On a bound output a subscriber the daemon refuses is dropped, and ZeroMQ's unsubscription for
+// it (its own, naming no connection) counts. A reload that dropped a view keeps its earlier
+// subscribers counted; a refused subscription to that topic must not take one of their counts,
+// or a later reload that brings the view back would not make it for them.
+TEST_CASE("A refused subscription to a view a reload dropped leaves its earlier subscriber "
+          "counted when a later reload brings the view back",
+          "[views][daemon][reload][subscriptions]") {
+  const json joints{{"topic", "joints"}, {"pose_content", {"angles"}}};
+  const DaemonConfig with_view = on_free_ports(config_with_views({{"views", json::array({joints})}}));
+  const DaemonConfig without_view = on_free_ports(config_with_views(json::object()));
+  int reloads = 0;
+  zmq::context_t context;
+  test::DaemonThread d(context, with_view, {},
+                       [&] { return ++reloads == 1 ? without_view : with_view; });
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  zmq::socket_t viewer = subscriber(context, d.daemon.output_endpoint(), "joints");
+  std::uint64_t frame = 0;
+  // The first stats for which done(stats) holds while frames keep coming, within 5 s.
+  const auto stats_until = [&](auto done) -> std::optional<json> {
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    while (std::chrono::steady_clock::now() < deadline) {
+      client.send_frame(++frame);
+      auto stats = client.receive("stats", 100ms);
+      if (stats && done(*stats)) return stats;
+    }
+    return std::nullopt;
+  };
+  REQUIRE(stats_until([](const json& s) {
+    return s.contains("views") && s["views"]["joints"]["subscribers"] == 1;
+  }));
+  d.control.reload = true;
+  REQUIRE(stats_until([](const json& s) { return !s.contains("views"); }));
+  // A new subscriber: first `pose` (counted: the client's "" and this one), then `joints`,
+  // refused now, for which it is dropped. ZeroMQ unsubscribes both prefixes at once when
+  // it drops the connection, so `pose_subscribers` back at 1 says both were read.
+  zmq::socket_t late = subscriber(context, d.daemon.output_endpoint(), "pose");
+  REQUIRE(stats_until([](const json& s) { return s["pose_subscribers"] == 2; }));
+  late.set(zmq::sockopt::subscribe, "joints");
+  REQUIRE(stats_until([](const json& s) {
+    return s["subscriptions_refused"] == 1 && s["pose_subscribers"] == 1;
+  }));
+  d.control.reload = true;
+  const auto reloaded = stats_until([](const json& s) { return s.contains("views"); });
+  REQUIRE(reloaded);
+  CHECK(reloads == 2);
+  CHECK((*reloaded)["views"]["joints"]["subscribers"] == 1);  // the viewer, who never left
+  client.send_frame(++frame);
+  CHECK(view_of(viewer, "joints", frame));
 }

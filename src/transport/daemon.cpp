@@ -945,7 +945,7 @@ void Daemon::read_subscriptions() {
       continue;
     }
     ++counters_.subscriptions_refused;
-    if (!bound && !m.empty() && m[0] == 1) s.subscriptions.refused_by_peer(m.substr(1));
+    if (!m.empty() && m[0] == 1) s.subscriptions.refused(m.substr(1), sender);
     // The deprecated ZMQ_SRCFD is the only way ZeroMQ names the connection.
     const int fd = zmq_msg_get(subscription_.handle(), ZMQ_SRCFD);
     bool dropped = false;

@@ -17,10 +17,12 @@
 // unsubscription counts only against such a record; one from a connection
 // already closed when the loop reads it does not count. ZeroMQ's own
 // unsubscriptions, for a connection gone (and an inproc peer's messages),
-// name no descriptor and count as they come. Where the loop cannot tell, it
-// errs on the side of a count too high (a pose made for no one), never too
-// low (a subscriber's poses not made): a connection that subscribes twice
-// counts twice, and ZeroMQ sends one unsubscription for both.
+// name no descriptor and count as they come (so a refused subscription to a
+// prefix still counted, a topic a reload dropped, is counted: refused()).
+// Where the loop cannot tell, it errs on the side of a count too high (a pose
+// made for no one), never too low (a subscriber's poses not made): a
+// connection that subscribes twice counts twice, and ZeroMQ sends one
+// unsubscription for both.
 //
 // A connected output has one peer (the operator's proxy) on one ZeroMQ pipe,
 // which its socket keeps across reconnections (ZMQ_IMMEDIATE 0): every
@@ -65,10 +67,21 @@ class SubscriptionBook {
     ++count_[std::string(prefix)];
     if (from.kind == SubscriptionSender::Kind::connection) ++held_[std::string(prefix)].by[from];
   }
-  // A connected output's peer's subscription the daemon refused (a prefix of
-  // none of its topics), kept if no longer than any topic can be.
-  void refused_by_peer(std::string_view prefix) {
-    if (prefix.size() <= kLongestTopicBytes) peer_refused_.emplace(prefix);
+  // A subscription the daemon refused (a prefix of none of its topics). ZeroMQ
+  // holds it all the same. A connected output's peer keeps it (the proxy is not
+  // dropped), so it is kept here too, if no longer than any topic can be. On a
+  // bound output the subscriber is dropped and ZeroMQ then unsubscribes it as
+  // its own, which counts: where the prefix is counted (a topic a reload
+  // dropped, its earlier subscribers still counted) it is counted too, or that
+  // unsubscription would take an earlier subscriber's count. Other refused
+  // prefixes are not counted: they are the sender's to choose, and would make
+  // the book grow.
+  void refused(std::string_view prefix, SubscriptionSender from) {
+    if (from.kind == SubscriptionSender::Kind::peer) {
+      if (prefix.size() <= kLongestTopicBytes) peer_refused_.emplace(prefix);
+    } else if (count_.contains(prefix)) {
+      subscribed(prefix, from);
+    }
   }
   // After a reload that kept the output: the peer's refused subscriptions that
   // now select a topic (`valid`) count.
