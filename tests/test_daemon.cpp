@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <future>
 #include <limits>
@@ -29,6 +30,7 @@
 #include "socket_client.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
+#include "transport/output_revival.hpp"
 #include "transport/model_codec.hpp"
 #include "transport/socket_monitor.hpp"
 
@@ -1477,6 +1479,7 @@ TEST_CASE("A connected output counts its peer's subscription once however often 
     REQUIRE(stats);
     INFO("after " << restart << " restarts of the peer");
     CHECK(counter(*stats, "pose_subscribers") == 1);
+    CHECK(counter(*stats, "output_reconnects") == 0);  // ZeroMQ reconnected by itself
   }
   // A subscription longer than a bound output takes (64 bytes) from one of the proxy's
   // clients is refused, and the output goes on (ZeroMQ's limit there would end the
@@ -1556,4 +1559,85 @@ TEST_CASE("Poses held for a subscriber that lags arrive as they were made, inpro
       CHECK(pose->to_string_view() == bytes_made);
     }
   }
+}
+
+TEST_CASE("The output revival waits for a reconnection ZeroMQ does not schedule, then doubles "
+          "its wait until a handshake succeeds",
+          "[daemon][subscriptions]") {
+  using wire::RevivalRule;
+  RevivalRule rule;
+  const RevivalRule::Clock::time_point t0{};
+  CHECK_FALSE(rule.due(t0 + 1h));  // never disconnected
+  // A connection error: ZeroMQ reports the retry it scheduled; nothing to do.
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, t0);
+  rule.on_event(ZMQ_EVENT_CONNECT_RETRIED, t0);
+  CHECK_FALSE(rule.due(t0 + 1h));
+  // Given up: no retry follows.
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, t0);
+  CHECK_FALSE(rule.due(t0 + 999ms));
+  CHECK(rule.due(t0 + 1s));
+  rule.reconnected();
+  CHECK_FALSE(rule.due(t0 + 1h));
+  // The same peer again, before any handshake: twice the wait, then up to 32 s.
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, t0);
+  CHECK_FALSE(rule.due(t0 + 1999ms));
+  CHECK(rule.due(t0 + 2s));
+  for (int k = 0; k < 10; ++k) rule.reconnected();
+  CHECK(rule.retry() == RevivalRule::kMaxRetry);
+  // A subscriber socket answers: the session is up (a disconnection read before the
+  // handshake was the last one's), and the wait starts afresh.
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, t0);
+  rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, t0);
+  CHECK_FALSE(rule.due(t0 + 1h));
+  CHECK(rule.retry() == RevivalRule::kFirstRetry);
+}
+
+// libzmq 4.3.4 does not reconnect after a protocol error: a peer that is no subscriber socket
+// where a connected output connects ended its session for good, and nothing was sent again
+// until the output was reopened, though the operator's proxy came up there later.
+TEST_CASE("A connected output whose peer is no subscriber socket connects again, and a "
+          "subscriber bound there later gets its stats",
+          "[daemon][subscriptions]") {
+  zmq::context_t context;
+  zmq::socket_t wrong(context, zmq::socket_type::pub);
+  wrong.set(zmq::sockopt::linger, 0);
+  wrong.bind("tcp://127.0.0.1:*");
+  const std::string endpoint = wrong.get(zmq::sockopt::last_endpoint);
+  // Each connection the output makes to it (ZeroMQ makes one; a second is the daemon's).
+  REQUIRE(zmq_socket_monitor(wrong.handle(), "inproc://wrong-peer-monitor",
+                             ZMQ_EVENT_ACCEPTED | ZMQ_EVENT_CLOSED) == 0);
+  zmq::socket_t events(context, zmq::socket_type::pair);
+  events.set(zmq::sockopt::linger, 0);
+  events.connect("inproc://wrong-peer-monitor");
+  const auto next_event = [&](std::uint16_t wanted) {
+    zmq::pollitem_t items[] = {{events.handle(), 0, ZMQ_POLLIN, 0}};
+    for (const auto deadline = Clock::now() + 5s; Clock::now() < deadline;) {
+      if (zmq::poll(items, 1, 100ms) == 0) continue;
+      zmq::message_t event, address;
+      REQUIRE(events.recv(event));
+      if (event.more()) REQUIRE(events.recv(address));
+      std::uint16_t id;
+      std::memcpy(&id, event.data(), 2);
+      if (id == wanted) return true;
+    }
+    return false;
+  };
+  DaemonConfig c = config_on("inproc://markers-wrong-peer", endpoint);
+  c.output.mode = SocketMode::connect;
+  RunningDaemon d(context, std::move(c));
+  REQUIRE(next_event(ZMQ_EVENT_ACCEPTED));
+  REQUIRE(next_event(ZMQ_EVENT_ACCEPTED));  // 1 s later: the daemon's
+  // The operator's proxy comes up where the wrong peer was.
+  wrong.unbind(endpoint);
+  REQUIRE(next_event(ZMQ_EVENT_CLOSED));
+  zmq_socket_monitor(wrong.handle(), nullptr, 0);
+  wrong.close();
+  zmq::socket_t proxy(context, zmq::socket_type::sub);
+  proxy.set(zmq::sockopt::linger, 0);
+  proxy.set(zmq::sockopt::subscribe, "stats");
+  proxy.bind(endpoint);
+  // The next connection, ZeroMQ's or the daemon's (2 s after the last), reaches it.
+  const auto stats = test::receive_topic(proxy, "stats", 10s);
+  REQUIRE(stats);
+  CHECK(counter(test::decode_payload(*stats), "output_reconnects") >= 1);
 }

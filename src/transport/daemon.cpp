@@ -22,6 +22,7 @@
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "model_codec.hpp"
+#include "output_revival.hpp"
 #include "socket_monitor.hpp"
 #include "socket_options.hpp"
 #include "subscription_book.hpp"
@@ -172,7 +173,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   const bool subjects = is_json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
   const bool views = is_json ? bool(s.views_json) : bool(s.views_msgpack);
   // MessagePack needs the exact count of the keys below
-  w.begin_map(29 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
+  w.begin_map(30 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -210,6 +211,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("poor_frames", s.c.poor_frames);
   count("subscriptions_refused", s.c.subscriptions_refused);
   count("unsubscriptions_ignored", s.c.unsubscriptions_ignored);
+  count("output_reconnects", s.c.output_reconnects);
   count("pose_subscribers", s.c.pose_subscribers);
   w.key("stages_us");
   w.begin_map(kStageNames.size());
@@ -298,6 +300,7 @@ struct Daemon::State {
   std::size_t bytes = 0;
   zmq::socket_t sub, pub;
   SubscriptionBook subscriptions;  // pub's live ones (kept with pub across a reload)
+  OutputRevival revival;  // a connected output's connection events (declared after pub: stops first)
   SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
   // Multi-subject configs: one per subject (empty: tracker, encoder and
@@ -421,7 +424,10 @@ void Daemon::attach_sockets(State& next, State* old) {
     next.sub = open_socket(context_, zmq::socket_type::sub, next.config);
     next.monitor = SocketMonitor(context_, next.sub, ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED);
   }
-  if (!keep_pub) next.pub = open_socket(context_, zmq::socket_type::xpub, next.config);
+  if (!keep_pub) {
+    next.pub = open_socket(context_, zmq::socket_type::xpub, next.config);
+    if (next.config.output.mode == SocketMode::connect) next.revival = OutputRevival(context_, next.pub);
+  }
   if (keep_sub) {
     // New limits hold for connections made from now on; the decoder checks
     // the payload limit on every message anyway.
@@ -432,6 +438,7 @@ void Daemon::attach_sockets(State& next, State* old) {
   if (keep_pub) {
     set_output_limits(old->pub, next.config);
     next.pub = std::move(old->pub);
+    next.revival = std::move(old->revival);
     next.subscriptions = std::move(old->subscriptions);
     next.subscriptions.revalidate(
         [&](std::string_view prefix) { return subscribes_to_our_topics(prefix, next.extra_topics); });
@@ -842,25 +849,42 @@ void Daemon::count_subscribers(State& s) {
     for (ViewState& view : subject.views) view.subscribers = book.selecting(view.topic);
 }
 
+// ZeroMQ gave up the connected output's session (output_revival.hpp): a
+// disconnection with no reconnection after it. The endpoint is kept by the
+// socket all the same, so it is disconnected (ending nothing live) and
+// connected again: one pipe at a time, as the subscription book expects.
+void Daemon::reconnect_output() {
+  State& s = *state_;
+  const std::string& endpoint = s.config.output.address;
+  RevivalRule& rule = s.revival.rule();
+  rule.reconnected();
+  (void)zmq_disconnect(s.pub.handle(), endpoint.c_str());  // ENOENT where it was forgotten
+  if (zmq_connect(s.pub.handle(), endpoint.c_str()) != 0) {
+    internal_error("cannot connect the output again: ", zmq_strerror(zmq_errno()));
+    return;
+  }
+  ++counters_.output_reconnects;
+  subscriber_log_.warn(
+      "the output's peer at {} ended the session and ZeroMQ gave it up (a peer that is no "
+      "subscriber socket, or a protocol error): connected again, and again after {} s if it "
+      "ends so (stats: output_reconnects)",
+      safe_text(endpoint, 128), std::chrono::duration_cast<std::chrono::seconds>(rule.retry()).count());
+  update_snapshot();
+}
+
 void Daemon::read_monitor() {
   State& s = *state_;
   for (int n = 0; n < kMaxBatch; ++n) {
-    zmq::message_t event, address;
-    if (!s.monitor.events().recv(event, zmq::recv_flags::dontwait)) break;
-    if (event.more()) (void)s.monitor.events().recv(address, zmq::recv_flags::dontwait);
-    if (event.size() < 6) continue;
-    std::uint16_t id;
-    std::uint32_t value;
-    std::memcpy(&id, event.data(), 2);
-    std::memcpy(&value, static_cast<const char*>(event.data()) + 2, 4);
-    if (id == ZMQ_EVENT_DISCONNECTED) {
+    const std::optional<SocketMonitor::Event> event = s.monitor.next();
+    if (!event) break;
+    if (event->id == ZMQ_EVENT_DISCONNECTED) {
       ++counters_.input_disconnects;
       peer_log_.info("an input peer disconnected (a source quit, or it sent a message over "
                      "twice max_payload_bytes)");
-    } else if (id == ZMQ_EVENT_ACCEPT_FAILED) {
+    } else if (event->id == ZMQ_EVENT_ACCEPT_FAILED) {
       ++counters_.accept_failures;
       peer_log_.warn("cannot accept a connection on the input: {}",
-                     std::strerror(static_cast<int>(value)));
+                     std::strerror(static_cast<int>(event->value)));
     }
   }
   update_snapshot();
@@ -1179,13 +1203,14 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
                                                next_stats - Clock::now()),
                                            std::chrono::milliseconds(0),
                                            std::chrono::milliseconds(reload_ ? 10 : 100));
-    zmq::pollitem_t items[5] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
+    zmq::pollitem_t items[6] = {{s.sub.handle(), 0, ZMQ_POLLIN, 0},
                                 {s.pub.handle(), 0, ZMQ_POLLIN, 0}};
     int n_items = 2;
     if (s.source) items[n_items++] = {s.source->socket().handle(), 0, ZMQ_POLLIN, 0};
     const int fixed_items = n_items;
     if (control.wake_fd >= 0) items[n_items++] = {nullptr, control.wake_fd, ZMQ_POLLIN, 0};
     if (s.monitor) items[n_items++] = {s.monitor.events().handle(), 0, ZMQ_POLLIN, 0};
+    if (s.revival) items[n_items++] = {s.revival.events().handle(), 0, ZMQ_POLLIN, 0};
     try {
       zmq::poll(items, n_items, wait);
       if ((items[0].revents & ZMQ_POLLIN) || waiting) serve_input(s.sub);
@@ -1197,6 +1222,8 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
         if (items[k].socket == nullptr) {
           std::uint64_t count;
           (void)!::read(control.wake_fd, &count, sizeof count);  // the flags say what happened
+        } else if (s.revival && items[k].socket == s.revival.events().handle()) {
+          s.revival.read(Clock::now());
         } else {
           read_monitor();
         }
@@ -1210,6 +1237,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
     }
     const Clock::time_point now = Clock::now();
     if (model_pending_) want_model(now);  // the loop wakes at least every 100 ms
+    if (state_->revival && state_->revival.rule().due(now)) reconnect_output();
     if (now >= next_stats) {
       try {
         publish_stats(std::chrono::duration<double>(now - last_stats).count());

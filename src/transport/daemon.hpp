@@ -58,6 +58,7 @@ struct DaemonCounters {
   std::uint64_t poor_frames = 0;       // poses whose residual.quality was poor
   std::uint64_t subscriptions_refused = 0;  // output subscriptions to no topic of ours (peer dropped)
   std::uint64_t unsubscriptions_ignored = 0;  // of nothing counted, or not its sender's (SubscriptionBook)
+  std::uint64_t output_reconnects = 0;  // a connected output connected again after ZeroMQ gave up its peer
   std::uint64_t other_subject_frames = 0;  // frames whose "subject" the config does not list
   std::uint64_t pose_subscribers = 0;  // live output subscriptions that receive poses (a gauge)
 };
@@ -213,6 +214,7 @@ class Daemon {
                          std::chrono::steady_clock::time_point received,
                          std::chrono::steady_clock::time_point decoded);
   void read_monitor();
+  void reconnect_output();
   void read_subscriptions();
   // Who receives each pose topic and each view, from the output's live subscriptions.
   void count_subscribers(State& s);

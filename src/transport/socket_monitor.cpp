@@ -1,6 +1,7 @@
 #include "socket_monitor.hpp"
 
 #include <atomic>
+#include <cstring>
 #include <string>
 #include <utility>
 
@@ -26,6 +27,19 @@ SocketMonitor& SocketMonitor::operator=(SocketMonitor&& other) noexcept {
     events_ = std::move(other.events_);
   }
   return *this;
+}
+
+std::optional<SocketMonitor::Event> SocketMonitor::next() {
+  zmq::message_t event, address;
+  while (events_.recv(event, zmq::recv_flags::dontwait)) {
+    if (event.more()) (void)events_.recv(address, zmq::recv_flags::dontwait);
+    if (event.size() < 6) continue;
+    Event e;
+    std::memcpy(&e.id, event.data(), 2);
+    std::memcpy(&e.value, static_cast<const char*>(event.data()) + 2, 4);
+    return e;
+  }
+  return std::nullopt;
 }
 
 SocketMonitor::~SocketMonitor() {

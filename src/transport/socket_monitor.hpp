@@ -6,6 +6,8 @@
 // and the watched socket must outlive this object.
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <zmq.hpp>
 
 namespace fabrik::wire {
@@ -23,6 +25,12 @@ class SocketMonitor {
 
   explicit operator bool() const { return static_cast<bool>(events_); }
   zmq::socket_t& events() { return events_; }
+  struct Event {
+    std::uint16_t id = 0;     // ZMQ_EVENT_*
+    std::uint32_t value = 0;  // its value (an errno, a descriptor, ...)
+  };
+  // The next event waiting, without blocking; nothing when none is.
+  std::optional<Event> next();
 
  private:
   void stop() noexcept;

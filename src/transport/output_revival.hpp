@@ -1,0 +1,62 @@
+// A connected output's session that ZeroMQ gave up, connected again.
+//
+// libzmq 4.3.4 reconnects a connecting socket after a connection error, not
+// after a protocol error: a peer that is no subscriber socket (a PUB or a
+// DEALER bound where the output connects) or one that breaks the protocol
+// ends the session, and the output sends nothing more until it is reopened.
+// The socket monitor tells the two apart only by what follows: after a
+// connection error ZeroMQ schedules a reconnection and reports it at once
+// (ZMQ_EVENT_CONNECT_RETRIED); after a protocol error it reports nothing
+// more. So a disconnection that no retry follows within `retry()` is taken
+// as given up, and the daemon connects the output again. `retry()` doubles,
+// up to kMaxRetry, while the peer keeps ending the session before a
+// handshake succeeds.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <zmq.hpp>
+
+#include "socket_monitor.hpp"
+
+namespace fabrik::wire {
+
+// The rule alone, fed the monitor's event ids.
+class RevivalRule {
+ public:
+  using Clock = std::chrono::steady_clock;
+  static constexpr Clock::duration kFirstRetry = std::chrono::seconds(1);
+  static constexpr Clock::duration kMaxRetry = std::chrono::seconds(32);
+
+  void on_event(std::uint16_t id, Clock::time_point now);
+  bool due(Clock::time_point now) const { return down_since_ && now - *down_since_ >= retry_; }
+  // The output was connected again: the next give-up waits twice as long.
+  void reconnected();
+  Clock::duration retry() const { return retry_; }
+
+ private:
+  std::optional<Clock::time_point> down_since_;
+  Clock::duration retry_ = kFirstRetry;
+};
+
+// The rule over a monitor of the output socket (which must outlive it).
+class OutputRevival {
+ public:
+  static constexpr int kEvents =
+      ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_CONNECT_RETRIED | ZMQ_EVENT_HANDSHAKE_SUCCEEDED;
+  OutputRevival() = default;
+  OutputRevival(zmq::context_t& context, zmq::socket_t& output)
+      : monitor_(context, output, kEvents) {}
+  explicit operator bool() const { return static_cast<bool>(monitor_); }
+  zmq::socket_t& events() { return monitor_.events(); }
+  // Reads the events waiting (a batch at most).
+  void read(RevivalRule::Clock::time_point now);
+  RevivalRule& rule() { return rule_; }
+
+ private:
+  SocketMonitor monitor_;
+  RevivalRule rule_;
+};
+
+}  // namespace fabrik::wire
