@@ -30,7 +30,7 @@
 #include "socket_client.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
-#include "transport/output_revival.hpp"
+#include "transport/session_revival.hpp"
 #include "transport/model_codec.hpp"
 #include "transport/socket_monitor.hpp"
 
@@ -1640,4 +1640,42 @@ TEST_CASE("A connected output whose peer is no subscriber socket connects again,
   const auto stats = test::receive_topic(proxy, "stats", 10s);
   REQUIRE(stats);
   CHECK(counter(test::decode_payload(*stats), "output_reconnects") >= 1);
+}
+
+// The same on a connected input: ZeroMQ drops a message over the input's size limit
+// (twice max_payload_bytes and 4 KiB) with its connection, and a connecting socket does not
+// reconnect after that: one oversized message from the lab's publisher stopped every frame
+// after it until the daemon was restarted.
+TEST_CASE("A connected input whose peer sent a message over the size limit connects again, and "
+          "frames after it are tracked",
+          "[daemon]") {
+  zmq::context_t context;
+  zmq::socket_t source(context, zmq::socket_type::pub);
+  source.set(zmq::sockopt::linger, 0);
+  source.bind("tcp://127.0.0.1:*");
+  DaemonConfig c = config_on(source.get(zmq::sockopt::last_endpoint), "tcp://127.0.0.1:*");
+  c.input.mode = SocketMode::connect;
+  c.max_payload_bytes = 1024;
+  RunningDaemon d(context, std::move(c));
+  zmq::socket_t poses(context, zmq::socket_type::sub);
+  poses.set(zmq::sockopt::linger, 0);
+  poses.set(zmq::sockopt::subscribe, "pose");
+  poses.connect(d.daemon.output_endpoint());
+  std::uint64_t frame = 0;
+  // Frames are sent until the pose of one after `after` comes, within `timeout`.
+  const auto pose_after = [&](std::uint64_t after, std::chrono::seconds timeout) {
+    for (const auto deadline = Clock::now() + timeout; Clock::now() < deadline;) {
+      source.send(zmq::str_buffer("markers"), zmq::send_flags::sndmore);
+      source.send(zmq::buffer(json{{"frame", ++frame}, {"units", "mm"}, {"markers", json::object()}}.dump()));
+      const auto m = test::receive_topic(poses, "pose", 50ms);
+      if (m && test::decode_payload(*m)["frame"].get<std::uint64_t>() > after) return true;
+    }
+    return false;
+  };
+  REQUIRE(pose_after(0, 5s));
+  const std::uint64_t oversized = ++frame;
+  source.send(zmq::str_buffer("markers"), zmq::send_flags::sndmore);
+  source.send(zmq::buffer(std::string(2 * 1024 + 4096 + 1000, 'x')));
+  CHECK(pose_after(oversized, 10s));
+  CHECK(d.daemon.counters().input_reconnects >= 1);
 }

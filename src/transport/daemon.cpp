@@ -22,7 +22,7 @@
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "model_codec.hpp"
-#include "output_revival.hpp"
+#include "session_revival.hpp"
 #include "socket_monitor.hpp"
 #include "socket_options.hpp"
 #include "subscription_book.hpp"
@@ -173,7 +173,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   const bool subjects = is_json ? bool(s.subjects_json) : bool(s.subjects_msgpack);
   const bool views = is_json ? bool(s.views_json) : bool(s.views_msgpack);
   // MessagePack needs the exact count of the keys below
-  w.begin_map(30 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
+  w.begin_map(31 + (s.source ? 1 : 0) + (subjects ? 2 : 0) + (views ? 1 : 0));
   w.key("uptime_s");
   w.number(s.uptime_s, 3);
   count("frames_in", s.c.frames_in);
@@ -212,6 +212,7 @@ void write_stats(Writer& w, const StatsFields& s) {
   count("subscriptions_refused", s.c.subscriptions_refused);
   count("unsubscriptions_ignored", s.c.unsubscriptions_ignored);
   count("output_reconnects", s.c.output_reconnects);
+  count("input_reconnects", s.c.input_reconnects);
   count("pose_subscribers", s.c.pose_subscribers);
   w.key("stages_us");
   w.begin_map(kStageNames.size());
@@ -302,6 +303,7 @@ struct Daemon::State {
   SubscriptionBook subscriptions;  // pub's live ones (kept with pub across a reload)
   OutputRevival revival;  // a connected output's connection events (declared after pub: stops first)
   SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
+  RevivalRule input_revival;  // fed by `monitor` when the input connects
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
   // Multi-subject configs: one per subject (empty: tracker, encoder and
   // model_out above serve the one subject).
@@ -422,7 +424,10 @@ void Daemon::attach_sockets(State& next, State* old) {
   const bool keep_pub = old && same(old->config.output, next.config.output);
   if (!keep_sub) {
     next.sub = open_socket(context_, zmq::socket_type::sub, next.config);
-    next.monitor = SocketMonitor(context_, next.sub, ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED);
+    const bool connects = next.config.input.mode == SocketMode::connect;
+    next.monitor = SocketMonitor(context_, next.sub,
+                                 ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED |
+                                     (connects ? RevivalRule::kEvents : 0));
   }
   if (!keep_pub) {
     next.pub = open_socket(context_, zmq::socket_type::xpub, next.config);
@@ -434,6 +439,7 @@ void Daemon::attach_sockets(State& next, State* old) {
     set_input_limits(old->sub, next.config);
     next.sub = std::move(old->sub);
     next.monitor = std::move(old->monitor);
+    next.input_revival = old->input_revival;
   }
   if (keep_pub) {
     set_output_limits(old->pub, next.config);
@@ -849,26 +855,23 @@ void Daemon::count_subscribers(State& s) {
     for (ViewState& view : subject.views) view.subscribers = book.selecting(view.topic);
 }
 
-// ZeroMQ gave up the connected output's session (output_revival.hpp): a
-// disconnection with no reconnection after it. The endpoint is kept by the
-// socket all the same, so it is disconnected (ending nothing live) and
-// connected again: one pipe at a time, as the subscription book expects.
-void Daemon::reconnect_output() {
-  State& s = *state_;
-  const std::string& endpoint = s.config.output.address;
-  RevivalRule& rule = s.revival.rule();
+// ZeroMQ gave up a connecting socket's session (session_revival.hpp): a
+// disconnection with no reconnection after it. The socket keeps the endpoint
+// all the same, so it is disconnected (ending nothing live) and connected
+// again: one pipe at a time, as the output's subscription book expects.
+void Daemon::reconnect(zmq::socket_t& socket, const std::string& endpoint, RevivalRule& rule,
+                       std::uint64_t& count, std::string_view what, std::string_view why) {
   rule.reconnected();
-  (void)zmq_disconnect(s.pub.handle(), endpoint.c_str());  // ENOENT where it was forgotten
-  if (zmq_connect(s.pub.handle(), endpoint.c_str()) != 0) {
-    internal_error("cannot connect the output again: ", zmq_strerror(zmq_errno()));
+  (void)zmq_disconnect(socket.handle(), endpoint.c_str());  // ENOENT where it was forgotten
+  if (zmq_connect(socket.handle(), endpoint.c_str()) != 0) {
+    internal_error("cannot connect again to the peer at ", safe_text(endpoint, 128));
     return;
   }
-  ++counters_.output_reconnects;
-  subscriber_log_.warn(
-      "the output's peer at {} ended the session and ZeroMQ gave it up (a peer that is no "
-      "subscriber socket, or a protocol error): connected again, and again after {} s if it "
-      "ends so (stats: output_reconnects)",
-      safe_text(endpoint, 128), std::chrono::duration_cast<std::chrono::seconds>(rule.retry()).count());
+  ++count;
+  peer_log_.warn("{} at {} ended the session, and ZeroMQ gave it up ({}): connected again, and "
+                 "again after {} s if it ends so before a handshake",
+                 what, safe_text(endpoint, 128), why,
+                 std::chrono::duration_cast<std::chrono::seconds>(rule.retry()).count());
   update_snapshot();
 }
 
@@ -877,6 +880,7 @@ void Daemon::read_monitor() {
   for (int n = 0; n < kMaxBatch; ++n) {
     const std::optional<SocketMonitor::Event> event = s.monitor.next();
     if (!event) break;
+    if (s.config.input.mode == SocketMode::connect) s.input_revival.on_event(event->id, Clock::now());
     if (event->id == ZMQ_EVENT_DISCONNECTED) {
       ++counters_.input_disconnects;
       peer_log_.info("an input peer disconnected (a source quit, or it sent a message over "
@@ -1237,7 +1241,15 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
     }
     const Clock::time_point now = Clock::now();
     if (model_pending_) want_model(now);  // the loop wakes at least every 100 ms
-    if (state_->revival && state_->revival.rule().due(now)) reconnect_output();
+    if (state_->revival && state_->revival.rule().due(now))
+      reconnect(state_->pub, state_->config.output.address, state_->revival.rule(),
+                counters_.output_reconnects, "the output's peer",
+                "not a subscriber socket, or it broke the protocol; stats: output_reconnects");
+    if (state_->config.input.mode == SocketMode::connect && state_->input_revival.due(now))
+      reconnect(state_->sub, state_->config.input.address, state_->input_revival,
+                counters_.input_reconnects, "the input's peer",
+                "not a publisher socket, a message over twice max_payload_bytes, or it broke the "
+                "protocol; stats: input_reconnects");
     if (now >= next_stats) {
       try {
         publish_stats(std::chrono::duration<double>(now - last_stats).count());

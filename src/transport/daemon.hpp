@@ -21,6 +21,7 @@
 #include <mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <unordered_set>
 #include <vector>
 #include <zmq.hpp>
@@ -37,6 +38,8 @@
 #include "source_input.hpp"
 
 namespace fabrik::wire {
+
+class RevivalRule;
 
 struct DaemonCounters {
   std::uint64_t frames_in = 0;        // messages received on the input
@@ -59,6 +62,7 @@ struct DaemonCounters {
   std::uint64_t subscriptions_refused = 0;  // output subscriptions to no topic of ours (peer dropped)
   std::uint64_t unsubscriptions_ignored = 0;  // of nothing counted, or not its sender's (SubscriptionBook)
   std::uint64_t output_reconnects = 0;  // a connected output connected again after ZeroMQ gave up its peer
+  std::uint64_t input_reconnects = 0;   // a connected input, likewise
   std::uint64_t other_subject_frames = 0;  // frames whose "subject" the config does not list
   std::uint64_t pose_subscribers = 0;  // live output subscriptions that receive poses (a gauge)
 };
@@ -214,7 +218,8 @@ class Daemon {
                          std::chrono::steady_clock::time_point received,
                          std::chrono::steady_clock::time_point decoded);
   void read_monitor();
-  void reconnect_output();
+  void reconnect(zmq::socket_t& socket, const std::string& endpoint, RevivalRule& rule,
+                 std::uint64_t& count, std::string_view what, std::string_view why);
   void read_subscriptions();
   // Who receives each pose topic and each view, from the output's live subscriptions.
   void count_subscribers(State& s);

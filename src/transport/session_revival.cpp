@@ -1,4 +1,4 @@
-#include "output_revival.hpp"
+#include "session_revival.hpp"
 
 #include <algorithm>
 

@@ -1,14 +1,16 @@
-// A connected output's session that ZeroMQ gave up, connected again.
+// A connecting socket's session that ZeroMQ gave up, connected again.
 //
 // libzmq 4.3.4 reconnects a connecting socket after a connection error, not
-// after a protocol error: a peer that is no subscriber socket (a PUB or a
-// DEALER bound where the output connects) or one that breaks the protocol
-// ends the session, and the output sends nothing more until it is reopened.
+// after a protocol error: a peer of the wrong socket type (a PUB or a DEALER
+// bound where the output connects, a SUB where the input does), a message
+// over the socket's size limit (the input's), or any other break of the
+// protocol ends the session, and the socket sends or receives nothing more
+// until it is reopened.
 // The socket monitor tells the two apart only by what follows: after a
 // connection error ZeroMQ schedules a reconnection and reports it at once
 // (ZMQ_EVENT_CONNECT_RETRIED); after a protocol error it reports nothing
 // more. So a disconnection that no retry follows within `retry()` is taken
-// as given up, and the daemon connects the output again. `retry()` doubles,
+// as given up, and the daemon connects the socket again. `retry()` doubles,
 // up to kMaxRetry, while the peer keeps ending the session before a
 // handshake succeeds.
 #pragma once
@@ -28,10 +30,13 @@ class RevivalRule {
   using Clock = std::chrono::steady_clock;
   static constexpr Clock::duration kFirstRetry = std::chrono::seconds(1);
   static constexpr Clock::duration kMaxRetry = std::chrono::seconds(32);
+  // The monitor events the rule reads.
+  static constexpr int kEvents =
+      ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_CONNECT_RETRIED | ZMQ_EVENT_HANDSHAKE_SUCCEEDED;
 
   void on_event(std::uint16_t id, Clock::time_point now);
   bool due(Clock::time_point now) const { return down_since_ && now - *down_since_ >= retry_; }
-  // The output was connected again: the next give-up waits twice as long.
+  // The socket was connected again: the next give-up waits twice as long.
   void reconnected();
   Clock::duration retry() const { return retry_; }
 
@@ -40,14 +45,14 @@ class RevivalRule {
   Clock::duration retry_ = kFirstRetry;
 };
 
-// The rule over a monitor of the output socket (which must outlive it).
+// The rule over a monitor of its own, for the output socket (which must
+// outlive it). The input's monitor, which also counts its disconnections,
+// feeds a RevivalRule of its own.
 class OutputRevival {
  public:
-  static constexpr int kEvents =
-      ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_CONNECT_RETRIED | ZMQ_EVENT_HANDSHAKE_SUCCEEDED;
   OutputRevival() = default;
   OutputRevival(zmq::context_t& context, zmq::socket_t& output)
-      : monitor_(context, output, kEvents) {}
+      : monitor_(context, output, RevivalRule::kEvents) {}
   explicit operator bool() const { return static_cast<bool>(monitor_); }
   zmq::socket_t& events() { return monitor_.events(); }
   // Reads the events waiting (a batch at most).
