@@ -1584,6 +1584,11 @@ TEST_CASE("The output revival waits for a reconnection ZeroMQ does not schedule,
   CHECK(rule.due(t0 + 2s));
   for (int k = 0; k < 10; ++k) rule.reconnected();
   CHECK(rule.retry() == RevivalRule::kMaxRetry);
+  // Connecting again failed: no event will come, so it is due again after the wait.
+  rule.connect_failed(t0);
+  CHECK_FALSE(rule.due(t0 + 31s));
+  CHECK(rule.due(t0 + 32s));
+  rule.reconnected();
   // A subscriber socket answers: the session is up (a disconnection read before the
   // handshake was the last one's), and the wait starts afresh.
   rule.on_event(ZMQ_EVENT_DISCONNECTED, t0);

@@ -269,6 +269,14 @@ TEST_CASE("A refused subscription to a topic a reload dropped is counted until Z
   CHECK(book.unsubscribed("joints", another, open));
   CHECK_FALSE(book.unsubscribed("joints", another, open));
   CHECK(book.selecting("joints") == 1);
+  // One that sends it twice (as a SUB subscribing twice does) counts once: ZeroMQ
+  // unsubscribes its pipe once.
+  const wire::SubscriptionSender twice{Kind::connection, 9, 1004};
+  book.refused("joints", twice);
+  book.refused("joints", twice);
+  CHECK(book.selecting("joints") == 2);
+  CHECK(book.unsubscribed("joints", {}, open));
+  CHECK(book.selecting("joints") == 1);
   // A prefix nobody holds is not counted (the book does not grow with what senders choose),
   // and its unsubscription changes nothing.
   book.refused("lean", another);
@@ -570,7 +578,12 @@ TEST_CASE("A refused subscription to a view a reload dropped leaves its earlier 
   // A new subscriber: first `pose` (counted: the client's "" and this one), then `joints`,
   // refused now, for which it is dropped. ZeroMQ unsubscribes both prefixes at once when
   // it drops the connection, so `pose_subscribers` back at 1 says both were read.
-  zmq::socket_t late = subscriber(context, d.daemon.output_endpoint(), "pose");
+  // (It must not reconnect once dropped: it would send its subscriptions again.)
+  zmq::socket_t late(context, zmq::socket_type::sub);
+  late.set(zmq::sockopt::linger, 0);
+  late.set(zmq::sockopt::reconnect_ivl, -1);
+  late.set(zmq::sockopt::subscribe, "pose");
+  late.connect(d.daemon.output_endpoint());
   REQUIRE(stats_until([](const json& s) { return s["pose_subscribers"] == 2; }));
   late.set(zmq::sockopt::subscribe, "joints");
   REQUIRE(stats_until([](const json& s) {

@@ -50,15 +50,23 @@ std::string_view view(const zmq::message_t& m) {
   return {static_cast<const char*>(m.data()), m.size()};
 }
 
-zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const DaemonConfig& c) {
-  const bool input = type == zmq::socket_type::sub;
-  const Endpoint& e = input ? c.input : c.output;
-  const char* role = input ? "input" : "output";
+// The input (a SUB) or the output (an XPUB), with its options, not yet bound
+// or connected: a monitor must be watching before the socket connects, or the
+// events of a session ZeroMQ gives up at once can be missed (session_revival.hpp).
+zmq::socket_t make_socket(zmq::context_t& context, zmq::socket_type type, const DaemonConfig& c) {
   zmq::socket_t s(context, type);
-  if (input)
+  if (type == zmq::socket_type::sub)
     set_input_options(s, c);
   else
     set_output_options(s, c);
+  return s;
+}
+
+// Binds or connects `s`, made by make_socket.
+void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& c) {
+  const bool input = type == zmq::socket_type::sub;
+  const Endpoint& e = input ? c.input : c.output;
+  const char* role = input ? "input" : "output";
   try {
     if (e.mode == SocketMode::bind)
       s.bind(e.address);
@@ -88,7 +96,6 @@ zmq::socket_t open_socket(zmq::context_t& context, zmq::socket_type type, const 
                           err.what(),
                       fix);
   }
-  return s;
 }
 
 // Whether every number of a result can be written: a pose never carries
@@ -422,16 +429,20 @@ void Daemon::attach_sockets(State& next, State* old) {
   };
   const bool keep_sub = old && same(old->config.input, next.config.input);
   const bool keep_pub = old && same(old->config.output, next.config.output);
+  // Each monitor watches before its socket connects. Should the bind or connect throw,
+  // the State goes with its sockets, each monitor first (declared after its socket).
   if (!keep_sub) {
-    next.sub = open_socket(context_, zmq::socket_type::sub, next.config);
+    next.sub = make_socket(context_, zmq::socket_type::sub, next.config);
     const bool connects = next.config.input.mode == SocketMode::connect;
     next.monitor = SocketMonitor(context_, next.sub,
                                  ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_ACCEPT_FAILED |
                                      (connects ? RevivalRule::kEvents : 0));
+    open_endpoint(next.sub, zmq::socket_type::sub, next.config);
   }
   if (!keep_pub) {
-    next.pub = open_socket(context_, zmq::socket_type::xpub, next.config);
+    next.pub = make_socket(context_, zmq::socket_type::xpub, next.config);
     if (next.config.output.mode == SocketMode::connect) next.revival = OutputRevival(context_, next.pub);
+    open_endpoint(next.pub, zmq::socket_type::xpub, next.config);
   }
   if (keep_sub) {
     // New limits hold for connections made from now on; the decoder checks
@@ -864,7 +875,9 @@ void Daemon::reconnect(zmq::socket_t& socket, const std::string& endpoint, Reviv
   rule.reconnected();
   (void)zmq_disconnect(socket.handle(), endpoint.c_str());  // ENOENT where it was forgotten
   if (zmq_connect(socket.handle(), endpoint.c_str()) != 0) {
-    internal_error("cannot connect again to the peer at ", safe_text(endpoint, 128));
+    internal_error("cannot connect again to " + safe_text(endpoint, 128) + ": ",
+                   zmq_strerror(zmq_errno()));
+    rule.connect_failed(Clock::now());
     return;
   }
   ++count;

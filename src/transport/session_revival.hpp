@@ -38,6 +38,8 @@ class RevivalRule {
   bool due(Clock::time_point now) const { return down_since_ && now - *down_since_ >= retry_; }
   // The socket was connected again: the next give-up waits twice as long.
   void reconnected();
+  // Connecting again failed: no event will come, so it is tried again after the (doubled) wait.
+  void connect_failed(Clock::time_point now) { down_since_ = now; }
   Clock::duration retry() const { return retry_; }
 
  private:

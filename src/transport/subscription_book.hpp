@@ -75,13 +75,20 @@ class SubscriptionBook {
   // dropped, its earlier subscribers still counted) it is counted too, or that
   // unsubscription would take an earlier subscriber's count. Other refused
   // prefixes are not counted: they are the sender's to choose, and would make
-  // the book grow.
+  // the book grow. A connection's pipe holds a prefix once, and ZeroMQ
+  // unsubscribes it once: a connection's second subscription to it (a SUB
+  // subscribing twice) is not counted again.
   void refused(std::string_view prefix, SubscriptionSender from) {
     if (from.kind == SubscriptionSender::Kind::peer) {
       if (prefix.size() <= kLongestTopicBytes) peer_refused_.emplace(prefix);
-    } else if (count_.contains(prefix)) {
-      subscribed(prefix, from);
+      return;
     }
+    if (!count_.contains(prefix)) return;
+    if (from.kind == SubscriptionSender::Kind::connection) {
+      const auto held = held_.find(prefix);
+      if (held != held_.end() && held->second.by.contains(from)) return;
+    }
+    subscribed(prefix, from);
   }
   // After a reload that kept the output: the peer's refused subscriptions that
   // now select a topic (`valid`) count.
