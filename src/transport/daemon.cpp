@@ -1254,15 +1254,19 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
     }
     const Clock::time_point now = Clock::now();
     if (model_pending_) want_model(now);  // the loop wakes at least every 100 ms
-    if (state_->revival && state_->revival.rule().due(now))
-      reconnect(state_->pub, state_->config.output.address, state_->revival.rule(),
-                counters_.output_reconnects, "the output's peer",
-                "not a subscriber socket, or it broke the protocol; stats: output_reconnects");
-    if (state_->config.input.mode == SocketMode::connect && state_->input_revival.due(now))
-      reconnect(state_->sub, state_->config.input.address, state_->input_revival,
-                counters_.input_reconnects, "the input's peer",
-                "not a publisher socket, a message over twice max_payload_bytes, or it broke the "
-                "protocol; stats: input_reconnects");
+    try {
+      if (state_->revival && state_->revival.rule().due(now))
+        reconnect(state_->pub, state_->config.output.address, state_->revival.rule(),
+                  counters_.output_reconnects, "the output's peer",
+                  "not a subscriber socket, or it broke the protocol; stats: output_reconnects");
+      if (state_->config.input.mode == SocketMode::connect && state_->input_revival.due(now))
+        reconnect(state_->sub, state_->config.input.address, state_->input_revival,
+                  counters_.input_reconnects, "the input's peer",
+                  "not a publisher socket, a message over twice max_payload_bytes, or it broke "
+                  "the protocol; stats: input_reconnects");
+    } catch (const std::exception& e) {
+      internal_error("while connecting again: ", e.what());
+    }
     if (now >= next_stats) {
       try {
         publish_stats(std::chrono::duration<double>(now - last_stats).count());

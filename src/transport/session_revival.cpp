@@ -10,8 +10,8 @@ void RevivalRule::on_event(std::uint16_t id, Clock::time_point now) {
   } else if (id == ZMQ_EVENT_CONNECT_RETRIED) {
     down_since_.reset();  // ZeroMQ reconnects by itself
   } else if (id == ZMQ_EVENT_HANDSHAKE_SUCCEEDED) {
-    // A subscriber socket answered: the session is up (a disconnection read before it was
-    // the last one's), and a later give-up is news.
+    // The peer answered as the socket's kind of peer: the session is up (a disconnection
+    // read before it was the last one's), and a later give-up is news.
     down_since_.reset();
     retry_ = kFirstRetry;
   }
