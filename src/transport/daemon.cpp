@@ -781,10 +781,9 @@ void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::t
       subject.last_seen_at = received;
     }
     if (!subject.present) continue;
-    if (track_and_publish(*subject.tracker, *subject.encoder, subject.pose_topic.c_str(),
-                          subject.pose_subscribers, subject.views, f, time_s, m, received,
-                          decode_start))
-      ++c.frames_out;
+    track_and_publish(*subject.tracker, *subject.encoder, subject.pose_topic.c_str(),
+                      subject.pose_subscribers, subject.views, f, time_s, m, received,
+                      decode_start, &c.frames_out);
     decode_start = Clock::now();  // the next subject's stages start here
   }
 }
@@ -792,7 +791,8 @@ void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::t
 bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
                                int pose_subscribers, std::span<ViewState> views,
                                const MarkerFrame& f, double time_s, const Measurements& m,
-                               Clock::time_point received, Clock::time_point decode_start) {
+                               Clock::time_point received, Clock::time_point decode_start,
+                               std::uint64_t* subject_frames_out) {
   FrameStages stages;
   const Clock::time_point solve_start = Clock::now();
   stages[Stage::decode] = us_between(decode_start, solve_start);
@@ -810,6 +810,7 @@ bool Daemon::track_and_publish(Tracker& tracker, const PoseEncoder& encoder, con
   counters_.outliers += static_cast<std::uint64_t>(r->outlier_count);
   counters_.poor_frames += r->quality == FitQuality::poor ? 1 : 0;
   ++counters_.frames_out;
+  if (subject_frames_out) ++*subject_frames_out;  // before the snapshot the pose's send takes
   ++interval_frames_out_;
   // The frame's first message out ends its stages and its latency: the pose,
   // or, when no subscription receives it, the first view one selects. What

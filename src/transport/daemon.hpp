@@ -209,14 +209,16 @@ class Daemon {
     std::span<const float> confidence;  // empty: the frame carried none (all 1)
   };
   // The pose only while `pose_subscribers` > 0, then each of `views` that a
-  // subscription selects, on its own topic.
+  // subscription selects, on its own topic. `subject_frames_out` (a subject's
+  // count) is raised with the daemon's, before the pose goes out.
   struct ViewState;
   bool track_and_publish(Tracker& tracker, const PoseEncoder& encoder, const char* topic,
                          int pose_subscribers, std::span<ViewState> views,
                          const MarkerFrame& f, double time_s,
                          const Measurements& m,
                          std::chrono::steady_clock::time_point received,
-                         std::chrono::steady_clock::time_point decoded);
+                         std::chrono::steady_clock::time_point decoded,
+                         std::uint64_t* subject_frames_out = nullptr);
   void read_monitor();
   void reconnect(zmq::socket_t& socket, const std::string& endpoint, RevivalRule& rule,
                  std::uint64_t& count, std::string_view what, std::string_view why);
