@@ -23,6 +23,7 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <vector>
 
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
@@ -1562,7 +1563,7 @@ TEST_CASE("Poses held for a subscriber that lags arrive as they were made, inpro
 }
 
 TEST_CASE("The output revival waits for a reconnection ZeroMQ does not schedule, then doubles "
-          "its wait until a handshake succeeds",
+          "its wait until a session lasts that long",
           "[daemon][subscriptions]") {
   using wire::RevivalRule;
   RevivalRule rule;
@@ -1590,10 +1591,43 @@ TEST_CASE("The output revival waits for a reconnection ZeroMQ does not schedule,
   CHECK(rule.due(t0 + 32s));
   rule.reconnected();
   // A subscriber socket answers: the session is up (a disconnection read before the
-  // handshake was the last one's), and the wait starts afresh.
+  // handshake was the last one's).
   rule.on_event(ZMQ_EVENT_DISCONNECTED, t0);
   rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, t0);
   CHECK_FALSE(rule.due(t0 + 1h));
+  // A session that lasted the wait ends: the wait starts afresh.
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, t0 + 32s);
+  CHECK(rule.retry() == RevivalRule::kFirstRetry);
+  CHECK_FALSE(rule.due(t0 + 32s + 999ms));
+  CHECK(rule.due(t0 + 33s));
+}
+
+// A peer that completes the handshake and breaks the protocol at once was connected to
+// again every second for as long as it stayed.
+TEST_CASE("The output revival keeps doubling its wait for a peer that breaks each session "
+          "right after the handshake",
+          "[daemon][subscriptions]") {
+  using wire::RevivalRule;
+  RevivalRule rule;
+  RevivalRule::Clock::time_point now{};
+  std::vector<long long> waits_s;
+  for (int k = 0; k < 8; ++k) {
+    rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, now);
+    now += 10ms;
+    rule.on_event(ZMQ_EVENT_DISCONNECTED, now);
+    const auto down = now;
+    for (int step = 0; step < 1000 && !rule.due(now); ++step) now += 100ms;
+    waits_s.push_back(std::chrono::duration_cast<std::chrono::seconds>(now - down).count());
+    rule.reconnected();
+  }
+  CHECK(waits_s == std::vector<long long>{1, 2, 4, 8, 16, 32, 32, 32});
+  // Then a session as long as the wait (the operator's proxy at last): afresh.
+  rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, now);
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, now + 31s);
+  CHECK(rule.retry() == RevivalRule::kMaxRetry);  // shorter than the wait: kept
+  rule.reconnected();
+  rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, now + 40s);
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, now + 72s);
   CHECK(rule.retry() == RevivalRule::kFirstRetry);
 }
 

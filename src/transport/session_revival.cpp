@@ -6,14 +6,17 @@ namespace fabrik::wire {
 
 void RevivalRule::on_event(std::uint16_t id, Clock::time_point now) {
   if (id == ZMQ_EVENT_DISCONNECTED) {
+    // A session that lasted the wait was no peer breaking each one at once.
+    if (up_since_ && now - *up_since_ >= retry_) retry_ = kFirstRetry;
+    up_since_.reset();
     if (!down_since_) down_since_ = now;
   } else if (id == ZMQ_EVENT_CONNECT_RETRIED) {
     down_since_.reset();  // ZeroMQ reconnects by itself
   } else if (id == ZMQ_EVENT_HANDSHAKE_SUCCEEDED) {
     // The peer answered as the socket's kind of peer: the session is up (a disconnection
-    // read before it was the last one's), and a later give-up is news.
+    // read before it was the last one's).
     down_since_.reset();
-    retry_ = kFirstRetry;
+    up_since_ = now;
   }
 }
 

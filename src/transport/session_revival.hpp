@@ -11,8 +11,10 @@
 // (ZMQ_EVENT_CONNECT_RETRIED); after a protocol error it reports nothing
 // more. So a disconnection that no retry follows within `retry()` is taken
 // as given up, and the daemon connects the socket again. `retry()` doubles,
-// up to kMaxRetry, while the peer keeps ending the session before a
-// handshake succeeds.
+// up to kMaxRetry, at each such connection, and starts afresh only after a
+// session that lasted at least as long as the wait: a peer that breaks the
+// protocol right after each handshake is connected to ever less often, while
+// one break after a long session waits the first second again.
 #pragma once
 
 #include <chrono>
@@ -36,7 +38,8 @@ class RevivalRule {
 
   void on_event(std::uint16_t id, Clock::time_point now);
   bool due(Clock::time_point now) const { return down_since_ && now - *down_since_ >= retry_; }
-  // The socket was connected again: the next give-up waits twice as long.
+  // The socket was connected again: the next give-up waits twice as long,
+  // unless the session that follows lasts at least that long.
   void reconnected();
   // Connecting again failed: no event will come, so it is tried again after the (doubled) wait.
   void connect_failed(Clock::time_point now) { down_since_ = now; }
@@ -44,6 +47,7 @@ class RevivalRule {
 
  private:
   std::optional<Clock::time_point> down_since_;
+  std::optional<Clock::time_point> up_since_;  // the handshake of the session now up
   Clock::duration retry_ = kFirstRetry;
 };
 
