@@ -883,7 +883,7 @@ void Daemon::reconnect(zmq::socket_t& socket, const std::string& endpoint, Reviv
   }
   ++count;
   peer_log_.warn("{} at {} ended the session, and ZeroMQ gave it up ({}): connected again, and "
-                 "again after {} s if it ends so within that time",
+                 "again after {} s should this session end within a second",
                  what, safe_text(endpoint, 128), why,
                  std::chrono::duration_cast<std::chrono::seconds>(rule.retry()).count());
   update_snapshot();

@@ -6,8 +6,7 @@ namespace fabrik::wire {
 
 void RevivalRule::on_event(std::uint16_t id, Clock::time_point now) {
   if (id == ZMQ_EVENT_DISCONNECTED) {
-    // A session that lasted the wait was no peer breaking each one at once.
-    if (up_since_ && now - *up_since_ >= retry_) retry_ = kFirstRetry;
+    if (up_since_ && now - *up_since_ >= kLastingSession) retry_ = kFirstRetry;
     up_since_.reset();
     if (!down_since_) down_since_ = now;
   } else if (id == ZMQ_EVENT_CONNECT_RETRIED) {

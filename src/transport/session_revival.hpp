@@ -11,10 +11,12 @@
 // (ZMQ_EVENT_CONNECT_RETRIED); after a protocol error it reports nothing
 // more. So a disconnection that no retry follows within `retry()` is taken
 // as given up, and the daemon connects the socket again. `retry()` doubles,
-// up to kMaxRetry, at each such connection, and starts afresh only after a
-// session that lasted at least as long as the wait: a peer that breaks the
-// protocol right after each handshake is connected to ever less often, while
-// one break after a long session waits the first second again.
+// up to kMaxRetry, at each such connection, and starts afresh after a session
+// that lasted kLastingSession: a peer that breaks the protocol right after each
+// handshake (within milliseconds) is connected to ever less often, while a
+// source that breaks it now and then waits the first second again, whatever
+// came before. (A threshold that grew with the wait left a source that broke
+// it every 20 s waiting 32 s each time, once a bad peer had grown the wait.)
 #pragma once
 
 #include <chrono>
@@ -32,6 +34,9 @@ class RevivalRule {
   using Clock = std::chrono::steady_clock;
   static constexpr Clock::duration kFirstRetry = std::chrono::seconds(1);
   static constexpr Clock::duration kMaxRetry = std::chrono::seconds(32);
+  // A session this long was no peer breaking each one at once (so at worst the
+  // socket is up half the time); far above the loop's lag in reading events.
+  static constexpr Clock::duration kLastingSession = std::chrono::seconds(1);
   // The monitor events the rule reads.
   static constexpr int kEvents =
       ZMQ_EVENT_DISCONNECTED | ZMQ_EVENT_CONNECT_RETRIED | ZMQ_EVENT_HANDSHAKE_SUCCEEDED;
@@ -39,7 +44,7 @@ class RevivalRule {
   void on_event(std::uint16_t id, Clock::time_point now);
   bool due(Clock::time_point now) const { return down_since_ && now - *down_since_ >= retry_; }
   // The socket was connected again: the next give-up waits twice as long,
-  // unless the session that follows lasts at least that long.
+  // unless the session that follows lasts kLastingSession.
   void reconnected();
   // Connecting again failed: no event will come, so it is tried again after the (doubled) wait.
   void connect_failed(Clock::time_point now) { down_since_ = now; }
