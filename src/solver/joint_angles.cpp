@@ -195,7 +195,7 @@ void coordinate_values(const Model& model, const Posture& posture, std::span<dou
   const bool turned = !(model.lab_axes == LabAxes{});
   const Eigen::Matrix3d r_reference_lab = model.lab_axes.r_reference_lab();
   // Each coordinate computes its own angle only (a knee's one of three), from the
-  // relative rotation as a quaternion: a third of the time of the matrices' way.
+  // relative rotation as a quaternion: about half the time of the matrices' way.
   int cached_segment = -2, cached_reference = -2;
   CardanEntries entries{};
   for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
