@@ -1705,10 +1705,7 @@ TEST_CASE("A connected input whose peer sent a message over the size limit conne
   c.input.mode = SocketMode::connect;
   c.max_payload_bytes = 1024;
   RunningDaemon d(context, std::move(c));
-  zmq::socket_t poses(context, zmq::socket_type::sub);
-  poses.set(zmq::sockopt::linger, 0);
-  poses.set(zmq::sockopt::subscribe, "pose");
-  poses.connect(d.daemon.output_endpoint());
+  zmq::socket_t poses = test::subscriber(context, d.daemon.output_endpoint(), "pose");
   std::uint64_t frame = 0;
   // Frames are sent until the pose of one after `after` comes, within `timeout`.
   const auto pose_after = [&](std::uint64_t after, std::chrono::seconds timeout) {
