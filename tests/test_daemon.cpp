@@ -1623,9 +1623,15 @@ TEST_CASE("The output revival keeps doubling its wait for a peer that breaks eac
   CHECK(waits_s == std::vector<long long>{1, 2, 4, 8, 16, 32, 32, 32});
   // A session of under a second: still a peer breaking each one, the wait kept.
   rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, now);
-  rule.on_event(ZMQ_EVENT_DISCONNECTED, now + 900ms);
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, now + 999ms);
   CHECK(rule.retry() == RevivalRule::kMaxRetry);
   rule.reconnected();
+  // Exactly a second: it lasted (the threshold itself, kLastingSession).
+  rule.on_event(ZMQ_EVENT_HANDSHAKE_SUCCEEDED, now);
+  rule.on_event(ZMQ_EVENT_DISCONNECTED, now + 1s);
+  CHECK(rule.retry() == RevivalRule::kFirstRetry);
+  for (int k = 0; k < 10; ++k) rule.reconnected();
+  REQUIRE(rule.retry() == RevivalRule::kMaxRetry);
   // Then a source that breaks the protocol every 20 s (a message over the limit now and
   // then), shorter than the grown wait: each break waits the first second again.
   for (int k = 0; k < 3; ++k) {
