@@ -501,9 +501,29 @@ void FabrikSolver::turn_links(Posture& posture) const {
   }
 }
 
+// A segment nothing below pulls on in this pass rides rigidly on its parent: its rotation
+// relative to the parent is the one it had when the level's passes began, which solve()
+// brought within range, so there is no limit to enforce.
+void FabrikSolver::ride(int s, const Eigen::Vector3d& base_m, Posture& posture) const {
+  const int parent = model_.segments[s].parent;
+  const SegmentPose& parent_now = posture.segments[parent];
+  const SegmentPose& parent_then = start_[parent];
+  SegmentPose& pose = posture.segments[s];
+  pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
+  pose.base_world_m = base_m;
+}
+
+// The rides a level's passes left out (backward without `ride`), parents first. Nothing a
+// pass fits reads a rider: it has no target in the pass and no active segment below it, so
+// one ride after the level's last pass places it as riding after each pass would.
+void FabrikSolver::ride_inactive(int pass, Posture& posture) const {
+  for (int s = 1; s < n_seg_; ++s)
+    if (!active(pass, s)) ride(s, joint_world_m(s, posture), posture);
+}
+
 void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                             std::span<const std::uint8_t> visible, Posture& posture,
-                            const Eigen::Vector3d& root_pin_m) {
+                            const Eigen::Vector3d& root_pin_m, bool ride_now) {
   const bool carrying = options_.subtree_carry > 0.0;
   if (any_limited_) limited_moments(pass, carrying, posture);
   LinkStep last;
@@ -520,22 +540,13 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
       rotate_about_base(n, root_pin_m, pose);
       continue;
     }
-    // A link parent's one slot is this segment's joint.
-    const Eigen::Vector3d base_m = link_[seg.parent]
-                                       ? link_tip_m_[seg.parent]
-                                       : posture.point_world_m(model_, seg.parent_point);
-    if (link_[s]) {
-      backward_link(s, base_m, target_world_m, posture, last, last.segment == seg.parent);
+    if (!active(pass, s)) {
+      if (ride_now) ride(s, joint_world_m(s, posture), posture);
       continue;
     }
-    if (!active(pass, s)) {
-      // Nothing below pulls on this segment: it rides rigidly on its parent.
-      const SegmentPose& parent_now = posture.segments[seg.parent];
-      const SegmentPose& parent_then = start_[seg.parent];
-      pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
-      pose.base_world_m = base_m;
-      // Its rotation relative to the parent is the one it had when the pass
-      // began, which solve() brought within range: no limit to enforce.
+    const Eigen::Vector3d base_m = joint_world_m(s, posture);
+    if (link_[s]) {
+      backward_link(s, base_m, target_world_m, posture, last, last.segment == seg.parent);
       continue;
     }
     if (limited_[s]) {
@@ -872,15 +883,17 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       // each iteration as well met as it can be; with a single level the
       // convergence loop itself repeats the pass.
       const int level_passes = active_levels > 1 && pass == strongest ? options_.level_passes : 1;
+      // Repeated passes leave the riders out until the level is done (ride_inactive).
+      const bool riders = pass_has_riders_[pass] != 0;
+      if (riders) std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
       for (int k = 0; k < level_passes; ++k) {
-        if (pass_has_riders_[pass])
-          std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
         forward(pass, target_world_m, visible, posture);
-        backward(pass, target_world_m, visible, posture, root_pin_m);
+        backward(pass, target_world_m, visible, posture, root_pin_m, level_passes == 1);
         ++total_passes;
         if (level_passes > 1 && level_settled(pass, target_world_m, visible, posture) && k > 0)
           break;
       }
+      if (riders && level_passes > 1) ride_inactive(pass, posture);
     }
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
     result = measure(target_world_m, visible, posture);

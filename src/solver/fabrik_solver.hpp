@@ -100,9 +100,20 @@ class FabrikSolver {
              std::span<const std::uint8_t> visible, const Posture& posture);
   void forward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                std::span<const std::uint8_t> visible, Posture& posture);
+  // `ride`: place the segments the pass leaves inactive on their parents as it goes; without
+  // it they stay where they were, for ride_inactive to place once a level's passes are done.
   void backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                 std::span<const std::uint8_t> visible, Posture& posture,
-                const Eigen::Vector3d& root_pin_m);
+                const Eigen::Vector3d& root_pin_m, bool ride);
+  void ride(int s, const Eigen::Vector3d& base_m, Posture& posture) const;
+  void ride_inactive(int pass, Posture& posture) const;
+  // Where segment s's base is, from its parent as it stands (a link parent's one slot is
+  // this segment's joint).
+  Eigen::Vector3d joint_world_m(int s, const Posture& posture) const {
+    const Segment& seg = model_.segments[s];
+    return link_[seg.parent] ? link_tip_m_[seg.parent]
+                             : posture.point_world_m(model_, seg.parent_point);
+  }
   bool level_settled(int pass, std::span<const Eigen::Vector3d> target_world_m,
                      std::span<const std::uint8_t> visible, const Posture& posture);
   void place_with_candidates(int n, SegmentPose& pose, bool turn) const;
@@ -217,7 +228,7 @@ class FabrikSolver {
   // A hinge's turns_[s][0] and arcs_[s] are its angle from rest.
   std::vector<Turns> turns_;  // per limited segment: its joint angles at its latest fit
   std::vector<Eigen::Quaterniond> rel_q_;  // and its rotation relative to the parent then
-  std::vector<SegmentPose> start_;   // posture at the start of a pass
+  std::vector<SegmentPose> start_;   // posture at the start of a level's passes
   std::vector<double> distances_m_, previous_m_;
   std::vector<double> level_previous_m_;  // per target, between passes of one level
   // Orientation targets: per-pass weights, and per solve their desired
