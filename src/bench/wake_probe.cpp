@@ -60,10 +60,10 @@ void WakeProbe::sleeper() {
   }
 }
 
-double WakeProbe::wake_sleeping_us() {
+double WakeProbe::wake_sleeping_us(std::chrono::milliseconds previous_within) {
   // The previous wake taken: the sleeper is on its way back into epoll_wait
   // (between frames it has long arrived there).
-  const Clock::time_point deadline = Clock::now() + std::chrono::milliseconds(10);
+  const Clock::time_point deadline = Clock::now() + previous_within;
   while (woken_.load() < written_)
     if (Clock::now() > deadline) return -1.0;
   const Clock::time_point t0 = Clock::now();

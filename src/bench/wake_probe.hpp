@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <thread>
 
@@ -20,9 +21,12 @@ class WakeProbe {
   WakeProbe& operator=(const WakeProbe&) = delete;
 
   // The writer's time for one eventfd write that wakes the sleeping thread,
-  // in microseconds; negative when the thread had not gone back to sleep
-  // after the previous wake within a bounded wait (no sample).
-  double wake_sleeping_us();
+  // in microseconds; negative when the thread had not taken the previous wake
+  // within `previous_within` (no sample). The bench keeps that short, so a
+  // busy machine costs it samples, not time; a test waits longer, so that
+  // only a wake lost for good fails it.
+  double wake_sleeping_us(
+      std::chrono::milliseconds previous_within = std::chrono::milliseconds(10));
   // The same write with no thread waiting on it: the system call alone.
   double write_alone_us();
 
