@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "donor_fill.hpp"
-#include "gap_predictor.hpp"
+#include "live_marker_fill.hpp"
 #include "tracker.hpp"
 
 namespace fabrik {
