@@ -329,6 +329,10 @@ TEST_CASE("bench pipeline reports each stage, and the solve split into the solve
     // The machine's wake-up price, sampled between the frames.
     CHECK(r["wake_us"]["sleeping_thread"]["p50"].get<double>() > 0.0);
     CHECK(r["wake_us"]["write_alone"]["p50"].get<double>() > 0.0);
+    // One wake sampled after each frame, or counted as dropped.
+    CHECK(r["wake_us"]["sleeping_thread_samples"].get<int>() +
+              r["wake_us"]["sleeping_thread_samples_dropped"].get<int>() ==
+          300);
   }
 }
 

@@ -151,6 +151,7 @@ json run_pipeline(const PipelineOptions& o) {
   // price for what each send does once (ZeroMQ waking its idle I/O thread).
   WakeProbe probe;
   std::vector<double> wake_sleeping_us, write_alone_us;
+  int wake_samples_dropped = 0;  // the sleeper had not taken the previous wake within 10 ms
   const int total = kWarmUpFrames + o.frames;
   for (int i = 0; i < total; ++i, ++frame) {
     // Alternate which model goes first: neither always follows the other.
@@ -171,7 +172,10 @@ json run_pipeline(const PipelineOptions& o) {
       r.iterations.push_back(s.iterations);
     }
     if (i < kWarmUpFrames) continue;
-    if (const double us = probe.wake_sleeping_us(); us >= 0.0) wake_sleeping_us.push_back(us);
+    if (const double us = probe.wake_sleeping_us(); us >= 0.0)
+      wake_sleeping_us.push_back(us);
+    else
+      ++wake_samples_dropped;
     write_alone_us.push_back(probe.write_alone_us());
   }
 
@@ -205,7 +209,9 @@ json run_pipeline(const PipelineOptions& o) {
           {"models", models},
           {"wake_us",
            {{"sleeping_thread", quantiles(wake_sleeping_us)},
-            {"write_alone", quantiles(write_alone_us)}}}};
+            {"write_alone", quantiles(write_alone_us)},
+            {"sleeping_thread_samples", wake_sleeping_us.size()},
+            {"sleeping_thread_samples_dropped", wake_samples_dropped}}}};
 }
 
 std::string pipeline_table(const json& r) {

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <chrono>
 #include <system_error>
+#include <thread>
 
 namespace fabrik::bench {
 
@@ -64,8 +65,11 @@ double WakeProbe::wake_sleeping_us(std::chrono::milliseconds previous_within) {
   // The previous wake taken: the sleeper is on its way back into epoll_wait
   // (between frames it has long arrived there).
   const Clock::time_point deadline = Clock::now() + previous_within;
-  while (woken_.load() < written_)
+  // Yielding, so that on a busy machine this wait does not hold back the sleeper it waits for.
+  while (woken_.load() < written_) {
     if (Clock::now() > deadline) return -1.0;
+    std::this_thread::yield();
+  }
   const Clock::time_point t0 = Clock::now();
   write_one(wake_fd_);
   const Clock::time_point t1 = Clock::now();
