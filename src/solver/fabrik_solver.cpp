@@ -513,7 +513,7 @@ void FabrikSolver::ride(int s, const Eigen::Vector3d& base_m, Posture& posture) 
   pose.base_world_m = base_m;
 }
 
-// The rides a level's passes left out (backward without `ride`), parents first. Nothing a
+// The rides a level's passes left out (backward without `ride_now`), parents first. Nothing a
 // pass fits reads a rider: it has no target in the pass and no active segment below it, so
 // one ride after the level's last pass places it as riding after each pass would.
 void FabrikSolver::ride_inactive(int pass, Posture& posture) const {

@@ -100,11 +100,12 @@ class FabrikSolver {
              std::span<const std::uint8_t> visible, const Posture& posture);
   void forward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                std::span<const std::uint8_t> visible, Posture& posture);
-  // `ride`: place the segments the pass leaves inactive on their parents as it goes; without
-  // it they stay where they were, for ride_inactive to place once a level's passes are done.
+  // `ride_now`: place the segments the pass leaves inactive on their parents as it goes;
+  // without it they stay where they were, for ride_inactive to place once a level's passes
+  // are done.
   void backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                 std::span<const std::uint8_t> visible, Posture& posture,
-                const Eigen::Vector3d& root_pin_m, bool ride);
+                const Eigen::Vector3d& root_pin_m, bool ride_now);
   void ride(int s, const Eigen::Vector3d& base_m, Posture& posture) const;
   void ride_inactive(int pass, Posture& posture) const;
   // Where segment s's base is, from its parent as it stands (a link parent's one slot is

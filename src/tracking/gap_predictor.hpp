@@ -1,12 +1,14 @@
-// Live gap filling: the two parts, each frame in this order. While some of a
-// segment's markers are occluded, RotationPrediction (rotation_prediction.hpp)
-// pulls the segment, weakly, towards the rotation the recent past predicts;
-// LiveMarkerFill (live_marker_fill.hpp) reports each occluded marker (its last
-// offset from the model, competing with donor markers) and hands a returning
-// one over to its measurement at a bounded speed. The fill takes the
-// prediction's past and rotations, so the order of the calls below is the
-// behaviour. Causal, allocation-free per frame, and without work beyond one
-// posture copy while every marker is seen.
+// Live gap filling, in two parts. While some of a segment's markers are
+// occluded, RotationPrediction (rotation_prediction.hpp) pulls the segment,
+// weakly, towards the rotation the recent past predicts; LiveMarkerFill
+// (live_marker_fill.hpp) reports each occluded marker (its last offset from
+// the model, competing with donor markers) and hands a returning one over to
+// its measurement at a bounded speed. The fill reads the prediction's past
+// and rotations, so the order in which gap_predictor.cpp calls the two is the
+// behaviour: before the solve the prediction, then the hand-over; after it
+// the fill, then the posture joins the past. Causal, allocation-free per
+// frame, and while every marker is seen without work beyond one posture copy
+// and one history entry.
 #pragma once
 
 #include <Eigen/Core>
@@ -37,8 +39,8 @@ class GapPredictor {
     return rotation_.orientation_targets();
   }
 
-  // Before the solve of a frame: `seen` says which markers are measured now,
-  // `last_seen_m` holds every marker's latest measurement. Sets the predicted rotations and their
+  // Before the solve of a frame: `seen` says which markers are measured now.
+  // Sets the predicted rotations and their
   // visibility (per orientation target) and, for markers being handed over,
   // moves their measured targets in `target_world_m` (first marker count entries).
   void before_solve(double time_s, std::span<const std::uint8_t> seen,

@@ -9,9 +9,11 @@
 // frames) by how well holding the marker's coordinates in their frame would
 // have predicted it, the skeleton's segment frame likewise, and the best are
 // averaged by score. A marker never measured takes its model point moved by
-// the mean misfit of its segment's measured markers. A marker that returns is
-// handed over from that prediction to its measurement at a bounded speed, so
-// joint centres do not jump. Causal and allocation-free per frame.
+// the mean misfit of its segment's measured markers. A marker that returns
+// pulls the solve from where its model point would be (its segment moved on at
+// its recent velocity, without the offset) towards its measurement at a
+// bounded speed, so joint centres do not jump. Causal and allocation-free per
+// frame.
 #pragma once
 
 #include <Eigen/Core>
