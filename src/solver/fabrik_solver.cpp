@@ -501,29 +501,25 @@ void FabrikSolver::turn_links(Posture& posture) const {
   }
 }
 
-// A segment nothing below pulls on in this pass rides rigidly on its parent: its rotation
+// A segment nothing below pulls on in a pass rides rigidly on its parent: its rotation
 // relative to the parent is the one it had when the level's passes began, which solve()
-// brought within range, so there is no limit to enforce.
-void FabrikSolver::ride(int s, const Eigen::Vector3d& base_m, Posture& posture) const {
-  const int parent = model_.segments[s].parent;
-  const SegmentPose& parent_now = posture.segments[parent];
-  const SegmentPose& parent_then = start_[parent];
-  SegmentPose& pose = posture.segments[s];
-  pose.set_rotation(parent_now.q_world * (parent_then.q_world.conjugate() * start_[s].q_world));
-  pose.base_world_m = base_m;
-}
-
-// The rides a level's passes left out (backward without `ride_now`), parents first. Nothing a
-// pass fits reads a rider: it has no target in the pass and no active segment below it, so
-// one ride after the level's last pass places it as riding after each pass would.
+// brought within range, so there is no limit to enforce. Nothing a pass fits reads such a
+// rider (it has no target in the pass and no active segment below it), so the passes leave
+// riders out and this places them once, after the level's last pass, parents first.
 void FabrikSolver::ride_inactive(int pass, Posture& posture) const {
-  for (int s = 1; s < n_seg_; ++s)
-    if (!active(pass, s)) ride(s, joint_world_m(s, posture), posture);
+  for (int s = 1; s < n_seg_; ++s) {
+    if (active(pass, s)) continue;
+    const int parent = model_.segments[s].parent;
+    SegmentPose& pose = posture.segments[s];
+    pose.set_rotation(posture.segments[parent].q_world *
+                      (start_[parent].q_world.conjugate() * start_[s].q_world));
+    pose.base_world_m = joint_world_m(s, posture);
+  }
 }
 
 void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                             std::span<const std::uint8_t> visible, Posture& posture,
-                            const Eigen::Vector3d& root_pin_m, bool ride_now) {
+                            const Eigen::Vector3d& root_pin_m) {
   const bool carrying = options_.subtree_carry > 0.0;
   if (any_limited_) limited_moments(pass, carrying, posture);
   LinkStep last;
@@ -540,10 +536,7 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
       rotate_about_base(n, root_pin_m, pose);
       continue;
     }
-    if (!active(pass, s)) {
-      if (ride_now) ride(s, joint_world_m(s, posture), posture);
-      continue;
-    }
+    if (!active(pass, s)) continue;  // a rider: ride_inactive places it
     const Eigen::Vector3d base_m = joint_world_m(s, posture);
     if (link_[s]) {
       backward_link(s, base_m, target_world_m, posture, last, last.segment == seg.parent);
@@ -883,17 +876,16 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       // each iteration as well met as it can be; with a single level the
       // convergence loop itself repeats the pass.
       const int level_passes = active_levels > 1 && pass == strongest ? options_.level_passes : 1;
-      // Repeated passes leave the riders out until the level is done (ride_inactive).
       const bool riders = pass_has_riders_[pass] != 0;
       if (riders) std::copy(posture.segments.begin(), posture.segments.end(), start_.begin());
       for (int k = 0; k < level_passes; ++k) {
         forward(pass, target_world_m, visible, posture);
-        backward(pass, target_world_m, visible, posture, root_pin_m, level_passes == 1);
+        backward(pass, target_world_m, visible, posture, root_pin_m);
         ++total_passes;
         if (level_passes > 1 && level_settled(pass, target_world_m, visible, posture) && k > 0)
           break;
       }
-      if (riders && level_passes > 1) ride_inactive(pass, posture);
+      if (riders) ride_inactive(pass, posture);
     }
     std::copy(distances_m_.begin(), distances_m_.end(), previous_m_.begin());
     result = measure(target_world_m, visible, posture);

@@ -100,13 +100,10 @@ class FabrikSolver {
              std::span<const std::uint8_t> visible, const Posture& posture);
   void forward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                std::span<const std::uint8_t> visible, Posture& posture);
-  // `ride_now`: place the segments the pass leaves inactive on their parents as it goes;
-  // without it they stay where they were, for ride_inactive to place once a level's passes
-  // are done.
+  // Leaves the segments inactive in the pass where they are, for ride_inactive.
   void backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                 std::span<const std::uint8_t> visible, Posture& posture,
-                const Eigen::Vector3d& root_pin_m, bool ride_now);
-  void ride(int s, const Eigen::Vector3d& base_m, Posture& posture) const;
+                const Eigen::Vector3d& root_pin_m);
   void ride_inactive(int pass, Posture& posture) const;
   // Where segment s's base is, from its parent as it stands (a link parent's one slot is
   // this segment's joint).
