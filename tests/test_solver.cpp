@@ -169,6 +169,57 @@ TEST_CASE("The paper's literal priority loop runs the weakest level first", "[fa
   }
 }
 
+TEST_CASE("A segment no level pulls ends on its parent's joint, turned with it as it started",
+          "[fabrik][priority]") {
+  // Pelvis markers at level 1, leg markers at level 0: the trunk, arms and head ride in
+  // every pass, and the strongest level is revisited (level_passes 8). Known answer: each
+  // rider's rotation relative to its parent is the start's, its base on the parent's joint.
+  const Model m = test::fullbody_model();
+  std::vector<Target> targets;
+  for (int p : m.marker_points()) {
+    const std::string& seg = m.segments[m.points[p].segment].name;
+    if (seg == "pelvis") targets.push_back({p, 1, 1.0});
+    if (seg.find("shank") != std::string::npos || seg.find("foot") != std::string::npos)
+      targets.push_back({p, 0, 1.0});
+  }
+  MotionSettings ms;
+  ms.seed = 4;
+  SyntheticMotion motion(m, ms);
+  Posture start = Posture::rest(m), truth = Posture::rest(m);
+  motion.posture_at(0.2, start);
+  motion.posture_at(0.7, truth);
+  std::vector<Eigen::Vector3d> pos;
+  for (const Target& t : targets)
+    pos.push_back(truth.point_world_m(m, t.point) + Eigen::Vector3d(0.3, 0.0, 0.1));
+  for (RootMode root : {RootMode::free, RootMode::fixed}) {
+    SolverOptions o = options_for(SegmentFit::rigid, root);
+    o.level_passes = 8;
+    FabrikSolver solver(m, targets, o);
+    Posture p = start;
+    const SolveResult r = solver.solve(pos, all_visible(targets.size()), p);
+    CAPTURE(static_cast<int>(root), r.passes, r.iterations);
+    REQUIRE(r.passes > 2 * r.iterations);  // the strongest level was revisited
+    int riders = 0;
+    for (std::size_t s = 1; s < m.segments.size(); ++s) {
+      const std::string& name = m.segments[s].name;
+      if (name == "pelvis" || name.find("thigh") != std::string::npos ||
+          name.find("shank") != std::string::npos || name.find("foot") != std::string::npos)
+        continue;
+      ++riders;
+      CAPTURE(name);
+      const int parent = m.segments[s].parent;
+      const Eigen::Quaterniond rel_start =
+          start.segments[parent].q_world.conjugate() * start.segments[s].q_world;
+      const Eigen::Quaterniond rel_end =
+          p.segments[parent].q_world.conjugate() * p.segments[s].q_world;
+      CHECK(rel_end.angularDistance(rel_start) < 1e-9);
+      CHECK((p.segments[s].base_world_m - p.point_world_m(m, m.segments[s].parent_point)).norm() <
+            1e-12);
+    }
+    CHECK(riders >= 5);  // trunk, head and arms
+  }
+}
+
 TEST_CASE("Anchors: a weak level costs the strongest one nothing", "[fabrik][priority]") {
   // Random conflicting targets on the full-body model: markers of the pelvis
   // and thighs at level 1 where a motion puts them, and markers of the legs
