@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "rotation_prediction.hpp"
 #include "triad.hpp"
 
 namespace fabrik {

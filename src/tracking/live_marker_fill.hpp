@@ -23,11 +23,11 @@
 
 #include "solver/model.hpp"
 #include "solver/posture.hpp"
-
-#include "tracking/rotation_prediction.hpp"
 #include "tracking/tracking_settings.hpp"
 
 namespace fabrik {
+
+class RotationPrediction;
 
 // Per pair of markers (row: the filled one, [i * n + m]): whether m is on a
 // segment at most max_joints joints from i's. marker_segments: each marker's segment.
