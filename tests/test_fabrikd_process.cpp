@@ -88,6 +88,26 @@ TEST_CASE("fabrikd --version and --help exit 0", "[fabrikd]") {
   CHECK(h.wait(5s) == 0);
 }
 
+// CLI11 gives each kind of command-line error its own code (105 an unexpected argument, 109 a
+// value not in the set...): the daemon says 2, as for every wrong input (README).
+TEST_CASE("A command line fabrikd cannot take exits 2 and says what was wrong", "[fabrikd][cli]") {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--bogus"}, "--bogus"},
+      {{"--log-level", "loud"}, "loud"},
+      {{"--config"}, "--config"},
+      {{"extra"}, "extra"},
+  };
+  for (const auto& [extra, named] : cases) {
+    std::vector<std::string> args = {kFabrikd};
+    args.insert(args.end(), extra.begin(), extra.end());
+    Process p(args);
+    CAPTURE(extra);
+    CHECK(p.wait(5s) == 2);
+    CAPTURE(p.stderr_text());
+    CHECK_THAT(p.stderr_text(), Catch::Contains(named) && Catch::Contains("--help"));
+  }
+}
+
 TEST_CASE("Bad configs exit with code 2 and name the file, the pointer and the fix", "[fabrikd]") {
   struct Case {
     std::string name, text, expected;

@@ -855,6 +855,77 @@ TEST_CASE("fabrik replay and watch refuse ports ZeroMQ would wrap, exit 2 naming
   CHECK(raw_err.find('\xff') == std::string::npos);
 }
 
+// CLI11 gives each kind of command-line error its own code (105-109 and more): `fabrik` says 2,
+// as for every wrong input (README), in every subcommand; help still exits 0.
+TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, help exits 0") {
+  const std::vector<std::vector<std::string>> wrong = {
+      {"solve", "--bogus"},
+      {"eval", "nosuch"},
+      {"replay", "/nonexistent.trc", "--to", "tcp://127.0.0.1:5555"},
+      {"bench", "pipeline", "--frames", "3"},
+      {"watch", "--seconds", "soon"},
+      {"nosuch"},
+  };
+  for (const std::vector<std::string>& args : wrong) {
+    CAPTURE(args);
+    const auto [code, err] = fabrik::test::run_fabrik(args);
+    CAPTURE(err);
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains("--help"));
+  }
+  for (const std::vector<std::string>& args :
+       std::vector<std::vector<std::string>>{{"--help"}, {"solve", "--help"}, {"bench", "--help"}}) {
+    CAPTURE(args);
+    CHECK(fabrik::test::run_fabrik(args).first == 0);
+  }
+}
+
+// Ctrl-C while a tool waits on ZeroMQ: zmq_poll then fails with EINTR whatever SA_RESTART
+// says, which cppzmq throws. That once ended `fabrik watch` with "Interrupted system call",
+// exit 2 and no summary. Both tools spend nearly all of such a wait in the poll, so the signal
+// lands there.
+TEST_CASE("Ctrl-C ends fabrik watch and a replay waiting for a subscriber with their summaries, exit 0") {
+  using namespace std::chrono_literals;
+  const std::string fabrik = FABRIK_PATH;
+  {
+    // Nobody at the endpoint: the watch waits; its first live line shows it is in its loop.
+    TempFile out(".json");
+    fabrik::test::Process watch({"/bin/sh", "-c",
+                                 "exec '" + fabrik + "' watch --from tcp://127.0.0.1:1 --json > '" +
+                                     out.path() + "'"});
+    REQUIRE(watch.wait_for_output("(no stats)", 10s));
+    watch.signal(SIGINT);
+    const std::optional<int> code = watch.wait(10s);
+    REQUIRE(code.has_value());
+    INFO("stderr: " << watch.stderr_text());
+    CHECK(*code == 0);
+    CHECK(watch.stderr_text().find("Interrupted") == std::string::npos);
+    const json summary = json::parse(fabrik::test::slurp(out.path()), nullptr, false);
+    REQUIRE(summary.is_object());
+    CHECK(summary["poses"] == 0);
+    CHECK(summary["endpoint"] == "tcp://127.0.0.1:1");
+  }
+  {
+    // The replay binds an ipc endpoint (its file appears at the bind, just before the wait).
+    TempFile trc(".trc");
+    fabrik::io::write_trc(trc.path(), small_trial());
+    TempFile endpoint(".ipc");
+    fabrik::test::Process replay({fabrik, "replay", trc.path(), "--to", "ipc://" + endpoint.path(),
+                                  "--bind", "--wait-subscriber", "60"});
+    const auto deadline = std::chrono::steady_clock::now() + 10s;
+    while (!fs::exists(endpoint.path()) && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(5ms);  // polling a file, bounded
+    REQUIRE(fs::exists(endpoint.path()));
+    replay.signal(SIGINT);
+    const std::optional<int> code = replay.wait(10s);
+    REQUIRE(code.has_value());
+    INFO("stderr: " << replay.stderr_text());
+    CHECK(*code == 0);
+    CHECK_THAT(replay.stderr_text(), Catch::Contains("sent 0 frames") &&
+                                         Catch::Contains("stopped by signal"));
+  }
+}
+
 // ---- Several subjects in one recording (docs/multi-subject.md) ----
 
 TEST_CASE("solve --subject takes one subject of a Subject:Marker C3D, as its own one-person file",
@@ -865,8 +936,8 @@ TEST_CASE("solve --subject takes one subject of a Subject:Marker C3D, as its own
   // writes one file per person).
   MarkerTrial two = one, bob = one;
   two.labels.clear();
-  for (const std::string& subject : {"Alice", "Bob"})
-    for (const std::string& l : one.labels) two.labels.push_back(subject + ":" + l);
+  for (const char* subject : {"Alice", "Bob"})
+    for (const std::string& l : one.labels) two.labels.push_back(std::string(subject) + ":" + l);
   two.positions_m.clear();
   for (std::size_t f = 0; f < one.frames(); ++f) {
     for (std::size_t m = 0; m < one.markers(); ++m) two.positions_m.push_back(one.at(f, m));

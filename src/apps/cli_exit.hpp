@@ -13,11 +13,15 @@
 namespace fabrik::apps {
 
 // app.exit(e): help and version on stdout as CLI11 writes them, its error text made safe.
+// The exit code: 0 for help and version; 2 for a command line CLI11 refused, as for every
+// other wrong input (CLI11 numbers each kind from 100 up, which no user of ours expects);
+// a command's own CLI::RuntimeError keeps its code.
 inline int exit_safely(CLI::App& app, const CLI::Error& e) {
   std::ostringstream err;
   const int code = app.exit(e, std::cout, err);
   const std::string text = err.str();
   if (!text.empty()) std::fputs(safe_lines(text).c_str(), stderr);
+  if (code != 0 && dynamic_cast<const CLI::ParseError*>(&e) != nullptr) return 2;
   return code;
 }
 

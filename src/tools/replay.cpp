@@ -1,5 +1,6 @@
 #include "replay.hpp"
 
+#include <cerrno>
 #include <cmath>
 #include <stdexcept>
 #include <thread>
@@ -83,10 +84,9 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
       if (left.count() <= 0)
         throw std::runtime_error("no subscriber to 'markers' on " + options.endpoint +
                                  " within the wait");
-      zmq::pollitem_t item{pub.handle(), 0, ZMQ_POLLIN, 0};
-      zmq::poll(&item, 1, std::min(left, std::chrono::milliseconds(100)));
+      wait_readable(pub, std::min(left, std::chrono::milliseconds(100)));
       zmq::message_t msg;
-      while (pub.recv(msg, zmq::recv_flags::dontwait)) {
+      while (receive_waiting(pub, msg)) {
         // Subscription messages are 0x01 + prefix; "markers" matches prefixes of it.
         const std::string_view s(msg.data<char>(), msg.size());
         if (!s.empty() && s[0] == 1 && std::string_view("markers").starts_with(s.substr(1)))
@@ -167,9 +167,14 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
                                   ? wire::PayloadEncoding::msgpack
                                   : wire::PayloadEncoding::json,
                               payload, &stamp_us, table ? &sensors : nullptr);
-    pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
-    pub.send(zmq::buffer(payload), zmq::send_flags::none);
-    while (pub.recv(discard, zmq::recv_flags::dontwait)) {
+    try {
+      pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
+      pub.send(zmq::buffer(payload), zmq::send_flags::none);
+    } catch (const zmq::error_t& e) {
+      if (e.num() != EINTR) throw;
+      continue;  // a signal (wire.hpp): the loop's first look is at the stop flag
+    }
+    while (receive_waiting(pub, discard)) {
     }  // subscription notices: keep XPUB's inbound queue empty
 
     const Clock::time_point now = Clock::now();

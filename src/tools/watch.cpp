@@ -239,11 +239,14 @@ json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tal
       options.live(tally.live_line(secs(now)) + "  (no stats)");
       last_line = now;
     }
-    zmq::pollitem_t item{sub.handle(), 0, ZMQ_POLLIN, 0};
-    zmq::poll(&item, 1, std::chrono::milliseconds(100));
-    if (!(item.revents & ZMQ_POLLIN)) continue;
+    if (!wait_readable(sub, std::chrono::milliseconds(100))) continue;
     parts.clear();
-    if (!zmq::recv_multipart(sub, std::back_inserter(parts), zmq::recv_flags::dontwait)) continue;
+    for (zmq::message_t part; receive_waiting(sub, part);) {
+      const bool more = part.more();
+      parts.push_back(std::move(part));
+      if (!more) break;
+    }
+    if (parts.empty()) continue;
     const double t_s = secs(Clock::now());
     if (parts.size() != 2) {
       tally.add_undecodable();

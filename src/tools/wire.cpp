@@ -1,5 +1,6 @@
 #include "wire.hpp"
 
+#include <cerrno>
 #include <cmath>
 #include <stdexcept>
 
@@ -39,6 +40,26 @@ void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind
     socket.bind(endpoint);
   else
     socket.connect(endpoint);
+}
+
+bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout) {
+  zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
+  try {
+    zmq::poll(&item, 1, timeout);
+  } catch (const zmq::error_t& e) {
+    if (e.num() != EINTR) throw;
+    return false;
+  }
+  return (item.revents & ZMQ_POLLIN) != 0;
+}
+
+bool receive_waiting(zmq::socket_t& socket, zmq::message_t& message) {
+  try {
+    return socket.recv(message, zmq::recv_flags::dontwait).has_value();
+  } catch (const zmq::error_t& e) {
+    if (e.num() != EINTR) throw;
+    return false;
+  }
 }
 
 }  // namespace fabrik::tools

@@ -3,6 +3,7 @@
 // frames are written with transport's encode_marker_frame, as the daemon's own tests do.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -35,5 +36,14 @@ std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding);
 // std::invalid_argument naming `option` (--to, --from) otherwise.
 void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind,
                    const char* option);
+
+// The tools' waits and non-blocking reads, where Ctrl-C must stop a loop with its summary:
+// a signal makes ZeroMQ's calls fail with EINTR (zmq_poll whatever SA_RESTART says), and
+// cppzmq throws that. Here it is "nothing yet": the caller's loop then reads its stop flag.
+// Other errors still throw.
+// Whether a message waits on `socket` within `timeout`.
+bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout);
+// A message if one waits (without blocking): false when none does, or on a signal.
+bool receive_waiting(zmq::socket_t& socket, zmq::message_t& message);
 
 }  // namespace fabrik::tools
