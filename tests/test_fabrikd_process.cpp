@@ -17,6 +17,7 @@
 #include <optional>
 #include <sstream>
 
+#include "config/daemon_config.hpp"
 #include "process.hpp"
 #include "sanitized.hpp"
 #include "socket_client.hpp"
@@ -122,6 +123,10 @@ TEST_CASE("Bad configs exit with code 2 and name the file, the pointer and the f
   bad_model["model"] = "no/such/model.json";
   json same_endpoint = good_config("e");
   same_endpoint["output"]["endpoint"] = same_endpoint["input"]["endpoint"];
+  // The input on the output's default endpoint, the output left out: the clash is the input's.
+  json input_on_default_output = good_config("h");
+  input_on_default_output.erase("output");
+  input_on_default_output["input"]["endpoint"] = fabrik::DaemonConfig{}.output.address;
   json bad_encoding = good_config("f");
   bad_encoding["output"]["encoding"] = "protobuf";
   json bad_endpoint = good_config("g");
@@ -135,6 +140,9 @@ TEST_CASE("Bad configs exit with code 2 and name the file, the pointer and the f
       {"bad_model.json", bad_model.dump(), "at /model: model file"},
       {"same_endpoint.json", same_endpoint.dump(),
        "at /output: input and output use the same endpoint"},
+      {"input_on_default_output.json", input_on_default_output.dump(),
+       "at /input: the input's endpoint '" + fabrik::DaemonConfig{}.output.address +
+           "' is the pose output's default"},
       {"bad_encoding.json", bad_encoding.dump(),
        "at /output/encoding: unknown encoding 'protobuf'"},
       {"bad_endpoint.json", bad_endpoint.dump(),
@@ -915,6 +923,11 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
       {{"--input", "bind:tcp://127.0.0.1:-1"},
        "fabrikd: --input: port '-1' of 'tcp://127.0.0.1:-1' is not a port number"},
       {{"--output", "connect:tcp://127.0.0.1:*"}, "fabrikd: --output: port * of"},
+      // Before: "Address already in use" (both bound), or taken (bound and connected).
+      {{"--input", "tcp://127.0.0.1:22001", "--output", "tcp://127.0.0.1:22001"},
+       "fabrikd: --output: 'tcp://127.0.0.1:22001' is also the input's endpoint"},
+      {{"--input", "tcp://127.0.0.1:22604", "--output", "connect:tcp://127.0.0.1:22604"},
+       "fabrikd: --output: 'tcp://127.0.0.1:22604' is also the input's endpoint"},
       {{"--config", wrapped_path},
        wrapped_path + ": at /output/endpoint: port '70000' of 'tcp://127.0.0.1:70000' is out of "
                       "range"},

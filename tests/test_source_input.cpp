@@ -130,6 +130,9 @@ TEST_CASE("Source URLs and options are read, and wrong ones refused with the fix
   CHECK_THAT(config_error(R"({"source": "qtm://host:70000"})"), Catch::Contains("1..65535"));
   CHECK_THAT(config_error(R"({"source": "qtm://host:"})"), Catch::Contains("1..65535"));
   CHECK_THAT(config_error(R"({"source": "qtm:host"})"), Catch::Contains("not a source URL"));
+  // NatNet's client is IPv4 only: an IPv6 literal once started, then failed every retry.
+  CHECK_THAT(config_error(R"({"source": "natnet://[::1]"})"), Catch::Contains("IPv4 only"));
+  CHECK_THAT(config_error(R"({"source": "natnet://[::1]:1510"})"), Catch::Contains("IPv4 only"));
   CHECK_THAT(config_error(R"({"source": "qtm://h", "source_options": {"natnet_data": "unicast"}})"),
              Catch::Contains("natnet:// sources only"));
   CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"frequency_divisor": 2}})"),

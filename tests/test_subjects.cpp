@@ -124,6 +124,57 @@ TEST_CASE("A daemon config lists subjects, each from its own calibrated config",
   }
 }
 
+// `fabrik calibrate` of a Vicon C3D names the targets as the file does, `Subject:Marker`;
+// routed to a subject, the stream's names arrive without the prefix. Such a config as a
+// subject's once tracked nothing (every name unknown, no warning).
+TEST_CASE("A subject's config calibrated from Subject:Marker names tracks that subject's markers",
+          "[subjects]") {
+  test::SubjectsDir dir;
+  const TrackerSetup& bare = default_daemon_config().tracker;
+  // The default config's targets, each named PREFIX + marker (levels and weights as they are).
+  const auto prefixed_config = [&](const std::string& prefix, const std::string& also) {
+    json markers = json::object();
+    for (const MarkerTarget& t : bare.markers)
+      markers[prefix + t.marker] = {{"point", bare.model->points[t.point].name},
+                                    {"level", t.level},
+                                    {"weight", t.weight}};
+    if (!also.empty()) {  // a marker of no model point's name, twice: prefixed and bare
+      markers[prefix + also] = {{"point", "LASI"}};
+      markers[also] = {{"point", "RASI"}};
+    }
+    return json{{"format", "fabrikd-config/1"},
+                {"model", "models/fullbody.json"},
+                {"targets", {{"markers", markers}}}};
+  };
+  dir.write_file("Alice.json", prefixed_config("Alice:", ""));
+  dir.write_file("Bob.json", prefixed_config("Alice:", ""));  // another subject's names
+  const DaemonConfig c = load_daemon_config_file(dir.write_file(
+      "two.json", json{{"format", "fabrikd-config/1"},
+                       {"subjects", {{{"name", "Alice"}, {"config", "Alice.json"}},
+                                     {{"name", "Bob"}, {"config", "Bob.json"}}}}}));
+  REQUIRE(c.subjects.size() == 2);
+  // As the stream's Alice:X reaches her: X, on the same point, at the same level.
+  const auto by_name = [](const std::vector<MarkerTarget>& targets) {
+    std::map<std::string, std::pair<int, int>> m;
+    for (const MarkerTarget& t : targets) m[t.marker] = {t.point, t.level};
+    return m;
+  };
+  REQUIRE(c.subjects[0].tracker.markers.size() == bare.markers.size());
+  CHECK(by_name(c.subjects[0].tracker.markers) == by_name(bare.markers));
+  // Only the subject's own prefix goes: Bob's config named after Alice stays as written.
+  for (const MarkerTarget& t : c.subjects[1].tracker.markers) CHECK(t.marker.starts_with("Alice:"));
+  // Two targets that would share a name: refused, naming both.
+  dir.write_file("Alice.json", prefixed_config("Alice:", "PELVIS_PLATE"));
+  try {
+    load_daemon_config_file(dir.write_file(
+        "one.json", json{{"format", "fabrikd-config/1"},
+                         {"subjects", {{{"name", "Alice"}, {"config", "Alice.json"}}}}}));
+    FAIL("a config with Alice:PELVIS_PLATE and PELVIS_PLATE was taken");
+  } catch (const ConfigError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("'Alice:PELVIS_PLATE' and 'PELVIS_PLATE'"));
+  }
+}
+
 TEST_CASE("Markers named Subject:Marker reach that subject's tracker and pose/NAME",
           "[subjects][daemon]") {
   AliceAndBob two("prefix");

@@ -12,6 +12,7 @@
 #include <thread>
 #include <zmq_addon.hpp>
 
+#include "config/daemon_config.hpp"
 #include "eval/eval.hpp"
 #include "io/marker_trial.hpp"
 #include "io/opensim_table.hpp"
@@ -385,6 +386,21 @@ TEST_CASE("watch tally: a vendor source's connection shows in the live line, its
   line = tally.live_line(0.2);
   CHECK_THAT(line, Catch::Contains("source NOT connected (1234 frames, 1 reconnects, 3 errors, 2 bad packets): "
                                    "QTM at lab: gone"));
+}
+
+TEST_CASE("watch's summary without a pose says so, with one gives frames and units") {
+  WatchTally tally;
+  const std::string none = tally.summary_text();
+  CHECK_THAT(none, Catch::StartsWith("poses 0: no pose received"));
+  CHECK(none.find("null") == std::string::npos);  // once "frames null..null", "max 0.000 ;"
+  tally.add_pose(json{{"frame", std::uint64_t{7}},
+                      {"units", "mm"},
+                      {"occluded", json::array()},
+                      {"residual", {{"rms", 1.0}, {"max", 2.0}, {"worst", "A"}, {"count", 3}}},
+                      {"solver", {{"status", "converged"}, {"iterations", 2}, {"solve_us", 9.0}}}},
+                 0.01);
+  const std::string one = tally.summary_text();
+  CHECK_THAT(one, Catch::Contains("poses 1 (frames 7..7)") && Catch::Contains("max 2.000 mm;"));
 }
 
 TEST_CASE("watch tally: gaps in frame numbers are loss, restarts are not") {
@@ -982,4 +998,23 @@ TEST_CASE("solve --subject takes one subject of a Subject:Marker C3D, as its own
                                              "--output", out_c3d.path(), "--quiet"});
   CHECK(code_carol != 0);
   CHECK_THAT(err_carol, Catch::Contains("Alice, Bob"));
+  // Bob's own config as `fabrik calibrate` writes it from such a file: targets named Bob:X.
+  // It once shared no name with Bob's markers (refused, exit 2); it tracks them as the bare one.
+  const fabrik::TrackerSetup& bare = fabrik::default_daemon_config().tracker;
+  json markers = json::object();
+  for (const fabrik::MarkerTarget& t : bare.markers)
+    markers["Bob:" + t.marker] = {{"point", bare.model->points[t.point].name}, {"level", t.level}};
+  TempFile bob_config(".json"), report_bob(".json");
+  std::ofstream(bob_config.path()) << json{{"format", "fabrikd-config/1"},
+                                           {"model", "models/fullbody.json"},
+                                           {"targets", {{"markers", markers}}}}
+                                          .dump();
+  auto [code_bob, err_bob] =
+      run_fabrik({"solve", "--config", bob_config.path(), "--input", c3d.path(), "--subject", "Bob",
+                  "--output", out_c3d.path(), "--report", report_bob.path(), "--quiet"});
+  INFO(err_bob);
+  REQUIRE(code_bob == 0);
+  const json r_bob = json::parse(slurp(report_bob.path()));
+  CHECK(r_bob["residual_mm"]["rms_mean"].get<double>() ==
+        Approx(r_c3d["residual_mm"]["rms_mean"].get<double>()).margin(1e-6));
 }

@@ -105,6 +105,14 @@ fabrik::DaemonConfig load(const Overrides& o) {
                                                  : fabrik::load_daemon_config_file(o.config_path);
   if (!o.input.empty()) c.input = endpoint_override(o.input, c.input, "--input");
   if (!o.output.empty()) c.output = endpoint_override(o.output, c.output, "--output");
+  // As the config's own check (daemon_config.cpp), after the options: bound twice, the
+  // output's bind failed with "Address already in use"; bound and connected, it was taken.
+  if ((!o.input.empty() || !o.output.empty()) && c.input.address == c.output.address)
+    throw std::invalid_argument(std::string(o.output.empty() ? "--input" : "--output") + ": '" +
+                                c.output.address + "' is also the " +
+                                (o.output.empty() ? "output's" : "input's") +
+                                " endpoint. Fix: give the input and the pose output an "
+                                "endpoint each");
   if (!o.log_level.empty()) c.log_level = o.log_level;
   return c;
 }

@@ -45,6 +45,13 @@ void run(const SolveOptions& o) {
                                "(or the subject's own config)");
     config.tracker = it->tracker;
     config.sensors = it->sensors;
+  } else if (!o.subject.empty()) {
+    // One subject's own config, perhaps calibrated from this very file: targets `NAME:X`.
+    const std::string shared = unprefix_subject_targets(config.tracker, o.subject);
+    if (!shared.empty())
+      throw std::runtime_error(config.file + " has targets '" + o.subject + ":" + shared +
+                               "' and '" + shared + "': with --subject " + o.subject +
+                               " both would be '" + shared + "'; keep one of them");
   }
   if (o.input.empty() && o.orientations.empty())
     throw std::runtime_error("give --input (markers), --orientations (sensors), or both");
@@ -103,18 +110,22 @@ void run(const SolveOptions& o) {
     out << summary.dump(2) << '\n';
   }
   const auto& r = summary["residual_mm"];
+  std::printf("frames            %zu (%zu without any tracked marker, left out of the residual)\n",
+              summary["frames"].get<std::size_t>(),
+              summary["frames_without_markers"].get<std::size_t>());
+  if (r["max_marker"].get<std::string>().empty())  // orientations alone: no marker measured
+    std::printf("marker residual   none: no marker measured\n");
+  else
+    std::printf(
+        "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
+        "frame %lld)\n",
+        r["rms_mean"].get<double>(), r["rms_max"].get<double>(), r["max"].get<double>(),
+        r["max_marker"].get<std::string>().c_str(), r["max_frame"].get<long long>());
   std::printf(
-      "frames            %zu (%zu without any tracked marker, left out of the residual)\n"
-      "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
-      "frame %lld)\n"
       "solve             p50 %.1f us, p99 %.1f us, %.1f iterations on average\n"
       "joint centres     %s\n",
-      summary["frames"].get<std::size_t>(), summary["frames_without_markers"].get<std::size_t>(),
-      r["rms_mean"].get<double>(), r["rms_max"].get<double>(),
-      r["max"].get<double>(), r["max_marker"].get<std::string>().c_str(),
-      r["max_frame"].get<long long>(), summary["solve_us"]["p50"].get<double>(),
-      summary["solve_us"]["p99"].get<double>(), summary["iterations_mean"].get<double>(),
-      o.output.c_str());
+      summary["solve_us"]["p50"].get<double>(), summary["solve_us"]["p99"].get<double>(),
+      summary["iterations_mean"].get<double>(), o.output.c_str());
   const auto& out = summary["outliers"];
   const auto& q = summary["quality"];
   std::printf("fit quality       good %d, poor %d frames (quality thresholds of the config)\n"

@@ -219,9 +219,16 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
     if (out.has("views"))
       c.output_views = read_pose_views(out.at("views"), c.output_encoding, c.output_units);
   }
-  if (c.input.address == c.output.address)
-    root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
-                           "give the pose output its own endpoint");
+  if (c.input.address == c.output.address) {
+    // Where the clash is written: at the output, or at the input when the output is the default.
+    if (root.has("output"))
+      root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
+                             "give the pose output its own endpoint");
+    root.at("input").fail("the input's endpoint '" + c.input.address +
+                              "' is the pose output's default",
+                          "give the input another endpoint, or the output one of its own "
+                          "(\"output\": {\"endpoint\": ...})");
+  }
 
 }
 
@@ -268,6 +275,12 @@ void read_subjects(const JsonReader& list, const std::string& file,
       e.at("config").fail("subject config '" + path.string() + "' lists subjects itself",
                           "name the config of one subject (what fabrik calibrate writes)");
     DaemonConfig one = load_daemon_config(text, path.string());
+    const std::string shared = unprefix_subject_targets(one.tracker, s.name);
+    if (!shared.empty())
+      e.at("config").fail("subject config '" + path.string() + "' has targets '" + s.name + ":" +
+                              shared + "' and '" + shared + "'",
+                          "keep one of them: the stream's '" + s.name + ":" + shared +
+                              "' reaches subject " + s.name + " as '" + shared + "'");
     s.file = path.string();
     s.tracker = std::move(one.tracker);
     s.sensors = std::move(one.sensors);
@@ -275,6 +288,20 @@ void read_subjects(const JsonReader& list, const std::string& file,
   }
 }
 }  // namespace
+
+std::string unprefix_subject_targets(TrackerSetup& tracker, std::string_view subject) {
+  const std::string prefix = std::string(subject) + ":";
+  std::vector<std::string> names;
+  names.reserve(tracker.markers.size());
+  for (const MarkerTarget& t : tracker.markers)
+    names.push_back(t.marker.starts_with(prefix) ? t.marker.substr(prefix.size()) : t.marker);
+  std::vector<std::string> sorted = names;
+  std::sort(sorted.begin(), sorted.end());
+  if (const auto twice = std::adjacent_find(sorted.begin(), sorted.end()); twice != sorted.end())
+    return *twice;
+  for (std::size_t i = 0; i < names.size(); ++i) tracker.markers[i].marker = std::move(names[i]);
+  return {};
+}
 
 DaemonConfig load_daemon_config(const std::string& text, const std::string& file) {
   const nlohmann::json doc = JsonReader::parse(text, file);

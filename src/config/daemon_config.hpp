@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "encoding.hpp"
 #include "pose_content.hpp"
@@ -84,5 +85,12 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
 DaemonConfig load_daemon_config_file(const std::string& path);
 // The embedded config/default.json.
 DaemonConfig default_daemon_config();
+
+// A subject's targets as its markers arrive once routed to it: a config calibrated from a
+// `Subject:Marker` trial (a Vicon C3D) names its targets `Subject:Marker`, while the stream's
+// `subject:Marker` reaches subject `subject` as `Marker`. Targets named `subject:X` become `X`
+// (others stay). Returns a name two targets would then share ("" when none do); the
+// targets are then left as they were.
+std::string unprefix_subject_targets(TrackerSetup& tracker, std::string_view subject);
 
 }  // namespace fabrik

@@ -198,6 +198,14 @@ json WatchTally::summary() const {
 
 std::string WatchTally::summary_text() const {
   const json s = summary();
+  if (poses_ == 0) {  // nothing to measure: say so rather than null frames and zero residuals
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "poses 0: no pose received; stats messages %llu, undecodable %llu\n",
+                  static_cast<unsigned long long>(stats_count_),
+                  static_cast<unsigned long long>(undecodable_));
+    return buf;
+  }
   char buf[1024];
   std::snprintf(
       buf, sizeof buf,

@@ -78,7 +78,7 @@ class Session {
     if (stop_.stop_requested()) return stopped();
     if (!fd_.valid())
       return fail("QTM at " + where_ + ": cannot connect (" + error +
-                  "); is QTM running with its RT server on? Its little-endian port is base + 1 (22223)");
+                  "); is QTM running with its RT server on? Its little-endian RT port is base + 1, 22223 by default");
     if (auto f = read_welcome()) return *f;
     if (auto f = negotiate_version()) return *f;
     if (auto f = check_byte_order()) return *f;
