@@ -1,12 +1,16 @@
 #!/usr/bin/python3
 """Checks proto/ against the contract's examples, validates config/default.json and every config/**/*.json whose "format" is
 fabrikd-config/1 against proto/daemon-config.schema.json, and checks that a
-few hand-made bad configs are rejected. Exit code 1 on any failure."""
+few hand-made bad configs are rejected. With --fabrik, also the configs
+`fabrik calibrate` writes (every keypoint template at its nominal lengths: no
+recording needed). Exit code 1 on any failure."""
 import argparse
 import copy
 import json
 import pathlib
+import subprocess
 import sys
+import tempfile
 
 import jsonschema
 
@@ -63,6 +67,8 @@ def bad_configs(good):
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--root", type=pathlib.Path, default=ROOT, help="repository root")
+    ap.add_argument("--fabrik", type=pathlib.Path,
+                    help="the fabrik program: validate what its calibrate writes too")
     args = ap.parse_args()
     schema = json.loads((args.root / "proto/daemon-config.schema.json").read_text())
     cls = jsonschema.validators.validator_for(schema)
@@ -115,13 +121,38 @@ def main():
     for e in validator.iter_errors(good):
         failures.append(f"valid input limits rejected by the schema: {e.message}")
 
+    # What users run: a config `fabrik calibrate` writes (it once wrote a solver key the
+    # schema did not have, subtree_carry).
+    written = 0
+    if args.fabrik:
+        with tempfile.TemporaryDirectory() as tmp:
+            for template in sorted((args.root / "config/templates").glob("*.json")):
+                if json.loads(template.read_text()).get("kind") != "keypoints":
+                    continue
+                out = pathlib.Path(tmp) / template.name
+                run = subprocess.run([str(args.fabrik), "calibrate", "--template", str(template),
+                                      "--nominal", "--output", str(out)],
+                                     capture_output=True, text=True, timeout=120)
+                if run.returncode != 0:
+                    failures.append(f"fabrik calibrate --template {template.name} --nominal "
+                                    f"failed ({run.returncode}): {run.stderr.strip()}")
+                    continue
+                written += 1
+                for e in validator.iter_errors(json.loads(out.read_text())):
+                    failures.append(f"fabrik calibrate --template {template.name} --nominal writes "
+                                    f"a config the schema rejects: at "
+                                    f"/{'/'.join(map(str, e.absolute_path))}: {e.message}")
+        if written == 0:
+            failures.append("no keypoint template under config/templates: nothing calibrated")
+
     if failures:
         print("validate_configs: FAILED", file=sys.stderr)
         for f in failures:
             print("  " + f, file=sys.stderr)
         return 1
     print(f"validate_configs: {checked} config(s) valid, "
-          f"{len(bad_configs(default))} bad configs rejected")
+          f"{len(bad_configs(default))} bad configs rejected, "
+          f"{written} calibrated config(s) valid")
     return 0
 
 
