@@ -928,6 +928,8 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
        "fabrikd: --output: 'tcp://127.0.0.1:22001' is also the input's endpoint"},
       {{"--input", "tcp://127.0.0.1:22604", "--output", "connect:tcp://127.0.0.1:22604"},
        "fabrikd: --output: 'tcp://127.0.0.1:22604' is also the input's endpoint"},
+      {{"--input", "tcp://127.0.0.1:5556"},  // the embedded default's output
+       "fabrikd: --input: 'tcp://127.0.0.1:5556' is also the output's endpoint"},
       {{"--config", wrapped_path},
        wrapped_path + ": at /output/endpoint: port '70000' of 'tcp://127.0.0.1:70000' is out of "
                       "range"},

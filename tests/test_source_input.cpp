@@ -133,6 +133,9 @@ TEST_CASE("Source URLs and options are read, and wrong ones refused with the fix
   // NatNet's client is IPv4 only: an IPv6 literal once started, then failed every retry.
   CHECK_THAT(config_error(R"({"source": "natnet://[::1]"})"), Catch::Contains("IPv4 only"));
   CHECK_THAT(config_error(R"({"source": "natnet://[::1]:1510"})"), Catch::Contains("IPv4 only"));
+  CHECK_THAT(config_error(R"({"source": "natnet://fe80::1"})"), Catch::Contains("IPv4 only"));
+  // Without brackets an IPv6 address was split at its last ':' into a host and a port.
+  CHECK_THAT(config_error(R"({"source": "qtm://fe80::1"})"), Catch::Contains("in brackets"));
   CHECK_THAT(config_error(R"({"source": "qtm://h", "source_options": {"natnet_data": "unicast"}})"),
              Catch::Contains("natnet:// sources only"));
   CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"frequency_divisor": 2}})"),

@@ -21,7 +21,10 @@ inline int exit_safely(CLI::App& app, const CLI::Error& e) {
   const int code = app.exit(e, std::cout, err);
   const std::string text = err.str();
   if (!text.empty()) std::fputs(safe_lines(text).c_str(), stderr);
-  if (code != 0 && dynamic_cast<const CLI::ParseError*>(&e) != nullptr) return 2;
+  // (CLI11's RuntimeError is a ParseError too: it is told apart first.)
+  if (code != 0 && dynamic_cast<const CLI::RuntimeError*>(&e) == nullptr &&
+      dynamic_cast<const CLI::ParseError*>(&e) != nullptr)
+    return 2;
   return code;
 }
 

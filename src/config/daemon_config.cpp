@@ -220,8 +220,9 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
       c.output_views = read_pose_views(out.at("views"), c.output_encoding, c.output_units);
   }
   if (c.input.address == c.output.address) {
-    // Where the clash is written: at the output, or at the input when the output is the default.
-    if (root.has("output"))
+    // Where the clash is written: at the output's endpoint, or at the input when the output's
+    // is the default.
+    if (root.has("output") && root.at("output").has("endpoint"))
       root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
                              "give the pose output its own endpoint");
     root.at("input").fail("the input's endpoint '" + c.input.address +
@@ -294,7 +295,9 @@ std::string unprefix_subject_targets(TrackerSetup& tracker, std::string_view sub
   std::vector<std::string> names;
   names.reserve(tracker.markers.size());
   for (const MarkerTarget& t : tracker.markers)
-    names.push_back(t.marker.starts_with(prefix) ? t.marker.substr(prefix.size()) : t.marker);
+    names.push_back(t.marker.size() > prefix.size() && t.marker.starts_with(prefix)
+                        ? t.marker.substr(prefix.size())
+                        : t.marker);  // "NAME:" alone names nothing the stream sends: kept
   std::vector<std::string> sorted = names;
   std::sort(sorted.begin(), sorted.end());
   if (const auto twice = std::adjacent_find(sorted.begin(), sorted.end()); twice != sorted.end())

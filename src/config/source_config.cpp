@@ -44,11 +44,16 @@ void read_url(const JsonReader& r, SourceConfig& c) {
     if (colon != std::string::npos) port_text = rest.substr(colon + 1);
   }
   if (c.host.empty()) r.fail("'" + url + "' names no host", fix);
-  // NatNet's client is IPv4 only (docs/vendor-sources.md): an IPv6 literal would pass here and
+  // An IPv6 literal: NatNet's client is IPv4 only (docs/vendor-sources.md), and one without
+  // brackets would be split at its last ':' into a host and a port. Either would pass here and
   // then fail to resolve at every retry, for as long as the daemon runs.
-  if (c.kind == SourceKind::natnet && rest.starts_with("["))
-    r.fail("'" + url + "': NatNet is IPv4 only, and '" + c.host + "' is an IPv6 address",
+  const bool ipv6 = rest.starts_with("[") || c.host.find(':') != std::string::npos;
+  if (c.kind == SourceKind::natnet && ipv6)
+    r.fail("'" + url + "': NatNet is IPv4 only, and this is an IPv6 address",
            "give Motive's IPv4 address or host name, e.g. \"natnet://192.168.1.10\"");
+  if (ipv6 && !rest.starts_with("["))
+    r.fail("'" + url + "': an IPv6 address goes in brackets",
+           "write e.g. \"qtm://[::1]\" or \"qtm://[fe80::1]:22223\"");
   if (c.host.find_first_of("/?#@ ") != std::string::npos)
     r.fail("'" + url + "': the host '" + c.host + "' is not a host name or address", fix);
   if (!port_text.empty() || (rest.find(':') != std::string::npos && !rest.starts_with("["))) {

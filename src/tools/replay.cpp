@@ -1,6 +1,5 @@
 #include "replay.hpp"
 
-#include <cerrno>
 #include <cmath>
 #include <stdexcept>
 #include <thread>
@@ -167,13 +166,8 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
                                   ? wire::PayloadEncoding::msgpack
                                   : wire::PayloadEncoding::json,
                               payload, &stamp_us, table ? &sensors : nullptr);
-    try {
-      pub.send(zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
-      pub.send(zmq::buffer(payload), zmq::send_flags::none);
-    } catch (const zmq::error_t& e) {
-      if (e.num() != EINTR) throw;
-      continue;  // a signal (wire.hpp): the loop's first look is at the stop flag
-    }
+    send_part(pub, zmq::buffer(std::string_view("markers")), zmq::send_flags::sndmore);
+    send_part(pub, zmq::buffer(payload), zmq::send_flags::none);
     while (receive_waiting(pub, discard)) {
     }  // subscription notices: keep XPUB's inbound queue empty
 

@@ -249,12 +249,14 @@ json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tal
     }
     if (!wait_readable(sub, std::chrono::milliseconds(100))) continue;
     parts.clear();
-    for (zmq::message_t part; receive_waiting(sub, part);) {
-      const bool more = part.more();
+    zmq::message_t part;
+    if (!receive_waiting(sub, part)) continue;
+    // A message's parts arrive together: the rest is there, whatever a signal interrupts.
+    parts.push_back(std::move(part));
+    while (parts.back().more()) {
+      receive_part(sub, part);
       parts.push_back(std::move(part));
-      if (!more) break;
     }
-    if (parts.empty()) continue;
     const double t_s = secs(Clock::now());
     if (parts.size() != 2) {
       tally.add_undecodable();

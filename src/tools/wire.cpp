@@ -53,6 +53,27 @@ bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout) {
   return (item.revents & ZMQ_POLLIN) != 0;
 }
 
+void receive_part(zmq::socket_t& socket, zmq::message_t& part) {
+  for (;;) {
+    try {
+      if (socket.recv(part, zmq::recv_flags::none)) return;
+    } catch (const zmq::error_t& e) {
+      if (e.num() != EINTR) throw;
+    }
+  }
+}
+
+void send_part(zmq::socket_t& socket, zmq::const_buffer part, zmq::send_flags flags) {
+  for (;;) {
+    try {
+      if (socket.send(part, flags)) return;
+      throw std::runtime_error("a message part could not be sent");  // dontwait, would block
+    } catch (const zmq::error_t& e) {
+      if (e.num() != EINTR) throw;
+    }
+  }
+}
+
 bool receive_waiting(zmq::socket_t& socket, zmq::message_t& message) {
   try {
     return socket.recv(message, zmq::recv_flags::dontwait).has_value();

@@ -45,5 +45,9 @@ void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind
 bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout);
 // A message if one waits (without blocking): false when none does, or on a signal.
 bool receive_waiting(zmq::socket_t& socket, zmq::message_t& message);
+// The next part of a message whose first part was read (it is there: a signal is retried).
+void receive_part(zmq::socket_t& socket, zmq::message_t& part);
+// One part sent, a signal retried: once a message's first part is out, its others must follow.
+void send_part(zmq::socket_t& socket, zmq::const_buffer part, zmq::send_flags flags);
 
 }  // namespace fabrik::tools

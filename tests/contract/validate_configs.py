@@ -130,9 +130,13 @@ def main():
                 if json.loads(template.read_text()).get("kind") != "keypoints":
                     continue
                 out = pathlib.Path(tmp) / template.name
-                run = subprocess.run([str(args.fabrik), "calibrate", "--template", str(template),
-                                      "--nominal", "--output", str(out)],
-                                     capture_output=True, text=True, timeout=120)
+                try:
+                    run = subprocess.run([str(args.fabrik), "calibrate", "--template",
+                                          str(template), "--nominal", "--output", str(out)],
+                                         capture_output=True, text=True, timeout=120)
+                except (OSError, subprocess.TimeoutExpired) as e:
+                    failures.append(f"fabrik calibrate --template {template.name} --nominal: {e}")
+                    continue
                 if run.returncode != 0:
                     failures.append(f"fabrik calibrate --template {template.name} --nominal "
                                     f"failed ({run.returncode}): {run.stderr.strip()}")
