@@ -11,6 +11,7 @@
 #include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "subjects_fixture.hpp"
+#include "transport/name_mismatch.hpp"
 
 using namespace fabrik;
 using nlohmann::json;
@@ -173,6 +174,46 @@ TEST_CASE("A subject's config calibrated from Subject:Marker names tracks that s
   } catch (const ConfigError& e) {
     CHECK_THAT(e.what(), Catch::Contains("'Alice:PELVIS_PLATE' and 'PELVIS_PLATE'"));
   }
+}
+
+// A subject whose config shares no name with its markers, in frames that also carry another
+// process's subject: the daemon judged "only another subject's markers" from the 8 unknown names
+// it lists for the log, all Carol's here, and raised no mismatch. It counts every name now.
+TEST_CASE("A subject's markers none of its config names are a mismatch beside another's",
+          "[subjects][daemon]") {
+  test::SubjectsDir dir;
+  const std::string path = dir.write({"Alice", "Zoe"});
+  json zed = json::object();  // Zoe's config names her targets after someone else
+  const TrackerSetup& bare = default_daemon_config().tracker;
+  for (const MarkerTarget& t : bare.markers)
+    zed["Zed:" + t.marker] = {{"point", bare.model->points[t.point].name}};
+  dir.write_file("Zoe.json", json{{"format", "fabrikd-config/1"},
+                                  {"model", "models/fullbody.json"},
+                                  {"targets", {{"markers", zed}}}});
+  test::DaemonThread d(zmq_context(), on_inproc(load_daemon_config_file(path), "misnamed"));
+  const DaemonConfig& c = d.daemon.config();
+  test::SocketClient client(zmq_context(), d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  SyntheticMotion motion(*c.subjects[0].tracker.model, MotionSettings{});
+  std::uint64_t frame = handshake(client, c, motion);
+  const wire::DaemonCounters before = d.daemon.counters();
+  const int frames = 2 * wire::NameMismatchWatch::kFramesInARow;
+  for (int i = 0; i < frames; ++i) {
+    // Carol's names sort before Zoe's: the first 8 unknown names are hers.
+    json markers = test::subject_markers(bare, motion, i * 0.01, test::subject_offset_m(2), "Carol:");
+    markers = test::subject_markers(bare, motion, i * 0.01, test::subject_offset_m(1), "Zoe:", markers);
+    client.send(json{{"frame", ++frame}, {"markers", markers}}.dump());
+    // Paced: each frame decoded (its unknown names counted) before the next, as a burst
+    // beyond the backlog would be dropped undecoded.
+    const std::uint64_t unknown = before.unknown_markers + (i + 1) * markers.size();
+    const auto deadline = std::chrono::steady_clock::now() + 5s;
+    while (d.daemon.counters().unknown_markers < unknown &&
+           std::chrono::steady_clock::now() < deadline)
+      std::this_thread::yield();
+    REQUIRE(d.daemon.counters().unknown_markers == unknown);
+  }
+  const wire::DaemonCounters after = d.daemon.counters();
+  CHECK(after.unmatched_frames - before.unmatched_frames == static_cast<std::uint64_t>(frames));
+  CHECK(after.config_mismatch);
 }
 
 TEST_CASE("Markers named Subject:Marker reach that subject's tracker and pose/NAME",

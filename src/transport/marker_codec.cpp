@@ -334,6 +334,7 @@ void start_frame(MarkerFrame& out) {
   out.known_count = 0;
   out.unknown_count = 0;
   out.unknown_listed = 0;
+  out.unknown_foreign = 0;
   out.rejected_count = 0;
   out.zero_count = 0;
   out.rejected_orientations = 0;

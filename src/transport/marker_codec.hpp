@@ -46,6 +46,9 @@ struct MarkerFrame {
   int unknown_count = 0;                   // marker names not in the model
   std::vector<std::string> unknown_names;  // the first unknown_listed of them (cut), for the log
   int unknown_listed = 0;
+  // Unknown names "X:..." where no config name starts "X:": another subject's markers (in a
+  // split across processes). All of a frame's, not only the listed ones.
+  int unknown_foreign = 0;
   // Addition to the contract, "orientations": per known sensor, its frame's
   // rotation in the sensors' world (normalised) and whether it was measured.
   std::vector<Eigen::Quaterniond> q_sensor;

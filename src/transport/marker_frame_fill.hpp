@@ -66,10 +66,13 @@ inline bool set_units_or_subject(std::string_view key, std::string_view value, M
 inline int count_marker(MarkerNameIndex& names, std::size_t position, std::string_view name,
                         MarkerFrame& out) {
   const int i = names.find_at(position, name);
-  if (i >= 0)
+  if (i >= 0) {
     ++out.known_count;
-  else
-    ++out.unknown_count, list_unknown_name(out.unknown_names, out.unknown_listed, name);
+  } else {
+    ++out.unknown_count;
+    out.unknown_foreign += names.foreign(name) ? 1 : 0;
+    list_unknown_name(out.unknown_names, out.unknown_listed, name);
+  }
   return i;
 }
 

@@ -6,6 +6,7 @@
 // Never allocates after construction.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -26,6 +27,22 @@ class MarkerNameIndex {
     for (int i = 0; i < static_cast<int>(names_.size()); ++i)
       if (find(names_[i]) < 0) slots_[probe_for(names_[i])] = i;
     previous_.assign(names_.size() + kExtraPositions, -1);
+    for (const std::string& n : names_) {
+      const std::size_t colon = n.find(':');
+      if (colon == std::string::npos || colon == 0) continue;
+      const std::string_view prefix(n.data(), colon + 1);
+      if (std::find(prefixes_.begin(), prefixes_.end(), prefix) == prefixes_.end())
+        prefixes_.emplace_back(prefix);
+    }
+  }
+
+  // Whether `name` is "X:..." and no name of the index starts "X:": another subject's, when
+  // the index holds subjects' names (NAME:Marker).
+  bool foreign(std::string_view name) const {
+    const std::size_t colon = name.find(':');
+    if (colon == std::string_view::npos || colon == 0) return false;
+    return std::find(prefixes_.begin(), prefixes_.end(), name.substr(0, colon + 1)) ==
+           prefixes_.end();
   }
 
   // The name's index, or -1 when it is none of the names.
@@ -63,6 +80,7 @@ class MarkerNameIndex {
   std::vector<int> slots_;  // index into names_, -1 empty
   std::size_t mask_ = 0;
   std::vector<int> previous_;  // the index (or -1) of the name at each position of the last frame
+  std::vector<std::string> prefixes_;  // the names' distinct "X:" (subjects' prefixes)
 };
 
 }  // namespace fabrik::wire
