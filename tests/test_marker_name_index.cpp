@@ -37,3 +37,19 @@ TEST_CASE("MarkerNameIndex's position hints never give a wrong index", "[codec][
   }
   CHECK(index.find_at(0, "RPSI") == 3);
 }
+
+// The daemon tells "only another subject's markers" (a split across processes) from a
+// misnamed subject by this: a name "X:..." is foreign when no name of the index starts "X:".
+TEST_CASE("MarkerNameIndex::foreign: a NAME: prefix none of its names has, nothing else") {
+  const std::vector<std::string> names{"Alice:LASI", "Alice:RASI", "Bob:LASI", "C7"};
+  const MarkerNameIndex index(names);
+  CHECK(index.foreign("Carol:LASI"));
+  CHECK(index.foreign("Al:LASI"));           // a prefix of "Alice" is another name
+  CHECK(index.foreign("Alice2:LASI"));
+  CHECK_FALSE(index.foreign("Alice:TOE"));   // one of ours, misnamed: a mismatch, not foreign
+  CHECK_FALSE(index.foreign("Bob:Zed:LASI"));  // the first ':' names the subject
+  CHECK_FALSE(index.foreign("LASI"));        // no prefix at all
+  CHECK_FALSE(index.foreign(":LASI"));       // an empty prefix is none
+  const std::vector<std::string> bare{"LASI", "RASI"};
+  CHECK(MarkerNameIndex(bare).foreign("Alice:LASI"));  // bare names: any prefix is another's
+}
