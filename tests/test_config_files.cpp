@@ -196,6 +196,56 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
   }
 }
 
+TEST_CASE("Input and output endpoints that meet at one address clash, written alike or not",
+          "[config][endpoint]") {
+  const SocketMode B = SocketMode::bind, C = SocketMode::connect;
+  struct Case {
+    Endpoint a, b;
+    bool clash;
+  };
+  const std::vector<Case> cases = {
+      {{"tcp://127.0.0.1:5556", B}, {"tcp://127.0.0.1:5556", B}, true},
+      {{"ipc:///tmp/f.sock", B}, {"ipc:///tmp/f.sock", C}, true},
+      {{"ipc:///tmp/f.sock", B}, {"ipc:///tmp/g.sock", B}, false},
+      // Both bound: any address overlaps every one of the same port.
+      {{"tcp://*:5556", B}, {"tcp://127.0.0.1:5556", B}, true},
+      {{"tcp://127.0.0.1:5556", B}, {"tcp://0.0.0.0:5556", B}, true},
+      {{"tcp://[::]:5556", B}, {"tcp://192.0.2.7:5556", B}, true},
+      {{"tcp://localhost:5556", B}, {"tcp://127.0.0.1:5556", B}, true},
+      {{"tcp://LocalHost:05556", C}, {"tcp://127.0.0.1:5556", B}, true},
+      {{"tcp://127.0.0.1:5556", B}, {"tcp://192.0.2.7:5556", B}, false},
+      {{"tcp://*:5556", B}, {"tcp://*:5557", B}, false},
+      {{"tcp://*:*", B}, {"tcp://*:*", B}, false},          // each its own free port
+      {{"tcp://127.0.0.1:*", B}, {"tcp://*:*", B}, false},  // each its own free port
+      // Bound and connected: a connect to this machine meets a bind of any address.
+      {{"tcp://*:5556", B}, {"tcp://127.0.0.1:5556", C}, true},
+      {{"tcp://[::1]:5556", C}, {"tcp://[::]:5556", B}, true},
+      {{"tcp://*:5556", B}, {"tcp://192.0.2.7:5556", C}, false},  // another machine's port
+      {{"tcp://127.0.0.2:5556", C}, {"tcp://127.0.0.1:5556", B}, false},
+      // Both connected to one peer's port.
+      {{"tcp://localhost:5556", C}, {"tcp://127.0.0.1:5556", C}, true},
+      {{"tcp://192.0.2.7:5556", C}, {"tcp://192.0.2.8:5556", C}, false},
+      // Not ZeroMQ tcp: a NatNet or QTM source never meets the pose output.
+      {{"natnet://127.0.0.1:5556", C}, {"tcp://*:5556", B}, false},
+      {{"qtm://127.0.0.1:5556", C}, {"tcp://127.0.0.1:5556", B}, false},
+      {{"tcp://127.0.0.1:6000;127.0.0.1:5556", C}, {"tcp://*:5556", B}, true},  // source;dest
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.a.address, c.b.address);
+    CHECK(endpoints_clash(c.a, c.b) == c.clash);
+    CHECK(endpoints_clash(c.b, c.a) == c.clash);
+  }
+  // The config names both spellings.
+  const json j = {{"format", "fabrikd-config/1"},
+                  {"model", "models/fullbody.json"},
+                  {"input", {{"endpoint", "tcp://127.0.0.1:22011"}, {"mode", "connect"}}},
+                  {"output", {{"endpoint", "tcp://*:22011"}}}};
+  CHECK_THAT(error_of([&] { load_daemon_config(j.dump(), "c.json"); }),
+             Catch::StartsWith("c.json: at /output: input and output use the same endpoint "
+                               "'tcp://127.0.0.1:22011' as 'tcp://*:22011'") &&
+                 Catch::Contains(". Fix: "));
+}
+
 TEST_CASE("A config error quoting bytes that are not UTF-8 says them as escapes",
           "[config][safe_text]") {
   // nlohmann's parse error quotes what it last read: '"\xff'.

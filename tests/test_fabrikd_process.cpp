@@ -930,6 +930,10 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
        "fabrikd: --output: 'tcp://127.0.0.1:22604' is also the input's endpoint"},
       {{"--input", "tcp://127.0.0.1:5556"},  // the embedded default's output
        "fabrikd: --input: 'tcp://127.0.0.1:5556' is also the output's endpoint"},
+      // Written apart, one port: before, ZeroMQ's "Address already in use" (both bound).
+      {{"--input", "tcp://*:22605", "--output", "tcp://127.0.0.1:22605"},
+       "fabrikd: --output: 'tcp://127.0.0.1:22605' is also the input's endpoint "
+       "('tcp://*:22605', one port of this machine)"},
       {{"--config", wrapped_path},
        wrapped_path + ": at /output/endpoint: port '70000' of 'tcp://127.0.0.1:70000' is out of "
                       "range"},

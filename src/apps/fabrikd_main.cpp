@@ -107,12 +107,16 @@ fabrik::DaemonConfig load(const Overrides& o) {
   if (!o.output.empty()) c.output = endpoint_override(o.output, c.output, "--output");
   // As the config's own check (daemon_config.cpp), after the options: bound twice, the
   // output's bind failed with "Address already in use"; bound and connected, it was taken.
-  if ((!o.input.empty() || !o.output.empty()) && c.input.address == c.output.address)
-    throw std::invalid_argument(std::string(o.output.empty() ? "--input" : "--output") + ": '" +
-                                c.output.address + "' is also the " +
-                                (o.output.empty() ? "output's" : "input's") +
-                                " endpoint. Fix: give the input and the pose output an "
-                                "endpoint each");
+  if ((!o.input.empty() || !o.output.empty()) && fabrik::endpoints_clash(c.input, c.output)) {
+    const fabrik::Endpoint& named = o.output.empty() ? c.input : c.output;
+    const fabrik::Endpoint& other = o.output.empty() ? c.output : c.input;
+    throw std::invalid_argument(
+        std::string(o.output.empty() ? "--input" : "--output") + ": '" + named.address +
+        "' is also the " + (o.output.empty() ? "output's" : "input's") + " endpoint" +
+        (named.address == other.address ? ""
+                                        : " ('" + other.address + "', one port of this machine)") +
+        ". Fix: give the input and the pose output an endpoint each");
+  }
   if (!o.log_level.empty()) c.log_level = o.log_level;
   return c;
 }

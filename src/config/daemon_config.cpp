@@ -219,18 +219,20 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
     if (out.has("views"))
       c.output_views = read_pose_views(out.at("views"), c.output_encoding, c.output_units);
   }
-  if (c.input.address == c.output.address) {
+  if (endpoints_clash(c.input, c.output)) {
     // Where the clash is written: at the output's endpoint, or at the input when the output's
     // is the default.
+    const std::string same =
+        c.input.address == c.output.address
+            ? "'" + c.input.address + "'"
+            : "'" + c.input.address + "' as '" + c.output.address + "' (one port of this machine)";
     if (root.has("output") && root.at("output").has("endpoint"))
-      root.at("output").fail("input and output use the same endpoint '" + c.input.address + "'",
+      root.at("output").fail("input and output use the same endpoint " + same,
                              "give the pose output its own endpoint");
-    root.at("input").fail("the input's endpoint '" + c.input.address +
-                              "' is the pose output's default",
+    root.at("input").fail("the input's endpoint " + same + " is the pose output's default",
                           "give the input another endpoint, or the output one of its own "
                           "(\"output\": {\"endpoint\": ...})");
   }
-
 }
 
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 
 #include "common/safe_text.hpp"
 
@@ -13,7 +14,58 @@ constexpr const char* kPortFix =
     "use a port from 1 to 65535, e.g. tcp://127.0.0.1:5555, or * to bind any free port "
     "(tcp://127.0.0.1:*)";
 
+struct TcpAddress {
+  std::string host;        // lower case, without [ ]; "localhost" as 127.0.0.1
+  unsigned long port = 0;  // 0: * or unreadable
+  bool any_port = false;   // *: a bind chooses a free one
+};
+
+std::optional<TcpAddress> tcp_address(std::string_view address) {
+  if (!address.starts_with("tcp://")) return std::nullopt;
+  std::string_view rest = address.substr(6);
+  if (const auto semicolon = rest.rfind(';'); semicolon != std::string_view::npos)
+    rest.remove_prefix(semicolon + 1);
+  const auto colon = rest.rfind(':');
+  if (colon == std::string_view::npos) return std::nullopt;
+  const std::string_view port = rest.substr(colon + 1);
+  TcpAddress t;
+  t.any_port = port == "*";
+  if (!port.empty() && port.size() <= 8 &&
+      std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    t.port = std::stoul(std::string(port));
+  std::string_view host = rest.substr(0, colon);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  for (char c : host) t.host += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  if (t.host == "localhost") t.host = "127.0.0.1";
+  return t;
+}
+
+bool any_address(const std::string& host) {
+  return host == "*" || host == "0.0.0.0" || host == "::";
+}
+
+bool this_machine(const std::string& host) {
+  return host.starts_with("127.") || host == "::1";
+}
+
 }  // namespace
+
+bool endpoints_clash(const Endpoint& a, const Endpoint& b) {
+  const auto ta = tcp_address(a.address), tb = tcp_address(b.address);
+  if (!ta || !tb) return a.address == b.address;
+  if (ta->any_port || tb->any_port) return false;
+  if (ta->port != tb->port) return false;
+  if (ta->host == tb->host) return true;
+  const bool a_bind = a.mode == SocketMode::bind, b_bind = b.mode == SocketMode::bind;
+  if (a_bind && b_bind) return any_address(ta->host) || any_address(tb->host);
+  if (a_bind != b_bind) {
+    const TcpAddress& bound = a_bind ? *ta : *tb;
+    const TcpAddress& connected = a_bind ? *tb : *ta;
+    return this_machine(connected.host) && any_address(bound.host);
+  }
+  return false;
+}
 
 std::optional<EndpointProblem> endpoint_problem(std::string_view address, SocketMode mode) {
   const std::string quoted = "'" + std::string(address) + "'";

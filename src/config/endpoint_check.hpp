@@ -27,4 +27,12 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
 // <fix>" (safe text), naming the option so the message says where to fix it.
 void require_usable_endpoint(std::string_view address, SocketMode mode, std::string_view option);
 
+// Whether two sockets of one process would meet at one address: the same text, or tcp on the
+// same port where both bind hosts that overlap (one of them any address: *, 0.0.0.0, ::) or
+// one connects to this machine (localhost, 127.x.x.x, ::1) where the other binds it or any
+// address. Port * never clashes (each bind gets a free port of its own). A connect to one of this
+// machine's other addresses is not seen (that would take its interfaces); ZeroMQ's own bind error
+// still stops a double bind.
+bool endpoints_clash(const Endpoint& a, const Endpoint& b);
+
 }  // namespace fabrik
