@@ -29,10 +29,11 @@ def synth_archive(root, subjects, trials, seconds):
                     "--fabrik", FABRIK], check=True, timeout=RUN_TIMEOUT_S, capture_output=True)
 
 
-def batch(root, out, *args):
+def batch(root, out, *args, template=TEMPLATE):
     """`python3 -m fabrik.batch` as a user runs it: (exit code, stderr)."""
+    given = ["--template", template] if template else []
     p = subprocess.run([sys.executable, "-m", "fabrik.batch", str(root), "--output", str(out),
-                        "--template", TEMPLATE, "--fabrik", FABRIK, *args],
+                        *given, "--fabrik", FABRIK, *args],
                        capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
     return p.returncode, p.stderr
 
@@ -185,3 +186,28 @@ def test_a_rerun_skips_what_is_done_and_redoes_what_is_not(tmp_path):
                      "subj02/walk03.report.json"}
     assert strip(rows) == strip(first)
     assert [f for f in after if ".partial" in f] == []
+
+
+def test_a_rerun_without_the_template_uses_the_calibrations_on_disk(tmp_path):
+    root, out = tmp_path / "archive", tmp_path / "out"
+    synth_archive(root, 1, 2, 1.0)
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 0 and {r["status"] for r in summary(out)} == {"ok"}
+    before = stamps(out)
+
+    code, log = batch(root, out, "--workers", "1", template=None)
+    assert code == 0, log  # was: every done trial failed "no template to calibrate with"
+    assert {r["status"] for r in summary(out)} == {"skipped"}
+    assert stamps(out) == before
+
+    os.remove(out / "subj01" / "walk01.joints.trc")
+    code, log = batch(root, out, "--workers", "1", template=None)
+    assert code == 0, log
+    assert {(r["trial"], r["status"]) for r in summary(out)} >= {("walk01", "ok")}
+
+    os.remove(out / "subj01" / "calibrated.json")  # nothing to reuse: the template is needed
+    code, _ = batch(root, out, "--workers", "1", template=None)
+    assert code == 1
+    assert {r["error"] for r in summary(out)} == {
+        'subject subj01: no template to calibrate with. Fix: give --template, or "template" in %s'
+        % os.path.join(root, "subj01", "subject.json")}

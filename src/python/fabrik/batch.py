@@ -86,7 +86,9 @@ def find_subjects(root, template=None):
 
     Each: name, folder, template, calibrate_args, static (relative path or None),
     trials (relative paths, the static among them), problem (None, or why the subject
-    cannot be calibrated: its trials are then reported as failed with this text).
+    cannot be calibrated: its trials are then reported as failed with this text),
+    calibration_problem (the problem is with the static or template alone: a calibration
+    already on disk is reused instead).
     """
     subjects = []
     for name in sorted(os.listdir(root)):
@@ -94,7 +96,8 @@ def find_subjects(root, template=None):
         if name.startswith(".") or not os.path.isdir(folder):
             continue
         s = {"name": name, "folder": folder, "template": template, "calibrate_args": [],
-             "static": None, "trials": _trial_files(folder), "problem": None}
+             "static": None, "trials": _trial_files(folder), "problem": None,
+             "calibration_problem": False}
         subjects.append(s)
         try:
             settings = _subject_settings(folder)
@@ -126,6 +129,7 @@ def find_subjects(root, template=None):
                             '"template" in %s' % (name, os.path.join(folder, SUBJECT_FILE)))
         elif s["problem"] is None and not os.path.isfile(s["template"]):
             s["problem"] = "subject %s: template %s: no such file" % (name, s["template"])
+        s["calibration_problem"] = s["problem"] is not None
         ids = [_trial_id(t) for t in s["trials"]]
         twins = sorted({i for i in ids if ids.count(i) > 1})
         if s["problem"] is None and twins:
@@ -345,9 +349,8 @@ def plan(root, out, template, fabrik, timeout_s):
                      "kind": "static" if rel == s["static"] else "dynamic",
                      "input": os.path.join(s["folder"], *rel.split("/")),
                      "outputs": trial_outputs(out_dir, _trial_id(rel)), "timeout_s": timeout_s}
-            if s["problem"]:
-                rows.append(dict(_blank_row(trial), status="failed", error=s["problem"]))
-                continue
+            # A done trial is kept, and a calibration on disk used, even where the subject
+            # could not be calibrated now (a rerun without --template after one with it).
             report = done_report(trial["outputs"], want_angles) if os.path.isfile(config) else None
             if report is not None:
                 try:
@@ -355,10 +358,14 @@ def plan(root, out, template, fabrik, timeout_s):
                     continue
                 except (KeyError, TypeError, ValueError):
                     pass  # an unexpected report: solve again
+            if s["problem"] and not (s["calibration_problem"] and os.path.isfile(config)):
+                rows.append(dict(_blank_row(trial), status="failed", error=s["problem"]))
+                continue
             pending.append(trial)
             calibrations.setdefault(s["name"], {
                 "fabrik": fabrik, "template": s["template"], "config": config,
-                "static": os.path.join(s["folder"], *s["static"].split("/")),
+                "static": (os.path.join(s["folder"], *s["static"].split("/"))
+                           if s["static"] else None),  # None: the calibration on disk is used
                 "calibrate_args": s["calibrate_args"], "timeout_s": timeout_s})
     return calibrations, pending, rows
 
