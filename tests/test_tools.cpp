@@ -871,6 +871,40 @@ TEST_CASE("fabrik replay and watch refuse ports ZeroMQ would wrap, exit 2 naming
   CHECK(raw_err.find('\xff') == std::string::npos);
 }
 
+// The header of `eval markerless --trial` once described the generator's options (20 s at 60 Hz,
+// jitter 15 mm, dropouts 1/s) instead of the file evaluated.
+TEST_CASE("eval markerless --trial describes the file it evaluates, not the generator's options") {
+  using fabrik::test::run_fabrik;
+  using fabrik::test::slurp;
+  const std::string halpe = kSourceDir + "/config/templates/halpe26.json";
+  TempFile config(".json"), trial(".trc"), table(".txt"), report(".json");
+  const std::string stem = trial.path().substr(0, trial.path().size() - 4);
+  for (const char* side : {".joints.trc", ".truth.mot", ".injected.csv"})
+    trial.also_remove(stem + side);
+  REQUIRE(run_fabrik({"calibrate", "--template", halpe, "--nominal", "--output", config.path()})
+              .first == 0);
+  REQUIRE(run_fabrik({"synth", "--keypoints", "--config", config.path(), "--seconds", "1", "--rate",
+                      "120", "--jitter-mm", "3", "--output", trial.path()})
+              .first == 0);
+  const auto [code, err] =
+      run_fabrik({"eval", "markerless", "--trial", trial.path(), "--template", halpe}, table.path(),
+                 std::chrono::seconds(120));
+  CAPTURE(err);
+  REQUIRE(code == 0);
+  const std::string text = slurp(table.path());
+  CHECK_THAT(text, Catch::StartsWith("markerless trial: " + trial.path() +
+                                     " (120 frames at 120 Hz, 0 dropouts and 0 swaps"));
+  CHECK_THAT(text, !Catch::Contains("jitter 15.0 mm") && !Catch::Contains("60 Hz"));
+  REQUIRE(run_fabrik({"eval", "markerless", "--trial", trial.path(), "--template", halpe, "--json",
+                      report.path()},
+                     "/dev/null", std::chrono::seconds(120))
+              .first == 0);
+  const auto rows = nlohmann::json::parse(slurp(report.path()));
+  REQUIRE(rows.size() == 1);
+  CHECK(rows[0]["frames"] == 120);
+  CHECK(rows[0]["jitter_mm"].is_null());  // the file's own is not known
+}
+
 // CLI11 gives each kind of command-line error its own code (105-109 and more): `fabrik` says 2,
 // as for every wrong input (README), in every subcommand; help still exits 0.
 TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, help exits 0") {

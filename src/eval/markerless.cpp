@@ -43,6 +43,9 @@ double wrap_deg(double d) {
   return std::remainder(d, 360.0);
 }
 
+// The one case of --trial: its corruption is in the file (unknown jitter; its listed runs).
+constexpr const char* kFileCase = "file";
+
 MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corruption,
                        const calib::CalibTemplate& tmpl, const tools::KeypointTrial& trial,
                        const MarkerlessOptions& o) {
@@ -50,6 +53,7 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
   row.name = name;
   row.corruption = corruption;
   row.frames = trial.keypoints.frames();
+  row.rate_hz = trial.keypoints.rate_hz;
 
   // Frames inside a swap, and the few after it, where a tracker recovers.
   std::vector<std::uint8_t> near_swap(row.frames, 0);
@@ -210,7 +214,8 @@ std::vector<MarkerlessRow> eval_markerless(const MarkerlessOptions& o) {
 
   std::vector<MarkerlessRow> rows;
   if (!o.trial_path.empty()) {
-    rows.push_back(evaluate("file", o.corruption, tmpl, read_keypoint_trial(o.trial_path), o));
+    rows.push_back(
+        evaluate(kFileCase, KeypointCorruption{}, tmpl, read_keypoint_trial(o.trial_path), o));
     return rows;
   }
   for (const std::string& name : o.cases) {
@@ -231,17 +236,31 @@ std::string format_hz(double hz) {
 std::string markerless_table(const std::vector<MarkerlessRow>& rows, const MarkerlessOptions& o) {
   std::ostringstream out;
   char line[512];
-  std::snprintf(line, sizeof line,
-                "markerless trial: %s at nominal lengths, %.0f s at %.0f Hz, seed %u; path %s%s%s\n"
-                "jitter %.1f mm per axis; dropouts %.2f/s of 2-%d frames; swaps %.2f/s of 2-%d "
-                "frames (%.0f %% whole limbs)\n\n",
-                o.template_path.c_str(), o.seconds, o.rate_hz, o.seed, o.path.c_str(),
-                o.path == "offline" ? " (zero-lag low-pass at " : "",
-                o.path == "offline" ? (format_hz(o.filter_hz) + " Hz before tracking)").c_str() : "",
-                o.corruption.jitter_mm, o.corruption.dropouts_per_s,
-                o.corruption.dropout_frames_max, o.corruption.swaps_per_s,
-                o.corruption.swap_frames_max, o.corruption.limb_swap_share * 100.0);
-  out << line;
+  const std::string path_text =
+      o.path + (o.path == "offline"
+                    ? " (zero-lag low-pass at " + format_hz(o.filter_hz) + " Hz before tracking)"
+                    : std::string());
+  if (!o.trial_path.empty()) {
+    // A file's corruption is what synth wrote into it (its .injected.csv), not these options'.
+    const MarkerlessRow* r = rows.empty() ? nullptr : &rows.front();
+    std::snprintf(line, sizeof line,
+                  "markerless trial: %s (%zu frames at %s Hz, %d dropouts and %d swaps listed "
+                  "beside it); %s at nominal lengths; path %s\n\n",
+                  o.trial_path.c_str(), r ? r->frames : std::size_t{0},
+                  format_hz(r ? r->rate_hz : 0.0).c_str(), r ? r->dropouts : 0, r ? r->swaps : 0,
+                  o.template_path.c_str(), path_text.c_str());
+    out << line;
+  } else {
+    std::snprintf(line, sizeof line,
+                  "markerless trial: %s at nominal lengths, %.0f s at %.0f Hz, seed %u; path %s\n"
+                  "jitter %.1f mm per axis; dropouts %.2f/s of 2-%d frames; swaps %.2f/s of 2-%d "
+                  "frames (%.0f %% whole limbs)\n\n",
+                  o.template_path.c_str(), o.seconds, o.rate_hz, o.seed, path_text.c_str(),
+                  o.corruption.jitter_mm, o.corruption.dropouts_per_s,
+                  o.corruption.dropout_frames_max, o.corruption.swaps_per_s,
+                  o.corruption.swap_frames_max, o.corruption.limb_swap_share * 100.0);
+    out << line;
+  }
   out << "case       drops swaps | length err mm   wide | joint centres mm: RMS    p95    max"
          "  (worst)          | near swaps  elsewhere | angles RMS deg: mean  lag frames\n";
   for (const MarkerlessRow& r : rows) {
@@ -283,7 +302,8 @@ nlohmann::json markerless_json(const std::vector<MarkerlessRow>& rows) {
     for (const CoordinateError& a : r.angles)
       angles[a.name] = {{"rms_deg", a.rms_deg}, {"max_deg", a.max_deg}};
     j.push_back({{"case", r.name},
-                 {"jitter_mm", r.corruption.jitter_mm},
+                 {"jitter_mm",
+                  r.name == kFileCase ? nlohmann::json() : nlohmann::json(r.corruption.jitter_mm)},
                  {"dropouts", r.dropouts},
                  {"swaps", r.swaps},
                  {"swapped_frames", r.swapped_frames},

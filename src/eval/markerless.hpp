@@ -44,6 +44,7 @@ struct MarkerlessRow {
   std::string name;
   KeypointCorruption corruption;
   std::size_t frames = 0;
+  double rate_hz = 0.0;  // the trial's
   int dropouts = 0, swaps = 0, swapped_frames = 0;
   // Calibration: each measured length against the truth's nominal one.
   double length_error_max_m = 0.0, length_error_rms_m = 0.0;
