@@ -252,8 +252,8 @@ std::optional<eval::GapReport> walk1_gaps(const eval::GapOptions& options) {
 }  // namespace
 
 // The issue's must-show on the one trial we have (docs/gap-filling.md).
-// Without donor markers (prediction.donors false) the live median is 9.2 mm
-// and the offline one 8.4 mm: both fail. A returning marker's hand-over
+// Without donor markers (prediction.donors false) the live median is 9.84 mm
+// and the offline one 8.67 mm (2026-12-02): both fail. A returning marker's hand-over
 // started at the model point plus the marker's old offset fails the return
 // jump (11.4 mm): it must start at the model's own point of the marker.
 // The forearms pronate since issue 19: a withheld wrist marker leaves its
