@@ -469,6 +469,29 @@ TEST_CASE("A multi-subject daemon publishes each subject's view on TOPIC/NAME, s
   CHECK(d.daemon.counters().subscriptions_refused == 0);
 }
 
+// The longest topic the daemon publishes (a 32-byte view topic, '/', a 32-byte subject name):
+// libzmq 4.3 sends a subscription as ZMTP 3.1's SUBSCRIBE command, 10 bytes more than the
+// prefix, and a bound output's ZMQ_MAXMSGSIZE once dropped any prefix over 54 bytes, silently.
+TEST_CASE("A subscriber to the longest topic the daemon publishes is kept and served",
+          "[views][daemon][subjects][subscriptions]") {
+  const std::string name(kMaxSubjectNameBytes, 'a'), view(kMaxViewTopicBytes, 'v');
+  const std::string topic = view + "/" + name;
+  REQUIRE(topic.size() == kLongestTopicBytes);
+  test::SubjectsDir dir;
+  DaemonConfig c = load_daemon_config_file(
+      dir.write({name, "bob"}, {{"output", {{"views", json::array({{{"topic", view}}})}}}}));
+  zmq::context_t context;
+  test::DaemonThread d(context, on_free_ports(std::move(c)));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  zmq::socket_t sub = subscriber(context, d.daemon.output_endpoint(), topic.c_str());
+  std::uint64_t frame = 0;
+  const auto counted = view_stats_until(client, frame, [&](const json& views) {
+    return views.contains(topic) && views[topic]["subscribers"] == 1;
+  });
+  REQUIRE(counted);
+  CHECK(d.daemon.counters().subscriptions_refused == 0);
+}
+
 TEST_CASE("A reload that keeps the output keeps its subscribers' views selected, and starts new "
           "views",
           "[views][daemon][reload]") {

@@ -130,8 +130,10 @@ inline bool subscribes_to_model(std::string_view prefix) {
 // the descriptor a refused message came from may have been reused since.
 bool connected_to(int fd, std::string_view endpoint);
 // Messages larger than this from a subscriber make ZeroMQ drop it before
-// buffering (a subscription to "stats" is 6 bytes).
-constexpr std::int64_t kMaxSubscriptionBytes = 64;
+// buffering. ZeroMQ checks the frame on the wire: libzmq 4.3 sends a subscription
+// as ZMTP 3.1's SUBSCRIBE command, "\x09SUBSCRIBE" and the prefix (19 bytes for
+// "stats"); older peers send "\x01" and the prefix. Room for the longest topic.
+constexpr std::int64_t kMaxSubscriptionBytes = static_cast<std::int64_t>(kLongestTopicBytes) + 10;
 // What ZeroMQ reads ahead of the loop from one subscriber: at most this many
 // messages in its queue (ZMQ_RCVHWM of the output socket) and this many
 // bytes in the kernel (ZMQ_RCVBUF; the kernel doubles it). ZeroMQ stores the
