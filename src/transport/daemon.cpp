@@ -898,7 +898,7 @@ void Daemon::read_monitor() {
     if (event->id == ZMQ_EVENT_DISCONNECTED) {
       ++counters_.input_disconnects;
       peer_log_.info("an input peer disconnected (a source quit, or it sent a message over "
-                     "twice max_payload_bytes)");
+                     "twice max_payload_bytes plus 4096)");
     } else if (event->id == ZMQ_EVENT_ACCEPT_FAILED) {
       ++counters_.accept_failures;
       peer_log_.warn("cannot accept a connection on the input: {}",
@@ -1263,7 +1263,7 @@ void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& lo
       if (state_->config.input.mode == SocketMode::connect && state_->input_revival.due(now))
         reconnect(state_->sub, state_->config.input.address, state_->input_revival,
                   counters_.input_reconnects, "the input's peer",
-                  "not a publisher socket, a message over twice max_payload_bytes, or it broke "
+                  "not a publisher socket, a message over twice max_payload_bytes plus 4096, or it broke "
                   "the protocol; stats: input_reconnects");
     } catch (const std::exception& e) {
       internal_error("while connecting again: ", e.what());
