@@ -2,6 +2,7 @@
 // the solution's vectors are moved into the arrays (positions scaled to mm in place); the
 // coordinates are split by unit into angles (degrees) and translations (mm), their one copy.
 #include <cmath>
+#include <limits>
 
 #include "bindings.hpp"
 #include "offline/marker_match.hpp"
@@ -100,7 +101,7 @@ py::dict solve_file(const Config& config, const std::string& path, bool keep_zer
 
 py::dict solve_arrays(const Config& config, const std::vector<std::string>& names,
                       const py::array_t<double, py::array::c_style | py::array::forcecast>& mm,
-                      double rate_hz, int first_frame) {
+                      double rate_hz, int first_frame, double first_time_s) {
   if (mm.ndim() != 3 || mm.shape(1) != ss(names.size()) || mm.shape(2) != 3)
     throw std::invalid_argument("positions_mm: expected shape (frames, " +
                                 std::to_string(names.size()) + ", 3) for " +
@@ -111,6 +112,9 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
   trial.labels = names;
   trial.rate_hz = rate_hz;
   trial.first_frame = first_frame;
+  // The data's own first time (a file read into MarkerData keeps its Time column's), as
+  // solving the file would; NaN: frame first_frame at (first_frame - 1) / rate.
+  if (std::isfinite(first_time_s)) trial.first_time_frames = first_time_s * rate_hz;
   trial.positions_m.resize(static_cast<std::size_t>(mm.shape(0)) * names.size());
   const double* p = mm.data();
   for (Eigen::Vector3d& x : trial.positions_m) {
@@ -132,7 +136,8 @@ void bind_solve(py::module_& m) {
   m.def("_solve_file", &solve_file, py::arg("config"), py::arg("path"),
         py::arg("keep_zeros") = false);
   m.def("_solve_arrays", &solve_arrays, py::arg("config"), py::arg("names"),
-        py::arg("positions_mm"), py::arg("rate_hz"), py::arg("first_frame") = 1);
+        py::arg("positions_mm"), py::arg("rate_hz"), py::arg("first_frame") = 1,
+        py::arg("first_time_s") = std::numeric_limits<double>::quiet_NaN());
 }
 
 }  // namespace fabrik::python

@@ -54,6 +54,18 @@ def test_solve_from_arrays_equals_solve_from_file(solution, synth_trial):
     np.testing.assert_allclose(again.joints_mm, solution.joints_mm, rtol=0, atol=1e-9)
     np.testing.assert_allclose(again.angles_deg, solution.angles_deg, rtol=0, atol=1e-9)
     assert again.status == solution.status
+    np.testing.assert_array_equal(again.time_s, trial.time_s)
+
+
+def test_solve_from_arrays_keeps_their_times(synth_trial):
+    # Once the first time was taken as (first_frame - 1) / rate whatever time_s said: a
+    # file starting at 0.23 s read into MarkerData came back starting at 0.22 s.
+    trial = fabrik.read_markers(synth_trial)
+    mine = fabrik.MarkerData(names=trial.names, positions_mm=trial.positions_mm[:20].copy(),
+                             time_s=trial.time_s[:20] + 5.0, rate_hz=trial.rate_hz,
+                             first_frame=23)
+    solved = fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), mine)
+    np.testing.assert_allclose(solved.time_s, mine.time_s, rtol=0, atol=1e-9)
 
 
 def test_solution_arrays_own_their_memory(solution):

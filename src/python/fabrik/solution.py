@@ -61,9 +61,11 @@ def solve(config, markers, keep_zeros=False):
     it solves. Raises FileNotFoundError/FormatError, or RuntimeError when the trial shares no
     marker name with the config."""
     if isinstance(markers, MarkerData):
+        times = markers.time_s
+        first_time_s = float(times[0]) if times is not None and len(times) else float("nan")
         d = _fabrik._solve_arrays(config, list(markers.names),
                                   np.asarray(markers.positions_mm, dtype=np.float64),
-                                  float(markers.rate_hz), int(markers.first_frame))
+                                  float(markers.rate_hz), int(markers.first_frame), first_time_s)
     else:
         d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros)
     d["summary"] = json.loads(d.pop("summary_json"))
