@@ -25,6 +25,18 @@ struct ViewArgs {
   int max_clients = 16;
 };
 
+// An installed fabrik's page (share/fabrik/view beside its bin/), else the source tree's.
+std::string default_web_root() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path installed = exe.parent_path() / FABRIK_VIEW_WEB_ROOT_FROM_BIN;
+    if (std::filesystem::is_regular_file(installed / "index.html", ec))
+      return installed.lexically_normal().string();
+  }
+  return FABRIK_VIEW_WEB_ROOT;
+}
+
 void run(const ViewArgs& a) {
   view::ViewOptions o;
   o.pose_endpoint = a.pose;
@@ -32,7 +44,7 @@ void run(const ViewArgs& a) {
   o.rate_hz = a.rate_hz;
   o.max_clients = a.max_clients;
   o.max_connections = a.max_clients + 48;  // room for page loads beside the WebSockets
-  o.web_root = a.web_root.empty() ? FABRIK_VIEW_WEB_ROOT : a.web_root;
+  o.web_root = a.web_root.empty() ? default_web_root() : a.web_root;
   if (!std::filesystem::is_regular_file(std::filesystem::path(o.web_root) / "index.html"))
     std::fprintf(stderr, "fabrik view: warning: %s has no index.html: / answers 404\n",
                  safe_lines(o.web_root).c_str());
@@ -54,8 +66,10 @@ void run(const ViewArgs& a) {
   view::ViewServer server(context, o);
   tools::catch_stop_signals();
   server.start();
-  std::printf("fabrik view: %s (%s)\n", server.url().c_str(),
-              o.trial_message ? o.trial_note.c_str() : ("poses from " + o.pose_endpoint).c_str());
+  std::printf("fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
+              o.trial_message ? o.trial_note.c_str() : ("poses from " + o.pose_endpoint).c_str(),
+              safe_lines(o.web_root).c_str());
+  std::fflush(stdout);
   if (o.listen_host != "127.0.0.1" && o.listen_host != "::1")
     std::fprintf(stderr, "fabrik view: warning: listening on %s: other machines can connect\n",
                  safe_lines(o.listen_host).c_str());
@@ -81,7 +95,9 @@ void add_view_command(CLI::App& app) {
   c->add_option("--max-clients", a->max_clients, "WebSocket clients at once; more get 503")
       ->capture_default_str()
       ->check(CLI::Range(1, 1024));
-  c->add_option("--web-root", a->web_root, "The page's files (default: the source tree's)")
+  c->add_option(
+       "--web-root", a->web_root,
+       "The page's files (default: an install's share/fabrik/view, else the source tree's)")
       ->check(CLI::ExistingDirectory);
   c->add_option("--trial", a->trial,
                 "Serve a recording (.trc, .c3d) tracked offline instead of a live stream")
