@@ -120,6 +120,17 @@ TEST_CASE("Each kind of bad model has its own clear message", "[loader]") {
          d["segments"][1]["joint"] = {{"type", "hinge"}, {"range_deg", {{"x", {-10, 10}}}}};
        },
        "at /segments/1/joint/range_deg/x", "holds its x angle"},
+      // Once accepted and ignored: a free joint is never limited.
+      {"range of a free joint",
+       [](json& d) {
+         d["segments"][1]["joint"] = {{"type", "free"}, {"range_deg", {{"z", {-10, 10}}}}};
+       },
+       "at /segments/1/joint/range_deg", "a free joint is not limited"},
+      {"range on a root's free joint",
+       [](json& d) {
+         d["segments"][0]["joint"] = {{"type", "free"}, {"range_deg", {{"z", {-10, 10}}}}};
+       },
+       "at /segments/0/joint/range_deg", "a root's joint is free"},
       {"range min above max",
        [](json& d) {
          d["segments"][1]["joint"] = {{"type", "hinge"}, {"range_deg", {{"z", {10, -10}}}}};

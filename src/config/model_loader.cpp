@@ -65,6 +65,10 @@ JointSpec read_joint(const JsonReader& j) {
                                       {"fixed", JointType::fixed}});
   if (!j.has("range_deg")) return spec;
   const JsonReader r = j.at("range_deg");
+  if (spec.type == JointType::free)  // its angles are never limited: a range would be ignored
+    r.fail("a free joint is not limited (and a root's joint is free)",
+           "give the joint the type whose angles the ranges limit (ball, universal or hinge), "
+           "or remove range_deg");
   r.expect_object();
   r.only_keys({"z", "x", "y"});
   const char* names[3] = {"z", "x", "y"};

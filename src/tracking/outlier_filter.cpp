@@ -2,14 +2,26 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace fabrik {
+
+namespace {
+// Whether a measured marker's residual is above `floor_m` (an outlier the bar may hide).
+bool above_floor(std::span<const double> distances_m, std::span<const std::uint8_t> visible,
+                 int markers, double floor_m) {
+  for (int i = 0; i < markers; ++i)
+    if (visible[i] && distances_m[i] > floor_m) return true;
+  return false;
+}
+}  // namespace
 
 OutlierFilter::OutlierFilter(OutlierSettings settings, std::vector<int> marker_points)
     : settings_(settings),
       marker_points_(std::move(marker_points)),
       markers_(static_cast<int>(marker_points_.size())),
-      scratch_m_(marker_points_.size()) {
+      scratch_m_(marker_points_.size()),
+      start_distances_m_(marker_points_.size()) {
   found_.reserve(static_cast<std::size_t>(std::max(settings_.max_per_frame, 0)));
 }
 
@@ -49,6 +61,17 @@ int OutlierFilter::worst_outlier(std::span<const double> distances_m,
       found = i;
   }
   return found;
+}
+
+int OutlierFilter::worst_against_start(const Model& model, const Posture& start,
+                                       std::span<const Eigen::Vector3d> target_world_m,
+                                       std::span<const std::uint8_t> target_visible) {
+  for (int i = 0; i < markers_; ++i)
+    start_distances_m_[i] =
+        target_visible[i]
+            ? (target_world_m[i] - start.point_world_m(model, marker_points_[i])).norm()
+            : std::numeric_limits<double>::quiet_NaN();
+  return worst_outlier(start_distances_m_, target_visible, target_world_m);
 }
 
 bool OutlierFilter::relabel_swaps(const Model& model, const Posture& start,
@@ -97,7 +120,10 @@ SolveResult OutlierFilter::solve(FabrikSolver& solver, const Model& model,
   if (!settings_.enabled) return r;
   found_.clear();
   for (int k = 0; k < settings_.max_per_frame; ++k) {
-    const int i = worst_outlier(solver.target_distances_m(), target_visible, target_world_m);
+    const std::span<const double> residual_m = solver.target_distances_m();
+    int i = worst_outlier(residual_m, target_visible, target_world_m);
+    if (i < 0 && above_floor(residual_m, target_visible, markers_, settings_.floor_m))
+      i = worst_against_start(model, start, target_world_m, target_visible);
     if (i < 0) break;
     outlier[i] = 1;
     target_visible[i] = 0;

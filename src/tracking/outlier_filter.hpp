@@ -9,6 +9,11 @@
 // its distances to the markers around it, and is kept. The worst such marker is left out
 // and the frame solved again from the same start posture; then the next is judged the same
 // way, up to `max_per_frame` markers.
+// A marker far enough off can drag the whole fit with it (one of the strongest level's, e.g.
+// a pelvis marker metres away): every residual is then large, the bar rises above them all
+// and nothing is found. So when the solve finds none but some residual is above the floor,
+// the markers are judged the same way by their distances to the start posture (the frame's
+// prediction), where the others still fit.
 // Two outliers whose measurements each fit the other's model position (within the same bar)
 // are a label swap: they are solved with each other's measurement (relabelled), since
 // leaving a marker out loses what it alone measures (an elbow marker that places the joint).
@@ -77,7 +82,13 @@ class OutlierFilter {
   int markers_;
   std::vector<double> scratch_m_;  // the other markers' residuals, for their median
   std::vector<int> found_;         // the outliers of a frame, in the order found
+  // Judged against the start posture (the frame's prediction) instead of the solve: see solve().
+  int worst_against_start(const Model& model, const Posture& start,
+                          std::span<const Eigen::Vector3d> target_world_m,
+                          std::span<const std::uint8_t> target_visible);
+
   std::optional<MarkerNeighbours> neighbours_;
+  std::vector<double> start_distances_m_;  // per marker, for worst_against_start
   double bar_m_ = 0.0;
 };
 
