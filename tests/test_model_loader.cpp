@@ -111,9 +111,15 @@ TEST_CASE("Each kind of bad model has its own clear message", "[loader]") {
          d["segments"][0]["points"]["j1"] = json::array({0, 0, 0});
        },
        "at /segments/0/points/j1", "joint 'j1' of segment 'a' sits on the segment's base 'root'"},
-      {"joint on a root", [](json& d) { d["segments"][0]["joint"] = {{"type", "hinge"}}; },
+      {"joint on a root",
+       [](json& d) {
+         d["segments"][0]["joint"] = {{"type", "hinge"}};
+       },
        "at /segments/0/joint", "root segment 'a' has no parent joint"},
-      {"unknown joint type", [](json& d) { d["segments"][1]["joint"] = {{"type", "saddle"}}; },
+      {"unknown joint type",
+       [](json& d) {
+         d["segments"][1]["joint"] = {{"type", "saddle"}};
+       },
        "at /segments/1/joint/type", "unknown joint type 'saddle'"},
       {"range of a held angle",
        [](json& d) {
