@@ -28,11 +28,15 @@ Config load(const std::optional<std::string>& path) {
   if (!embedded_config(*path)) require_file(*path, "config");
   const std::string text = read_config_text(*path);
   const nlohmann::json doc = nlohmann::json::parse(text, nullptr, false);
-  if (doc.is_object() && doc.value("format", "") == "fabrikd-model/1") {
+  // A model says its format, or (the model loader takes it as optional) has segments and none.
+  const bool model = doc.is_object() && (doc.contains("format") ? doc["format"] == "fabrikd-model/1"
+                                                                : doc.contains("segments"));
+  if (model) {
     nlohmann::ordered_json config =
         nlohmann::ordered_json::parse(std::string(*embedded_config("default.json")));
     config["description"] = "the embedded default's settings with the model " + *path;
-    config["model"] = std::filesystem::absolute(*path).string();
+    // An embedded model's name stays a name (the config loader finds it); a file is absolute.
+    config["model"] = embedded_config(*path) ? *path : std::filesystem::absolute(*path).string();
     config["targets"].erase("markers");  // the default's pelvis names may not be this model's
     return make_config(config.dump(2) + "\n", *path);
   }

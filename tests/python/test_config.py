@@ -25,6 +25,16 @@ def test_a_bare_model_loads_with_the_default_settings():
     assert tracker.marker_names == config.marker_names
 
 
+def test_an_embedded_model_and_a_model_without_format_load(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no models/ here: the embedded one is meant
+    embedded = fabrik.load_config("models/fullbody.json")
+    assert embedded.model_name == "fullbody" and len(embedded.marker_names) == 45
+    doc = json.load(open(f"{SOURCE}/config/models/fullbody.json"))
+    doc.pop("format")  # optional for the model loader
+    (tmp_path / "bare.json").write_text(json.dumps(doc))
+    assert fabrik.load_config(tmp_path / "bare.json").marker_names == embedded.marker_names
+
+
 def test_config_errors(tmp_path):
     with pytest.raises(FileNotFoundError, match="nowhere.json"):
         fabrik.load_config(tmp_path / "nowhere.json")
@@ -34,6 +44,9 @@ def test_config_errors(tmp_path):
     doc["model"] = f"{SOURCE}/config/models/fullbody.json"
     bad.write_text(json.dumps(doc))
     with pytest.raises(fabrik.ConfigError, match=r"bad.json: at /solver/max_iterations"):
+        fabrik.load_config(bad)
+    bad.write_text('{"format": 5}')  # once a bare RuntimeError from the JSON library
+    with pytest.raises(fabrik.ConfigError, match=r"bad.json: at /format: expected a string"):
         fabrik.load_config(bad)
     assert issubclass(fabrik.ConfigError, ValueError)
     assert issubclass(fabrik.CalibrationError, RuntimeError)
