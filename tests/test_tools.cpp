@@ -923,6 +923,14 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
     CHECK(code == 2);
     CHECK_THAT(err, Catch::Contains("--help"));
   }
+  // A number below its range says so in words (CLI11's PositiveNumber printed its range to
+  // 308 digits).
+  const auto [frames_code, frames_err] =
+      fabrik::test::run_fabrik({"calibrate", "--template", "t.json", "--static", "s.trc",
+                                "--output", "o.json", "--frames", "0"});
+  CHECK(frames_code == 2);
+  CHECK_THAT(frames_err,
+             Catch::Contains("--frames: must be more than 0, not 0") && !Catch::Contains("000000"));
   for (const std::vector<std::string>& args :
        std::vector<std::vector<std::string>>{{"--help"}, {"solve", "--help"}, {"bench", "--help"}}) {
     CAPTURE(args);

@@ -9,6 +9,7 @@
 #include "calib/calibrate.hpp"
 #include "calib/keypoint_calibration.hpp"
 #include "calib/sensor_calibration.hpp"
+#include "cli_checks.hpp"
 #include "config/daemon_config.hpp"
 #include "config/json_reader.hpp"
 #include "config/lab_axes_json.hpp"
@@ -176,11 +177,11 @@ void add_calibrate_command(CLI::App& app) {
                   "first)");
   cmd->add_option("--frames", args->options.frames,
                   "Frames to average (default: to the end of the trial)")
-      ->check(CLI::PositiveNumber);
+      ->check(apps::above_zero());
   cmd->add_option("--auto-window", args->options.auto_window,
                   "Average the stillest window of N frames (fewest missing samples, then least "
                   "marker motion) instead of --first-frame/--frames")
-      ->check(CLI::PositiveNumber);
+      ->check(apps::above_zero());
   cmd->add_option("--lab-up", args->lab_up,
                   "The lab's up axis, e.g. +z (Vicon Nexus, QTM) or +y (OpenSim); overrides the "
                   "template's \"lab_axes\". Default: detected from the static trial");

@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 
+#include "cli_checks.hpp"
 #include "common/safe_text.hpp"
 #include "eval/eval.hpp"
 #include "offline/marker_match.hpp"
@@ -255,7 +256,7 @@ void add_eval_command(CLI::App& app) {
   gaps->add_option("--windows", ga->gaps.windows_s, "Gap lengths (s)")->capture_default_str();
   gaps->add_option("--stride", ga->gaps.stride_s, "Between window starts (s)")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(above_zero());
   gaps->add_option("--modes", ga->gaps.modes, "live, offline or both")
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, eval::GapMode>{{"live", eval::GapMode::live},
@@ -273,7 +274,7 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   synth->add_option("--seconds", sa->synthetic.seconds, "Duration per noise level")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(above_zero());
   synth->add_option("--seed", sa->synthetic.seed, "Motion and noise seed")->capture_default_str();
   auto ia = std::make_shared<EvalArgs>();
   ia->template_path = "config/templates/opensense_gait2354.json";
@@ -288,7 +289,7 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   imu->add_option("--seconds", ia->imu.seconds, "Synthetic duration")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(above_zero());
   imu->add_option("--seed", ia->imu.seed, "Motion and noise seed")->capture_default_str();
   imu->add_option("--template", ia->template_path, "Template with sensors")->capture_default_str();
   imu->add_option("--static", ia->static_path, "Static marker trial (the body's geometry)")

@@ -2,6 +2,7 @@
 // loop over Tracker::track, the baseline a Python track() call is compared with; and smooth
 // synthetic frames of a config's model (synthetic_motion.hpp) to track.
 #include <chrono>
+#include <cmath>
 
 #include "bindings.hpp"
 #include "solver/posture.hpp"
@@ -16,6 +17,10 @@ using Frames = py::array_t<double, py::array::c_style | py::array::forcecast>;
 // (frames, markers, 3) mm: the config's tracked markers on a smooth motion, with noise.
 py::array_t<double> synthetic_frames(const Config& config, std::size_t frames, double rate_hz,
                                      double noise_mm, unsigned seed) {
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz))
+    throw std::invalid_argument("rate_hz must be a positive number of frames per second");
+  if (!(noise_mm >= 0.0) || !std::isfinite(noise_mm))
+    throw std::invalid_argument("noise_mm must be a finite number of mm, 0 or more");
   const TrackerSetup& setup = config.config->tracker;
   const Model& model = *setup.model;
   MotionSettings settings;

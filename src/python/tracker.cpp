@@ -27,6 +27,10 @@ class PyTracker {
   }
 
   Pose track(const py::handle& markers, double time_s, bool ignore_unknown) {
+    // A NaN time would stay in the tracker's clock (one NaN frame turned the hold policy off
+    // for the frames after it): refused here, where Python's floats come in.
+    if (!std::isfinite(time_s))
+      throw std::invalid_argument("time_s must be a finite number of seconds");
     if (PyDict_Check(markers.ptr()))
       read_dict(markers, ignore_unknown);
     else

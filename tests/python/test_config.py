@@ -61,6 +61,9 @@ def test_calibrate_writes_what_fabrik_calibrate_writes(tmp_path):
     assert py_out.read_text() == cli_out.read_text()
     assert config.json == py_out.read_text()
     assert "Wrote" not in config.calibration_report and config.calibration_report
+    for bad in ({"frames": 0}, {"frames": -5}, {"auto_window": 0}):  # once: the default, or
+        with pytest.raises(ValueError, match="must be 1 or more"):  # the CLI's words
+            fabrik.calibrate(template, static, **bad)
     # usable at once: the static trial tracks to a small residual
     trial = fabrik.read_markers(static)
     tracker = fabrik.Tracker(config)

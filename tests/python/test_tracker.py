@@ -95,6 +95,11 @@ def test_wrong_input_gives_clear_errors(config, frames):
         tracker.track({"LASI": (1, "a", 2)}, 0.0)
     with pytest.raises(TypeError, match="give a dict"):
         tracker.track(object(), 0.0)
+    for t in (float("nan"), float("inf")):  # a NaN once stayed in the tracker's clock
+        with pytest.raises(ValueError, match="time_s must be a finite number"):
+            tracker.track(frames[0], t)
+    with pytest.raises(ValueError, match="rate_hz must be a positive number"):
+        fabrik.synthetic_frames(config, 3, rate_hz=0.0)  # once 405 NaNs
     # unknown names may be skipped on request
     skipped = {"NOSE": (0, 0, 0), "LASI": tuple(frames[0][0])}
     pose = tracker.track(skipped, 0.0, ignore_unknown=True)

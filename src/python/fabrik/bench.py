@@ -43,14 +43,23 @@ def quantile(values, q):
     return ordered[int(q * (len(ordered) - 1))]
 
 
+def _at_least_one(text):
+    n = int(text)
+    if n < 1:
+        raise argparse.ArgumentTypeError("must be 1 or more, not %s" % text)
+    return n
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="python3 -m fabrik.bench",
                                 description=__doc__.split("\n")[0])
     p.add_argument("--config", help="daemon config (default: the embedded default)")
-    p.add_argument("--frames", type=int, default=2000)
+    p.add_argument("--frames", type=_at_least_one, default=2000)
     p.add_argument("--rate", type=float, default=100.0, help="frame rate (Hz)")
-    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--repeats", type=_at_least_one, default=3)
     a = p.parse_args(argv)
+    if not a.rate > 0:
+        p.error("--rate must be more than 0")
     config = load_config(a.config)
     frames = _fabrik.synthetic_frames(config, a.frames, a.rate)
     names = config.marker_names
