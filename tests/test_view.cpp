@@ -224,6 +224,15 @@ TEST_CASE("view http: each security case and the status it returns") {
               .status == 403);
     CHECK(raw_request(port, "GET / HTTP/1.1\r\nHost: localhost:8080\r\nConnection: close\r\n\r\n")
               .status == 200);
+    // Any loopback address names this machine (--listen 127.0.0.2 once refused its own URL).
+    for (const char* host : {"127.0.0.2:8080", "[::1]:8080", "127.1.2.3"})
+      CHECK(raw_request(port, std::string("GET / HTTP/1.1\r\nHost: ") + host +
+                                  "\r\nConnection: close\r\n\r\n")
+                .status == 200);
+    for (const char* host : {"127.0.0.1.evil.example", "[::2]:8080", "128.0.0.1"})
+      CHECK(raw_request(port, std::string("GET / HTTP/1.1\r\nHost: ") + host +
+                                  "\r\nConnection: close\r\n\r\n")
+                .status == 403);
     CHECK(get(port, "/ws").status == 426);
     WsClient evil(port, "http://evil.example");
     CHECK_FALSE(evil.connected());
@@ -535,6 +544,8 @@ TEST_CASE("view trial: every frame as the daemon's pose, with a model") {
 TEST_CASE("view listen addresses") {
   CHECK(view::parse_listen("127.0.0.1:8080") == std::pair<std::string, unsigned short>{"127.0.0.1", 8080});
   CHECK(view::parse_listen("[::1]:0") == std::pair<std::string, unsigned short>{"::1", 0});
+  CHECK(view::parse_listen("localhost:8080") ==
+        std::pair<std::string, unsigned short>{"127.0.0.1", 8080});  // once "not an IP address"
   CHECK_THROWS_AS(view::parse_listen("127.0.0.1"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen("127.0.0.1:65536"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen(":80"), std::invalid_argument);

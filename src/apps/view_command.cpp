@@ -70,7 +70,7 @@ void run(const ViewArgs& a) {
               o.trial_message ? o.trial_note.c_str() : ("poses from " + o.pose_endpoint).c_str(),
               safe_lines(o.web_root).c_str());
   std::fflush(stdout);
-  if (o.listen_host != "127.0.0.1" && o.listen_host != "::1")
+  if (!server.loopback_only())
     std::fprintf(stderr, "fabrik view: warning: listening on %s: other machines can connect\n",
                  safe_lines(o.listen_host).c_str());
   std::fflush(stdout);

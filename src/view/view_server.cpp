@@ -50,15 +50,22 @@ Clock::duration seconds(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
 }
 
+// A Host header's (or an Origin's) host names this machine: localhost, or a loopback address
+// (any of 127.0.0.0/8, as --listen may bind, or [::1]); a port after it is ignored.
 bool is_loopback_name(std::string_view host) {
   if (host.size() > 1 && host.front() == '[') {
     const auto close = host.find(']');
-    return close != std::string_view::npos && host.substr(0, close + 1) == "[::1]";
+    if (close == std::string_view::npos) return false;
+    host = host.substr(1, close - 1);
+  } else {
+    host = host.substr(0, host.find(':'));
   }
-  host = host.substr(0, host.find(':'));
   std::string lower(host);
   for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return lower == "127.0.0.1" || lower == "localhost";
+  if (lower == "localhost") return true;
+  beast::error_code ec;
+  const net::ip::address address = net::ip::make_address(lower, ec);
+  return !ec && address.is_loopback();
 }
 
 double thread_cpu_s(std::thread& t) {
@@ -791,6 +798,10 @@ void ViewServer::stop() {
 
 unsigned short ViewServer::port() const { return impl_->acceptor.local_endpoint().port(); }
 
+bool ViewServer::loopback_only() const {
+  return impl_->loopback;
+}
+
 std::string ViewServer::url() const {
   const std::string& h = impl_->o.listen_host;
   const bool v6 = h.find(':') != std::string::npos;
@@ -828,6 +839,7 @@ std::pair<std::string, unsigned short> parse_listen(const std::string& text) {
   std::string host = text.substr(0, colon);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
+  if (host == "localhost") host = "127.0.0.1";  // the name every browser knows
   const std::string port = text.substr(colon + 1);
   unsigned long value = 0;
   std::size_t used = 0;

@@ -68,6 +68,7 @@ class ViewServer {
   void stop();
   unsigned short port() const;
   std::string url() const;  // http://HOST:PORT/
+  bool loopback_only() const;  // listening on a loopback address: this machine only
   // A snapshot taken on the Asio thread (waits at most `timeout`); empty clients on timeout.
   ViewCounters counters(std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
   // CPU time of the server's own threads (SUB and Asio), seconds.
