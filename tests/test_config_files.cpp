@@ -246,6 +246,28 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
                  Catch::Contains(". Fix: "));
 }
 
+TEST_CASE("An endpoint option takes bind: and connect: prefixes, and a tool's --bind agrees",
+          "[config][endpoint]") {
+  const SocketMode B = SocketMode::bind, C = SocketMode::connect;
+  const auto is = [](const Endpoint& e, const std::string& address, SocketMode mode) {
+    return e.address == address && e.mode == mode;
+  };
+  CHECK(is(endpoint_option("tcp://127.0.0.1:5555", B, "--input"), "tcp://127.0.0.1:5555", B));
+  CHECK(is(endpoint_option("tcp://127.0.0.1:5555", C, "--input"), "tcp://127.0.0.1:5555", C));
+  CHECK(
+      is(endpoint_option("connect:tcp://127.0.0.1:5555", B, "--input"), "tcp://127.0.0.1:5555", C));
+  CHECK(is(endpoint_option("bind:ipc:///tmp/x.sock", C, "--to"), "ipc:///tmp/x.sock", B));
+  // A tool's --bind given: "bind:" agrees, "connect:" is refused (replay once took the
+  // prefix for part of the address: "Protocol not supported").
+  CHECK(is(endpoint_option("bind:tcp://*:5555", B, "--to", "--bind"), "tcp://*:5555", B));
+  CHECK_THROWS_WITH(endpoint_option("connect:tcp://127.0.0.1:5555", B, "--to", "--bind"),
+                    Catch::StartsWith("--to: 'connect:tcp://127.0.0.1:5555' connects, and --bind "
+                                      "binds") &&
+                        Catch::Contains(". Fix: "));
+  CHECK_THROWS_WITH(endpoint_option("connect:tcp://127.0.0.1:*", B, "--output"),
+                    Catch::StartsWith("--output: port * of"));
+}
+
 TEST_CASE("A config error quoting bytes that are not UTF-8 says them as escapes",
           "[config][safe_text]") {
   // nlohmann's parse error quotes what it last read: '"\xff'.

@@ -931,6 +931,17 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
   CHECK(frames_code == 2);
   CHECK_THAT(frames_err,
              Catch::Contains("--frames: must be more than 0, not 0") && !Catch::Contains("000000"));
+  // A refused --to is refused before the replay says where it sends (it once printed
+  // "replay: ... -> tcp://127.0.0.1:99999 (json)" first).
+  TempFile trial(".trc");
+  REQUIRE(fabrik::test::run_fabrik({"synth", "--config", kSourceDir + "/config/default.json",
+                                    "--output", trial.path(), "--seconds", "0.05"})
+              .first == 0);
+  const auto [to_code, to_err] =
+      fabrik::test::run_fabrik({"replay", trial.path(), "--to", "tcp://127.0.0.1:99999"});
+  CHECK(to_code == 2);
+  CHECK_THAT(to_err, Catch::StartsWith("fabrik replay: --to: port '99999'") &&
+                         !Catch::Contains("replay: " + trial.path()));
   for (const std::vector<std::string>& args :
        std::vector<std::vector<std::string>>{{"--help"}, {"solve", "--help"}, {"bench", "--help"}}) {
     CAPTURE(args);

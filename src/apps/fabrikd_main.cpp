@@ -86,25 +86,11 @@ struct Overrides {
   std::string config_path, input, output, log_level;
 };
 
-// Checked as the config's endpoints are (endpoint_check.hpp); throws
-// std::invalid_argument naming the option.
-fabrik::Endpoint endpoint_override(const std::string& spec, fabrik::Endpoint e,
-                                   const char* option) {
-  // "bind:tcp://..." or "connect:tcp://..." choose the mode; a bare endpoint keeps it.
-  fabrik::Endpoint out{spec, e.mode};
-  for (auto [prefix, mode] : {std::pair{"bind:", fabrik::SocketMode::bind},
-                              std::pair{"connect:", fabrik::SocketMode::connect}}) {
-    if (spec.rfind(prefix, 0) == 0) out = {spec.substr(std::strlen(prefix)), mode};
-  }
-  fabrik::require_usable_endpoint(out.address, out.mode, option);
-  return out;
-}
-
 fabrik::DaemonConfig load(const Overrides& o) {
   fabrik::DaemonConfig c = o.config_path.empty() ? fabrik::default_daemon_config()
                                                  : fabrik::load_daemon_config_file(o.config_path);
-  if (!o.input.empty()) c.input = endpoint_override(o.input, c.input, "--input");
-  if (!o.output.empty()) c.output = endpoint_override(o.output, c.output, "--output");
+  if (!o.input.empty()) c.input = fabrik::endpoint_option(o.input, c.input.mode, "--input");
+  if (!o.output.empty()) c.output = fabrik::endpoint_option(o.output, c.output.mode, "--output");
   // As the config's own check (daemon_config.cpp), after the options: bound twice, the
   // output's bind failed with "Address already in use"; bound and connected, it was taken.
   if ((!o.input.empty() || !o.output.empty()) && fabrik::endpoints_clash(c.input, c.output)) {

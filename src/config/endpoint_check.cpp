@@ -51,6 +51,23 @@ bool this_machine(const std::string& host) {
 
 }  // namespace
 
+Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_view option,
+                         std::string_view mode_option) {
+  Endpoint out{std::string(spec), mode};
+  for (auto [prefix, prefixed] : {std::pair{std::string_view("bind:"), SocketMode::bind},
+                                  std::pair{std::string_view("connect:"), SocketMode::connect}}) {
+    if (!spec.starts_with(prefix)) continue;
+    if (!mode_option.empty() && prefixed != mode)
+      throw std::invalid_argument(safe_text(std::string(option) + ": '" + std::string(spec) +
+                                                "' connects, and " + std::string(mode_option) +
+                                                " binds. Fix: give one of them",
+                                            1024));
+    out = {std::string(spec.substr(prefix.size())), prefixed};
+  }
+  require_usable_endpoint(out.address, out.mode, option);
+  return out;
+}
+
 bool endpoints_clash(const Endpoint& a, const Endpoint& b) {
   const auto ta = tcp_address(a.address), tb = tcp_address(b.address);
   if (!ta || !tb) return a.address == b.address;

@@ -27,6 +27,13 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
 // <fix>" (safe text), naming the option so the message says where to fix it.
 void require_usable_endpoint(std::string_view address, SocketMode mode, std::string_view option);
 
+// An endpoint given on a command line: "bind:ENDPOINT" or "connect:ENDPOINT" chooses the mode,
+// a bare endpoint takes `mode`; checked as require_usable_endpoint (std::invalid_argument
+// naming `option`). With `mode_option` (a tool's --bind flag, given), a prefix that says
+// otherwise is refused too.
+Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_view option,
+                         std::string_view mode_option = {});
+
 // Whether two sockets of one process would meet at one address: the same text, or tcp on the
 // same port where both bind hosts that overlap (one of them any address: *, 0.0.0.0, ::) or
 // one connects to this machine (localhost, 127.x.x.x, ::1) where the other binds it or any

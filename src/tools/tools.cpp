@@ -72,6 +72,7 @@ void add_replay_command(CLI::App& app) {
                 "Send exact (0, 0, 0) samples as positions (default: as null, missing)");
   cmd->callback([a] {
     run_command("replay", [&] {
+      const Endpoint to = tool_endpoint(a->to, a->bind, "--to");  // before reading the file
       ReplayOptions o;
       for (const std::string& d : a->drops) o.drops.push_back(parse_drop_spec(d));
       if (a->file.empty() && a->orientations.empty())
@@ -118,7 +119,8 @@ void add_replay_command(CLI::App& app) {
       if (!a->file.empty())
         std::fprintf(stderr, "replay: %s: %zu frames x %zu markers at %g Hz -> %s (%s%s)\n",
                      safe_lines(a->file).c_str(), trial.frames(), trial.markers(), trial.rate_hz,
-                     safe_lines(a->to).c_str(), a->encoding.c_str(), a->bind ? ", bound" : "");
+                     safe_lines(to.address).c_str(), a->encoding.c_str(),
+                     to.mode == SocketMode::bind ? ", bound" : "");
       zmq::context_t context;
       const ReplaySummary s = replay_trial(context, trial, o);
       std::size_t zeros = 0;
@@ -166,6 +168,7 @@ void add_watch_command(CLI::App& app) {
                 "Print the final summary as one JSON object on stdout (live lines go to stderr)");
   cmd->callback([a] {
     run_command("watch", [&] {
+      tool_endpoint(a->from, a->bind, "--from");  // refused before anything is printed
       WatchOptions o;
       o.endpoint = a->from;
       o.bind = a->bind;

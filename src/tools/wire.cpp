@@ -33,13 +33,17 @@ std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding) {
   return out;
 }
 
-void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind,
-                   const char* option) {
-  require_usable_endpoint(endpoint, bind ? SocketMode::bind : SocketMode::connect, option);
-  if (bind)
-    socket.bind(endpoint);
+Endpoint tool_endpoint(const std::string& spec, bool bind, const char* option) {
+  return endpoint_option(spec, bind ? SocketMode::bind : SocketMode::connect, option,
+                         bind ? "--bind" : "");
+}
+
+void open_endpoint(zmq::socket_t& socket, const std::string& spec, bool bind, const char* option) {
+  const Endpoint e = tool_endpoint(spec, bind, option);
+  if (e.mode == SocketMode::bind)
+    socket.bind(e.address);
   else
-    socket.connect(endpoint);
+    socket.connect(e.address);
 }
 
 bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout) {

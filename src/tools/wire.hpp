@@ -12,6 +12,7 @@
 
 #include <zmq.hpp>
 
+#include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
 
 namespace fabrik::tools {
@@ -31,11 +32,13 @@ WireEncoding detect_encoding(std::string_view payload);
 nlohmann::json decode_payload(std::string_view payload);
 std::string encode_payload(const nlohmann::json& doc, WireEncoding encoding);
 
-// Binds or connects `socket` to `endpoint` after the daemon's own endpoint check
-// (config/endpoint_check.hpp: no port ZeroMQ would wrap modulo 65536);
-// std::invalid_argument naming `option` (--to, --from) otherwise.
-void open_endpoint(zmq::socket_t& socket, const std::string& endpoint, bool bind,
-                   const char* option);
+// A tool's endpoint option (--to, --from) with its --bind flag: "bind:" and "connect:" prefixes
+// as fabrikd's --input/--output take them, the daemon's own endpoint check
+// (config/endpoint_check.hpp: no port ZeroMQ would wrap modulo 65536); std::invalid_argument
+// naming `option` otherwise.
+Endpoint tool_endpoint(const std::string& spec, bool bind, const char* option);
+// Binds or connects `socket` to the tool_endpoint of `spec`.
+void open_endpoint(zmq::socket_t& socket, const std::string& spec, bool bind, const char* option);
 
 // The tools' waits and non-blocking reads, where Ctrl-C must stop a loop with its summary:
 // a signal makes ZeroMQ's calls fail with EINTR (zmq_poll whatever SA_RESTART says), and
