@@ -389,6 +389,12 @@ TEST_CASE("Config: confidence, smoothing and mirror pairs are read and checked",
                   ConfigError);
   CHECK_THROWS_AS(load_daemon_config(base + R"("confidence": {"threshold": 2}})", "<embedded>/bad.json"),
                   ConfigError);
+  // One marker in two pairs was accepted, and would have been swapped twice a frame.
+  CHECK_THROWS_WITH(
+      load_daemon_config(
+          base + R"("outliers": {"mirror_pairs": [["RKNE", "LKNE"], ["RANK", "RKNE"]]}})",
+          "<embedded>/bad.json"),
+      Catch::Contains("at /outliers/mirror_pairs/1: 'RKNE' is in an earlier pair too"));
 }
 
 TEST_CASE("Smoothing on a moving subject: joint centres nearer the truth, lag within 2 frames",
