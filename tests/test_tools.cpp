@@ -871,6 +871,27 @@ TEST_CASE("fabrik replay and watch refuse ports ZeroMQ would wrap, exit 2 naming
   CHECK(raw_err.find('\xff') == std::string::npos);
 }
 
+// `calibrate --nominal` once printed a window of "frames 1 to 1", an empty lengths table and a
+// comparison with a static trial there is none of; a marker template given --nominal was told
+// to give --static "instead of --trial".
+TEST_CASE("calibrate --nominal reports the nominal lengths and no trial it did not read") {
+  using fabrik::test::run_fabrik;
+  TempFile config(".json"), report(".txt");
+  REQUIRE(run_fabrik({"calibrate", "--template", kSourceDir + "/config/templates/halpe26.json",
+                      "--nominal", "--output", config.path()},
+                     report.path())
+              .first == 0);
+  const std::string text = fabrik::test::slurp(report.path());
+  CHECK_THAT(text, Catch::Contains("Segment lengths: the template's nominal ones (no trial)") &&
+                       !Catch::Contains("Length window") &&
+                       !Catch::Contains("Rest posture vs static means"));
+  const auto [code, err] =
+      run_fabrik({"calibrate", "--template", kSourceDir + "/config/templates/gait2354.json",
+                  "--nominal", "--output", config.path()});
+  CHECK(code == 2);
+  CHECK_THAT(err, Catch::Contains("Fix: give --static instead of --nominal"));
+}
+
 // The header of `eval markerless --trial` once described the generator's options (20 s at 60 Hz,
 // jitter 15 mm, dropouts 1/s) instead of the file evaluated.
 TEST_CASE("eval markerless --trial describes the file it evaluates, not the generator's options") {

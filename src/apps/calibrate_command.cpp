@@ -84,10 +84,12 @@ void run_calibrate(const CalibrateArgs& a) {
   const bool keypoints = tmpl.kind == calib::TemplateKind::keypoints;
   if (keypoints == !a.static_path.empty())
     throw std::runtime_error(
-        a.template_path + (keypoints ? " is a keypoint template: it calibrates from a movement "
-                                       "trial. Fix: give --trial instead of --static"
-                                     : " is a marker template: it calibrates from a static trial. "
-                                       "Fix: give --static instead of --trial"));
+        a.template_path +
+        (keypoints ? " is a keypoint template: it calibrates from a movement trial or its "
+                     "nominal lengths. Fix: give --trial or --nominal instead of --static"
+                   : std::string(" is a marker template: it calibrates from a static trial. Fix: "
+                                 "give --static instead of ") +
+                         (a.nominal ? "--nominal" : "--trial")));
   calib::CalibrateOptions options = a.options;
   if (!a.lab_up.empty()) {
     const nlohmann::json axes = a.lab_forward.empty()

@@ -683,8 +683,10 @@ std::string calibration_report(const CalibrationResult& r) {
     out << "  " << r.fit_outlier_samples
         << " marker samples were left out of their frame's solve as outliers (and of the "
            "figures), as fabrik solve leaves them out\n";
-  out << "Rest posture vs static means: worst marker " << fmt("%.4f", r.rest_max_m * 1e3)
-      << " mm\n";
+  // A built rest posture (keypoint templates) has no static trial to be compared with.
+  if (!r.built_rest)
+    out << "Rest posture vs static means: worst marker " << fmt("%.4f", r.rest_max_m * 1e3)
+        << " mm\n";
   return out.str();
 }
 

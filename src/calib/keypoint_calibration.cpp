@@ -414,6 +414,10 @@ KeypointCalibration nominal_keypoint_model(const CalibTemplate& tmpl,
 
 std::string keypoint_length_report(const KeypointCalibration& k) {
   std::ostringstream out;
+  if (k.lengths.empty()) {  // --nominal: no trial measured them
+    out << "Segment lengths: the template's nominal ones (no trial)\n";
+    return out.str();
+  }
   out << "Length window: frames " << k.result.first_frame << " to "
       << k.result.first_frame + k.result.frames - 1 << " (" << k.result.frames
       << " frames of movement; no static trial)\n"
