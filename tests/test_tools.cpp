@@ -924,6 +924,12 @@ TEST_CASE("eval markerless --trial describes the file it evaluates, not the gene
   REQUIRE(rows.size() == 1);
   CHECK(rows[0]["frames"] == 120);
   CHECK(rows[0]["jitter_mm"].is_null());  // the file's own is not known
+  // The default template is the project's path: elsewhere, a hint, not "cannot open the file".
+  const auto [missing_code, missing_err] = run_fabrik(
+      {"eval", "markerless", "--template", "config/templates/nosuch.json", "--seconds", "1"});
+  CHECK(missing_code == 2);
+  CHECK_THAT(missing_err, Catch::Contains("config/templates/nosuch.json not found") &&
+                              Catch::Contains("or pass --template"));
 }
 
 // CLI11 gives each kind of command-line error its own code (105-109 and more): `fabrik` says 2,

@@ -37,9 +37,11 @@ struct EvalArgs {
 
 void require_file(const std::string& path, const char* option) {
   if (std::filesystem::is_regular_file(path)) return;
+  // The defaults are the project's paths (config/..., ../shared/data/...).
   throw std::runtime_error(path + " not found (relative to " +
                            std::filesystem::current_path().string() + "). Fix: run from the " +
-                           "project root with ../shared/data present, or pass " + option);
+                           "project root (with ../shared/data beside it, for the data), or pass " +
+                           option);
 }
 
 // The subject's config (calibrated from the static trial unless --config) and its trial.
@@ -203,6 +205,8 @@ void add_markerless(CLI::App* eval) {
   c->add_option("--json", a->json_path, "Also write the results as JSON");
   c->callback([a] {
     tools::run_command("eval markerless", [&] {
+      require_file(a->o.template_path, "--template");
+      if (!a->o.trial_path.empty()) require_file(a->o.trial_path, "--trial");
       if (!a->overrides.empty()) {
         std::string text = a->overrides;
         if (text[0] == '@') {
