@@ -547,6 +547,15 @@ TEST_CASE(
       if (keypoints) CHECK(model["segments"][s].contains("frame"));
       else CHECK(t.segments[s].frame >= 0);
       if (s > 0) CHECK(t.segments[s].joint.is_object());
+      // A forearm that pronates (a range about its y) names it: vicon_upper_body's did not.
+      const nlohmann::json& joint = t.segments[s].joint;
+      if (t.segments[s].name.find("forearm") != std::string::npos && joint.is_object() &&
+          joint.contains("range_deg") && joint["range_deg"].contains("y")) {
+        bool named = false;
+        for (const auto& [name, c] : t.coordinates.items())
+          named = named || (c.value("segment", "") == t.segments[s].name && c.value("axis", "") == "y");
+        CHECK(named);
+      }
     }
     CHECK(t.coordinates.size() >= 10);
   }
