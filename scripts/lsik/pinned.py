@@ -19,11 +19,12 @@ def main():
     ap.add_argument("variant", choices=ik_ls.VARIANTS)
     ap.add_argument("pin", help="comma-separated rotational coordinates to pin")
     args = ap.parse_args()
-    st = inputs.Study(args)
     v, pin = args.variant, args.pin.split(",")
-    res = os.path.join(st.out, f"res_{v}.json")
-    if not os.path.isfile(res):
-        ap.error(f"{res} missing: run ik_ls.py --out {st.out} {v} first")
+    # Checked before the study calibrates and solves (a temporary --out never has it).
+    res = os.path.join(args.out or "(a new temporary folder)", f"res_{v}.json")
+    if not args.out or not os.path.isfile(res):
+        ap.error(f"{res} missing: run ik_ls.py --out FOLDER {v} first and give --out FOLDER")
+    st = inputs.Study(args)
     cm0 = json.load(open(res))["cmp"]
     M = ik_ls.variant_model(st.M0, v)
     cm = {c["name"]: c for c in M.coords}

@@ -39,4 +39,8 @@ def summary_table(folder):
 if __name__ == "__main__":
     if len(sys.argv) != 2:
         sys.exit(__doc__)
-    print(summary_table(sys.argv[1]))
+    folder = sys.argv[1]
+    if not any(os.path.isfile(os.path.join(folder, f"res_{v}.json")) for v in ORDER):
+        # An empty table with exit 0 read as "nothing to compare" where the path was wrong.
+        sys.exit(f"summary.py: no res_*.json in {folder}. Fix: give the folder ik_ls.py --out wrote")
+    print(summary_table(folder))
