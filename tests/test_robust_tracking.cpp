@@ -348,6 +348,17 @@ TEST_CASE("The outlier bar is the larger of the floor and median_factor times th
   CHECK(filter.bar_m() == Approx(s.floor_m));
   residual_m[3] = s.floor_m - 0.005;
   CHECK(filter.worst_outlier(residual_m, visible) == -1);
+
+  // Judged by other distances (to the frame's prediction), a marker whose own residual is
+  // within the floor is no outlier, however far from the prediction (a review's probe once
+  // saw clean markers flagged so).
+  std::vector<double> start_m(8, 0.004);
+  start_m[5] = 0.5;
+  std::vector<double> solve_m(8, 0.004);
+  solve_m[5] = s.floor_m + 0.001;
+  CHECK(filter.worst_outlier(start_m, visible, {}, solve_m) == 5);
+  solve_m[5] = s.floor_m - 0.001;
+  CHECK(filter.worst_outlier(start_m, visible, {}, solve_m) == -1);
 }
 
 TEST_CASE("No marker is judged an outlier with fewer than six measured (the default min_markers)",

@@ -33,7 +33,12 @@ OutlierFilter::OutlierFilter(const Model& model, OutlierSettings settings,
 
 int OutlierFilter::worst_outlier(std::span<const double> distances_m,
                                  std::span<const std::uint8_t> target_visible,
-                                 std::span<const Eigen::Vector3d> measured_m) {
+                                 std::span<const Eigen::Vector3d> measured_m,
+                                 std::span<const double> residual_m) {
+  // With residual_m, a candidate's own residual must be above the floor too.
+  const auto eligible = [&](int i) {
+    return residual_m.empty() || residual_m[i] > settings_.floor_m;
+  };
   int worst = -1, measured = 0;
   bar_m_ = settings_.floor_m;
   for (int i = 0; i < markers_; ++i) {
@@ -50,11 +55,13 @@ int OutlierFilter::worst_outlier(std::span<const double> distances_m,
   std::nth_element(scratch_m_.begin(), mid, scratch_m_.begin() + static_cast<std::ptrdiff_t>(n));
   bar_m_ = std::max(settings_.floor_m, settings_.median_factor * *mid);  // upper median
   if (distances_m[worst] <= bar_m_) return -1;
-  if (!neighbours_ || measured_m.empty()) return worst;
+  if (!neighbours_ || measured_m.empty()) return eligible(worst) ? worst : -1;
   // The worst candidate that moved; the others above the bar are fits the model lacks.
   int found = -1;
   for (int i = 0; i < markers_; ++i) {
-    if (!target_visible[i] || !std::isfinite(distances_m[i]) || distances_m[i] <= bar_m_) continue;
+    if (!target_visible[i] || !std::isfinite(distances_m[i]) || distances_m[i] <= bar_m_ ||
+        !eligible(i))
+      continue;
     if ((found < 0 || distances_m[i] > distances_m[found]) &&
         neighbours_->moved(i, measured_m.first(static_cast<std::size_t>(markers_)), target_visible,
                            settings_.moved_m))
@@ -65,13 +72,17 @@ int OutlierFilter::worst_outlier(std::span<const double> distances_m,
 
 int OutlierFilter::worst_against_start(const Model& model, const Posture& start,
                                        std::span<const Eigen::Vector3d> target_world_m,
-                                       std::span<const std::uint8_t> target_visible) {
+                                       std::span<const std::uint8_t> target_visible,
+                                       std::span<const double> residual_m) {
   for (int i = 0; i < markers_; ++i)
     start_distances_m_[i] =
         target_visible[i]
             ? (target_world_m[i] - start.point_world_m(model, marker_points_[i])).norm()
             : std::numeric_limits<double>::quiet_NaN();
-  return worst_outlier(start_distances_m_, target_visible, target_world_m);
+  const double solve_bar_m = bar_m_;
+  const int found = worst_outlier(start_distances_m_, target_visible, target_world_m, residual_m);
+  if (found < 0) bar_m_ = solve_bar_m;  // the last judgement stays the solve's (relabel_swaps)
+  return found;
 }
 
 bool OutlierFilter::relabel_swaps(const Model& model, const Posture& start,
@@ -123,7 +134,7 @@ SolveResult OutlierFilter::solve(FabrikSolver& solver, const Model& model,
     const std::span<const double> residual_m = solver.target_distances_m();
     int i = worst_outlier(residual_m, target_visible, target_world_m);
     if (i < 0 && above_floor(residual_m, target_visible, markers_, settings_.floor_m))
-      i = worst_against_start(model, start, target_world_m, target_visible);
+      i = worst_against_start(model, start, target_world_m, target_visible, residual_m);
     if (i < 0) break;
     outlier[i] = 1;
     target_visible[i] = 0;

@@ -13,7 +13,8 @@
 // a pelvis marker metres away): every residual is then large, the bar rises above them all
 // and nothing is found. So when the solve finds none but some residual is above the floor,
 // the markers are judged the same way by their distances to the start posture (the frame's
-// prediction), where the others still fit.
+// prediction), where the others still fit; only a marker whose own residual is above the
+// floor can be found so.
 // Two outliers whose measurements each fit the other's model position (within the same bar)
 // are a label swap: they are solved with each other's measurement (relabelled), since
 // leaving a marker out loses what it alone measures (an elbow marker that places the joint).
@@ -64,9 +65,12 @@ class OutlierFilter {
   // neighbours (`measured_m`: the markers' measurements), else -1; sets bar_m() either way
   // (when enough markers were measured). With an empty `measured_m` or no model, the worst
   // marker if it is above the bar.
+  // With `residual_m` (the solve's, when judging by other distances), only a marker whose
+  // residual is above the floor can be the outlier.
   int worst_outlier(std::span<const double> distances_m,
                     std::span<const std::uint8_t> target_visible,
-                    std::span<const Eigen::Vector3d> measured_m = {});
+                    std::span<const Eigen::Vector3d> measured_m = {},
+                    std::span<const double> residual_m = {});
   // The residual above which a marker was an outlier in the last judgement (metres).
   double bar_m() const { return bar_m_; }
 
@@ -85,7 +89,8 @@ class OutlierFilter {
   // Judged against the start posture (the frame's prediction) instead of the solve: see solve().
   int worst_against_start(const Model& model, const Posture& start,
                           std::span<const Eigen::Vector3d> target_world_m,
-                          std::span<const std::uint8_t> target_visible);
+                          std::span<const std::uint8_t> target_visible,
+                          std::span<const double> residual_m);
 
   std::optional<MarkerNeighbours> neighbours_;
   std::vector<double> start_distances_m_;  // per marker, for worst_against_start
