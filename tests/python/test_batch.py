@@ -211,3 +211,16 @@ def test_a_rerun_without_the_template_uses_the_calibrations_on_disk(tmp_path):
     assert {r["error"] for r in summary(out)} == {
         'subject subj01: no template to calibrate with. Fix: give --template, or "template" in %s'
         % os.path.join(root, "subj01", "subject.json")}
+
+
+def test_a_done_trial_does_not_hide_a_problem_that_is_not_calibration(tmp_path):
+    root, out = tmp_path / "archive", tmp_path / "out"
+    synth_archive(root, 1, 1, 1.0)
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 0
+    (root / "subj01" / "walk01.c3d").write_bytes(b"")  # walk01 now twice: outputs would collide
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 1
+    rows = summary(out)
+    assert {r["status"] for r in rows} == {"failed"}
+    assert all("exist as both .trc and .c3d" in r["error"] for r in rows)

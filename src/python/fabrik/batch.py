@@ -351,7 +351,10 @@ def plan(root, out, template, fabrik, timeout_s):
                      "outputs": trial_outputs(out_dir, _trial_id(rel)), "timeout_s": timeout_s}
             # A done trial is kept, and a calibration on disk used, even where the subject
             # could not be calibrated now (a rerun without --template after one with it).
-            report = done_report(trial["outputs"], want_angles) if os.path.isfile(config) else None
+            # Other problems (trials that collide, a broken subject.json) fail every trial.
+            usable = not s["problem"] or s["calibration_problem"]
+            report = (done_report(trial["outputs"], want_angles)
+                      if usable and os.path.isfile(config) else None)
             if report is not None:
                 try:
                     rows.append(row_from_report(trial, report, "skipped"))
