@@ -35,8 +35,10 @@ Config load(const std::optional<std::string>& path) {
     nlohmann::ordered_json config =
         nlohmann::ordered_json::parse(std::string(*embedded_config("default.json")));
     config["description"] = "the embedded default's settings with the model " + *path;
-    // An embedded model's name stays a name (the config loader finds it); a file is absolute.
-    config["model"] = embedded_config(*path) ? *path : std::filesystem::absolute(*path).string();
+    // A file on disk is given by its absolute path (it wins over an embedded model of the same
+    // name, as read_config_text read it); an embedded model's name stays a name.
+    config["model"] =
+        std::filesystem::exists(*path) ? std::filesystem::absolute(*path).string() : *path;
     config["targets"].erase("markers");  // the default's pelvis names may not be this model's
     return make_config(config.dump(2) + "\n", *path);
   }

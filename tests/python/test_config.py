@@ -33,6 +33,11 @@ def test_an_embedded_model_and_a_model_without_format_load(tmp_path, monkeypatch
     doc.pop("format")  # optional for the model loader
     (tmp_path / "bare.json").write_text(json.dumps(doc))
     assert fabrik.load_config(tmp_path / "bare.json").marker_names == embedded.marker_names
+    # A file of that name here is the user's: it wins over the embedded one.
+    doc["name"] = "my_fullbody"
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "fullbody.json").write_text(json.dumps(doc))
+    assert fabrik.load_config("models/fullbody.json").model_name == "my_fullbody"
 
 
 def test_config_errors(tmp_path):
