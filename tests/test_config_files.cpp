@@ -213,6 +213,8 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
       {{"tcp://[::]:5556", B}, {"tcp://192.0.2.7:5556", B}, true},
       {{"tcp://localhost:5556", B}, {"tcp://127.0.0.1:5556", B}, true},
       {{"tcp://LocalHost:05556", C}, {"tcp://127.0.0.1:5556", B}, true},
+      {{"tcp://127.0.0.1:000022607", B}, {"tcp://127.0.0.1:22607", B}, true},  // 9 characters
+      {{"tcp://127.0.0.1:0000022608", B}, {"tcp://127.0.0.1:0000022609", B}, false},
       {{"tcp://127.0.0.1:5556", B}, {"tcp://192.0.2.7:5556", B}, false},
       {{"tcp://*:5556", B}, {"tcp://*:5557", B}, false},
       {{"tcp://*:*", B}, {"tcp://*:*", B}, false},          // each its own free port

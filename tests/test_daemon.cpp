@@ -1482,7 +1482,7 @@ TEST_CASE("A connected output counts its peer's subscription once however often 
     CHECK(counter(*stats, "pose_subscribers") == 1);
     CHECK(counter(*stats, "output_reconnects") == 0);  // ZeroMQ reconnected by itself
   }
-  // A subscription longer than a bound output takes (64 bytes) from one of the proxy's
+  // A subscription longer than a bound output takes (kMaxSubscriptionBytes) from one of the proxy's
   // clients is refused, and the output goes on (ZeroMQ's limit there would end the
   // session for good).
   const std::string long_prefix = "pose" + std::string(100, 'x');

@@ -30,9 +30,12 @@ std::optional<TcpAddress> tcp_address(std::string_view address) {
   const std::string_view port = rest.substr(colon + 1);
   TcpAddress t;
   t.any_port = port == "*";
-  if (!port.empty() && port.size() <= 8 &&
-      std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
-    t.port = std::stoul(std::string(port));
+  if (!port.empty() &&
+      std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    // As endpoint_problem reads it: leading zeros are no digits of the port.
+    const std::string_view digits = port.substr(std::min(port.find_first_not_of('0'), port.size()));
+    t.port = digits.size() > 5 ? 0 : std::stoul("0" + std::string(digits));
+  }
   std::string_view host = rest.substr(0, colon);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);

@@ -98,8 +98,8 @@ void add_replay_command(CLI::App& app) {
                      safe_lines(a->orientations).c_str(), table.rows(), table.sensors.size(),
                      table.rate_hz, a->file.empty() ? " (the frames)" : ", joined on time");
       }
-      o.endpoint = a->to;
-      o.bind = a->bind;
+      o.endpoint = to.address;  // without a bind:/connect: prefix, in messages too
+      o.bind = to.mode == SocketMode::bind;
       o.speed = a->speed;
       o.loop = a->loop;
       o.encoding = parse_wire_encoding(a->encoding);
@@ -168,10 +168,10 @@ void add_watch_command(CLI::App& app) {
                 "Print the final summary as one JSON object on stdout (live lines go to stderr)");
   cmd->callback([a] {
     run_command("watch", [&] {
-      tool_endpoint(a->from, a->bind, "--from");  // refused before anything is printed
+      const Endpoint from = tool_endpoint(a->from, a->bind, "--from");  // before any output
       WatchOptions o;
-      o.endpoint = a->from;
-      o.bind = a->bind;
+      o.endpoint = from.address;
+      o.bind = from.mode == SocketMode::bind;
       o.seconds = a->seconds;
       o.topic = a->topic;
       catch_stop_signals();
