@@ -890,6 +890,13 @@ TEST_CASE("calibrate --nominal reports the nominal lengths and no trial it did n
                   "--nominal", "--output", config.path()});
   CHECK(code == 2);
   CHECK_THAT(err, Catch::Contains("Fix: give --static instead of --nominal"));
+  // --trial and --nominal together: the usage line names the three that exclude each other.
+  const auto [both_code, both_err] =
+      run_fabrik({"calibrate", "--template", kSourceDir + "/config/templates/halpe26.json",
+                  "--nominal", "--trial", "t.trc", "--output", config.path()});
+  CHECK(both_code == 2);
+  CHECK_THAT(both_err,
+             Catch::Contains("one of --static (a marker template), --trial or --nominal"));
 }
 
 // The header of `eval markerless --trial` once described the generator's options (20 s at 60 Hz,

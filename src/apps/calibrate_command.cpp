@@ -77,9 +77,10 @@ void run_calibrate(const CalibrateArgs& a) {
   }
   if (a.template_path.empty() ||
       int(!a.static_path.empty()) + int(!a.trial_path.empty()) + int(a.nominal) != 1)
-    throw std::runtime_error("give --template and --static (a marker template) or --trial (a "
-                             "keypoint template); or --config with --static-orientations to "
-                             "recalibrate a config's sensors");
+    throw std::runtime_error(
+        "give --template and one of --static (a marker template), "
+        "--trial or --nominal (a keypoint template); or --config with "
+        "--static-orientations to recalibrate a config's sensors");
   const calib::CalibTemplate tmpl = calib::load_template_file(a.template_path);
   const bool keypoints = tmpl.kind == calib::TemplateKind::keypoints;
   if (keypoints == !a.static_path.empty())
