@@ -395,6 +395,12 @@ TEST_CASE("Config: confidence, smoothing and mirror pairs are read and checked",
           base + R"("outliers": {"mirror_pairs": [["RKNE", "LKNE"], ["RANK", "RKNE"]]}})",
           "<embedded>/bad.json"),
       Catch::Contains("at /outliers/mirror_pairs/1: 'RKNE' is in an earlier pair too"));
+  // A setup built in code is held to the same rule by the tracker.
+  TrackerSetup setup = c.tracker;
+  setup.mirror_pairs = {{setup.mirror_pairs[0][0], setup.mirror_pairs[0][1]},
+                        {setup.mirror_pairs[0][1], 0}};
+  CHECK_THROWS_WITH(Tracker(setup),
+                    Catch::Contains("tracker: marker 'LKNE' is in two mirror pairs"));
 }
 
 TEST_CASE("Smoothing on a moving subject: joint centres nearer the truth, lag within 2 frames",
