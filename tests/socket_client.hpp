@@ -71,6 +71,8 @@ class SocketClient {
     pub_.set(zmq::sockopt::linger, 0);
     sub_.set(zmq::sockopt::linger, 0);
     sub_.set(zmq::sockopt::subscribe, "");
+    pub_.set(zmq::sockopt::ipv6, input.find("://[") != std::string::npos);
+    sub_.set(zmq::sockopt::ipv6, output.find("://[") != std::string::npos);
     pub_.connect(input);
     sub_.connect(output);
   }

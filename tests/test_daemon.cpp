@@ -288,6 +288,30 @@ TEST_CASE("N frames in give N poses out with matching frame numbers, inproc and 
   }
 }
 
+// ZeroMQ resolves an IPv6 literal only on a socket with ZMQ_IPV6: fabrikd once failed to bind
+// tcp://[::1]:PORT with "No such device".
+TEST_CASE("Endpoints with an IPv6 literal host are bound and served", "[daemon]") {
+  {
+    const int probe = ::socket(AF_INET6, SOCK_STREAM, 0);
+    sockaddr_in6 loopback{};
+    loopback.sin6_family = AF_INET6;
+    loopback.sin6_addr = in6addr_loopback;
+    const bool have_ipv6 =
+        probe >= 0 && ::bind(probe, reinterpret_cast<sockaddr*>(&loopback), sizeof loopback) == 0;
+    if (probe >= 0) ::close(probe);
+    if (!have_ipv6) {
+      WARN("skipped: this machine has no IPv6 loopback");
+      return;
+    }
+  }
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("tcp://[::1]:*", "tcp://[::1]:*"));
+  CHECK_THAT(d.daemon.input_endpoint(), Catch::StartsWith("tcp://[::1]:"));
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  client.handshake();  // a pose came back over IPv6 both ways (it throws after its deadline)
+  CHECK(d.daemon.counters().frames_out >= 1);
+}
+
 TEST_CASE("Occluded markers are listed and predicted by the model", "[daemon]") {
   zmq::context_t context;
   RunningDaemon d(context, config_on("inproc://markers-b", "inproc://poses-b"));

@@ -71,6 +71,11 @@ Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_vie
   return out;
 }
 
+bool ipv6_literal(std::string_view address) {
+  return address.find("://[") != std::string_view::npos ||
+         address.find(";[") != std::string_view::npos;
+}
+
 bool endpoints_clash(const Endpoint& a, const Endpoint& b) {
   const auto ta = tcp_address(a.address), tb = tcp_address(b.address);
   if (!ta || !tb) return a.address == b.address;

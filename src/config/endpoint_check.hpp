@@ -34,6 +34,10 @@ void require_usable_endpoint(std::string_view address, SocketMode mode, std::str
 Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_view option,
                          std::string_view mode_option = {});
 
+// Whether `address` names an IPv6 literal host (tcp://[::1]:5555, a source's or destination's):
+// ZeroMQ resolves one only on a socket with ZMQ_IPV6 set ("No such device" otherwise).
+bool ipv6_literal(std::string_view address);
+
 // Whether two sockets of one process would meet at one address: the same text, or tcp on the
 // same port where both bind hosts that overlap (one of them any address: *, 0.0.0.0, ::) or
 // one connects to this machine (localhost, 127.x.x.x, ::1) where the other binds it or any

@@ -40,6 +40,7 @@ Endpoint tool_endpoint(const std::string& spec, bool bind, const char* option) {
 
 void open_endpoint(zmq::socket_t& socket, const std::string& spec, bool bind, const char* option) {
   const Endpoint e = tool_endpoint(spec, bind, option);
+  if (ipv6_literal(e.address)) socket.set(zmq::sockopt::ipv6, true);
   if (e.mode == SocketMode::bind)
     socket.bind(e.address);
   else

@@ -21,6 +21,7 @@
 
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
+#include "config/endpoint_check.hpp"
 #include "model_codec.hpp"
 #include "session_revival.hpp"
 #include "socket_monitor.hpp"
@@ -55,6 +56,8 @@ std::string_view view(const zmq::message_t& m) {
 // events of a session ZeroMQ gives up at once can be missed (session_revival.hpp).
 zmq::socket_t make_socket(zmq::context_t& context, zmq::socket_type type, const DaemonConfig& c) {
   zmq::socket_t s(context, type);
+  if (ipv6_literal(type == zmq::socket_type::sub ? c.input.address : c.output.address))
+    s.set(zmq::sockopt::ipv6, true);
   if (type == zmq::socket_type::sub)
     set_input_options(s, c);
   else
