@@ -14,6 +14,7 @@
 #include "config/endpoint_check.hpp"
 #include "config/json_reader.hpp"
 #include "config/model_loader.hpp"
+#include "config/solver_options_json.hpp"
 #include "temp_file.hpp"
 
 using namespace fabrik;
@@ -132,6 +133,24 @@ TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {
                load_daemon_config(with_input({{"zero_is_missing", "yes"}}), "c.json");
              }),
              Catch::Contains("at /input/zero_is_missing: expected true or false"));
+}
+
+TEST_CASE("solver.fallback_carry: read, written back when not the default, range-checked",
+          "[config]") {
+  const auto with_solver = [](const json& solver) {
+    return json{
+        {"format", "fabrikd-config/1"}, {"model", "models/fullbody.json"}, {"solver", solver}}
+        .dump();
+  };
+  CHECK(default_daemon_config().tracker.solver.fallback_carry == SolverOptions{}.fallback_carry);
+  const DaemonConfig off = load_daemon_config(with_solver({{"fallback_carry", 0}}), "c.json");
+  CHECK(off.tracker.solver.fallback_carry == 0.0);
+  CHECK(solver_options_json(off.tracker.solver)["fallback_carry"] == 0.0);
+  CHECK_FALSE(solver_options_json(SolverOptions{}).contains("fallback_carry"));
+  CHECK_THAT(error_of([&] {
+               load_daemon_config(with_solver({{"fallback_carry", -1}}), "c.json");
+             }),
+             Catch::Contains("at /solver/fallback_carry: value -1 is out of range"));
 }
 
 TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else refused with "

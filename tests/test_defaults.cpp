@@ -25,6 +25,7 @@ void check_same_solver(const SolverOptions& a, const SolverOptions& b) {
   CHECK(a.level_passes == b.level_passes);
   CHECK(a.anchor_weight == b.anchor_weight);
   CHECK(a.extrapolate == b.extrapolate);
+  CHECK(a.fallback_carry == b.fallback_carry);
   CHECK(a.orientation_lever_m == b.orientation_lever_m);
 }
 

@@ -452,13 +452,14 @@ TEST_CASE("Subtree carry: a hinged child's targets turn its parent about its lon
   struct Outcome {
     double max_m, twist_rad;  // worst target distance; the upper arm's turn about its axis
   };
-  auto solve_with = [&](double carry) {
+  auto solve_with = [&](double carry, double fallback_carry) {
     SolverOptions o;
     o.segment_fit = SegmentFit::rigid;
     o.max_iterations = 400;
     o.tolerance_m = 1e-6;
     o.stall_tolerance_m = 1e-10;
     o.subtree_carry = carry;
+    o.fallback_carry = fallback_carry;
     FabrikSolver solver(m, targets, o);
     Posture posture = arm.start;
     const SolveResult r = solver.solve(pos, all_visible(targets.size()), posture);
@@ -468,8 +469,11 @@ TEST_CASE("Subtree carry: a hinged child's targets turn its parent about its lon
     const Eigen::Quaterniond& q = posture.segments[1].q_world;
     return Outcome{r.max_m, 2.0 * std::atan2(q.y(), q.w())};
   };
-  const Outcome without = solve_with(0.0), with = solve_with(0.5);
-  CAPTURE(without.max_m, with.max_m, without.twist_rad / kDeg, with.twist_rad / kDeg);
+  const Outcome without = solve_with(0.0, 0.0), with = solve_with(0.5, 0.0);
+  // The default: no carry until the loop climbs away from its lowest RMS.
+  const Outcome fallback = solve_with(0.0, SolverOptions{}.fallback_carry);
+  CAPTURE(without.max_m, with.max_m, fallback.max_m, without.twist_rad / kDeg,
+          with.twist_rad / kDeg, fallback.twist_rad / kDeg);
   // FABRIK's own fixed point: the upper arm never turns, the wrist stays far.
   CHECK(without.max_m > 0.05);
   CHECK(std::abs(without.twist_rad) < 10.0 * kDeg);
@@ -477,4 +481,7 @@ TEST_CASE("Subtree carry: a hinged child's targets turn its parent about its lon
   // slowly, as coordinate descent does along a valley: 2 mm in 4000 iterations).
   CHECK(with.max_m < 0.1 * without.max_m);
   CHECK(std::abs(with.twist_rad - 60.0 * kDeg) < 5.0 * kDeg);
+  // Climbing from 51 to 65 mm RMS on the way to that fixed point, the loop takes the carry.
+  CHECK(fallback.max_m < 0.1 * without.max_m);
+  CHECK(std::abs(fallback.twist_rad - 60.0 * kDeg) < 5.0 * kDeg);
 }

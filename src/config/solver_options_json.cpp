@@ -4,7 +4,8 @@ namespace fabrik {
 
 SolverOptions read_solver_options(const JsonReader& solver, SolverOptions o) {
   solver.only_keys({"tolerance_mm", "stall_tolerance_mm", "max_iterations", "level_passes",
-                    "segment_fit", "root", "priorities", "anchor_weight", "subtree_carry"});
+                    "segment_fit", "root", "priorities", "anchor_weight", "subtree_carry",
+                    "fallback_carry"});
   o.tolerance_m = solver.get("tolerance_mm", o.tolerance_m * 1e3, 0.0, 1e4) * 1e-3;
   o.stall_tolerance_m =
       solver.get("stall_tolerance_mm", o.stall_tolerance_m * 1e3, 0.0, 1e3) * 1e-3;
@@ -15,6 +16,7 @@ SolverOptions read_solver_options(const JsonReader& solver, SolverOptions o) {
   o.use_priorities = solver.get("priorities", o.use_priorities);
   o.anchor_weight = solver.get("anchor_weight", o.anchor_weight, 0.0, 1e9);
   o.subtree_carry = solver.get("subtree_carry", o.subtree_carry, 0.0, 100.0);
+  o.fallback_carry = solver.get("fallback_carry", o.fallback_carry, 0.0, 100.0);
   if (solver.has("segment_fit"))
     o.segment_fit =
         read_choice<SegmentFit>(solver.at("segment_fit"), "segment fit",
@@ -34,6 +36,7 @@ nlohmann::ordered_json solver_options_json(const SolverOptions& o) {
   j["root"] = o.root == RootMode::free ? "free" : "fixed";
   j["priorities"] = o.use_priorities;
   if (o.subtree_carry != 0.0) j["subtree_carry"] = o.subtree_carry;
+  if (o.fallback_carry != SolverOptions{}.fallback_carry) j["fallback_carry"] = o.fallback_carry;
   return j;
 }
 

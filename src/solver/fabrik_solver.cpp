@@ -520,7 +520,7 @@ void FabrikSolver::ride_inactive(int pass, Posture& posture) const {
 void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                             std::span<const std::uint8_t> visible, Posture& posture,
                             const Eigen::Vector3d& root_pin_m) {
-  const bool carrying = options_.subtree_carry > 0.0;
+  const bool carrying = carry_ > 0.0;
   if (any_limited_) limited_moments(pass, carrying, posture);
   LinkStep last;
   for (int s = 0; s < n_seg_; ++s) {
@@ -545,7 +545,7 @@ void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_wo
     if (limited_[s]) {
       // Its own targets and pulling children, and (with the carry) its limited subtree.
       Moments m = local_[s];
-      if (carrying && parent_of_limited_[s]) add_scaled(m, children_[s], options_.subtree_carry);
+      if (carrying && parent_of_limited_[s]) add_scaled(m, children_[s], carry_);
       gather_orientations(pass, s);
       limited_fit(s, m, base_m, posture);
       continue;
@@ -643,7 +643,7 @@ void FabrikSolver::carried_children(int pass, int s, Moments& m) const {
 void FabrikSolver::carry_limited(int pass, int s) {
   carried_ = Moments{};
   carried_children(pass, s, carried_);
-  const double f = options_.subtree_carry;
+  const double f = carry_;
   carried_.da *= f;
   carried_.d *= f;
   carried_.a *= f;
@@ -850,6 +850,9 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     for (int s = 0; s < n_seg_; ++s)
       if (link_[s]) link_tip_m_[s] = posture.segments[s].to_world(slots_[slot_first_[s]].a_local);
   SolveResult result = measure(target_world_m, visible, posture);
+  carry_ = options_.subtree_carry;
+  double lowest_rms_m = result.rms_m, previous_rms_m = result.rms_m;
+  int rises = 0;  // iterations in a row whose RMS rose
   int total_passes = 0, jumps = 0;
   StopRule stop(options_);
   const int passes = pass_count();
@@ -892,6 +895,19 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     result.iterations = iteration + 1;
     result.passes = total_passes;
     result.jumps = jumps;
+    // SolverOptions::fallback_carry: without the carry the loop can leave a fit it has
+    // nearly reached; with it, it approaches the constrained least-squares fit
+    // (docs/joint-limits.md, "Subtree carry"). A cold start's RMS also rises now and then
+    // as the posture unfolds, but not for iterations on end.
+    rises = result.rms_m > previous_rms_m ? rises + 1 : 0;
+    if (carry_ == 0.0 && options_.fallback_carry > 0.0 && any_limited_ &&
+        result.max_m > options_.tolerance_m && rises >= kDivergingIterations &&
+        result.rms_m > kDivergence * lowest_rms_m) {
+      carry_ = options_.fallback_carry;
+      stop.jumped();
+    }
+    previous_rms_m = result.rms_m;
+    lowest_rms_m = std::min(lowest_rms_m, result.rms_m);
     // The stopping rule judges the iteration before any jump: a jump restarts its rates, so
     // jumping when the iteration says the loop is done would cost two more iterations.
     if (stop.should_stop(iteration + 1, distances_m_, previous_m_, result)) {

@@ -75,9 +75,15 @@ inline void turn_minimal(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
 // ("A Robust Method to Extract the Rotational Part of Deformations", MIG
 // 2016) keep only the trace(M) I term, which converges slowly when A is
 // ill-conditioned (two drivers, a flat marker cluster); the full Hessian
-// converges in a few steps. When A is rank-deficient the Hessian is singular
-// about the undetermined axis, where the torque is zero too: the result is
-// the rotation nearest the start, with no spurious twist.
+// converges in a few steps. When A is rank-deficient (two drivers about
+// their mean) the Hessian is singular about the undetermined axis, where the
+// torque is zero too; but near the fit its determinant there is rounding
+// noise of either sign, and a Newton step through it turns the segment about
+// that axis by up to the 1 rad cap. So Newton is taken only where the
+// Hessian's smallest eigenvalue is clearly above rounding (det > 1e-9
+// trace^3: points near a line are off it by over about 3e-5 of their spread);
+// elsewhere the gradient step, which has no component along that axis, keeps
+// the rotation nearest the start.
 //
 // One Newton step, in place, from m = A R^T = sum_k w_k b_k (R a_k)^T, the
 // desired world vectors against where the current rotation puts the local
@@ -94,7 +100,7 @@ inline void fit_rotation_step(const Eigen::Matrix3d& m, SegmentPose& pose) {
   const double det = h00 * c00 + h01 * c01 + h02 * c02;
   double ox, oy, oz, scale;  // the step is (ox, oy, oz) / scale
   if (trace > 0.0 && h00 > 0.0 && h00 * h11 - h01 * h01 > 0.0 &&
-      det > 1e-18 * trace * trace * trace) {
+      det > 1e-9 * trace * trace * trace) {
     const double c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12,
                  c22 = h00 * h11 - h01 * h01;
     // The Newton step is (adj(H) t) / det; it is kept times det so that

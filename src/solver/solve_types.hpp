@@ -65,6 +65,12 @@ struct SolverOptions {
   /// whose fixed point can sit far from the constrained least-squares fit on
   /// real data; > 0 costs iterations (see docs/joint-limits.md, "Subtree carry").
   double subtree_carry = 0.0;
+  /// With subtree_carry 0 and joint limits, FABRIK's loop can leave a fit it has nearly
+  /// reached (a thigh holding one of its three markers turns about its long axis while the
+  /// knee hinge follows, growing ~1.2x an iteration to a cycle 0.1-0.2 m off): a solve
+  /// whose RMS rises 4 iterations in a row to over 1.25x its lowest takes this carry for
+  /// the rest. 0: never (FABRIK's own rule throughout).
+  double fallback_carry = 0.5;
   /// Jump ahead along the convergence loop's steps when they shrink along one direction
   /// (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the
   /// weighted squared distance of the targets. false: FABRIK's own iterations alone.

@@ -92,6 +92,7 @@ LiveMarkerFill::LiveMarkerFill(const Model& model, std::span<const int> marker_p
   previous_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
   has_previous_.assign(static_cast<std::size_t>(n_), 0);
   handover_m_.assign(static_cast<std::size_t>(n_), Eigen::Vector3d::Zero());
+  handover_speed_m_per_s_.assign(static_cast<std::size_t>(n_), 0.0);
   handing_over_.assign(static_cast<std::size_t>(n_), 0);
 }
 
@@ -117,7 +118,6 @@ void LiveMarkerFill::hand_over(double time_s, std::span<const std::uint8_t> seen
   const RotationPrediction::Past* last = rotation.newest();
   const double dt = last ? time_s - last->time_s : 0.0;
   // The hand-over of returning markers.
-  const double step_m = settings_.return_speed_m_per_s * dt;
   for (int i = 0; i < n_; ++i) {
     const int s = marker_segment_[i];
     if (!seen[i]) {
@@ -132,8 +132,18 @@ void LiveMarkerFill::hand_over(double time_s, std::span<const std::uint8_t> seen
       // was lost would pull the segment at once.)
       handover_m_[i] = rotation.moved_on(s, marker_local_m_[i], dt) - target_world_m[i];
       handing_over_[i] = handover_m_[i].allFinite() ? 1 : 0;
-    } else if (handing_over_[i]) {
-      const double norm = handover_m_[i].norm();
+      // The return takes no longer than the gap: a prediction drifts slowly
+      // over a long gap, but an offset after a short one means the pose went
+      // wrong while the marker was gone (many markers hidden at once), and
+      // holding the marker there would keep it wrong.
+      const double gap_s = time_s - (ever_seen_[i] ? last_seen_s_[i] : first_time_s_);
+      handover_speed_m_per_s_[i] = settings_.return_speed_m_per_s;
+      if (gap_s > 0.0)
+        handover_speed_m_per_s_[i] =
+            std::max(handover_speed_m_per_s_[i], handover_m_[i].norm() / gap_s);
+    }
+    if (handing_over_[i]) {
+      const double norm = handover_m_[i].norm(), step_m = handover_speed_m_per_s_[i] * dt;
       if (norm <= step_m) {
         handing_over_[i] = 0;
       } else {

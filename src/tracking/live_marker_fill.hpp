@@ -12,8 +12,9 @@
 // the mean misfit of its segment's measured markers. A marker that returns
 // pulls the solve from where its model point would be (its segment moved on at
 // its recent velocity, without the offset) towards its measurement at a
-// bounded speed, so joint centres do not jump. Causal and allocation-free per
-// frame.
+// bounded speed, so joint centres do not jump; the return lasts no longer than
+// the marker was gone, so a pose that went wrong in a short gap is not kept.
+// Causal and allocation-free per frame.
 #pragma once
 
 #include <Eigen/Core>
@@ -93,6 +94,7 @@ class LiveMarkerFill {
   std::vector<Eigen::Vector3d> latest_m_, previous_m_;  // the two latest measurements
   std::vector<std::uint8_t> has_previous_;
   std::vector<Eigen::Vector3d> handover_m_;  // target minus measurement, shrinking
+  std::vector<double> handover_speed_m_per_s_;  // how fast it shrinks
   std::vector<std::uint8_t> handing_over_;
   std::vector<Donors> donors_;  // [i * donor_triples + t]
   std::vector<std::uint8_t> nearby_;  // nearby_markers()
