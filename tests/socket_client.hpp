@@ -13,6 +13,8 @@
 #include <vector>
 #include <zmq.hpp>
 
+#include "config/endpoint_check.hpp"
+
 namespace fabrik::test {
 
 // The payload decoded (JSON or MessagePack, told apart by the first byte).
@@ -71,8 +73,8 @@ class SocketClient {
     pub_.set(zmq::sockopt::linger, 0);
     sub_.set(zmq::sockopt::linger, 0);
     sub_.set(zmq::sockopt::subscribe, "");
-    pub_.set(zmq::sockopt::ipv6, input.find("://[") != std::string::npos);
-    sub_.set(zmq::sockopt::ipv6, output.find("://[") != std::string::npos);
+    pub_.set(zmq::sockopt::ipv6, fabrik::ipv6_literal(input));
+    sub_.set(zmq::sockopt::ipv6, fabrik::ipv6_literal(output));
     pub_.connect(input);
     sub_.connect(output);
   }

@@ -263,7 +263,8 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
                   {"output", {{"endpoint", "tcp://*:22011"}}}};
   CHECK_THAT(error_of([&] { load_daemon_config(j.dump(), "c.json"); }),
              Catch::StartsWith("c.json: at /output: input and output use the same endpoint "
-                               "'tcp://127.0.0.1:22011' as 'tcp://*:22011'") &&
+                               "'tcp://127.0.0.1:22011' ('tcp://*:22011', one port of this "
+                               "machine)") &&
                  Catch::Contains(". Fix: "));
 }
 

@@ -96,12 +96,11 @@ fabrik::DaemonConfig load(const Overrides& o) {
   if ((!o.input.empty() || !o.output.empty()) && fabrik::endpoints_clash(c.input, c.output)) {
     const fabrik::Endpoint& named = o.output.empty() ? c.input : c.output;
     const fabrik::Endpoint& other = o.output.empty() ? c.output : c.input;
-    throw std::invalid_argument(
-        std::string(o.output.empty() ? "--input" : "--output") + ": '" + named.address +
-        "' is also the " + (o.output.empty() ? "output's" : "input's") + " endpoint" +
-        (named.address == other.address ? ""
-                                        : " ('" + other.address + "', one port of this machine)") +
-        ". Fix: give the input and the pose output an endpoint each");
+    throw std::invalid_argument(std::string(o.output.empty() ? "--input" : "--output") + ": '" +
+                                named.address + "' is also the " +
+                                (o.output.empty() ? "output's" : "input's") + " endpoint" +
+                                fabrik::clash_spelling(named, other) +
+                                ". Fix: give the input and the pose output an endpoint each");
   }
   if (!o.log_level.empty()) c.log_level = o.log_level;
   return c;

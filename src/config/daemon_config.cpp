@@ -222,10 +222,7 @@ void read_io_parts(const JsonReader& root, DaemonConfig& c) {
   if (endpoints_clash(c.input, c.output)) {
     // Where the clash is written: at the output's endpoint, or at the input when the output's
     // is the default.
-    const std::string same =
-        c.input.address == c.output.address
-            ? "'" + c.input.address + "'"
-            : "'" + c.input.address + "' as '" + c.output.address + "' (one port of this machine)";
+    const std::string same = "'" + c.input.address + "'" + clash_spelling(c.input, c.output);
     if (root.has("output") && root.at("output").has("endpoint"))
       root.at("output").fail("input and output use the same endpoint " + same,
                              "give the pose output its own endpoint");

@@ -14,6 +14,16 @@ constexpr const char* kPortFix =
     "use a port from 1 to 65535, e.g. tcp://127.0.0.1:5555, or * to bind any free port "
     "(tcp://127.0.0.1:*)";
 
+// A port written in digits, leading zeros being none of them: its value, at most 100000
+// (more than five digits); nullopt when it is not digits alone.
+std::optional<unsigned long> port_number(std::string_view port) {
+  if (port.empty() ||
+      !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return std::nullopt;
+  const std::string_view digits = port.substr(std::min(port.find_first_not_of('0'), port.size()));
+  return digits.size() > 5 ? 100000 : std::stoul("0" + std::string(digits));
+}
+
 struct TcpAddress {
   std::string host;        // lower case, without [ ]; "localhost" as 127.0.0.1
   unsigned long port = 0;  // 0: * or unreadable
@@ -30,12 +40,7 @@ std::optional<TcpAddress> tcp_address(std::string_view address) {
   const std::string_view port = rest.substr(colon + 1);
   TcpAddress t;
   t.any_port = port == "*";
-  if (!port.empty() &&
-      std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-    // As endpoint_problem reads it: leading zeros are no digits of the port.
-    const std::string_view digits = port.substr(std::min(port.find_first_not_of('0'), port.size()));
-    t.port = digits.size() > 5 ? 0 : std::stoul("0" + std::string(digits));
-  }
+  if (const auto value = port_number(port); value && *value <= 65535) t.port = *value;
   std::string_view host = rest.substr(0, colon);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
@@ -92,6 +97,10 @@ bool endpoints_clash(const Endpoint& a, const Endpoint& b) {
   return false;
 }
 
+std::string clash_spelling(const Endpoint& a, const Endpoint& b) {
+  return a.address == b.address ? "" : " ('" + b.address + "', one port of this machine)";
+}
+
 std::optional<EndpointProblem> endpoint_problem(std::string_view address, SocketMode mode) {
   const std::string quoted = "'" + std::string(address) + "'";
   const auto scheme_end = address.find("://");
@@ -121,12 +130,11 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
         "port * of " + quoted + " means any free port, which only a bind can choose",
         "connect to the port the peer binds, e.g. tcp://127.0.0.1:5555"};
   }
-  if (port.empty() ||
-      !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }))
+  const std::optional<unsigned long> number = port_number(port);
+  if (!number)
     return EndpointProblem{"port " + quoted_port + " of " + quoted + " is not a port number",
                            kPortFix};
-  const std::string_view digits = port.substr(std::min(port.find_first_not_of('0'), port.size()));
-  const unsigned long value = digits.size() > 5 ? 100000 : std::stoul("0" + std::string(digits));
+  const unsigned long value = *number;
   if (value == 0)
     return EndpointProblem{
         "port 0 of " + quoted + " is not a port (ZeroMQ would bind any free port)", kPortFix};

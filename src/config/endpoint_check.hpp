@@ -46,4 +46,8 @@ bool ipv6_literal(std::string_view address);
 // still stops a double bind.
 bool endpoints_clash(const Endpoint& a, const Endpoint& b);
 
+// For the message of a clash of `a` with `b`: "" when they are written alike, else
+// " ('B', one port of this machine)".
+std::string clash_spelling(const Endpoint& a, const Endpoint& b);
+
 }  // namespace fabrik
