@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "tracking/mirror_swap.hpp"
+
 namespace fabrik {
 
 namespace {
@@ -25,15 +27,11 @@ std::vector<std::array<int, 2>> read_mirror_pairs(const JsonReader& r,
       idx[j] = static_cast<int>(it - markers.begin());
     }
     if (idx[0] == idx[1]) pair.fail("a mirror pair names one marker twice", "name two markers");
-    // A marker in two pairs would be swapped twice in one frame (the second swap undoing or
-    // crossing the first), as pairs found from names never are.
-    for (const std::array<int, 2>& earlier : pairs)
-      for (int i : idx)
-        if (earlier[0] == i || earlier[1] == i)
-          pair.fail(
-              "'" + markers[static_cast<std::size_t>(i)].marker + "' is in an earlier pair too",
-              "give each marker one mirror pair");
     pairs.push_back(idx);
+    // The earlier pairs had no marker twice: one found now is in this pair.
+    if (const int m = marker_in_two_pairs(pairs); m >= 0)
+      pair.fail("'" + markers[static_cast<std::size_t>(m)].marker + "' is in an earlier pair too",
+                "give each marker one mirror pair");
   }
   return pairs;
 }

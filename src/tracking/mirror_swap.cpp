@@ -47,6 +47,14 @@ std::vector<std::array<int, 2>> mirror_pairs_from_names(const std::vector<std::s
   return pairs;
 }
 
+int marker_in_two_pairs(std::span<const std::array<int, 2>> pairs) {
+  for (std::size_t k = 1; k < pairs.size(); ++k)
+    for (std::size_t e = 0; e < k; ++e)
+      for (const int m : pairs[k])
+        if (pairs[e][0] == m || pairs[e][1] == m) return m;
+  return -1;
+}
+
 MirrorSwap::MirrorSwap(OutlierSettings settings, std::vector<std::array<int, 2>> pairs)
     : settings_(settings), pairs_(std::move(pairs)), since_s_(pairs_.size(), NAN) {}
 

@@ -28,6 +28,11 @@ namespace fabrik {
 // r_hip/l_hip, right_knee/left_knee, knee_r/knee_l). Each name in one pair at most.
 std::vector<std::array<int, 2>> mirror_pairs_from_names(const std::vector<std::string>& names);
 
+// The first marker that is in two of `pairs`, or -1. Such a marker would be swapped twice in
+// one frame (the second swap undoing or crossing the first), as pairs found from names never
+// are: the config loader and the tracker refuse it.
+int marker_in_two_pairs(std::span<const std::array<int, 2>> pairs);
+
 class MirrorSwap {
  public:
   MirrorSwap(OutlierSettings settings, std::vector<std::array<int, 2>> pairs);

@@ -59,17 +59,13 @@ std::vector<OrientationTarget> orientation_targets(const SensorTargets& sensors,
 // The left/right pairs of the mirror rule: the setup's, else those the names give.
 std::vector<std::array<int, 2>> mirror_pairs(const TrackerSetup& s) {
   const int n = static_cast<int>(s.markers.size());
-  std::vector<std::uint8_t> paired(static_cast<std::size_t>(n), 0);
-  for (const auto& [r, l] : s.mirror_pairs) {
+  for (const auto& [r, l] : s.mirror_pairs)
     if (r < 0 || r >= n || l < 0 || l >= n || r == l)
       throw std::invalid_argument("tracker: a mirror pair names no marker, or one twice");
-    // As the config loader refuses it: a marker in two pairs would be swapped twice a frame.
-    for (const int m : {r, l})
-      if (paired[static_cast<std::size_t>(m)]++)
-        throw std::invalid_argument("tracker: marker '" +
-                                    s.markers[static_cast<std::size_t>(m)].marker +
-                                    "' is in two mirror pairs");
-  }
+  if (const int m = marker_in_two_pairs(s.mirror_pairs); m >= 0)
+    throw std::invalid_argument("tracker: marker '" +
+                                s.markers[static_cast<std::size_t>(m)].marker +
+                                "' is in two mirror pairs");
   if (!s.mirror_pairs.empty()) return s.mirror_pairs;
   std::vector<std::string> names;
   for (const MarkerTarget& m : s.markers) names.push_back(m.marker);
