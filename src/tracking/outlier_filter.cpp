@@ -6,16 +6,6 @@
 
 namespace fabrik {
 
-namespace {
-// Whether a measured marker's residual is above `floor_m` (an outlier the bar may hide).
-bool above_floor(std::span<const double> distances_m, std::span<const std::uint8_t> visible,
-                 int markers, double floor_m) {
-  for (int i = 0; i < markers; ++i)
-    if (visible[i] && distances_m[i] > floor_m) return true;
-  return false;
-}
-}  // namespace
-
 OutlierFilter::OutlierFilter(OutlierSettings settings, std::vector<int> marker_points)
     : settings_(settings),
       marker_points_(std::move(marker_points)),
@@ -46,6 +36,7 @@ int OutlierFilter::worst_outlier(std::span<const double> distances_m,
     ++measured;
     if (worst < 0 || distances_m[i] > distances_m[worst]) worst = i;
   }
+  largest_m_ = worst >= 0 ? distances_m[worst] : 0.0;
   if (measured < settings_.min_markers) return -1;
   std::size_t n = 0;
   for (int i = 0; i < markers_; ++i)
@@ -133,7 +124,8 @@ SolveResult OutlierFilter::solve(FabrikSolver& solver, const Model& model,
   for (int k = 0; k < settings_.max_per_frame; ++k) {
     const std::span<const double> residual_m = solver.target_distances_m();
     int i = worst_outlier(residual_m, target_visible, target_world_m);
-    if (i < 0 && above_floor(residual_m, target_visible, markers_, settings_.floor_m))
+    // None found, but a residual above the floor (an outlier the bar may hide).
+    if (i < 0 && largest_m_ > settings_.floor_m)
       i = worst_against_start(model, start, target_world_m, target_visible, residual_m);
     if (i < 0) break;
     outlier[i] = 1;

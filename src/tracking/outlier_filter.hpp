@@ -95,6 +95,7 @@ class OutlierFilter {
   std::optional<MarkerNeighbours> neighbours_;
   std::vector<double> start_distances_m_;  // per marker, for worst_against_start
   double bar_m_ = 0.0;
+  double largest_m_ = 0.0;  // the largest distance the last worst_outlier saw
 };
 
 }  // namespace fabrik
