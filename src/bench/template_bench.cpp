@@ -252,6 +252,8 @@ json run_calibrated(const FullbodyOptions& options) {
   const double carry = config.tracker.solver.subtree_carry;
   std::vector<TrackerSetup> setups = {config.tracker, config.tracker};
   setups[1].solver.subtree_carry = carry > 0.0 ? 0.0 : kCalibrateCarry;
+  // Off is FABRIK's own rule throughout: no fallback carry either.
+  if (carry > 0.0) setups[1].solver.fallback_carry = 0.0;
   const std::size_t on = carry > 0.0 ? 0 : 1;  // the setup that carries
   std::vector<FrameSource> sources;
   for (double speed : options.speeds) sources.push_back(synthetic_source(config, options, speed));

@@ -900,19 +900,21 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     // (docs/joint-limits.md, "Subtree carry"). A cold start's RMS also rises now and then
     // as the posture unfolds, but not for iterations on end.
     rises = result.rms_m > previous_rms_m ? rises + 1 : 0;
-    if (carry_ == 0.0 && options_.fallback_carry > 0.0 && any_limited_ &&
-        result.max_m > options_.tolerance_m && rises >= kDivergingIterations &&
-        result.rms_m > kDivergence * lowest_rms_m) {
-      carry_ = options_.fallback_carry;
-      stop.jumped();
-    }
+    const bool diverging = carry_ == 0.0 && options_.fallback_carry > 0.0 && any_limited_ &&
+                           result.max_m > options_.tolerance_m && rises >= kDivergingIterations &&
+                           result.rms_m > kDivergence * lowest_rms_m;
     previous_rms_m = result.rms_m;
     lowest_rms_m = std::min(lowest_rms_m, result.rms_m);
-    // The stopping rule judges the iteration before any jump: a jump restarts its rates, so
-    // jumping when the iteration says the loop is done would cost two more iterations.
+    // The stopping rule judges the iteration before any jump or change of rule: either
+    // restarts its rates, so changing when the iteration says the loop is done would cost
+    // two more iterations.
     if (stop.should_stop(iteration + 1, distances_m_, previous_m_, result)) {
       if (any_link_) turn_links(posture);
       return result;
+    }
+    if (diverging) {
+      carry_ = options_.fallback_carry;
+      stop.jumped();
     }
     if (extrapolating && extrapolate(target_world_m, visible, posture, result)) {
       stop.jumped();

@@ -60,8 +60,8 @@ struct SolverOptions {
   double anchor_weight = 1000.0;
   /// With joint limits: the targets below a limited joint also pull, with
   /// their weight times this factor, on the segments above it (through
-  /// limited joints), held at the joints' current angles. 0 is FABRIK's own
-  /// rule (a segment feels its children only through their joint points),
+  /// limited joints), held at the joints' current angles. 0 (with fallback_carry 0) is
+  /// FABRIK's own rule (a segment feels its children only through their joint points),
   /// whose fixed point can sit far from the constrained least-squares fit on
   /// real data; > 0 costs iterations (see docs/joint-limits.md, "Subtree carry").
   double subtree_carry = 0.0;

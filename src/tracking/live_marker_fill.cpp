@@ -126,9 +126,9 @@ void LiveMarkerFill::hand_over(double time_s, std::span<const std::uint8_t> seen
     }
     if (!was_seen_[i] && last) {
       // Where the model's point of it would be now (its segment moved on at
-      // its recent velocity): from there the target pulls nothing at first,
-      // so the pose does not jump. (The reported fill adds the marker's last
-      // offset from the model; the solve must not, or the offset at which it
+      // its recent velocity): from there the target goes to the measurement
+      // step by step (the first step in this frame), so the pose does not jump. (The reported fill
+      // adds the marker's last offset from the model; the solve must not, or the offset at which it
       // was lost would pull the segment at once.)
       handover_m_[i] = rotation.moved_on(s, marker_local_m_[i], dt) - target_world_m[i];
       handing_over_[i] = handover_m_[i].allFinite() ? 1 : 0;
