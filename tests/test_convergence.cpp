@@ -328,3 +328,26 @@ TEST_CASE("The stop rule's power-law fall is the integral of the pace it fits", 
   // Nor does a window that reaches back before the first iteration.
   CHECK(power_law_fall_m(10, 8, pace_m, older_m, 60.0) == 0.0);
 }
+
+// SolverOptions::fallback_carry's trigger, known answers: 4 rises in a row to over 1.25x the
+// lowest, with a target beyond the tolerance.
+TEST_CASE("DivergenceWatch fires on the 4th rise in a row past 1.25x the lowest RMS",
+          "[convergence][carry]") {
+  const double tol = 1e-4;
+  auto first_firing = [&](std::vector<double> rms, double max_m = 1.0) {
+    DivergenceWatch watch(rms.front());
+    for (std::size_t k = 1; k < rms.size(); ++k)
+      if (watch.diverging(rms[k], max_m, tol)) return static_cast<int>(k);
+    return -1;
+  };
+  // Falls to 1.0, then rises: the 4th rise (1.4 > 1.25) fires.
+  CHECK(first_firing({5.0, 2.0, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5}) == 6);
+  // The same rises, broken once: counting starts again.
+  CHECK(first_firing({5.0, 2.0, 1.0, 1.1, 1.2, 1.15, 1.3, 1.4, 1.5, 1.6}) == 9);
+  // Four rises, but within 1.25x of the lowest: not yet; the 5th passes it.
+  CHECK(first_firing({1.0, 1.05, 1.1, 1.15, 1.2, 1.3}) == 5);
+  // A cold start's jolt: three rises far above the lowest, then falling: never.
+  CHECK(first_firing({5.0, 1.0, 3.0, 4.0, 4.5, 2.0, 1.0, 0.5}) == -1);
+  // Every target within the tolerance: converged, never diverging.
+  CHECK(first_firing({1.0, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0}, 0.5 * tol) == -1);
+}

@@ -12,6 +12,7 @@
 #include "eval/eval.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "test_models.hpp"
+#include "tracking/gap_predictor.hpp"
 #include "tracking/tracker.hpp"
 #include "tracking/two_sided_fill.hpp"
 
@@ -346,4 +347,54 @@ TEST_CASE("Donor candidates are the markers on segments at most donor_max_joints
         }
     }
   }
+}
+
+// The hand-over's length, known answers on a still subject (the model's point of a returning
+// marker is where it was): a marker back 10 mm off its model point after a one-frame gap
+// (last seen two frames before) moves its target at 0.01 m / 0.02 s = 0.5 m/s, half the way
+// in the frame it returns and the rest in the next; after a 1 s gap, at the 0.2 m/s floor,
+// 2 mm a frame.
+TEST_CASE(
+    "A returning marker's target moves at the larger of 0.2 m/s and its offset over "
+    "its gap",
+    "[gaps]") {
+  const Model model = test::fullbody_model();
+  const std::vector<int> points = model.marker_points();
+  const std::size_t n = points.size();
+  PredictionSettings settings;
+  settings.enabled = true;
+  settings.level = -1;
+  const Posture still = Posture::rest(model);
+  std::vector<Eigen::Vector3d> at_model(n);
+  for (std::size_t i = 0; i < n; ++i) at_model[i] = still.point_world_m(model, points[i]);
+  const Eigen::Vector3d offset_m(0.010, 0.0, 0.0);
+  // Marker 0's target's distance from its measurement in the frames from its return on.
+  auto handover_mm = [&](int hidden_frames) {
+    GapPredictor predictor(model, points, settings);
+    std::vector<Eigen::Quaterniond> q(predictor.orientation_targets().size());
+    std::vector<std::uint8_t> q_visible(q.size());
+    std::vector<Eigen::Vector3d> markers(n);
+    std::vector<double> gap_s(n);
+    std::vector<double> out;
+    const int back = 6 + hidden_frames;
+    for (int f = 0; f < back + 4; ++f) {
+      const double t_s = f * 0.01;
+      std::vector<std::uint8_t> seen(n, 1);
+      if (f >= 6 && f < back) seen[0] = 0;
+      std::vector<Eigen::Vector3d> measured = at_model;
+      if (f >= back) measured[0] += offset_m;
+      std::vector<Eigen::Vector3d> target = measured;
+      predictor.before_solve(t_s, seen, target, q, q_visible);
+      if (f >= back) out.push_back((target[0] - measured[0]).norm() * 1e3);
+      predictor.after_solve(t_s, still, seen, measured, markers, gap_s);
+    }
+    return out;
+  };
+  const std::vector<double> short_gap = handover_mm(1), long_gap = handover_mm(100);
+  CAPTURE(short_gap, long_gap);
+  CHECK(short_gap[0] == Approx(5.0).margin(1e-6));
+  CHECK(short_gap[1] == Approx(0.0).margin(1e-6));
+  CHECK(long_gap[0] == Approx(8.0).margin(1e-6));
+  CHECK(long_gap[1] == Approx(6.0).margin(1e-6));
+  CHECK(long_gap[3] == Approx(2.0).margin(1e-6));
 }

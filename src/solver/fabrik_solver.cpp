@@ -851,8 +851,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
       if (link_[s]) link_tip_m_[s] = posture.segments[s].to_world(slots_[slot_first_[s]].a_local);
   SolveResult result = measure(target_world_m, visible, posture);
   carry_ = options_.subtree_carry;
-  double lowest_rms_m = result.rms_m, previous_rms_m = result.rms_m;
-  int rises = 0;  // iterations in a row whose RMS rose
+  DivergenceWatch divergence(result.rms_m);
   int total_passes = 0, jumps = 0;
   StopRule stop(options_);
   const int passes = pass_count();
@@ -897,14 +896,9 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     result.jumps = jumps;
     // SolverOptions::fallback_carry: without the carry the loop can leave a fit it has
     // nearly reached; with it, it approaches the constrained least-squares fit
-    // (docs/joint-limits.md, "Subtree carry"). A cold start's RMS also rises now and then
-    // as the posture unfolds, but not for iterations on end.
-    rises = result.rms_m > previous_rms_m ? rises + 1 : 0;
-    const bool diverging = carry_ == 0.0 && options_.fallback_carry > 0.0 && any_limited_ &&
-                           result.max_m > options_.tolerance_m && rises >= kDivergingIterations &&
-                           result.rms_m > kDivergence * lowest_rms_m;
-    previous_rms_m = result.rms_m;
-    lowest_rms_m = std::min(lowest_rms_m, result.rms_m);
+    // (docs/joint-limits.md, "Subtree carry").
+    const bool diverging = divergence.diverging(result.rms_m, result.max_m, options_.tolerance_m) &&
+                           carry_ == 0.0 && options_.fallback_carry > 0.0 && any_limited_;
     // The stopping rule judges the iteration before any jump or change of rule: either
     // restarts its rates, so changing when the iteration says the loop is done would cost
     // two more iterations.

@@ -163,8 +163,6 @@ class FabrikSolver {
   // This solve's carry factor: options_.subtree_carry, or options_.fallback_carry once the
   // loop diverges without it (solve()).
   double carry_ = 0.0;
-  static constexpr double kDivergence = 1.25;                 // RMS over its lowest this solve
-  static constexpr int kDivergingIterations = 4;              // with its RMS rising in each
   Eigen::Vector3d carry_origin_m_ = Eigen::Vector3d::Zero();  // the moments' d are from here
   void forward_limited(int pass, int s, Posture& posture) const;
   // SolverOptions::extrapolate (fabrik_extrapolation.cpp).

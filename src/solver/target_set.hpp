@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -124,6 +125,29 @@ class StopRule {
   bool after_jump_ = false;
   std::array<double, kRing> worst_m_{};  // ring: the worst distance at the last checks
   int checks_ = 0;
+};
+
+// SolverOptions::fallback_carry's trigger: whether a solve's loop is leaving a fit it has
+// nearly reached. Fed the RMS at the start and after each iteration, it says diverging once
+// the RMS has risen kRises iterations in a row to over kFactor times its lowest this solve,
+// with some target still beyond the tolerance. A cold start's RMS also rises now and then as
+// the posture unfolds, but not for iterations on end.
+class DivergenceWatch {
+ public:
+  static constexpr int kRises = 4;
+  static constexpr double kFactor = 1.25;
+  explicit DivergenceWatch(double start_rms_m) : lowest_m_(start_rms_m), previous_m_(start_rms_m) {}
+  bool diverging(double rms_m, double max_m, double tolerance_m) {
+    rises_ = rms_m > previous_m_ ? rises_ + 1 : 0;
+    const bool out = max_m > tolerance_m && rises_ >= kRises && rms_m > kFactor * lowest_m_;
+    previous_m_ = rms_m;
+    lowest_m_ = std::min(lowest_m_, rms_m);
+    return out;
+  }
+
+ private:
+  double lowest_m_, previous_m_;
+  int rises_ = 0;  // iterations in a row whose RMS rose
 };
 
 }  // namespace fabrik
