@@ -312,8 +312,12 @@ TEST_CASE("A target moving across a hinge limit gives a continuous angle, also f
     REQUIRE(max_limit_excess_rad(*m, posture) < 1e-9);
     // Where the target is in range, the angle is the target's.
     if (phi_deg >= 1 && phi_deg <= 119) REQUIRE(std::abs(angle_deg - phi_deg) < 0.01);
-    // Behind the arm (past 120, up to 290 = -70), it stays at the bound it left through.
-    if (phi_deg >= 120) REQUIRE(std::abs(angle_deg - 120.0) < 1e-6);
+    // Behind the arm (past 120, up to 290 = -70), it stays at the bound it left through,
+    // within what the strong level's last pass turns the upper arm back from where the
+    // wrist's pull left it against the anchors: the forearm, keeping its world rotation as a
+    // rider of that pass, shows that turn in its angle (at most 0.07 degrees, the wrist
+    // straight behind). The other bound is 120 degrees away.
+    if (phi_deg >= 120) REQUIRE(std::abs(angle_deg - 120.0) < 0.1);
     if (!std::isnan(previous_deg))
       biggest_step_deg = std::max(biggest_step_deg, std::abs(angle_deg - previous_deg));
     previous_deg = angle_deg;

@@ -630,6 +630,53 @@ TEST_CASE("walk1 swapped from the first frame: once mirror_max_s is over, the la
   CHECK(after_m < 0.010);
 }
 
+namespace {
+
+struct JointDrift {
+  double mean_m = 0.0, worst_m = 0.0;
+};
+
+// The default config's synthetic motion with 1 mm noise: `tested` tracks it with each marker
+// hidden at random with probability hide_share in every frame, `reference` every marker;
+// how far apart their joint centres are.
+JointDrift joint_drift(const DaemonConfig& config, const TrackerSetup& tested,
+                       const TrackerSetup& reference, double hide_share, std::uint64_t seed,
+                       int frames) {
+  const Model& model = *config.tracker.model;
+  const std::vector<int> points = marker_points(config);
+  SyntheticMotion motion(model, MotionSettings{});
+  Posture truth = Posture::rest(model);
+  std::vector<Eigen::Vector3d> measured(points.size());
+  std::normal_distribution<double> noise_m(0.0, 1e-3);
+  std::uniform_real_distribution<double> draw(0.0, 1.0);
+  std::mt19937_64 rng(seed);
+  const std::vector<std::uint8_t> all(points.size(), 1);
+  std::vector<std::uint8_t> visible(points.size());
+  Tracker hidden(tested), clean(reference);
+  JointDrift drift;
+  int count = 0;
+  for (int f = 0; f < frames; ++f) {
+    const double t_s = f / 100.0;
+    motion.posture_at(t_s, truth);
+    motion.sample(truth, points, 0.0, measured);
+    for (Eigen::Vector3d& p : measured)
+      p += Eigen::Vector3d(noise_m(rng), noise_m(rng), noise_m(rng));
+    for (std::uint8_t& v : visible) v = draw(rng) >= hide_share ? 1 : 0;
+    const TrackResult& h = hidden.track(t_s, measured, visible);
+    const TrackResult& c = clean.track(t_s, measured, all);
+    for (std::size_t j = 0; j < h.joints_world_m.size(); ++j) {
+      const double d_m = (h.joints_world_m[j] - c.joints_world_m[j]).norm();
+      drift.mean_m += d_m;
+      drift.worst_m = std::max(drift.worst_m, d_m);
+      ++count;
+    }
+  }
+  drift.mean_m /= count;
+  return drift;
+}
+
+}  // namespace
+
 // scripts/dropout-probe as a test: a tenth of the markers hidden at random in every frame
 // (the pelvis's too). Three faults made this 8-300 mm on average (docs/robust-tracking.md,
 // "Markers that flicker"): a two-point rigid fit turning about its free axis, a hand-over
@@ -641,38 +688,29 @@ TEST_CASE(
     "solve",
     "[gaps][robust]") {
   const DaemonConfig config = default_daemon_config();
-  const Model& model = *config.tracker.model;
-  const std::vector<int> points = marker_points(config);
-  SyntheticMotion motion(model, MotionSettings{});
-  Posture truth = Posture::rest(model);
-  std::vector<Eigen::Vector3d> measured(points.size());
-  std::normal_distribution<double> noise_m(0.0, 1e-3);
-  std::uniform_real_distribution<double> draw(0.0, 1.0);
-  std::mt19937_64 rng(5);
-  const std::vector<std::uint8_t> all(points.size(), 1);
-  Tracker hidden(config.tracker), clean(config.tracker);
-  double sum_m = 0.0, worst_m = 0.0;
-  int count = 0;
-  for (int f = 0; f < 600; ++f) {
-    const double t_s = f / 100.0;
-    motion.posture_at(t_s, truth);
-    motion.sample(truth, points, 0.0, measured);
-    for (Eigen::Vector3d& p : measured)
-      p += Eigen::Vector3d(noise_m(rng), noise_m(rng), noise_m(rng));
-    std::vector<std::uint8_t> visible(points.size());
-    for (std::uint8_t& v : visible) v = draw(rng) >= 0.1 ? 1 : 0;
-    const TrackResult& h = hidden.track(t_s, measured, visible);
-    const TrackResult& c = clean.track(t_s, measured, all);
-    for (std::size_t j = 0; j < h.joints_world_m.size(); ++j) {
-      const double d_m = (h.joints_world_m[j] - c.joints_world_m[j]).norm();
-      sum_m += d_m;
-      worst_m = std::max(worst_m, d_m);
-      ++count;
+  const JointDrift drift = joint_drift(config, config.tracker, config.tracker, 0.1, 5, 600);
+  INFO("joint centres off the unhidden solve: mean " << drift.mean_m * 1e3 << " mm, worst "
+                                                     << drift.worst_m * 1e3 << " mm");
+  CHECK(drift.mean_m < 2e-3);
+  CHECK(drift.worst_m < 50e-3);
+}
+
+TEST_CASE("Weak anchors with a free root leave the joint centres near the default anchors' solve",
+          "[robust][priorities]") {
+  // The built-in model's pelvis markers are one level stronger than the rest. With weak
+  // anchors, a limb level's pass turns the pelvis; the pelvis level's pass turns it back,
+  // and the limbs, riders of that pass, must not turn back with it (they did: 0.2-0.3 m
+  // mean, up to 1 m, at anchor_weight 1 or less; 0.9 m worst at 10 with markers flickering).
+  const DaemonConfig config = default_daemon_config();
+  for (const double anchor : {10.0, 1.0, 0.1}) {
+    for (const double hide_share : {0.0, 0.1}) {
+      TrackerSetup weak = config.tracker;
+      weak.solver.anchor_weight = anchor;
+      const JointDrift drift = joint_drift(config, weak, config.tracker, hide_share, 11, 300);
+      INFO("anchor_weight " << anchor << ", " << hide_share * 100 << " % hidden: mean "
+                            << drift.mean_m * 1e3 << " mm, worst " << drift.worst_m * 1e3 << " mm");
+      CHECK(drift.mean_m < 2e-3);
+      CHECK(drift.worst_m < 30e-3);
     }
   }
-  const double mean_m = sum_m / count;
-  INFO("joint centres off the unhidden solve: mean " << mean_m * 1e3 << " mm, worst "
-                                                     << worst_m * 1e3 << " mm");
-  CHECK(mean_m < 2e-3);
-  CHECK(worst_m < 50e-3);
 }

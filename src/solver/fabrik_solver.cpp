@@ -114,6 +114,7 @@ FabrikSolver::FabrikSolver(std::shared_ptr<const FabrikPlan> plan, SolverOptions
   children_.resize(n_seg);
   slot_weight_.assign(static_cast<std::size_t>(n_pass_) * slots_.size(), 0.0);
   pass_has_riders_.assign(static_cast<std::size_t>(n_pass_), 0);
+  driven_.assign(static_cast<std::size_t>(n_seg_), 0);
   marked_visible_.assign(n_targets, 0);
   weight_scale_.assign(n_targets, 1.0);
   link_.assign(n_seg, 0);
@@ -194,6 +195,11 @@ void FabrikSolver::mark_active(std::span<const std::uint8_t> visible) {
     std::uint8_t riders = 0;
     for (int s = 1; s < n_seg_; ++s) riders |= !active(pass, s);
     pass_has_riders_[pass] = riders;
+  }
+  for (int s = 0; s < n_seg_; ++s) {
+    std::uint8_t driven = 0;
+    for (int pass = 0; pass < pass_count(); ++pass) driven |= pass_runs(pass) && active(pass, s);
+    driven_[s] = driven;
   }
   // A segment with a single slot that is active in every pass that runs is a
   // link: nothing but that slot's point ever pulls on it and nothing reads
@@ -501,18 +507,31 @@ void FabrikSolver::turn_links(Posture& posture) const {
   }
 }
 
-// A segment nothing below pulls on in a pass rides rigidly on its parent: its rotation
-// relative to the parent is the one it had when the level's passes began, which solve()
-// brought within range, so there is no limit to enforce. Nothing a pass fits reads such a
-// rider (it has no target in the pass and no active segment below it), so the passes leave
-// riders out and this places them once, after the level's last pass, parents first.
-void FabrikSolver::ride_inactive(int pass, Posture& posture) const {
+// A rider (a segment nothing below pulls on in a pass) that another level's pass pulls on
+// keeps the world rotation it had when this level's passes began and moves with its joint,
+// within the joint's range: a stronger level's pass leaves where a weaker one turned the limbs.
+// Riding on the parent instead, the limbs turned back with a pelvis that a weak pass with weak
+// anchors had turned, and the body drifted (docs/solver.md, "Riders"). A segment no pass pulls
+// on rides rigidly on its parent. Nothing a pass fits reads a rider (it has no target in the
+// pass and no active segment below it), so the passes leave riders out and this places them
+// once, after the level's last pass, parents first.
+void FabrikSolver::ride_inactive(int pass, Posture& posture) {
   for (int s = 1; s < n_seg_; ++s) {
     if (active(pass, s)) continue;
-    const int parent = model_.segments[s].parent;
     SegmentPose& pose = posture.segments[s];
-    pose.set_rotation(posture.segments[parent].q_world *
-                      (start_[parent].q_world.conjugate() * start_[s].q_world));
+    if (driven_[s]) {
+      pose.set_unit_rotation(start_[s].q_world);
+      // Under a parent that kept its rotation (a rider not brought within range), the joint
+      // is as it was; only a rider whose parent turned needs the (costlier) check.
+      const int parent = model_.segments[s].parent;
+      if (limited_[s] &&
+          posture.segments[parent].q_world.coeffs() != start_[parent].q_world.coeffs())
+        within_limits(s, posture, false);
+    } else {
+      const int parent = model_.segments[s].parent;
+      pose.set_rotation(posture.segments[parent].q_world *
+                        (start_[parent].q_world.conjugate() * start_[s].q_world));
+    }
     pose.base_world_m = joint_world_m(s, posture);
   }
 }
@@ -657,49 +676,52 @@ Eigen::Matrix3d FabrikSolver::carried_alignment(const Eigen::Vector3d& base_m) c
 }
 
 // Brings every limited joint of the start posture within its ranges and takes its angles as
-// the fits' warm start. Every fit keeps a joint within range and a segment that rides on its
-// parent keeps its relative rotation, so this one projection keeps every joint of the solve
-// within range, even from a start that was not. Out of range, each angle goes to its nearer
-// bound (the start has no earlier angle to tell which bound it left through), as
+// the fits' warm start. Every fit keeps a joint within range and a rider either keeps its
+// relative rotation or is brought within range (ride_inactive), so this one projection keeps
+// every joint of the solve within range, even from a start that was not. Out of range, each angle
+// goes to its nearer bound (the start has no earlier angle to tell which bound it left through), as
 // enforce_joint_limits does; in turns, without trigonometry. A hinge keeps its twist about
 // its axis; an off-axis part (a start not from a solve) is dropped.
 void FabrikSolver::start_within_limits(Posture& posture) {
-  for (int s = 1; s < n_seg_; ++s) {
-    if (!limited_[s]) continue;
-    const Segment& seg = model_.segments[s];
-    SegmentPose& pose = posture.segments[s];
-    const Eigen::Quaterniond& q_parent = posture.segments[seg.parent].q_world;
-    const Eigen::Quaterniond rel = q_parent.conjugate() * pose.q_world;
-    const JointArcs& arcs = arcs_[s];
-    Turns& turns = turns_[s];
-    if (seg.joint.type == JointType::fixed) {
-      rel_q_[s] = Eigen::Quaterniond::Identity();
-      pose.set_unit_rotation(q_parent);
-      continue;
-    }
-    if (hinge_[s]) {
-      const Eigen::Vector3d& u = hinge_axis_local_[s];
-      const Turn twist = twist_turn(rel, u);
-      turns[0] = arcs.clamp(0, twist, twist);
-      double ch, sh;
-      half_turn(turns[0], ch, sh);
-      const Eigen::Quaterniond on_axis(ch, sh * u.x(), sh * u.y(), sh * u.z());
-      // Unchanged (to rounding) when the start was a turn about the axis within range.
-      if (on_axis.coeffs().dot(rel.coeffs()) * on_axis.coeffs().dot(rel.coeffs()) < 1.0 - 1e-15)
-        pose.set_unit_rotation(q_parent * on_axis);
-      rel_q_[s] = q_parent.conjugate() * pose.q_world;
-      continue;
-    }
-    const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
-    turns = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
-    bool inside = true;
-    for (int k = 0; k < 3; ++k) inside = inside && arcs.inside(k, turns[k]);
-    if (!inside) {
-      for (int k = 0; k < 3; ++k) turns[k] = arcs.clamp(k, turns[k], turns[k]);
-      pose.set_rotation(q_parent * a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate());
-    }
-    rel_q_[s] = q_parent.conjugate() * pose.q_world;
+  for (int s = 1; s < n_seg_; ++s)
+    if (limited_[s]) within_limits(s, posture, true);
+}
+
+void FabrikSolver::within_limits(int s, Posture& posture, bool keep_on_axis) {
+  const Segment& seg = model_.segments[s];
+  SegmentPose& pose = posture.segments[s];
+  const Eigen::Quaterniond& q_parent = posture.segments[seg.parent].q_world;
+  const Eigen::Quaterniond rel = q_parent.conjugate() * pose.q_world;
+  const JointArcs& arcs = arcs_[s];
+  Turns& turns = turns_[s];
+  if (seg.joint.type == JointType::fixed) {
+    rel_q_[s] = Eigen::Quaterniond::Identity();
+    pose.set_unit_rotation(q_parent);
+    return;
   }
+  if (hinge_[s]) {
+    const Eigen::Vector3d& u = hinge_axis_local_[s];
+    const Turn twist = twist_turn(rel, u);
+    turns[0] = arcs.clamp(0, twist, twist);
+    double ch, sh;
+    half_turn(turns[0], ch, sh);
+    const Eigen::Quaterniond on_axis(ch, sh * u.x(), sh * u.y(), sh * u.z());
+    // Unchanged (to rounding) when the start was a turn about the axis within range; a
+    // rider's rotation relative to a parent that turned is set again in any case.
+    const double agree = on_axis.coeffs().dot(rel.coeffs());
+    if (!keep_on_axis || agree * agree < 1.0 - 1e-15) pose.set_unit_rotation(q_parent * on_axis);
+    rel_q_[s] = q_parent.conjugate() * pose.q_world;
+    return;
+  }
+  const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
+  turns = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+  bool inside = true;
+  for (int k = 0; k < 3; ++k) inside = inside && arcs.inside(k, turns[k]);
+  if (!inside) {
+    for (int k = 0; k < 3; ++k) turns[k] = arcs.clamp(k, turns[k], turns[k]);
+    pose.set_rotation(q_parent * a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate());
+  }
+  rel_q_[s] = q_parent.conjugate() * pose.q_world;
 }
 
 // A limited segment turns through its joint angles alone: its rotation is

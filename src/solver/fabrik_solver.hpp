@@ -104,7 +104,7 @@ class FabrikSolver {
   void backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
                 std::span<const std::uint8_t> visible, Posture& posture,
                 const Eigen::Vector3d& root_pin_m);
-  void ride_inactive(int pass, Posture& posture) const;
+  void ride_inactive(int pass, Posture& posture);
   // Where segment s's base is, from its parent as it stands (a link parent's one slot is
   // this segment's joint).
   Eigen::Vector3d joint_world_m(int s, const Posture& posture) const {
@@ -148,6 +148,9 @@ class FabrikSolver {
   void gather_orientations(int pass, int s);
 
   void start_within_limits(Posture& posture);
+  // One limited segment, its parent placed; keep_on_axis: a hinge already on its axis is left
+  // as it is (to rounding).
+  void within_limits(int s, Posture& posture, bool keep_on_axis);
   // The subtree carry's points as moments (fabrik_solver.cpp, "subtree_carry").
   void target_moments(std::span<const Eigen::Vector3d> target_world_m);
   void limited_moments(int pass, bool carrying, const Posture& posture);
@@ -216,6 +219,7 @@ class FabrikSolver {
   std::vector<double> weight_scale_;  // per point target: set_weight_scale's factors
   std::vector<double> slot_weight_;  // [pass][slot], per solve: 0 when it does not take part
   std::vector<std::uint8_t> pass_has_riders_;  // per pass, per solve: an inactive non-root segment
+  std::vector<std::uint8_t> driven_;           // per segment, per solve: active in a pass that runs
   // What the marks above were computed for: skipped when a frame has the same
   // visibility and options as the previous one (the usual case in a stream).
   std::vector<std::uint8_t> marked_visible_, marked_orient_visible_;
