@@ -13,8 +13,9 @@
 #include "eval/subject.hpp"
 #include "io/marker_trial.hpp"
 #include "offline/solve_trial.hpp"
-#include "tracking/mirror_swap.hpp"
 #include "synth/synthetic_motion.hpp"
+#include "tracking/cold_start.hpp"
+#include "tracking/mirror_swap.hpp"
 #include "tracking/outlier_filter.hpp"
 #include "tracking/tracker.hpp"
 
@@ -243,6 +244,31 @@ TEST_CASE("A root marker metres off is left out, not followed: judged against th
       });
   CHECK(flagged == frames);
   CHECK(worst_m < 5e-3);
+}
+
+TEST_CASE("A cold frame's solve takes the cold budget and at least the fallback carry",
+          "[cold_start]") {
+  SolverOptions warm;
+  ColdStartSettings cold;
+  warm.max_iterations = 50;
+  cold.max_iterations = 500;
+  warm.subtree_carry = 0.0;
+  warm.fallback_carry = 0.5;
+  SolverOptions o = cold_solver_options(warm, cold);
+  CHECK(o.max_iterations == 500);
+  CHECK(o.subtree_carry == 0.5);
+  // A carry above the fallback's is kept; FABRIK's own rule (both 0) stays FABRIK's.
+  warm.subtree_carry = 1.0;
+  CHECK(cold_solver_options(warm, cold).subtree_carry == 1.0);
+  warm.subtree_carry = 0.0;
+  warm.fallback_carry = 0.0;
+  CHECK(cold_solver_options(warm, cold).subtree_carry == 0.0);
+  // The rest of the options are the warm frame's.
+  warm.anchor_weight = 7.0;
+  warm.tolerance_m = 2e-4;
+  o = cold_solver_options(warm, cold);
+  CHECK(o.anchor_weight == 7.0);
+  CHECK(o.tolerance_m == 2e-4);
 }
 
 TEST_CASE("walk1's first frame converges: max residual <= 25 mm, also from far away",

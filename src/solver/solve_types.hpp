@@ -69,7 +69,8 @@ struct SolverOptions {
   /// reached (a thigh holding one of its three markers turns about its long axis while the
   /// knee hinge follows, growing ~1.2x an iteration to a cycle 0.1-0.2 m off): a solve
   /// whose RMS rises 4 iterations in a row to over 1.25x its lowest takes this carry for
-  /// the rest. 0: never (FABRIK's own rule throughout).
+  /// the rest. The Tracker's cold frames take it from the start (cold_solver_options).
+  /// 0: never (FABRIK's own rule throughout).
   double fallback_carry = 0.5;
   /// Jump ahead along the convergence loop's steps when they shrink along one direction
   /// (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the

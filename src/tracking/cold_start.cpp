@@ -8,6 +8,10 @@ namespace fabrik {
 SolverOptions cold_solver_options(const SolverOptions& warm, const ColdStartSettings& cold) {
   SolverOptions o = warm;
   o.max_iterations = std::max(warm.max_iterations, cold.max_iterations);
+  // From rest, FABRIK's loop without the carry can end at its fixed point far from the fit
+  // (walk1's right arm, 97 mm off), where the fallback's trigger, a residual rising again,
+  // never fires; the warm frames would follow it. With fallback_carry 0 it stays FABRIK's own.
+  o.subtree_carry = std::max(warm.subtree_carry, warm.fallback_carry);
   return o;
 }
 

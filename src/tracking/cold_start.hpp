@@ -18,7 +18,8 @@
 
 namespace fabrik {
 
-// The solver options of a cold frame: the warm ones with the cold budget.
+// The solver options of a cold frame: the warm ones with the cold budget, and at least the
+// fallback carry as the subtree carry.
 SolverOptions cold_solver_options(const SolverOptions& warm, const ColdStartSettings& cold);
 
 // Turns and moves `posture` (the rest posture) as one rigid body so that the model points
