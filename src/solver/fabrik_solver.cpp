@@ -508,32 +508,76 @@ void FabrikSolver::turn_links(Posture& posture) const {
 }
 
 // A rider (a segment nothing below pulls on in a pass) that another level's pass pulls on
-// keeps the world rotation it had when this level's passes began and moves with its joint,
-// within the joint's range: a stronger level's pass leaves where a weaker one turned the limbs.
-// Riding on the parent instead, the limbs turned back with a pelvis that a weak pass with weak
-// anchors had turned, and the body drifted (docs/solver.md, "Riders"). A segment no pass pulls
-// on rides rigidly on its parent. Nothing a pass fits reads a rider (it has no target in the
-// pass and no active segment below it), so the passes leave riders out and this places them
-// once, after the level's last pass, parents first.
+// keeps the world rotation it had when this level's passes began and moves with its joint: a
+// stronger level's pass leaves where a weaker one turned the limbs. Riding on the parent
+// instead, the limbs turned back with a pelvis that a weak pass with weak anchors had turned,
+// and the body drifted (docs/solver.md, "Riders"). A segment no pass pulls on rides rigidly
+// on its parent. Nothing a pass fits reads a rider (it has no target in the pass and no
+// active segment below it), so the passes leave riders out and this places them once, after
+// the level's last pass, parents first.
 void FabrikSolver::ride_inactive(int pass, Posture& posture) {
   for (int s = 1; s < n_seg_; ++s) {
     if (active(pass, s)) continue;
     SegmentPose& pose = posture.segments[s];
-    if (driven_[s]) {
-      pose.set_unit_rotation(start_[s].q_world);
-      // Under a parent that kept its rotation (a rider not brought within range), the joint
-      // is as it was; only a rider whose parent turned needs the (costlier) check.
-      const int parent = model_.segments[s].parent;
-      if (limited_[s] &&
-          posture.segments[parent].q_world.coeffs() != start_[parent].q_world.coeffs())
-        within_limits(s, posture, false);
-    } else {
-      const int parent = model_.segments[s].parent;
+    const int parent = model_.segments[s].parent;
+    if (!driven_[s]) {
       pose.set_rotation(posture.segments[parent].q_world *
                         (start_[parent].q_world.conjugate() * start_[s].q_world));
+    } else {
+      pose.set_unit_rotation(start_[s].q_world);
+      // Under a parent that kept its rotation, the joint is as it was; only a rider whose
+      // parent turned needs its joint checked.
+      if (limited_[s] &&
+          posture.segments[parent].q_world.coeffs() != start_[parent].q_world.coeffs())
+        rider_within_limits(s, posture);
     }
     pose.base_world_m = joint_world_m(s, posture);
   }
+}
+
+// A limited rider that keeps its world rotation under a parent that turned, brought within
+// range from its previous angles. A hinge at a bound stays on it, turning with its parent:
+// the weaker level wanted it beyond, so the bound is its answer whatever the parent did; left
+// a little inside, under weak anchors the hinge's next fit could leave through the other
+// bound (tests/test_joints.cpp, the hinge sweep). Ball joints keep their world rotation on
+// every axis: a hip at a bound turning back with the pelvis brought the drift back.
+void FabrikSolver::rider_within_limits(int s, Posture& posture) {
+  const Segment& seg = model_.segments[s];
+  SegmentPose& pose = posture.segments[s];
+  const Eigen::Quaterniond& q_parent = posture.segments[seg.parent].q_world;
+  const JointArcs& arcs = arcs_[s];
+  Turns& turns = turns_[s];
+  if (seg.joint.type == JointType::fixed) {
+    pose.set_unit_rotation(q_parent);
+    return;
+  }
+  if (hinge_[s]) {
+    const Turn& t = turns[0];
+    if ((t.c == arcs.lo[0].c && t.s == arcs.lo[0].s) ||
+        (t.c == arcs.hi[0].c && t.s == arcs.hi[0].s)) {
+      pose.set_rotation(q_parent * (start_[seg.parent].q_world.conjugate() * start_[s].q_world));
+      return;
+    }
+    const Eigen::Vector3d& u = hinge_axis_local_[s];
+    turns[0] = arcs.clamp(0, twist_turn(q_parent.conjugate() * pose.q_world, u), turns[0]);
+    double ch, sh;
+    half_turn(turns[0], ch, sh);
+    pose.set_unit_rotation(q_parent * Eigen::Quaterniond(ch, sh * u.x(), sh * u.y(), sh * u.z()));
+    rel_q_[s] = q_parent.conjugate() * pose.q_world;
+    return;
+  }
+  const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
+  const Eigen::Quaterniond rel = q_parent.conjugate() * pose.q_world;
+  const Turns kept = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+  bool moved = false;
+  for (int k = 0; k < 3; ++k) {
+    const Turn t = arcs.clamp(k, kept[k], turns[k]);
+    moved = moved || t.c != kept[k].c || t.s != kept[k].s;
+    turns[k] = t;
+  }
+  if (moved)
+    pose.set_rotation(q_parent * a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate());
+  rel_q_[s] = q_parent.conjugate() * pose.q_world;
 }
 
 void FabrikSolver::backward(int pass, std::span<const Eigen::Vector3d> target_world_m,
@@ -677,17 +721,17 @@ Eigen::Matrix3d FabrikSolver::carried_alignment(const Eigen::Vector3d& base_m) c
 
 // Brings every limited joint of the start posture within its ranges and takes its angles as
 // the fits' warm start. Every fit keeps a joint within range and a rider either keeps its
-// relative rotation or is brought within range (ride_inactive), so this one projection keeps
+// relative rotation or is brought within range (rider_within_limits), so this one projection keeps
 // every joint of the solve within range, even from a start that was not. Out of range, each angle
 // goes to its nearer bound (the start has no earlier angle to tell which bound it left through), as
 // enforce_joint_limits does; in turns, without trigonometry. A hinge keeps its twist about
 // its axis; an off-axis part (a start not from a solve) is dropped.
 void FabrikSolver::start_within_limits(Posture& posture) {
   for (int s = 1; s < n_seg_; ++s)
-    if (limited_[s]) within_limits(s, posture, true);
+    if (limited_[s]) within_limits(s, posture);
 }
 
-void FabrikSolver::within_limits(int s, Posture& posture, bool keep_on_axis) {
+void FabrikSolver::within_limits(int s, Posture& posture) {
   const Segment& seg = model_.segments[s];
   SegmentPose& pose = posture.segments[s];
   const Eigen::Quaterniond& q_parent = posture.segments[seg.parent].q_world;
@@ -706,10 +750,9 @@ void FabrikSolver::within_limits(int s, Posture& posture, bool keep_on_axis) {
     double ch, sh;
     half_turn(turns[0], ch, sh);
     const Eigen::Quaterniond on_axis(ch, sh * u.x(), sh * u.y(), sh * u.z());
-    // Unchanged (to rounding) when the start was a turn about the axis within range; a
-    // rider's rotation relative to a parent that turned is set again in any case.
+    // Unchanged (to rounding) when the start was a turn about the axis within range.
     const double agree = on_axis.coeffs().dot(rel.coeffs());
-    if (!keep_on_axis || agree * agree < 1.0 - 1e-15) pose.set_unit_rotation(q_parent * on_axis);
+    if (agree * agree < 1.0 - 1e-15) pose.set_unit_rotation(q_parent * on_axis);
     rel_q_[s] = q_parent.conjugate() * pose.q_world;
     return;
   }

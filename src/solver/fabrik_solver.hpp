@@ -148,9 +148,8 @@ class FabrikSolver {
   void gather_orientations(int pass, int s);
 
   void start_within_limits(Posture& posture);
-  // One limited segment, its parent placed; keep_on_axis: a hinge already on its axis is left
-  // as it is (to rounding).
-  void within_limits(int s, Posture& posture, bool keep_on_axis);
+  void within_limits(int s, Posture& posture);        // one limited segment of the start
+  void rider_within_limits(int s, Posture& posture);  // one limited rider (ride_inactive)
   // The subtree carry's points as moments (fabrik_solver.cpp, "subtree_carry").
   void target_moments(std::span<const Eigen::Vector3d> target_world_m);
   void limited_moments(int pass, bool carrying, const Posture& posture);
