@@ -546,6 +546,8 @@ TEST_CASE("view listen addresses") {
   CHECK(view::parse_listen("[::1]:0") == std::pair<std::string, unsigned short>{"::1", 0});
   CHECK(view::parse_listen("localhost:8080") ==
         std::pair<std::string, unsigned short>{"127.0.0.1", 8080});  // once "not an IP address"
+  CHECK(view::parse_listen("LocalHost:8080") ==
+        std::pair<std::string, unsigned short>{"127.0.0.1", 8080});  // names ignore case
   CHECK_THROWS_AS(view::parse_listen("127.0.0.1"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen("127.0.0.1:65536"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen(":80"), std::invalid_argument);

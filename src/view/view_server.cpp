@@ -839,7 +839,9 @@ std::pair<std::string, unsigned short> parse_listen(const std::string& text) {
   std::string host = text.substr(0, colon);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
-  if (host == "localhost") host = "127.0.0.1";  // the name every browser knows
+  std::string lower = host;  // host names are case-insensitive (RFC 4343)
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (lower == "localhost") host = "127.0.0.1";  // the name every browser knows
   const std::string port = text.substr(colon + 1);
   unsigned long value = 0;
   std::size_t used = 0;
