@@ -163,16 +163,8 @@ bool FabrikSolver::extrapolate(std::span<const Eigen::Vector3d> target_world_m,
     const JointArcs& arcs = arcs_[s];
     for (int k = 0; k < 3; ++k)
       turns[k] = arcs.clamp(k, turn_ahead(turns_[s][k], step_turn_[s][k], factor), turns_[s][k]);
-    if (hinge_[s]) {
-      double ch, sh;
-      half_turn(turns[0], ch, sh);
-      const Eigen::Vector3d& u = hinge_axis_local_[s];
-      jump_rel_q_[s] = Eigen::Quaterniond(ch, sh * u.x(), sh * u.y(), sh * u.z());
-    } else {
-      jump_rel_q_[s] = (model_.segments[seg.parent].q_anatomical * quaternion_zxy(turns) *
-                        seg.q_anatomical.conjugate())
-                           .normalized();
-    }
+    jump_rel_q_[s] = hinge_[s] ? quaternion_about(turns[0], hinge_axis_local_[s])
+                               : joint_rotation(s, turns).normalized();
     pose.set_unit_rotation(q_parent * jump_rel_q_[s]);
   }
   std::copy(distances_m_.begin(), distances_m_.end(), jump_distances_m_.begin());

@@ -433,9 +433,7 @@ void FabrikSolver::hinge_fit(int s, const Eigen::Matrix3d& g, Posture& posture) 
   const double sn = u.dot(Eigen::Vector3d(h(2, 1) - h(1, 2), h(0, 2) - h(2, 0), h(1, 0) - h(0, 1)));
   Turn& theta = turns_[s][0];
   theta = arcs_[s].clamp(0, peak_turn(c, sn, theta), theta);
-  double ch, sh;
-  half_turn(theta, ch, sh);
-  rel_q_[s] = Eigen::Quaterniond(ch, sh * u.x(), sh * u.y(), sh * u.z());
+  rel_q_[s] = quaternion_about(theta, u);
   pose.set_rotation(parent.q_world * rel_q_[s]);
 }
 
@@ -552,31 +550,24 @@ void FabrikSolver::rider_within_limits(int s, Posture& posture) {
     return;
   }
   if (hinge_[s]) {
-    const Turn& t = turns[0];
-    if ((t.c == arcs.lo[0].c && t.s == arcs.lo[0].s) ||
-        (t.c == arcs.hi[0].c && t.s == arcs.hi[0].s)) {
+    if (arcs.at_bound(0, turns[0])) {
       pose.set_rotation(q_parent * (start_[seg.parent].q_world.conjugate() * start_[s].q_world));
       return;
     }
     const Eigen::Vector3d& u = hinge_axis_local_[s];
     turns[0] = arcs.clamp(0, twist_turn(q_parent.conjugate() * pose.q_world, u), turns[0]);
-    double ch, sh;
-    half_turn(turns[0], ch, sh);
-    pose.set_unit_rotation(q_parent * Eigen::Quaterniond(ch, sh * u.x(), sh * u.y(), sh * u.z()));
+    pose.set_unit_rotation(q_parent * quaternion_about(turns[0], u));
     rel_q_[s] = q_parent.conjugate() * pose.q_world;
     return;
   }
-  const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
-  const Eigen::Quaterniond rel = q_parent.conjugate() * pose.q_world;
-  const Turns kept = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+  const Turns kept = joint_turns(s, q_parent.conjugate() * pose.q_world);
   bool moved = false;
   for (int k = 0; k < 3; ++k) {
     const Turn t = arcs.clamp(k, kept[k], turns[k]);
     moved = moved || t.c != kept[k].c || t.s != kept[k].s;
     turns[k] = t;
   }
-  if (moved)
-    pose.set_rotation(q_parent * a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate());
+  if (moved) pose.set_rotation(q_parent * joint_rotation(s, turns));
   rel_q_[s] = q_parent.conjugate() * pose.q_world;
 }
 
@@ -731,6 +722,20 @@ void FabrikSolver::start_within_limits(Posture& posture) {
     if (limited_[s]) within_limits(s, posture);
 }
 
+// J_parent E(turns) J_child^T, a limited joint's rotation relative to its parent from its
+// Cardan turns (J: the anatomical frames), and the turns of such a rotation.
+Eigen::Quaterniond FabrikSolver::joint_rotation(int s, const Turns& t) const {
+  const Segment& seg = model_.segments[s];
+  return model_.segments[seg.parent].q_anatomical * quaternion_zxy(t) *
+         seg.q_anatomical.conjugate();
+}
+
+Turns FabrikSolver::joint_turns(int s, const Eigen::Quaterniond& rel) const {
+  const Segment& seg = model_.segments[s];
+  return turns_zxy((model_.segments[seg.parent].q_anatomical.conjugate() * rel * seg.q_anatomical)
+                       .toRotationMatrix());
+}
+
 void FabrikSolver::within_limits(int s, Posture& posture) {
   const Segment& seg = model_.segments[s];
   SegmentPose& pose = posture.segments[s];
@@ -747,22 +752,19 @@ void FabrikSolver::within_limits(int s, Posture& posture) {
     const Eigen::Vector3d& u = hinge_axis_local_[s];
     const Turn twist = twist_turn(rel, u);
     turns[0] = arcs.clamp(0, twist, twist);
-    double ch, sh;
-    half_turn(turns[0], ch, sh);
-    const Eigen::Quaterniond on_axis(ch, sh * u.x(), sh * u.y(), sh * u.z());
+    const Eigen::Quaterniond on_axis = quaternion_about(turns[0], u);
     // Unchanged (to rounding) when the start was a turn about the axis within range.
     const double agree = on_axis.coeffs().dot(rel.coeffs());
     if (agree * agree < 1.0 - 1e-15) pose.set_unit_rotation(q_parent * on_axis);
     rel_q_[s] = q_parent.conjugate() * pose.q_world;
     return;
   }
-  const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
-  turns = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+  turns = joint_turns(s, rel);
   bool inside = true;
   for (int k = 0; k < 3; ++k) inside = inside && arcs.inside(k, turns[k]);
   if (!inside) {
     for (int k = 0; k < 3; ++k) turns[k] = arcs.clamp(k, turns[k], turns[k]);
-    pose.set_rotation(q_parent * a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate());
+    pose.set_rotation(q_parent * joint_rotation(s, turns));
   }
   rel_q_[s] = q_parent.conjugate() * pose.q_world;
 }
@@ -792,13 +794,12 @@ void FabrikSolver::limited_fit(int s, const Moments& m, const Eigen::Vector3d& b
     hinge_fit(s, g, posture);
     return;
   }
-  const Eigen::Quaterniond& a_parent = model_.segments[seg.parent].q_anatomical;
   if (seg.joint.type == JointType::ball) {
     // Most of the time a ball joint's free fit lies within its ranges: then
     // it is the constrained fit too, and cheaper to find.
     free_fit(m, g, base_m, pose);
     const Eigen::Quaterniond rel = parent.q_world.conjugate() * pose.q_world;
-    const Turns free = turns_zxy((a_parent.conjugate() * rel * seg.q_anatomical).toRotationMatrix());
+    const Turns free = joint_turns(s, rel);
     const JointArcs& arcs = arcs_[s];
     if (arcs.inside(0, free[0]) && arcs.inside(1, free[1]) && arcs.inside(2, free[2])) {
       turns_[s] = free;
@@ -812,7 +813,7 @@ void FabrikSolver::limited_fit(int s, const Moments& m, const Eigen::Vector3d& b
   // Warm start from the joint's angles at its last fit (or at the start of the solve).
   Turns& turns = turns_[s];
   fit_joint_turns(b, arcs_[s], turns, kJointSweeps);
-  rel_q_[s] = (a_parent * quaternion_zxy(turns) * seg.q_anatomical.conjugate()).normalized();
+  rel_q_[s] = joint_rotation(s, turns).normalized();
   pose.set_unit_rotation(parent.q_world * rel_q_[s]);
 }
 

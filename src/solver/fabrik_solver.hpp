@@ -150,6 +150,8 @@ class FabrikSolver {
   void start_within_limits(Posture& posture);
   void within_limits(int s, Posture& posture);        // one limited segment of the start
   void rider_within_limits(int s, Posture& posture);  // one limited rider (ride_inactive)
+  Eigen::Quaterniond joint_rotation(int s, const Turns& t) const;
+  Turns joint_turns(int s, const Eigen::Quaterniond& rel) const;
   // The subtree carry's points as moments (fabrik_solver.cpp, "subtree_carry").
   void target_moments(std::span<const Eigen::Vector3d> target_world_m);
   void limited_moments(int pass, bool carrying, const Posture& posture);

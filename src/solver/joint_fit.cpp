@@ -60,6 +60,12 @@ Turn twist_turn(const Eigen::Quaterniond& q, const Eigen::Vector3d& u) {
   return {(w * w - a * a) / n2, 2.0 * w * a / n2};
 }
 
+Eigen::Quaterniond quaternion_about(const Turn& t, const Eigen::Vector3d& u) {
+  double c, s;
+  half_turn(t, c, s);
+  return Eigen::Quaterniond(c, s * u.x(), s * u.y(), s * u.z());
+}
+
 Eigen::Quaterniond quaternion_zxy(const Turns& t) {
   double cz, sz, cx, sx, cy, sy;
   half_turn(t[0], cz, sz);

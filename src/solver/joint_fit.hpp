@@ -42,12 +42,15 @@ struct JointArcs {
     if (inside(k, previous)) return cross(previous, t) > 0.0 ? hi[k] : lo[k];
     return dot(t, lo[k]) >= dot(t, hi[k]) ? lo[k] : hi[k];
   }
+  // True if `t` is exactly one of range k's bounds, as clamp leaves an angle that left it.
+  bool at_bound(int k, const Turn& t) const { return same(t, lo[k]) || same(t, hi[k]); }
   static double cross(const Turn& a, const Turn& b) { return a.c * b.s - a.s * b.c; }
   static double dot(const Turn& a, const Turn& b) { return a.c * b.c + a.s * b.s; }
 
  private:
   // Rounding allowance for the range tests, in sine units (radians near 0).
   static constexpr double kInside = 1e-12;
+  static bool same(const Turn& a, const Turn& b) { return a.c == b.c && a.s == b.s; }
 };
 
 // The Cardan turns of r = Rz Rx Ry (a_x's cosine is taken >= 0).
@@ -66,6 +69,9 @@ inline Turn peak_turn(double c, double s, const Turn& fallback) {
 void half_turn(const Turn& t, double& c, double& s);
 // The angle of a rotation's twist about unit axis u, as a turn.
 Turn twist_turn(const Eigen::Quaterniond& q, const Eigen::Vector3d& u);
+
+// The unit quaternion of a turn t about unit axis u.
+Eigen::Quaterniond quaternion_about(const Turn& t, const Eigen::Vector3d& u);
 
 // The unit quaternion of E = Rz Rx Ry, from the turns' half angles.
 Eigen::Quaterniond quaternion_zxy(const Turns& t);
