@@ -188,8 +188,9 @@ TEST_CASE("Property: random trees with joint limits end within them, rigid and c
   CHECK(jumps > 0);  // the extrapolation (one level, no priorities) took part
 }
 
-TEST_CASE("A start posture outside the ranges ends within them, also where no target pulls",
-          "[joints][property]") {
+TEST_CASE(
+    "A start posture outside the ranges ends within them and joined, also where no target pulls",
+    "[joints][property]") {
   // Segments without a target in a pass ride on their parent with the
   // relative rotation they started with: the solve must bring a start that
   // is out of range within range before any of them rides.
@@ -213,10 +214,19 @@ TEST_CASE("A start posture outside the ranges ends within them, also where no ta
     SolverOptions o;
     o.root = RootMode::free;
     FabrikSolver solver(m, targets, o);
+    // With no target visible no pass runs: the start alone must come out within range, and
+    // joined again where it came apart.
+    Posture unseen = posture;
+    for (int s = 1; s < static_cast<int>(m->segments.size()); ++s)
+      unseen.segments[s].base_world_m += Eigen::Vector3d(0.01 * s, 0.0, -0.02);
+    REQUIRE(max_joint_gap_m(*m, unseen) > 0.005);
+    solver.solve(pos, std::vector<std::uint8_t>(targets.size(), 0), unseen);
     solver.solve(pos, all_visible(targets.size()), posture);
     CAPTURE(trial, m->segments.size());
     CHECK(max_limit_excess_rad(*m, posture) < 1e-9);
     CHECK(max_rigidity_error(*m, posture) < 1e-9);
+    CHECK(max_limit_excess_rad(*m, unseen) < 1e-9);
+    CHECK(max_joint_gap_m(*m, unseen) < 1e-12);
   }
 }
 

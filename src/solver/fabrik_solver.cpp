@@ -717,9 +717,18 @@ Eigen::Matrix3d FabrikSolver::carried_alignment(const Eigen::Vector3d& base_m) c
 // goes to its nearer bound (the start has no earlier angle to tell which bound it left through), as
 // enforce_joint_limits does; in turns, without trigonometry. A hinge keeps its twist about
 // its axis; an off-axis part (a start not from a solve) is dropped.
-void FabrikSolver::start_within_limits(Posture& posture) {
-  for (int s = 1; s < n_seg_; ++s)
+// A base more than a nanometre off its parent's joint then goes onto it: a start whose
+// segments came apart (not one a solve left) would otherwise keep its gaps wherever no pass
+// moves it, as in a solve with no visible target. A start a solve left is joined to rounding
+// and stays as it is, to the bit.
+void FabrikSolver::prepare_start(Posture& posture) {
+  constexpr double kApart_m2 = 1e-18;
+  for (int s = 1; s < n_seg_; ++s) {
     if (limited_[s]) within_limits(s, posture);
+    Eigen::Vector3d& base_m = posture.segments[s].base_world_m;
+    const Eigen::Vector3d joint_m = posture.point_world_m(model_, model_.segments[s].parent_point);
+    if ((joint_m - base_m).squaredNorm() > kApart_m2) base_m = joint_m;
+  }
 }
 
 // J_parent E(turns) J_child^T, a limited joint's rotation relative to its parent from its
@@ -908,7 +917,7 @@ SolveResult FabrikSolver::solve(std::span<const Eigen::Vector3d> target_world_m,
     orient_r_[k] = orient_q_[k].toRotationMatrix();
   }
   mark_active(visible);
-  start_within_limits(posture);
+  prepare_start(posture);
   const Eigen::Vector3d root_pin_m = posture.segments[0].base_world_m;
   carry_origin_m_ = root_pin_m;  // near every point: the carried moments keep their digits
   if (any_limited_) target_moments(target_world_m);

@@ -147,7 +147,7 @@ class FabrikSolver {
   void hinge_fit(int s, const Eigen::Matrix3d& g, Posture& posture);
   void gather_orientations(int pass, int s);
 
-  void start_within_limits(Posture& posture);
+  void prepare_start(Posture& posture);               // within range, connected
   void within_limits(int s, Posture& posture);        // one limited segment of the start
   void rider_within_limits(int s, Posture& posture);  // one limited rider (ride_inactive)
   Eigen::Quaterniond joint_rotation(int s, const Turns& t) const;
