@@ -731,20 +731,6 @@ void FabrikSolver::prepare_start(Posture& posture) {
   }
 }
 
-// J_parent E(turns) J_child^T, a limited joint's rotation relative to its parent from its
-// Cardan turns (J: the anatomical frames), and the turns of such a rotation.
-Eigen::Quaterniond FabrikSolver::joint_rotation(int s, const Turns& t) const {
-  const Segment& seg = model_.segments[s];
-  return model_.segments[seg.parent].q_anatomical * quaternion_zxy(t) *
-         seg.q_anatomical.conjugate();
-}
-
-Turns FabrikSolver::joint_turns(int s, const Eigen::Quaterniond& rel) const {
-  const Segment& seg = model_.segments[s];
-  return turns_zxy((model_.segments[seg.parent].q_anatomical.conjugate() * rel * seg.q_anatomical)
-                       .toRotationMatrix());
-}
-
 void FabrikSolver::within_limits(int s, Posture& posture) {
   const Segment& seg = model_.segments[s];
   SegmentPose& pose = posture.segments[s];

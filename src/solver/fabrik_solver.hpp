@@ -150,8 +150,18 @@ class FabrikSolver {
   void prepare_start(Posture& posture);               // within range, connected
   void within_limits(int s, Posture& posture);        // one limited segment of the start
   void rider_within_limits(int s, Posture& posture);  // one limited rider (ride_inactive)
-  Eigen::Quaterniond joint_rotation(int s, const Turns& t) const;
-  Turns joint_turns(int s, const Eigen::Quaterniond& rel) const;
+  // J_parent E(turns) J_child^T, a limited joint's rotation relative to its parent from its
+  // Cardan turns (J: the anatomical frames), and the turns of such a rotation.
+  Eigen::Quaterniond joint_rotation(int s, const Turns& t) const {
+    const Segment& seg = model_.segments[s];
+    return model_.segments[seg.parent].q_anatomical * quaternion_zxy(t) *
+           seg.q_anatomical.conjugate();
+  }
+  Turns joint_turns(int s, const Eigen::Quaterniond& rel) const {
+    const Segment& seg = model_.segments[s];
+    return turns_zxy((model_.segments[seg.parent].q_anatomical.conjugate() * rel * seg.q_anatomical)
+                         .toRotationMatrix());
+  }
   // The subtree carry's points as moments (fabrik_solver.cpp, "subtree_carry").
   void target_moments(std::span<const Eigen::Vector3d> target_world_m);
   void limited_moments(int pass, bool carrying, const Posture& posture);
