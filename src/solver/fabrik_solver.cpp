@@ -717,17 +717,15 @@ Eigen::Matrix3d FabrikSolver::carried_alignment(const Eigen::Vector3d& base_m) c
 // goes to its nearer bound (the start has no earlier angle to tell which bound it left through), as
 // enforce_joint_limits does; in turns, without trigonometry. A hinge keeps its twist about
 // its axis; an off-axis part (a start not from a solve) is dropped.
-// A base more than a nanometre off its parent's joint then goes onto it: a start whose
-// segments came apart (not one a solve left) would otherwise keep its gaps wherever no pass
-// moves it, as in a solve with no visible target. A start a solve left is joined to rounding
-// and stays as it is, to the bit.
+// Then a base more than 1 nm off its parent's joint goes onto it (else a solve where no pass
+// runs returns the gaps); a start a solve left is joined to rounding and is not touched.
 void FabrikSolver::prepare_start(Posture& posture) {
-  constexpr double kApart_m2 = 1e-18;
+  constexpr double kMaxGapM = 1e-9;
   for (int s = 1; s < n_seg_; ++s) {
     if (limited_[s]) within_limits(s, posture);
     Eigen::Vector3d& base_m = posture.segments[s].base_world_m;
     const Eigen::Vector3d joint_m = posture.point_world_m(model_, model_.segments[s].parent_point);
-    if ((joint_m - base_m).squaredNorm() > kApart_m2) base_m = joint_m;
+    if ((joint_m - base_m).squaredNorm() > kMaxGapM * kMaxGapM) base_m = joint_m;
   }
 }
 

@@ -152,9 +152,9 @@ class FabrikSolver {
   void rider_within_limits(int s, Posture& posture);  // one limited rider (ride_inactive)
   // J_parent E(turns) J_child^T, a limited joint's rotation relative to its parent from its
   // Cardan turns (J: the anatomical frames), and the turns of such a rotation.
-  Eigen::Quaterniond joint_rotation(int s, const Turns& t) const {
+  Eigen::Quaterniond joint_rotation(int s, const Turns& turns) const {
     const Segment& seg = model_.segments[s];
-    return model_.segments[seg.parent].q_anatomical * quaternion_zxy(t) *
+    return model_.segments[seg.parent].q_anatomical * quaternion_zxy(turns) *
            seg.q_anatomical.conjugate();
   }
   Turns joint_turns(int s, const Eigen::Quaterniond& rel) const {
