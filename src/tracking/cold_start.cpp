@@ -12,6 +12,11 @@ SolverOptions cold_solver_options(const SolverOptions& warm, const ColdStartSett
   // (walk1's right arm, 97 mm off), where the fallback's trigger, a residual rising again,
   // never fires; the warm frames would follow it. With fallback_carry 0 it stays FABRIK's own.
   o.subtree_carry = std::max(warm.subtree_carry, warm.fallback_carry);
+  // Without anchors each weaker level's pass moves the stronger levels' segments as it likes
+  // and their own pass moves them back: from rest the loop can end far from the fit (one
+  // synthetic start in 8, 90 mm RMS after 500 iterations) and the warm frames follow it for
+  // a second. Anchored, the cold frame finds the posture; the warm frames keep the user's.
+  o.anchor_weight = std::max(warm.anchor_weight, kColdMinAnchorWeight);
   return o;
 }
 

@@ -18,9 +18,12 @@
 
 namespace fabrik {
 
-// The solver options of a cold frame: the warm ones with the cold budget, and at least the
-// fallback carry as the subtree carry.
+// The solver options of a cold frame: the warm ones with the cold budget, at least the
+// fallback carry as the subtree carry, and anchors at least kColdMinAnchorWeight.
 SolverOptions cold_solver_options(const SolverOptions& warm, const ColdStartSettings& cold);
+// A cold frame's least anchor weight: the stronger levels' targets weigh at least as much as
+// a weaker level's own (weight 1) in its pass.
+inline constexpr double kColdMinAnchorWeight = 1.0;
 
 // Turns and moves `posture` (the rest posture) as one rigid body so that the model points
 // points[i] best meet measured_world_m[i] where visible[i] (least squares, Kabsch). With fewer
