@@ -113,11 +113,19 @@ TEST_CASE("Subjects split across two fabrikd processes on one stream: each publi
   }
   for (std::size_t p = 0; p < split.size(); ++p) collect(subs[p], 200ms, seen[p]);
   for (std::size_t p = 0; p < split.size(); ++p) {
-    std::set<std::pair<std::string, std::uint64_t>> expected;
+    std::set<std::pair<std::string, std::uint64_t>> expected, answered;
     for (const std::string& name : split[p])
       for (int i = 0; i < n; ++i) expected.insert({"pose/" + name, first + static_cast<std::uint64_t>(i)});
+    // A probe's answer may still come in late on a loaded host: its subjects are checked, its
+    // frame is not one of these.
+    std::set<std::string> own;
+    for (const std::string& name : split[p]) own.insert("pose/" + name);
+    for (const auto& [topic, frame] : seen[p]) {
+      CHECK(own.count(topic) == 1);
+      if (frame >= first) answered.insert({topic, frame});
+    }
     CAPTURE(p);
-    CHECK(seen[p] == expected);  // its own subjects, every frame, nothing else
+    CHECK(answered == expected);  // its own subjects, every frame, nothing else
   }
   // While A and B are out of the volume, frames of C and D alone: the second
   // process answers them; to the first they are another process's frames,
