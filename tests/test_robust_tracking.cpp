@@ -732,8 +732,9 @@ TEST_CASE("Weak anchors with a free root leave the joint centres near the defaul
   // anchors, a limb level's pass turns the pelvis; the pelvis level's pass turns it back,
   // and the limbs, riders of that pass, must not turn back with it (they did: 0.2-0.3 m
   // mean, up to 1 m, at anchor_weight 1 or less; 0.9 m worst at 10 with markers flickering).
-  // Without anchors (0) the cold frame takes some (cold_solver_options): from rest, this
-  // motion's first frame ended 90 mm RMS off, and the warm frames followed it for 0.4 s.
+  // Without anchors (0) a cold frame takes anchors of 1 (cold_solver_options): without them,
+  // from rest, this motion's first frame ended 90 mm RMS off and the warm frames followed it
+  // for about 0.4 s.
   const DaemonConfig config = default_daemon_config();
   for (const double anchor : {10.0, 1.0, 0.1, 0.0}) {
     for (const double hide_share : {0.0, 0.1}) {

@@ -57,6 +57,7 @@ struct SolverOptions {
   /// leave it free (their null space, in Baerlocher & Boulic's terms).
   /// 0 disables it (the paper's literal loop, where each level pulls alone):
   /// then a weak level can cost the strongest one accuracy in a conflict.
+  /// The Tracker's cold frames take at least 1 (cold_solver_options).
   double anchor_weight = 1000.0;
   /// With joint limits: the targets below a limited joint also pull, with
   /// their weight times this factor, on the segments above it (through

@@ -15,7 +15,8 @@ SolverOptions cold_solver_options(const SolverOptions& warm, const ColdStartSett
   // Without anchors each weaker level's pass moves the stronger levels' segments as it likes
   // and their own pass moves them back: from rest the loop can end far from the fit (one
   // synthetic start in 8, 90 mm RMS after 500 iterations) and the warm frames follow it for
-  // a second. Anchored, the cold frame finds the posture; the warm frames keep the user's.
+  // about 0.4 s. Weak anchors are raised too: from rest there is no posture nearby to keep.
+  // Anchored, the cold frame finds the posture; the warm frames keep the user's.
   o.anchor_weight = std::max(warm.anchor_weight, kColdMinAnchorWeight);
   return o;
 }
