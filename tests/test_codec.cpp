@@ -9,6 +9,7 @@
 #include <random>
 #include <set>
 
+#include "common/ascii_case.hpp"
 #include "config/daemon_config.hpp"
 #include "daemon_thread.hpp"
 #include "model_message.hpp"
@@ -848,4 +849,15 @@ TEST_CASE("Orientations: bad quaternions are occlusions, unknown sensors ignored
     CHECK(f.q_sensor[0].angularDistance(q[0]) < 1e-8);
     CHECK(f.rejected_orientations == 0);
   }
+}
+
+TEST_CASE("ASCII case folding: any case of a name compares equal, other bytes as they are",
+          "[common]") {
+  CHECK(ascii_lower("LocalHost.TRC") == "localhost.trc");
+  CHECK(ascii_lower("R_ASIS-2") == "r_asis-2");
+  CHECK(ascii_lower("\xc3\x89t\xc3\xa9") == "\xc3\x89t\xc3\xa9");  // UTF-8 bytes kept
+  CHECK(iequals("LOCALHOST", "localhost"));
+  CHECK(iequals("", ""));
+  CHECK_FALSE(iequals("localhost", "localhost."));
+  CHECK_FALSE(iequals("all", "alm"));
 }

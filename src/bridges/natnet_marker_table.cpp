@@ -5,15 +5,14 @@
 #include <limits>
 
 #include "bridges/natnet_names.hpp"
+#include "common/ascii_case.hpp"
 
 namespace fabrik::natnet {
 
 namespace {
 
 bool is_all_set(const std::string& name) {
-  return name.size() == 3 && std::tolower(static_cast<unsigned char>(name[0])) == 'a' &&
-         std::tolower(static_cast<unsigned char>(name[1])) == 'l' &&
-         std::tolower(static_cast<unsigned char>(name[2])) == 'l';
+  return iequals(name, "all");
 }
 
 bool seen(const Point3f& p) {

@@ -5,6 +5,8 @@
 #include <map>
 #include <set>
 
+#include "common/ascii_case.hpp"
+
 namespace fabrik::calib {
 
 namespace {
@@ -17,16 +19,11 @@ bool is_separator(char c) {
   return c == '_' || c == '.' || c == '-' || c == ' ';
 }
 
-std::string lower(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
-}
-
 bool starts_with_ci(const std::string& s, const std::string& prefix) {
-  return s.size() > prefix.size() && lower(s.substr(0, prefix.size())) == prefix;
+  return s.size() > prefix.size() && ascii_lower(s.substr(0, prefix.size())) == prefix;
 }
 bool ends_with_ci(const std::string& s, const std::string& suffix) {
-  return s.size() > suffix.size() && lower(s.substr(s.size() - suffix.size())) == suffix;
+  return s.size() > suffix.size() && ascii_lower(s.substr(s.size() - suffix.size())) == suffix;
 }
 
 }  // namespace
@@ -40,16 +37,16 @@ std::vector<SideReading> side_readings(const std::string& n) {
     if (starts_with_ci(n, word)) {
       std::string rest = n.substr(word.size());
       if (is_separator(rest[0])) rest.erase(0, 1);
-      if (!rest.empty()) out.push_back({"word<" + lower(rest), rest, side, true});
+      if (!rest.empty()) out.push_back({"word<" + ascii_lower(rest), rest, side, true});
     }
     if (ends_with_ci(n, word)) {
       std::string head = n.substr(0, n.size() - word.size());
       if (!head.empty() && is_separator(head.back())) head.pop_back();
-      if (!head.empty()) out.push_back({"word>" + lower(head), head, side, true});
+      if (!head.empty()) out.push_back({"word>" + ascii_lower(head), head, side, true});
     }
   }
-  const char first = static_cast<char>(std::tolower(static_cast<unsigned char>(n[0])));
-  const char last = static_cast<char>(std::tolower(static_cast<unsigned char>(n.back())));
+  const char first = ascii_lower(n[0]);
+  const char last = ascii_lower(n.back());
   // A one-letter token with a separator: r_thigh, R.ASIS, thigh_l.
   if ((first == 'r' || first == 'l') && is_separator(n[1]) && n.size() > 2)
     out.push_back({std::string("pre") + n[1] + n.substr(2), n.substr(2),
@@ -122,7 +119,7 @@ BodyPart body_part(const std::string& name) {
   for (const SideReading& r : side_readings(name)) candidates.push_back(r.stem);
   for (const std::string& c : candidates) {
     std::string s;
-    for (char ch : lower(c))
+    for (char ch : ascii_lower(c))
       if (!is_separator(ch)) s += ch;
     if (const auto it = parts.find(s); it != parts.end()) return it->second;
   }

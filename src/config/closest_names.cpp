@@ -4,24 +4,19 @@
 #include <cctype>
 #include <optional>
 
+#include "common/ascii_case.hpp"
 #include "common/edit_distance.hpp"
 
 namespace fabrik {
 
 namespace {
 
-std::string lower(const std::string& s) {
-  std::string out = s;
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
-}
-
 // Lower case, letters and digits only: "R.ASIS" and "r_asis" both become "rasis".
 std::string normalized(const std::string& s) {
   std::string out;
   for (const char c : s) {
     if (std::isalnum(static_cast<unsigned char>(c))) {
-      out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      out += ascii_lower(c);
     }
   }
   return out;
@@ -58,9 +53,9 @@ std::vector<NameMatch> closest_labels(const std::vector<std::string>& config_nam
     };
     for (const std::string& label : trial_labels) {
       const std::string bare = without_prefix(label);
-      if (lower(label) == lower(name)) {
+      if (iequals(label, name)) {
         offer(label, "case", 0);
-      } else if (bare != label && lower(bare) == lower(name)) {
+      } else if (bare != label && iequals(bare, name)) {
         offer(label, "after '" + label.substr(0, label.size() - bare.size()) + "'", 1);
       } else {
         const std::string a = normalized(name), b = normalized(bare);

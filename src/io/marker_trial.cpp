@@ -9,6 +9,7 @@
 #include <system_error>
 #include <unordered_map>
 
+#include "common/ascii_case.hpp"
 #include "io/io_detail.hpp"
 
 namespace fabrik::io {
@@ -19,9 +20,7 @@ int MarkerTrial::find(const std::string& label) const {
 }
 
 MarkerTrial read_trial(const std::string& path, const ReadOptions& options) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string ext = ascii_lower(std::filesystem::path(path).extension().string());
   if (ext == ".trc") return read_trc(path, options);
   if (ext == ".c3d") return read_c3d(path, options);
   throw FormatError(path, "unknown file type '" + ext + "' (expected .trc or .c3d)");
@@ -116,9 +115,7 @@ LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes) {
 }
 
 std::optional<double> metres_per_unit(std::string_view units) {
-  std::string u(trim(units));
-  std::transform(u.begin(), u.end(), u.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string u = ascii_lower(trim(units));
   if (u == "mm" || u == "millimeter" || u == "millimeters" || u == "millimetre" ||
       u == "millimetres") {
     return 0.001;

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string_view>
 
+#include "common/ascii_case.hpp"
 #include "io/io_detail.hpp"
 #include "io/marker_trial.hpp"
 
@@ -75,13 +76,6 @@ std::string cell_kind(std::size_t width) {
                       : std::to_string(width) + "-tuples";
 }
 
-std::string lower(std::string_view s) {
-  std::string out(s);
-  std::transform(out.begin(), out.end(), out.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return out;
-}
-
 std::string number_text(double v, const char* format) {
   if (std::isnan(v)) return "NaN";
   char buf[64];
@@ -103,7 +97,7 @@ std::string OpenSimTable::header_value(const std::string& key) const {
 }
 
 bool OpenSimTable::in_degrees() const {
-  return lower(header_value("inDegrees")) == "yes";
+  return iequals(header_value("inDegrees"), "yes");
 }
 
 Eigen::Quaterniond OpenSimTable::quaternion(std::size_t row, std::size_t column) const {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "common/ascii_case.hpp"
 #include "io/marker_trial.hpp"
 #include "io/opensim_table.hpp"
 
@@ -15,9 +16,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 bool is_sto_file(const std::string& path) {
   if (path.size() < 4) return false;
-  std::string ext = path.substr(path.size() - 4);
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ext == ".sto";
+  return iequals(std::string_view(path).substr(path.size() - 4), ".sto");
 }
 
 int OrientationTable::find(const std::string& sensor) const {

@@ -4,14 +4,14 @@
 #include <cctype>
 #include <filesystem>
 
+#include "common/ascii_case.hpp"
+
 namespace fabrik::io {
 
 const char* const kInfoFormats = ".trc, .c3d (markers), .sto, .mot (OpenSim tables)";
 
 RecordingInfo inspect_recording(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string ext = ascii_lower(std::filesystem::path(path).extension().string());
   RecordingInfo info;
   info.path = path;
   if (ext == ".sto" || ext == ".mot") {

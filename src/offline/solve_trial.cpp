@@ -5,6 +5,7 @@
 #include <fstream>
 #include <map>
 
+#include "common/ascii_case.hpp"
 #include "common/quantile.hpp"
 #include "solver/units.hpp"
 #include "tracking/tracker.hpp"
@@ -15,9 +16,8 @@ namespace fabrik {
 namespace {
 
 bool ends_with_ci(const std::string& s, const std::string& suffix) {
-  if (s.size() < suffix.size()) return false;
-  return std::equal(suffix.rbegin(), suffix.rend(), s.rbegin(),
-                    [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+  return s.size() >= suffix.size() &&
+         iequals(std::string_view(s).substr(s.size() - suffix.size()), suffix);
 }
 
 }  // namespace

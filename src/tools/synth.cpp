@@ -4,13 +4,14 @@
 #include <random>
 #include <stdexcept>
 
+#include <fstream>
+#include "common/ascii_case.hpp"
 #include "config/daemon_config.hpp"
+#include "io/opensim_table.hpp"
+#include "solver/joint_angles.hpp"
 #include "solver/posture.hpp"
 #include "solver/units.hpp"
 #include "synth/synthetic_motion.hpp"
-#include "solver/joint_angles.hpp"
-#include "io/opensim_table.hpp"
-#include <fstream>
 
 namespace fabrik::tools {
 
@@ -143,9 +144,8 @@ void write_truth_mot(const std::string& path, const SynthTrial& t) {
 std::string joints_sidecar_path(const std::string& trc_path) {
   const std::size_t n = trc_path.size();
   if (n >= 4) {
-    std::string ext = trc_path.substr(n - 4);
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == ".trc") return trc_path.substr(0, n - 4) + ".joints.trc";
+    if (iequals(std::string_view(trc_path).substr(n - 4), ".trc"))
+      return trc_path.substr(0, n - 4) + ".joints.trc";
   }
   return trc_path + ".joints.trc";
 }

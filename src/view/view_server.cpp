@@ -20,6 +20,7 @@
 #include <thread>
 #include <zmq_addon.hpp>
 
+#include "common/ascii_case.hpp"
 #include "config/endpoint_check.hpp"
 #include "stream_status.hpp"
 #include "transport/payload_document.hpp"
@@ -60,8 +61,7 @@ bool is_loopback_name(std::string_view host) {
   } else {
     host = host.substr(0, host.find(':'));
   }
-  std::string lower(host);
-  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const std::string lower = ascii_lower(host);
   if (lower == "localhost") return true;
   beast::error_code ec;
   const net::ip::address address = net::ip::make_address(lower, ec);
@@ -839,9 +839,7 @@ std::pair<std::string, unsigned short> parse_listen(const std::string& text) {
   std::string host = text.substr(0, colon);
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
-  std::string lower = host;  // host names are case-insensitive (RFC 4343)
-  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (lower == "localhost") host = "127.0.0.1";  // the name every browser knows
+  if (iequals(host, "localhost")) host = "127.0.0.1";  // the name every browser knows
   const std::string port = text.substr(colon + 1);
   unsigned long value = 0;
   std::size_t used = 0;

@@ -21,6 +21,7 @@
 #include "bridges/qtm/packet.hpp"
 #include "bridges/qtm/parameters_xml.hpp"
 #include "bridges/tcp.hpp"
+#include "common/ascii_case.hpp"
 
 namespace fabrik::qtm {
 
@@ -41,12 +42,6 @@ constexpr std::size_t kMaxQueuedBytes = 8u << 20;     // a client this far behin
 bool vless(ProtocolVersion a, ProtocolVersion b) { return a.major != b.major ? a.major < b.major : a.minor < b.minor; }
 std::string vtext(ProtocolVersion v) { return std::to_string(v.major) + "." + std::to_string(v.minor); }
 
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return out;
-}
-
 std::vector<std::string> lower_words(std::string_view s) {
   std::vector<std::string> out;
   std::size_t i = 0;
@@ -54,7 +49,7 @@ std::vector<std::string> lower_words(std::string_view s) {
     while (i < s.size() && s[i] == ' ') ++i;
     std::size_t j = i;
     while (j < s.size() && s[j] != ' ') ++j;
-    if (j > i) out.push_back(lower(s.substr(i, j - i)));
+    if (j > i) out.push_back(ascii_lower(s.substr(i, j - i)));
     i = j;
   }
   return out;

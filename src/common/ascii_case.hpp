@@ -1,0 +1,28 @@
+// Case folding for what is typed in any case: host names (RFC 4343), file extensions,
+// marker names, protocol words. Byte by byte, as std::tolower does.
+#pragma once
+
+#include <cctype>
+#include <string>
+#include <string_view>
+
+namespace fabrik {
+
+inline char ascii_lower(char c) {
+  return static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+}
+
+inline std::string ascii_lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = ascii_lower(c);
+  return out;
+}
+
+inline bool iequals(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (ascii_lower(a[i]) != ascii_lower(b[i])) return false;
+  return true;
+}
+
+}  // namespace fabrik
