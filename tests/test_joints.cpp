@@ -30,6 +30,17 @@ std::vector<std::uint8_t> all_visible(std::size_t n) {
   return std::vector<std::uint8_t>(n, 1);
 }
 
+// Rigid fits to a tight tolerance, the stall rule at a hundredth of it, 200 iterations.
+SolverOptions tight_options(double tolerance_m, RootMode root = RootMode::fixed) {
+  SolverOptions o;
+  o.segment_fit = SegmentFit::rigid;
+  o.root = root;
+  o.tolerance_m = tolerance_m;
+  o.stall_tolerance_m = tolerance_m / 100.0;
+  o.max_iterations = 200;
+  return o;
+}
+
 Eigen::Matrix3d random_rotation(std::mt19937_64& rng) {
   std::normal_distribution<double> g(0.0, 1.0);
   return draw_rotation(g, rng).toRotationMatrix();
@@ -284,13 +295,7 @@ TEST_CASE("Limited joints reach reachable targets within range", "[joints]") {
   const std::vector<int> points = m->marker_points();
   std::vector<Target> targets;
   for (int p : points) targets.push_back({p, 0, 1.0});
-  SolverOptions o;
-  o.segment_fit = SegmentFit::rigid;
-  o.root = RootMode::free;
-  o.tolerance_m = 1e-5;
-  o.stall_tolerance_m = 1e-7;
-  o.max_iterations = 200;
-  FabrikSolver solver(m, targets, o);
+  FabrikSolver solver(m, targets, tight_options(1e-5, RootMode::free));
   MotionSettings ms;
   ms.seed = 5;
   SyntheticMotion motion(*m, ms);
@@ -337,12 +342,7 @@ TEST_CASE("A target moving across a hinge limit gives a continuous angle, also f
   // then jumped to the other bound at 285).
   for (const double anchor : {1000.0, 100.0, 10.0}) {
     CAPTURE(anchor);
-    SolverOptions o;
-    o.segment_fit = SegmentFit::rigid;
-    o.root = RootMode::fixed;
-    o.tolerance_m = 1e-6;
-    o.stall_tolerance_m = 1e-8;
-    o.max_iterations = 200;
+    SolverOptions o = tight_options(1e-6);
     o.anchor_weight = anchor;
     FabrikSolver solver(m, {{upper_marker, 1, 1.0}, {elbow, 1, 1.0}, {wrist, 0, 1.0}}, o);
     Posture posture = rest;
@@ -394,11 +394,7 @@ TEST_CASE("A target moving across a ball joint's range gives continuous angles",
   const Posture rest = Posture::rest(*m);
   const std::vector<int> points{m->find_point("m0"), m->find_point("m1"), m->find_point("foot"),
                                 m->find_point("toe"), m->find_point("side")};
-  SolverOptions o;
-  o.segment_fit = SegmentFit::rigid;
-  o.tolerance_m = 1e-6;
-  o.stall_tolerance_m = 1e-8;
-  o.max_iterations = 200;
+  const SolverOptions o = tight_options(1e-6);
   FabrikSolver solver(m,
                       {{points[0], 1, 1.0},
                        {points[1], 1, 1.0},
