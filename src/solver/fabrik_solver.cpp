@@ -519,8 +519,7 @@ void FabrikSolver::ride_inactive(int pass, Posture& posture) {
     SegmentPose& pose = posture.segments[s];
     const int parent = model_.segments[s].parent;
     if (!driven_[s]) {
-      pose.set_rotation(posture.segments[parent].q_world *
-                        (start_[parent].q_world.conjugate() * start_[s].q_world));
+      ride_on_parent(s, posture);
     } else {
       pose.set_unit_rotation(start_[s].q_world);
       // Under a parent that kept its rotation, the joint is as it was; only a rider whose
@@ -551,7 +550,7 @@ void FabrikSolver::rider_within_limits(int s, Posture& posture) {
   }
   if (hinge_[s]) {
     if (arcs.at_bound(0, turns[0])) {
-      pose.set_rotation(q_parent * (start_[seg.parent].q_world.conjugate() * start_[s].q_world));
+      ride_on_parent(s, posture);
       return;
     }
     const Eigen::Vector3d& u = hinge_axis_local_[s];

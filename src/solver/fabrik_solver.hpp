@@ -105,6 +105,12 @@ class FabrikSolver {
                 std::span<const std::uint8_t> visible, Posture& posture,
                 const Eigen::Vector3d& root_pin_m);
   void ride_inactive(int pass, Posture& posture);
+  // Segment s turned with its parent since the level's passes began (start_), as it was.
+  void ride_on_parent(int s, Posture& posture) const {
+    const int parent = model_.segments[s].parent;
+    posture.segments[s].set_rotation(posture.segments[parent].q_world *
+                                     (start_[parent].q_world.conjugate() * start_[s].q_world));
+  }
   // Where segment s's base is, from its parent as it stands (a link parent's one slot is
   // this segment's joint).
   Eigen::Vector3d joint_world_m(int s, const Posture& posture) const {
