@@ -599,3 +599,24 @@ TEST_CASE("A rider some level pulls keeps its world rotation where its parent tu
           1e-15);
   }
 }
+
+TEST_CASE(
+    "A solve's start: a base up to 1 nm off its joint is left as it is, one further goes onto it",
+    "[joints]") {
+  // Known answer of prepare_start's threshold: nothing visible, so no pass moves a base.
+  const Model m = test::chain_model(4, 0.2);
+  FabrikSolver solver(m, {{m.find_point("j4"), 0, 1.0}}, SolverOptions{});
+  const std::vector<Eigen::Vector3d> target{{0.1, 0.5, 0.2}};
+  for (const double off_m : {0.5e-9, 2e-9, 0.05}) {
+    CAPTURE(off_m);
+    Posture p = Posture::rest(m);
+    const Eigen::Vector3d moved_m = p.segments[2].base_world_m + Eigen::Vector3d(off_m, 0.0, 0.0);
+    p.segments[2].base_world_m = moved_m;
+    solver.solve(target, std::vector<std::uint8_t>{0}, p);
+    const Eigen::Vector3d joint_m = p.point_world_m(m, m.segments[2].parent_point);
+    if (off_m < 1e-9)
+      CHECK(p.segments[2].base_world_m == moved_m);
+    else
+      CHECK(p.segments[2].base_world_m == joint_m);
+  }
+}
