@@ -908,6 +908,9 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
   json wrapped = good_config("wrap");
   wrapped["output"]["endpoint"] = "tcp://127.0.0.1:70000";  // ZeroMQ would bind 4464
   const std::string wrapped_path = write_file("wrapped.json", wrapped.dump());
+  json unbindable = good_config("unbindable");
+  unbindable["output"]["endpoint"] = "tcp://192.0.2.1:22607";
+  const std::string unbindable_path = write_file("unbindable.json", unbindable.dump());
   struct Case {
     std::vector<std::string> args;
     std::string expected;
@@ -937,6 +940,13 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
       {{"--config", wrapped_path},
        wrapped_path + ": at /output/endpoint: port '70000' of 'tcp://127.0.0.1:70000' is out of "
                       "range"},
+      // An address of no interface here (TEST-NET-1): the option's fault, not the config's.
+      // Before: "config error: <embedded>/default.json: at /input/endpoint: cannot bind".
+      {{"--input", "tcp://192.0.2.1:22606"},
+       "fabrikd: --input: cannot bind the input socket to 'tcp://192.0.2.1:22606'"},
+      {{"--config", unbindable_path},
+       unbindable_path + ": at /output/endpoint: cannot bind the output socket to "
+                         "'tcp://192.0.2.1:22607'"},
   };
   for (const Case& c : cases) {
     std::vector<std::string> args = {kFabrikd};

@@ -4,6 +4,7 @@
 // by subscription. Over real (inproc) ZeroMQ sockets; every wait is bounded.
 #include <catch2/catch.hpp>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <set>
 
@@ -273,19 +274,17 @@ TEST_CASE("A frame's subject field gives its bare names to that subject only", "
   CHECK(d.daemon.counters().unknown_markers == 0);
 }
 
-TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back cold",
-          "[subjects][daemon]") {
-  AliceAndBob two("timeout", {{"subject_timeout_s", 0.1}});
-  auto [d, c, client, motion, first, names] = std::tie(two.d, two.c, two.client, two.motion, two.first, two.names);
-  // The handshake's frames have no time (the daemon's clock since its start,
-  // well under 10 s): the jump to 10 s below is a gap, so Alice starts cold too.
-  const auto start = d.daemon.subject_counters();
+// Sends 80 frames (t = 10 s + 10 ms a frame) of Alice's markers and Bob's,
+// `bob(i, markers)` changing frame i's (e.g. taking Bob's out); returns the
+// frames Bob got a pose for.
+std::set<int> bob_pose_frames(AliceAndBob& two, const std::function<void(int, json&)>& bob) {
+  auto [c, client, motion, first, names] =
+      std::tie(two.c, two.client, two.motion, two.first, two.names);
   std::set<int> bob_frames;
-  const auto bob_present = [](int i) { return i < 20 || i >= 60; };
   for (int i = 0; i < 80; ++i) {
     const double t = 10.0 + i * 0.01;  // after the handshake's receive-clock times
-    const json markers =
-        both_markers(c, motion, t, names, bob_present(i) ? std::vector<int>{0, 1} : std::vector<int>{0});
+    json markers = both_markers(c, motion, t, names, {0, 1});
+    bob(i, markers);
     client.send(json{{"frame", first + i}, {"time", t}, {"markers", markers}}.dump());
     // Subjects are served in the config's order: Bob's pose of a frame
     // follows Alice's, so reading up to Alice's pose of this frame collects
@@ -301,12 +300,37 @@ TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back c
   // Bob's pose of the last frame follows Alice's.
   if (client.receive_until("pose/Bob", [&, last = first + 79](const json& p) { return p["frame"] == last; }, 5s))
     bob_frames.insert(79);
-  // Bob was last seen at frame 19 (t = 10.19): tracked through the occlusion
-  // while t - 10.19 <= 0.1 (frames 20..29), absent from frame 30, back at 60.
+  return bob_frames;
+}
+
+// Bob seen in frames 0-19 and 60-79 only (t = 10.00 + 0.01 i), timeout 0.1 s:
+// tracked through the occlusion while t - 10.19 <= 0.1 (frames 20..29),
+// absent from frame 30, back at 60.
+std::set<int> bob_expected_frames() {
   std::set<int> expected;
   for (int i = 0; i < 80; ++i)
     if (i < 30 || i >= 60) expected.insert(i);
-  CHECK(bob_frames == expected);
+  return expected;
+}
+
+bool bob_unseen(int i) {
+  return i >= 20 && i < 60;
+}
+
+TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back cold",
+          "[subjects][daemon]") {
+  AliceAndBob two("timeout", {{"subject_timeout_s", 0.1}});
+  auto& d = two.d;
+  auto& client = two.client;
+  // The handshake's frames have no time (the daemon's clock since its start,
+  // well under 10 s): the jump to 10 s below is a gap, so Alice starts cold too.
+  const auto start = d.daemon.subject_counters();
+  const std::set<int> bob_frames = bob_pose_frames(two, [](int i, json& markers) {
+    if (!bob_unseen(i)) return;
+    for (auto it = markers.begin(); it != markers.end();)
+      it = it.key().starts_with("Bob:") ? markers.erase(it) : std::next(it);
+  });
+  CHECK(bob_frames == bob_expected_frames());
   const auto s = d.daemon.subject_counters();
   CHECK(s[1].departures - start[1].departures == 1);
   CHECK(s[1].appearances - start[1].appearances == 2);  // cold at the start and on return
@@ -318,6 +342,24 @@ TEST_CASE("A subject unseen for subject_timeout_s gets no poses and comes back c
   CHECK((*stats)["subjects"]["Bob"]["present"] == true);
   CHECK((*stats)["subjects"]["Bob"]["departures"].get<int>() >= 1);
   CHECK((*stats)["other_subject_frames"] == 0);
+}
+
+TEST_CASE("A subject whose markers are all under the confidence threshold is unseen",
+          "[subjects][daemon]") {
+  // The tracker occludes a marker under confidence.threshold (0.3); one that
+  // comes with 0.1 does not keep its subject present either.
+  AliceAndBob two("confidence", {{"subject_timeout_s", 0.1}});
+  const auto start = two.d.daemon.subject_counters();
+  const std::set<int> bob_frames = bob_pose_frames(two, [](int i, json& markers) {
+    if (!bob_unseen(i)) return;
+    for (auto it = markers.begin(); it != markers.end(); ++it)
+      if (it.key().starts_with("Bob:")) it.value().push_back(0.1);
+  });
+  CHECK(bob_frames == bob_expected_frames());
+  const auto s = two.d.daemon.subject_counters();
+  CHECK(s[1].departures - start[1].departures == 1);
+  CHECK(s[1].appearances - start[1].appearances == 2);
+  CHECK(s[1].present);
 }
 
 TEST_CASE("A subscriber selects one subject by topic prefix, other topics are refused",

@@ -89,8 +89,14 @@ struct Overrides {
 fabrik::DaemonConfig load(const Overrides& o) {
   fabrik::DaemonConfig c = o.config_path.empty() ? fabrik::default_daemon_config()
                                                  : fabrik::load_daemon_config_file(o.config_path);
-  if (!o.input.empty()) c.input = fabrik::endpoint_option(o.input, c.input.mode, "--input");
-  if (!o.output.empty()) c.output = fabrik::endpoint_option(o.output, c.output.mode, "--output");
+  if (!o.input.empty()) {
+    c.input = fabrik::endpoint_option(o.input, c.input.mode, "--input");
+    c.input.option = "--input";
+  }
+  if (!o.output.empty()) {
+    c.output = fabrik::endpoint_option(o.output, c.output.mode, "--output");
+    c.output.option = "--output";
+  }
   // As the config's own check (daemon_config.cpp), after the options: bound twice, the
   // output's bind failed with "Address already in use"; bound and connected, it was taken.
   if ((!o.input.empty() || !o.output.empty()) && fabrik::endpoints_clash(c.input, c.output)) {

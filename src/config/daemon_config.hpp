@@ -22,6 +22,7 @@ enum class SocketMode { bind, connect };
 struct Endpoint {
   std::string address;
   SocketMode mode = SocketMode::bind;
+  std::string option{};  // the command-line option that gave it ("--input"); empty: the config
 };
 
 // One subject of a multi-subject config (`subjects`, docs/daemon-config.md):

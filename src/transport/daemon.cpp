@@ -84,8 +84,12 @@ void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& 
         break;
       case EADDRNOTAVAIL:
       case ENODEV:
-        fix = "bind to an address of this machine (127.0.0.1, or 0.0.0.0 for every interface), "
-              "or use \"mode\": \"connect\" to reach another machine";
+        fix =
+            "bind to an address of this machine (127.0.0.1, or 0.0.0.0 for every interface), "
+            "or " +
+            std::string(e.option.empty() ? "use \"mode\": \"connect\""
+                                         : "write connect: before it") +
+            " to reach another machine";
         break;
       case EACCES:
         fix = "use a port above 1023, or a path you may write for ipc://";
@@ -94,10 +98,11 @@ void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& 
         fix = "check the endpoint (transport://address:port), here or with --" +
               std::string(role);
     }
-    throw ConfigError(c.file, std::string("/") + role + "/endpoint",
-                      "cannot " + how + " the " + role + " socket to '" + e.address + "': " +
-                          err.what(),
-                      fix);
+    const std::string problem =
+        "cannot " + how + " the " + role + " socket to '" + e.address + "': " + err.what();
+    if (!e.option.empty())  // given on the command line: not the config file's fault
+      throw std::invalid_argument(e.option + ": " + problem + ". Fix: " + fix);
+    throw ConfigError(c.file, std::string("/") + role + "/endpoint", problem, fix);
   }
 }
 
@@ -743,7 +748,7 @@ void Daemon::publish_pose(const MarkerFrame& f, Clock::time_point received,
 }
 
 // Presence (docs/multi-subject.md): a subject is seen in a frame when one of
-// its markers or sensors is measured. Unseen for longer than
+// its markers (at or above the confidence threshold) or sensors is measured. Unseen for longer than
 // subject_timeout_s (frame time; or a clock that went back), it is absent:
 // no poses, and its tracker is reset so that it starts cold when seen again.
 // Unseen for less, it is tracked on (an occlusion: the tracker's gap rules).
@@ -769,7 +774,18 @@ void Daemon::publish_subjects(const MarkerFrame& f, SubjectState* only, Clock::t
     const auto any = [](std::span<const std::uint8_t> flags) {
       return std::find(flags.begin(), flags.end(), std::uint8_t{1}) != flags.end();
     };
-    const bool seen = any(m.visible) || any(m.sensor_visible);
+    // A marker under the confidence threshold is occluded (the tracker's own
+    // rule, `c >= threshold`; a NaN confidence fails it), so it does not keep
+    // a subject present either.
+    const auto any_trusted = [&](std::span<const std::uint8_t> flags,
+                                 std::span<const float> confidence) {
+      if (confidence.empty()) return any(flags);
+      const double threshold = subject.tracker->setup().confidence.threshold;
+      for (std::size_t i = 0; i < flags.size(); ++i)
+        if (flags[i] && i < confidence.size() && confidence[i] >= threshold) return true;
+      return false;
+    };
+    const bool seen = any_trusted(m.visible, m.confidence) || any(m.sensor_visible);
     SubjectCounters& c = subject_counts_[k];
     const double age_s = time_s - subject.last_seen_s;
     if (subject.present && (age_s > timeout_s || age_s < 0.0)) {
@@ -1005,9 +1021,11 @@ void Daemon::read_subscriptions() {
     const std::size_t n_text = safe_text(m.substr(std::min<std::size_t>(1, m.size())), text, 64);
     subscriber_log_.warn(
         "refused a subscription to '{}' on the output{}: fabrikd publishes only the topics "
-        "pose, stats and model{} (stats: subscriptions_refused)",
+        "{}{} (stats: subscriptions_refused)",
         std::string_view(text, n_text), dropped ? ", subscriber disconnected" : "",
-        s.subjects.empty() ? "" : ", and pose/NAME and model/NAME for its subjects");
+        s.subjects.empty() ? "pose, stats and model"
+                           : "stats, and pose/NAME and model/NAME of its subjects",
+        s.config.output_views.empty() ? "" : ", and its views' topics");
   }
   if (n == 0) return;
   count_subscribers(s);
