@@ -153,6 +153,37 @@ TEST_CASE("solver.fallback_carry: read, written back when not the default, range
              Catch::Contains("at /solver/fallback_carry: value -1 is out of range"));
 }
 
+TEST_CASE("An integer over 2^63 - 1 is refused by its range, not read wrapped negative",
+          "[config]") {
+  const auto config = [](const json& targets, const json& solver) {
+    return json{{"format", "fabrikd-config/1"},
+                {"model", "models/fullbody.json"},
+                {"targets", targets},
+                {"solver", solver}}
+        .dump();
+  };
+  // 2^64 - 1 read as a long long is -1: a level inside [-1000, 1000].
+  for (const std::uint64_t big : {18446744073709551615ULL, 9223372036854775808ULL}) {
+    CAPTURE(big);
+    CHECK_THAT(
+        error_of([&] {
+          load_daemon_config(config({{"default", {{"level", big}}}}, json::object()), "c.json");
+        }),
+        Catch::Contains("at /targets/default/level: value " + std::to_string(big) +
+                        " is out of range"));
+    CHECK_THAT(error_of([&] {
+                 load_daemon_config(config(json::object(), {{"max_iterations", big}}), "c.json");
+               }),
+               Catch::Contains("at /solver/max_iterations: value " + std::to_string(big) +
+                               " is out of range"));
+  }
+  // The largest a range allows is still read.
+  const DaemonConfig c = load_daemon_config(
+      config({{"default", {{"level", 1000ULL}}}}, {{"max_iterations", 10000000ULL}}), "c.json");
+  CHECK(c.tracker.solver.max_iterations == 10000000);
+  CHECK(c.tracker.markers.front().level == 1000);
+}
+
 TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else refused with "
           "the pointer and the fix, ipc and inproc as given",
           "[config][endpoint]") {

@@ -61,6 +61,13 @@ def bad_configs(good):
         ("stats interval 0", edit(put(["stats_interval_s"], 0))),
         ("stats interval 2 s", edit(put(["stats_interval_s"], 2))),
         ("bad log level", edit(put(["log_level"], "verbose"))),
+        ("level 2^64 - 1", edit(put(["targets", "default", "level"], 2**64 - 1))),
+        ("min_markers beyond 10000", edit(put(["outliers", "min_markers"], 20000))),
+        ("subject_timeout_s without subjects", edit(put(["subject_timeout_s"], 1))),
+        ("source_options without a source", edit(put(["input", "source_options"], {}))),
+        ("confidence beside subjects",
+         {"format": "fabrikd-config/1", "subjects": [{"name": "A", "config": "a.json"}],
+          "confidence": {"threshold": 0.5}}),
     ]
 
 

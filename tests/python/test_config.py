@@ -97,3 +97,57 @@ def test_configs_pickle(tmp_path):
         assert np.array_equal(a.joints_mm, b.joints_mm)
     tracker = fabrik.Tracker(fabrik.load_config())
     assert tracker.config.json == fabrik.load_config().json
+
+
+def _bounded_numbers(node, path=()):
+    """(config path, schema node) of every number the config schema types, in the
+    sections a single-subject config has (not `subjects`, `subject_timeout_s`, nor a
+    vendor source's options, which need a source)."""
+    if not isinstance(node, dict):
+        return
+    if node.get("type") in ("number", "integer"):
+        yield path, node
+        return
+    for key, child in node.get("properties", {}).items():
+        if key not in ("subjects", "subject_timeout_s", "source_options"):
+            yield from _bounded_numbers(child, path + (key,))
+    if isinstance(node.get("additionalProperties"), dict):  # targets.markers: a marker entry
+        yield from _bounded_numbers(node["additionalProperties"], path + ("LASI",))
+
+
+def test_the_config_schema_bounds_every_number_where_fabrikd_does(tmp_path):
+    # The schema is what a lab checks its configs with before a session: a value it
+    # passes must load, one just beyond its bounds must be refused (fabrikd's exit 2).
+    schema = json.load(open(f"{SOURCE}/proto/daemon-config.schema.json"))
+    base = json.load(open(DEFAULT_CONFIG))
+    base["model"] = f"{SOURCE}/config/models/fullbody.json"
+    leaves = list(_bounded_numbers(schema))
+    assert len(leaves) >= 35, "the schema walk found too few numbers"
+
+    def load_with(path, value):
+        doc = json.loads(json.dumps(base))
+        node = doc
+        for key in path[:-1]:
+            node = node.setdefault(key, {})
+        node[path[-1]] = value
+        config = tmp_path / "edge.json"
+        config.write_text(json.dumps(doc))
+        return fabrik.load_config(config)
+
+    for path, node in leaves:
+        where = "/".join(path)
+        assert "minimum" in node and "maximum" in node, f"{where}: the schema gives no range"
+        assert "exclusiveMinimum" not in node and "exclusiveMaximum" not in node, where
+        low, high = node["minimum"], node["maximum"]
+        if node["type"] == "integer":
+            outside = (low - 1, high + 1)
+        else:
+            outside = (low - max(abs(low) * 1e-6, 1e-12), high + max(abs(high) * 1e-6, 1e-12))
+        for inside in (low, high):
+            try:
+                load_with(path, inside)
+            except fabrik.ConfigError as e:
+                pytest.fail(f"{where} = {inside}: the schema allows it, fabrikd refuses it: {e}")
+        for beyond in outside:
+            with pytest.raises(fabrik.ConfigError, match="out of range"):
+                load_with(path, beyond)
