@@ -1,14 +1,15 @@
 // The `fabrik replay|watch|synth` cores: synthetic trials with gaps, replay onto a SUB socket
 // (inproc and tcp, JSON and MessagePack), --drop parsing, and the watch decoder and tally.
-#include <catch2/catch.hpp>
 #include <algorithm>
 #include <atomic>
+#include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <random>
+#include <sstream>
 #include <thread>
 #include <zmq_addon.hpp>
 
@@ -586,6 +587,51 @@ TEST_CASE("fabrik solve --angles: the source's times from frame 23, no step abov
   const fabrik::test::TableStep step = fabrik::test::largest_step(t);
   INFO("largest step " << step.step << " (" << step.column << " at " << step.time_s << " s)");
   CHECK(step.step <= fabrik::test::kMaxCoordinateStepDeg);
+}
+
+TEST_CASE(
+    "fabrik solve's CSV joint centres carry the source's frame numbers and times, as its TRC, "
+    "and its report counts every fit verdict") {
+  MarkerTrial trial = default_model_trial();
+  trial.first_frame = 23;
+  trial.first_time_frames = 23;  // Frame# 23 at Time 0.23
+  TempFile trc(".trc"), csv(".csv"), joints(".trc"), report(".json");
+  fabrik::io::write_trc(trc.path(), trial);
+  for (const TempFile* out : {&csv, &joints}) {
+    const auto [code, err] = run_fabrik({"solve", "--input", trc.path(), "--output", out->path(),
+                                         "--report", report.path(), "--quiet"});
+    INFO(err);
+    REQUIRE(code == 0);
+  }
+  // The report counts every fit verdict, a zero too (before: {"good": N} alone).
+  const json quality = json::parse(slurp(report.path()))["quality"];
+  CHECK(quality.size() == 3);
+  CHECK(quality.value("good", -1) + quality.value("poor", -1) + quality.value("none", -1) ==
+        static_cast<int>(trial.frames()));
+  CHECK(quality.value("poor", -1) == 0);
+  std::istringstream rows(slurp(csv.path()));
+  std::string header, first, second;
+  std::getline(rows, header);
+  std::getline(rows, first);
+  std::getline(rows, second);
+  CHECK_THAT(header, Catch::StartsWith("frame,time_s,"));
+  CHECK_THAT(first, Catch::StartsWith("23,0.23,"));  // before: "23,0," (time from the first row)
+  CHECK_THAT(second, Catch::StartsWith("24,0.24,"));
+  const MarkerTrial written = fabrik::io::read_trc(joints.path());
+  CHECK(written.first_frame == 23);
+  CHECK(written.file_time_s(0) == Approx(0.23).margin(1e-12));
+}
+
+TEST_CASE("fabrik view --pose takes bind: and connect: before its endpoint, and checks the rest") {
+  // Before: "fabrik view: Protocol not supported" (ZeroMQ's, the prefix taken as a transport).
+  for (const std::string prefix : {"connect:", "bind:"}) {
+    CAPTURE(prefix);
+    const auto [code, err] =
+        run_fabrik({"view", "--pose", prefix + "tcp://127.0.0.1:99999", "--listen", "127.0.0.1:0"});
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains("--pose: port '99999' of 'tcp://127.0.0.1:99999' is out of "
+                                    "range"));
+  }
 }
 
 TEST_CASE("fabrik solve prints its summary when --angles cannot be honoured, then refuses, exit 2") {

@@ -473,6 +473,29 @@ TEST_CASE("view websocket: the model on connect and when it changes, stats forwa
   CHECK(read_until(c, "stats", [](const json& d) { return d["pose_rate_hz"] == 99.0; }));
 }
 
+TEST_CASE("view --pose bind: the view binds and a publisher that connects to it is heard") {
+  // fabrikd's output in connect mode (to the view, its one peer): `fabrik view --pose bind:EP`.
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  o.pose_endpoint = "inproc://view_test_bound_poses";
+  o.pose_bind = true;
+  o.listen_host = "127.0.0.1";
+  zmq::context_t context{1};
+  view::ViewServer server(context, o);
+  server.start();
+  zmq::socket_t pub(context, zmq::socket_type::pub);
+  pub.connect(o.pose_endpoint);
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  for (std::uint64_t f = 1; Clock::now() < deadline && server.counters().poses == 0; ++f) {
+    zmq::message_t parts[] = {zmq::message_t(std::string("pose")),
+                              zmq::message_t(json{{"frame", f}, {"units", "mm"}}.dump())};
+    zmq::send_multipart(pub, parts);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing, not sync
+  }
+  CHECK(server.counters().poses > 0);
+  server.stop();
+}
+
 TEST_CASE("view websocket: a pose's envelope says when it reached the view (view_ms, wall clock)") {
   WebRoot web;
   LiveView v(options_for(web));

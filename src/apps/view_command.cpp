@@ -8,6 +8,7 @@
 #include <zmq.hpp>
 
 #include "common/safe_text.hpp"
+#include "config/endpoint_check.hpp"
 #include "offline/marker_match.hpp"
 #include "read_recording.hpp"
 #include "tools/run_command.hpp"
@@ -39,7 +40,10 @@ std::string default_web_root() {
 
 void run(const ViewArgs& a) {
   view::ViewOptions o;
-  o.pose_endpoint = a.pose;
+  // bind: and connect: as every endpoint option takes them (a bare one connects).
+  const Endpoint pose = endpoint_option(a.pose, SocketMode::connect, "--pose");
+  o.pose_endpoint = pose.address;
+  o.pose_bind = pose.mode == SocketMode::bind;
   std::tie(o.listen_host, o.listen_port) = view::parse_listen(a.listen);
   o.rate_hz = a.rate_hz;
   o.max_clients = a.max_clients;
@@ -67,7 +71,9 @@ void run(const ViewArgs& a) {
   tools::catch_stop_signals();
   server.start();
   std::printf("fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
-              o.trial_message ? o.trial_note.c_str() : ("poses from " + o.pose_endpoint).c_str(),
+              o.trial_message
+                  ? o.trial_note.c_str()
+                  : ("poses from " + o.pose_endpoint + (o.pose_bind ? ", bound" : "")).c_str(),
               safe_lines(o.web_root).c_str());
   std::fflush(stdout);
   if (!server.loopback_only())
@@ -85,7 +91,8 @@ void add_view_command(CLI::App& app) {
   auto a = std::make_shared<ViewArgs>();
   CLI::App* c = app.add_subcommand(
       "view", "A live 3D view of fabrikd's poses in the browser (or of a trial, --trial)");
-  c->add_option("--pose", a->pose, "fabrikd's pose/stats/model output, connected")
+  c->add_option("--pose", a->pose,
+                "fabrikd's pose/stats/model output, connected (bind:EP binds it instead)")
       ->capture_default_str();
   c->add_option("--listen", a->listen, "HTTP and WebSocket address, HOST:PORT (port 0: any)")
       ->capture_default_str();

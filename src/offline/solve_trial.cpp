@@ -161,6 +161,9 @@ nlohmann::json solution_summary(const TrialSolution& s) {
   std::size_t max_frame = 0, with_markers = 0, outlier_samples = 0, outlier_frames = 0;
   std::size_t measured_samples = 0;
   std::map<std::string, int> worst_count, status_count, quality_count, outlier_markers;
+  // Every verdict is reported, a zero too: a script reads report["quality"]["poor"].
+  for (FitQuality q : {FitQuality::good, FitQuality::poor, FitQuality::none})
+    quality_count[std::string(to_string(q))] = 0;
   for (std::size_t f = 0; f < frames; ++f) {
     ++status_count[s.status[f]];
     if (f < s.quality.size()) ++quality_count[std::string(to_string(s.quality[f]))];
@@ -284,7 +287,7 @@ void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
   out << '\n';
   char buf[64];
   for (std::size_t f = 0; f < trial.frames(); ++f) {
-    out << trial.first_frame + static_cast<int>(f) << ',' << trial.time_s(f);
+    out << trial.first_frame + static_cast<int>(f) << ',' << trial.file_time_s(f);
     for (std::size_t m = 0; m < trial.markers(); ++m)
       for (int k = 0; k < 3; ++k) {
         const double v = trial.at(f, m)[k];

@@ -757,14 +757,18 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     throw std::runtime_error("cannot listen on " + s.o.listen_host + ":" +
                              std::to_string(s.o.listen_port) + ": " + ec.message());
   if (!s.o.trial_message) {
-    require_usable_endpoint(s.o.pose_endpoint, SocketMode::connect, "--pose");
+    require_usable_endpoint(s.o.pose_endpoint,
+                            s.o.pose_bind ? SocketMode::bind : SocketMode::connect, "--pose");
     s.sub.emplace(context, zmq::socket_type::sub);
     s.sub->set(zmq::sockopt::linger, 0);
     s.sub->set(zmq::sockopt::rcvtimeo, 50);
     s.sub->set(zmq::sockopt::rcvhwm, 100);  // 0.1 s at 1 kHz: newest wins, not a backlog
     s.sub->set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(s.o.max_payload_bytes));
     for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
-    s.sub->connect(s.o.pose_endpoint);
+    if (s.o.pose_bind)
+      s.sub->bind(s.o.pose_endpoint);
+    else
+      s.sub->connect(s.o.pose_endpoint);
   }
 }
 

@@ -19,6 +19,8 @@ namespace fabrik::view {
 
 struct ViewOptions {
   std::string pose_endpoint = "tcp://127.0.0.1:5556";  // connected, as `fabrik watch` does
+  bool pose_bind =
+      false;  // bound instead (fabrikd's output connects to the view: `--pose bind:EP`)
   std::string listen_host = "127.0.0.1";
   unsigned short listen_port = 8080;  // 0: any free port (see ViewServer::port)
   double rate_hz = 60.0;              // poses per second per client, at most
