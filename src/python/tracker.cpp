@@ -131,7 +131,17 @@ class PyTracker {
   void read_array(const py::handle& markers) {
     auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(markers);
     if (!a) {
+      // A list or array NumPy cannot read as numbers holds a coordinate that is not one: a
+      // ValueError, as in a dict (docs/python.md, "Errors"); anything else is the wrong type.
+      const bool array_like = (PySequence_Check(markers.ptr()) && !PyUnicode_Check(markers.ptr()) &&
+                               !PyBytes_Check(markers.ptr())) ||
+                              py::isinstance<py::array>(markers);
       PyErr_Clear();
+      if (array_like)
+        throw py::value_error(
+            "markers: coordinates must be numbers (mm), in a (" + std::to_string(layout_->markers) +
+            ", 3) array in Tracker.marker_names order; this " +
+            std::string(py::str(py::type::of(markers).attr("__name__"))) + " holds something else");
       throw py::type_error("markers: give a dict name -> (x, y, z) in mm, or a (" +
                            std::to_string(layout_->markers) +
                            ", 3) array in Tracker.marker_names order, not " +

@@ -95,6 +95,14 @@ def test_wrong_input_gives_clear_errors(config, frames):
         tracker.track({"LASI": (1, "a", 2)}, 0.0)
     with pytest.raises(TypeError, match="give a dict"):
         tracker.track(object(), 0.0)
+    # A coordinate that is not a number in a list or an array is a ValueError too, as in a dict
+    # (before: a TypeError that said "not list", though a list of numbers is taken).
+    rows = frames[0].tolist()
+    rows[0][0] = "x"
+    for markers in (rows, np.array(rows, dtype=object)):
+        with pytest.raises(ValueError, match="coordinates must be numbers"):
+            tracker.track(markers, 0.0)
+    assert tracker.track(frames[0].tolist(), 0.0).status != "no_targets"  # numbers: taken
     for t in (float("nan"), float("inf")):  # a NaN once stayed in the tracker's clock
         with pytest.raises(ValueError, match="time_s must be a finite number"):
             tracker.track(frames[0], t)
