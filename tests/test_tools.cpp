@@ -620,6 +620,25 @@ TEST_CASE(
   const MarkerTrial written = fabrik::io::read_trc(joints.path());
   CHECK(written.first_frame == 23);
   CHECK(written.file_time_s(0) == Approx(0.23).margin(1e-12));
+  // Times past 1000 s at 240 Hz keep every row apart (an ostream's 6 digits wrote "1000" twice).
+  MarkerTrial late;
+  late.labels = {"A"};
+  late.rate_hz = 240.0;
+  late.first_frame = 240000;
+  late.first_time_frames = 240000.0;
+  late.positions_m = {Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d(0.1, 0.2, 0.3)};
+  TempFile late_csv(".csv");
+  fabrik::write_trial_file(late_csv.path(), late);
+  std::istringstream late_rows(slurp(late_csv.path()));
+  std::getline(late_rows, header);
+  for (int f = 0; f < 2; ++f) {
+    std::string row;
+    std::getline(late_rows, row);
+    const std::string time =
+        row.substr(row.find(',') + 1, row.find(',', row.find(',') + 1) - row.find(',') - 1);
+    CAPTURE(row);
+    CHECK(std::stod(time) == late.file_time_s(static_cast<std::size_t>(f)));
+  }
 }
 
 TEST_CASE("fabrik view --pose takes bind: and connect: before its endpoint, and checks the rest") {
@@ -632,6 +651,12 @@ TEST_CASE("fabrik view --pose takes bind: and connect: before its endpoint, and 
     CHECK_THAT(err, Catch::Contains("--pose: port '99999' of 'tcp://127.0.0.1:99999' is out of "
                                     "range"));
   }
+  // A bind that fails names the option and the endpoint (before: ZeroMQ's bare message).
+  const auto [code, err] =
+      run_fabrik({"view", "--pose", "bind:tcp://192.0.2.1:22608", "--listen", "127.0.0.1:0"});
+  CHECK(code == 2);
+  CHECK_THAT(err, Catch::Contains("--pose: cannot bind to 'tcp://192.0.2.1:22608'") &&
+                      Catch::Contains("Fix: "));
 }
 
 TEST_CASE("fabrik solve prints its summary when --angles cannot be honoured, then refuses, exit 2") {

@@ -74,9 +74,9 @@ struct DaemonConfig {
   // one subject, `tracker` above (as before subjects existed). When not empty,
   // `tracker` and `sensors` are the first subject's.
   std::vector<SubjectConfig> subjects;
-  // A subject none of whose markers (or sensors) was measured for longer than
-  // this (frame time) stops getting poses, and starts cold when it is seen
-  // again (docs/multi-subject.md).
+  // A subject none of whose markers (at or above its confidence threshold) or
+  // sensors was measured for longer than this (frame time) stops getting poses,
+  // and starts cold when it is seen again (docs/multi-subject.md).
   double subject_timeout_s = 0.5;
 };
 

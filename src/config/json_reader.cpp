@@ -355,7 +355,7 @@ long long JsonReader::as_integer(long long min, long long max) const {
   // nlohmann keeps integers over 2^63 - 1 unsigned; read as long long they
   // would wrap negative (2^64 - 1 as -1) and could pass a range check.
   if (value_.is_number_unsigned() &&
-      value_.get<unsigned long long>() > static_cast<unsigned long long>(max))
+      (max < 0 || value_.get<unsigned long long>() > static_cast<unsigned long long>(max)))
     fail("value " + std::to_string(value_.get<unsigned long long>()) + " is out of range",
          "use a value in [" + std::to_string(min) + ", " + std::to_string(max) + "]");
   const long long v = value_.get<long long>();

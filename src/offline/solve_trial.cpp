@@ -1,6 +1,7 @@
 #include "solve_trial.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -287,7 +288,10 @@ void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
   out << '\n';
   char buf[64];
   for (std::size_t f = 0; f < trial.frames(); ++f) {
-    out << trial.first_frame + static_cast<int>(f) << ',' << trial.file_time_s(f);
+    // The shortest exact form (as the TRC writer's): an ostream's 6 digits would repeat
+    // times past 1000 s at 240 Hz.
+    const auto t = std::to_chars(buf, buf + sizeof buf, trial.file_time_s(f));
+    out << trial.first_frame + static_cast<int>(f) << ',' << std::string_view(buf, t.ptr);
     for (std::size_t m = 0; m < trial.markers(); ++m)
       for (int k = 0; k < 3; ++k) {
         const double v = trial.at(f, m)[k];

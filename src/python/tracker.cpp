@@ -191,7 +191,8 @@ void bind_tracker(py::module_& m) {
            "are occluded), or a (markers, 3) float array in mm in marker_names order (NaN "
            "rows are occluded). time_s: the frame's time in seconds (the hold policy and "
            "continuity use it). Returns a Pose (a copy: it stays valid). An unknown name is a "
-           "KeyError unless ignore_unknown; a wrong shape a ValueError. A solve that does not "
+           "KeyError unless ignore_unknown; a wrong shape, or a coordinate that is not a number, "
+           "a ValueError; anything but a dict or an array a TypeError. A solve that does not "
            "converge is a Pose.status, not an exception.")
       .def("reset", &PyTracker::reset, "Forget the previous frame: the next one starts cold")
       .def_property_readonly("config", &PyTracker::config)

@@ -765,10 +765,17 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     s.sub->set(zmq::sockopt::rcvhwm, 100);  // 0.1 s at 1 kHz: newest wins, not a backlog
     s.sub->set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(s.o.max_payload_bytes));
     for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
-    if (s.o.pose_bind)
-      s.sub->bind(s.o.pose_endpoint);
-    else
-      s.sub->connect(s.o.pose_endpoint);
+    try {
+      if (s.o.pose_bind)
+        s.sub->bind(s.o.pose_endpoint);
+      else
+        s.sub->connect(s.o.pose_endpoint);
+    } catch (const zmq::error_t& e) {
+      throw std::invalid_argument(
+          std::string("--pose: cannot ") + (s.o.pose_bind ? "bind" : "connect") + " to '" +
+          s.o.pose_endpoint + "': " + e.what() +
+          ". Fix: give a free port on an address of this machine, or connect to fabrikd's output");
+    }
   }
 }
 
