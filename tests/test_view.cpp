@@ -473,6 +473,19 @@ TEST_CASE("view websocket: the model on connect and when it changes, stats forwa
   CHECK(read_until(c, "stats", [](const json& d) { return d["pose_rate_hz"] == 99.0; }));
 }
 
+// Poses from `pub` until the server counts one (a connecting PUB drops what it sends before the
+// connection is up, so it keeps sending), at most 5 s: whether it was heard.
+static bool heard_within_5_s(zmq::socket_t& pub, view::ViewServer& server) {
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  for (std::uint64_t f = 1; Clock::now() < deadline && server.counters().poses == 0; ++f) {
+    zmq::message_t parts[] = {zmq::message_t(std::string("pose")),
+                              zmq::message_t(json{{"frame", f}, {"units", "mm"}}.dump())};
+    zmq::send_multipart(pub, parts);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing, not sync
+  }
+  return server.counters().poses > 0;
+}
+
 TEST_CASE("view --pose bind: the view binds and a publisher that connects to it is heard") {
   // fabrikd's output in connect mode (to the view, its one peer): `fabrik view --pose bind:EP`.
   WebRoot web;
@@ -485,14 +498,29 @@ TEST_CASE("view --pose bind: the view binds and a publisher that connects to it 
   server.start();
   zmq::socket_t pub(context, zmq::socket_type::pub);
   pub.connect(o.pose_endpoint);
-  const auto deadline = Clock::now() + std::chrono::seconds(5);
-  for (std::uint64_t f = 1; Clock::now() < deadline && server.counters().poses == 0; ++f) {
-    zmq::message_t parts[] = {zmq::message_t(std::string("pose")),
-                              zmq::message_t(json{{"frame", f}, {"units", "mm"}}.dump())};
-    zmq::send_multipart(pub, parts);
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing, not sync
-  }
-  CHECK(server.counters().poses > 0);
+  CHECK(heard_within_5_s(pub, server));
+  server.stop();
+}
+
+TEST_CASE(
+    "view --pose bind: with a wildcard port names the port it bound, and that port is heard") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  o.pose_endpoint = "tcp://127.0.0.1:*";
+  o.pose_bind = true;
+  o.listen_host = "127.0.0.1";
+  zmq::context_t context{1};
+  view::ViewServer server(context, o);
+  const std::string bound = server.pose_endpoint();
+  INFO("bound: " << bound);
+  REQUIRE(bound.rfind("tcp://127.0.0.1:", 0) == 0);
+  const int port = std::stoi(bound.substr(std::string("tcp://127.0.0.1:").size()));
+  CHECK(port > 0);
+  server.start();
+  zmq::socket_t pub(context, zmq::socket_type::pub);
+  pub.set(zmq::sockopt::linger, 0);
+  pub.connect(bound);
+  CHECK(heard_within_5_s(pub, server));
   server.stop();
 }
 

@@ -70,11 +70,12 @@ void run(const ViewArgs& a) {
   view::ViewServer server(context, o);
   tools::catch_stop_signals();
   server.start();
-  std::printf("fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
-              o.trial_message
-                  ? o.trial_note.c_str()
-                  : ("poses from " + o.pose_endpoint + (o.pose_bind ? ", bound" : "")).c_str(),
-              safe_lines(o.web_root).c_str());
+  std::printf(
+      "fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
+      o.trial_message
+          ? o.trial_note.c_str()
+          : ("poses from " + server.pose_endpoint() + (o.pose_bind ? ", bound" : "")).c_str(),
+      safe_lines(o.web_root).c_str());
   std::fflush(stdout);
   if (!server.loopback_only())
     std::fprintf(stderr, "fabrik view: warning: listening on %s: other machines can connect\n",

@@ -766,10 +766,14 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     s.sub->set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(s.o.max_payload_bytes));
     for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
     try {
-      if (s.o.pose_bind)
+      if (s.o.pose_bind) {
         s.sub->bind(s.o.pose_endpoint);
-      else
+        // A wildcard port ("tcp://*:*") is only known now: name what fabrikd must connect to.
+        s.o.pose_endpoint = s.sub->get(zmq::sockopt::last_endpoint);
+        s.stream_status = StreamStatus(s.o.stall_after_s, s.o.pose_endpoint);
+      } else {
         s.sub->connect(s.o.pose_endpoint);
+      }
     } catch (const zmq::error_t& e) {
       throw std::invalid_argument(
           std::string("--pose: cannot ") + (s.o.pose_bind ? "bind" : "connect") + " to '" +
@@ -808,6 +812,10 @@ void ViewServer::stop() {
 }
 
 unsigned short ViewServer::port() const { return impl_->acceptor.local_endpoint().port(); }
+
+const std::string& ViewServer::pose_endpoint() const {
+  return impl_->o.pose_endpoint;
+}
 
 bool ViewServer::loopback_only() const {
   return impl_->loopback;

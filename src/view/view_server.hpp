@@ -71,6 +71,8 @@ class ViewServer {
   unsigned short port() const;
   std::string url() const;  // http://HOST:PORT/
   bool loopback_only() const;  // listening on a loopback address: this machine only
+  // --pose as given, or where it was bound (the port a wildcard chose).
+  const std::string& pose_endpoint() const;
   // A snapshot taken on the Asio thread (waits at most `timeout`); empty clients on timeout.
   ViewCounters counters(std::chrono::milliseconds timeout = std::chrono::milliseconds(2000));
   // CPU time of the server's own threads (SUB and Asio), seconds.

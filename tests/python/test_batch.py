@@ -146,6 +146,11 @@ def test_bad_files_fail_alone_and_the_exit_code_says_so(runs):
         assert "no static trial" in by_trial[(NO_STATIC, "walk01")]
         assert "found 2: walk01.trc, walk02.trc" in by_trial[(NO_STATIC, "walk01")]
         assert [f for f in output_files(out) if ".partial" in f or "walk_" in f] == []
+        # Each TRC names its own file (as OpenSim and Mokka show it), not the staging name.
+        for f in output_files(out):
+            if f.endswith(".joints.trc"):
+                with open(os.path.join(out, f)) as trc:
+                    assert trc.readline().rstrip("\r\n").endswith("\t" + os.path.basename(f)), f
         statics = [r for r in rows if r["kind"] == "static"]
         assert len(statics) == SUBJECTS and all("static" in r["trial"] for r in statics)
 
@@ -173,7 +178,8 @@ def test_a_rerun_skips_what_is_done_and_redoes_what_is_not(tmp_path):
 
     # One output gone, one trial half-written (its report renamed last, so missing).
     os.remove(out / "subj02" / "walk03.angles.mot")
-    os.replace(out / "subj01" / "walk01.report.json", out / "subj01" / ".walk01.report.partial.json")
+    os.mkdir(out / "subj01" / ".walk01.partial")
+    os.replace(out / "subj01" / "walk01.report.json", out / "subj01" / ".walk01.partial" / "walk01.report.json")
     code, log = batch(root, out, "--workers", "1")
     assert code == 0 and "6 done already (skipped), 2 to run" in log
     rows = summary(out)
@@ -224,3 +230,28 @@ def test_a_done_trial_does_not_hide_a_problem_that_is_not_calibration(tmp_path):
     rows = summary(out)
     assert {r["status"] for r in rows} == {"failed"}
     assert all("exist as both .trc and .c3d" in r["error"] for r in rows)
+
+
+@pytest.mark.parametrize("option", ["--trial-timeout", "--connect-timeout"])
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf"])
+def test_a_timeout_that_is_not_a_positive_number_of_seconds_stops_the_batch(tmp_path, option, value):
+    # Negative or 0 would fail every trial as "timed out"; NaN or inf would never time out.
+    root = tmp_path / "archive"
+    (root / "subj01").mkdir(parents=True)
+    code, err = batch(root, tmp_path / "out", "--workers", "1", option, value)
+    assert code == 2
+    assert option in err and "(0, 1e9]" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_two_static_trials_are_named_as_what_was_found(tmp_path):
+    root, out = tmp_path / "archive", tmp_path / "out"
+    (root / "s").mkdir(parents=True)
+    for name in ("a_static.trc", "b_STATIC.trc", "walk01.trc"):
+        (root / "s" / name).write_text("")  # refused at planning, before any file is read
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 1
+    errors = {r["error"] for r in summary(out)}
+    assert len(errors) == 1
+    assert "more than one static trial" in errors.pop()
+    assert "found 2: a_static.trc, b_STATIC.trc)" in next(iter({r["error"] for r in summary(out)}))

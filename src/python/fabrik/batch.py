@@ -14,6 +14,7 @@ import argparse
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -122,7 +123,7 @@ def find_subjects(root, template=None):
                     "subject %s: %s static trial (a .trc/.c3d whose name contains \"%s\", any case)"
                     " among its trials (%s). Fix: keep one static trial, or name it in %s as "
                     '{"static": "FILE"}' % (name, "no" if not statics else "more than one",
-                                            STATIC_WORD, _listing(s["trials"]),
+                                            STATIC_WORD, _listing(statics or s["trials"]),
                                             os.path.join(folder, SUBJECT_FILE)))
         if s["problem"] is None and not s["template"]:
             s["problem"] = ("subject %s: no template to calibrate with. Fix: give --template, or "
@@ -295,9 +296,14 @@ def _solve_trial(job, calibration, started):
         return row
     outputs = job["outputs"]
     kinds = [k for k in ("joints", "angles", "report") if angles or k != "angles"]
-    partial = {k: _partial(outputs[k]) for k in kinds}
-    os.makedirs(os.path.dirname(outputs["report"]), exist_ok=True)
+    # Written under their own names in a hidden folder, not under hidden names: a TRC's header
+    # names its file, and must name the one the user gets.
+    staging = os.path.join(os.path.dirname(outputs["report"]),
+                           "." + os.path.basename(job["trial"]) + ".partial")
+    partial = {k: os.path.join(staging, os.path.basename(outputs[k])) for k in kinds}
     _remove(outputs.values())  # a half-written trial starts over
+    shutil.rmtree(staging, ignore_errors=True)
+    os.makedirs(staging)
     cmd = [job["fabrik"], "solve", "--config", calibration["config"], "--input", job["input"],
            "--output", partial["joints"], "--report", partial["report"], "--quiet"]
     if angles:
@@ -311,12 +317,13 @@ def _solve_trial(job, calibration, started):
         except (OSError, ValueError) as e:
             error = "the report: %s" % e
     if error is not None:
-        _remove(partial.values())
+        shutil.rmtree(staging, ignore_errors=True)
         row.update(status="failed", error=error, wall_s=round(time.monotonic() - started, 3))
         return row
     row = row_from_report(job, report, "ok", round(time.monotonic() - started, 3))
     for k in kinds:  # the report last: it marks the trial complete
         os.replace(partial[k], outputs[k])
+    os.rmdir(staging)
     return row
 
 
@@ -560,6 +567,11 @@ def main(argv=None):
         p.error("--workers sizes a local cluster: not with --scheduler (the cluster has its own)")
     if a.workers is not None and a.workers < 1:
         p.error("--workers must be at least 1")
+    for option, value in (("--trial-timeout", a.trial_timeout),
+                          ("--connect-timeout", a.connect_timeout)):
+        # NaN fails both comparisons, so it is refused too.
+        if not 0 < value <= 1e9:
+            p.error("%s must be a number of seconds in (0, 1e9], not %g" % (option, value))
     try:
         rows = run_batch(a.root, a.output, a.template, a.scheduler, a.workers, a.fabrik,
                          a.trial_timeout, a.connect_timeout)
