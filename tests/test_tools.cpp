@@ -985,6 +985,12 @@ TEST_CASE("eval markerless --trial describes the file it evaluates, not the gene
   REQUIRE(run_fabrik({"synth", "--keypoints", "--config", config.path(), "--seconds", "1", "--rate",
                       "120", "--jitter-mm", "3", "--output", trial.path()})
               .first == 0);
+  {  // a keypoint option without --keypoints would be ignored: refused instead
+    const auto [ignored_code, ignored_err] = run_fabrik(
+        {"synth", "--config", config.path(), "--jitter-mm", "3", "--output", trial.path()});
+    CHECK(ignored_code == 2);
+    CHECK_THAT(ignored_err, Catch::Contains("--jitter-mm requires --keypoints"));
+  }
   const auto [code, err] =
       run_fabrik({"eval", "markerless", "--trial", trial.path(), "--template", halpe}, table.path(),
                  std::chrono::seconds(120));

@@ -206,36 +206,56 @@ void add_synth_command(CLI::App& app) {
       "occlusion gaps; the true joint centres go to FILE.joints.trc");
   cmd->add_option("--config", a->config, "Daemon config (fabrikd-config/1)")->required();
   cmd->add_option("--output", a->output, "TRC file to write")->required();
-  cmd->add_option("--seconds", a->o.seconds, "Duration")->check(CLI::Range(0.01, 86400.0));
-  cmd->add_option("--rate", a->o.rate_hz, "Frame rate (Hz)")->check(CLI::Range(1.0, 10000.0));
+  cmd->add_option("--seconds", a->o.seconds, "Duration")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 86400.0));
+  cmd->add_option("--rate", a->o.rate_hz, "Frame rate (Hz)")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 10000.0));
   cmd->add_option("--noise-mm", a->o.noise_mm, "Marker noise, standard deviation per axis")
+      ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--gaps", a->o.gaps, "Occlusion windows of 0.2-1 s on random markers")
+      ->capture_default_str()
       ->check(CLI::Range(0, 1000000));
-  cmd->add_option("--seed", a->o.seed, "Motion, noise and gap seed");
-  cmd->add_flag("--keypoints", a->keypoints,
-                "A markerless trial (docs/keypoints.md): the config's markers are keypoints "
-                "(`fabrik calibrate --template config/templates/halpe26.json --nominal`); adds "
-                "jitter, dropouts and left/right swaps; writes FILE.joints.trc, FILE.truth.mot "
-                "(true coordinates) and FILE.injected.csv (where each swap and dropout is)");
+  cmd->add_option("--seed", a->o.seed, "Motion, noise and gap seed")->capture_default_str();
+  CLI::Option* keypoints =
+      cmd->add_flag("--keypoints", a->keypoints,
+                    "A markerless trial (docs/keypoints.md): the config's markers are keypoints "
+                    "(`fabrik calibrate --template config/templates/halpe26.json --nominal`); adds "
+                    "jitter, dropouts and left/right swaps; writes FILE.joints.trc, FILE.truth.mot "
+                    "(true coordinates) and FILE.injected.csv (where each swap and dropout is)");
   cmd->add_option("--jitter-mm", a->k.jitter_mm, "--keypoints: jitter, sd per axis (mm)")
-      ->check(CLI::Range(0.0, 200.0));
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 200.0))
+      ->needs(keypoints);
   cmd->add_option("--dropouts-per-s", a->k.dropouts_per_s,
                   "--keypoints: runs of missing samples per second, on random keypoints")
-      ->check(CLI::Range(0.0, 1000.0));
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0))
+      ->needs(keypoints);
   cmd->add_option("--dropout-frames-max", a->k.dropout_frames_max,
                   "--keypoints: each dropout lasts 2 to this many frames")
-      ->check(CLI::Range(2, 100000));
+      ->capture_default_str()
+      ->check(CLI::Range(2, 100000))
+      ->needs(keypoints);
   cmd->add_option("--swaps-per-s", a->k.swaps_per_s,
                   "--keypoints: left/right label swaps per second")
-      ->check(CLI::Range(0.0, 1000.0));
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0))
+      ->needs(keypoints);
   cmd->add_option("--swap-frames-max", a->k.swap_frames_max,
                   "--keypoints: each swap lasts 2 to this many frames")
-      ->check(CLI::Range(2, 100000));
+      ->capture_default_str()
+      ->check(CLI::Range(2, 100000))
+      ->needs(keypoints);
   cmd->add_option("--limb-swap-share", a->k.limb_swap_share,
                   "--keypoints: share of swaps that swap a whole limb (else one pair)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0))
+      ->needs(keypoints);
   cmd->add_option("--units", a->units, "Units of the written TRC files")
+      ->capture_default_str()
       ->check(CLI::IsMember({"mm", "m"}));
   cmd->callback([a] {
     run_command("synth", [&] {
