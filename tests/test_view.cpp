@@ -425,6 +425,23 @@ TEST_CASE("view status: garbage on the pose topic gives status garbage, not a cr
   CHECK(get(v.port(), "/").status == 200);
 }
 
+TEST_CASE("view status: a client's first status counts it among the clients") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  o.status_period_s = 60.0;  // no periodic status within the test: only changes send one
+  LiveView v(o);
+  auto first_status_clients = [](WsClient& c) -> json {
+    const auto status = read_until(c, "status", [](const json&) { return true; });
+    return status ? (*status)["clients"] : json();
+  };
+  WsClient a(v.port());
+  REQUIRE(a.connected());
+  CHECK(first_status_clients(a) == 1);
+  WsClient b(v.port());  // while a stays connected
+  REQUIRE(b.connected());
+  CHECK(first_status_clients(b) == 2);
+}
+
 TEST_CASE("view status: no pose for the stall time gives status stalled, waiting before any") {
   WebRoot web;
   view::ViewOptions o = options_for(web);

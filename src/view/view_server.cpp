@@ -242,7 +242,8 @@ struct ViewServer::Impl {
   void refresh();
   bool pose_waiting();  // a pose newer than the Asio thread's copy
   void on_news();
-  void tick_status();
+  void tick_status();    // update_status, then again on a timer
+  void update_status();  // a new status to every client if it changed or is due
   void do_accept();
   void sub_loop();
   void receive(std::vector<zmq::message_t>& parts);
@@ -313,6 +314,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     pose_sent_ = impl_.io_pose_seq > 0 ? impl_.io_pose_seq - 1 : 0;  // the newest one is due
     next_allowed_ = Clock::now();
     do_read();
+    impl_.update_status();  // its first status counts it among the clients
     pump();
   }
 
@@ -626,6 +628,15 @@ void ViewServer::Impl::refresh() {
 }
 
 void ViewServer::Impl::tick_status() {
+  update_status();
+  const double tick_s = std::clamp(std::min(o.status_period_s, o.stall_after_s) / 4, 0.01, 0.25);
+  status_timer.expires_after(seconds(tick_s));
+  status_timer.async_wait([this](beast::error_code ec) {
+    if (!ec) tick_status();
+  });
+}
+
+void ViewServer::Impl::update_status() {
   const Clock::time_point now = Clock::now();
   json data;
   {
@@ -647,11 +658,6 @@ void ViewServer::Impl::tick_status() {
     last_status_sent = now;
     for (WsSession* s : std::vector<WsSession*>(sessions.begin(), sessions.end())) s->on_news();
   }
-  const double tick_s = std::clamp(std::min(o.status_period_s, o.stall_after_s) / 4, 0.01, 0.25);
-  status_timer.expires_after(seconds(tick_s));
-  status_timer.async_wait([this](beast::error_code ec) {
-    if (!ec) tick_status();
-  });
 }
 
 void ViewServer::Impl::do_accept() {
