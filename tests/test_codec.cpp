@@ -248,6 +248,35 @@ TEST_CASE("A pose payload carries the contract's fields, equal in JSON and Messa
   CHECK(wire_status(SolveStatus::max_iterations) == "max_iterations");
 }
 
+TEST_CASE("A frame's time and stamp_us are copied exactly into its pose and by the marker encoder",
+          "[codec]") {
+  // The contract copies them: fixed decimals would round 1.23456789012 to 1.234568 and 1e-9 to 0.
+  DaemonConfig c = default_daemon_config();
+  Tracker tracker(c.tracker);
+  const auto [measured, visible] = rest_measurements(tracker, {0.001, 0, 0}, {});
+  const TrackResult& r = tracker.track(0.0, measured, visible);
+  MarkerDecoder d(kNames, 1.0, 1 << 20);
+  const std::vector<Eigen::Vector3d> p = {{0.1, 0.2, 0.3}, {1.0, 2.0, 3.0}, {-0.5, 0.25, 9.0}};
+  const std::vector<std::uint8_t> vis = {1, 1, 1};
+  for (auto enc : {PayloadEncoding::json, PayloadEncoding::msgpack}) {
+    PoseEncoder e(tracker, "mm", enc);
+    for (const double t_s : {1.23456789012, 1e-9, 2.5e-320, 1700000000.1234567, 0.1, 7.0}) {
+      const double stamp_us = 1790000000123456.5 + t_s;
+      std::string out;
+      e.encode({1, true, t_s, true, stamp_us}, r, out);
+      const json pose = enc == PayloadEncoding::json ? json::parse(out) : json::from_msgpack(out);
+      CAPTURE(t_s, enc == PayloadEncoding::json, out.substr(0, 80));
+      CHECK(pose["time"].get<double>() == t_s);
+      CHECK(pose["stamp_us"].get<double>() == stamp_us);
+      encode_marker_frame(1, &t_s, kNames, p, vis, "mm", enc, out);
+      MarkerFrame f = d.make_frame();
+      std::string err;
+      REQUIRE(d.decode(bytes(out), f, err));
+      CHECK(f.time_s == t_s);
+    }
+  }
+}
+
 TEST_CASE("A pose carries measured only when asked: the visible markers' measurements in its units",
           "[codec][measured]") {
   DaemonConfig c = default_daemon_config();

@@ -467,7 +467,7 @@ void check_template_follows(const std::string& template_file, const Eigen::Matri
   // Noise-free markers that the model can reach exactly: what is left is the
   // solver stopping (it stalls 2-5 mm short on the two-marker thighs here),
   // in most frames. In some postures of the full body's shoulders FABRIK
-  // settles in a local minimum (12-15 mm RMS, RSHO worst, the same with 500
+  // settles in a local minimum (12-16 mm RMS, RSHO worst, the same with 500
   // iterations): docs/templates.md. The median frame is judged.
   std::vector<double> rms_mm;
   for (double r_m : s.rms_m) rms_mm.push_back(r_m * 1e3);

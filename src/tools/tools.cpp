@@ -223,7 +223,8 @@ void add_synth_command(CLI::App& app) {
       cmd->add_flag("--keypoints", a->keypoints,
                     "A markerless trial (docs/keypoints.md): the config's markers are keypoints "
                     "(`fabrik calibrate --template config/templates/halpe26.json --nominal`); adds "
-                    "jitter, dropouts and left/right swaps; writes FILE.joints.trc, FILE.truth.mot "
+                    "the jitter, dropouts and left/right swaps the options below ask for (none by "
+                    "default); writes FILE.joints.trc, FILE.truth.mot "
                     "(true coordinates) and FILE.injected.csv (where each swap and dropout is)");
   cmd->add_option("--jitter-mm", a->k.jitter_mm, "--keypoints: jitter, sd per axis (mm)")
       ->capture_default_str()

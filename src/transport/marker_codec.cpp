@@ -470,11 +470,11 @@ void write_marker_frame(Writer& w, std::uint64_t frame, const double* time_s,
   w.uint(frame);
   if (time_s) {
     w.key("time");
-    w.number(*time_s, 6);
+    w.number_exact(*time_s);
   }
   if (stamp_us) {
     w.key("stamp_us");
-    w.number(*stamp_us, 0);
+    w.number_exact(*stamp_us);
   }
   w.key("units");
   w.string(units);

@@ -84,11 +84,11 @@ void PoseEncoder::write(Writer& w, const PoseHeader& header, const TrackResult& 
   }
   if (header.has_time) {
     w.key("time");
-    w.number(header.time_s, 6);
+    w.number_exact(header.time_s);
   }
   if (header.has_stamp) {
     w.key("stamp_us");  // addition: echoed from the marker frame
-    w.number(header.stamp_us, 0);
+    w.number_exact(header.stamp_us);
   }
   w.key("units");
   w.string(units_);

@@ -78,6 +78,17 @@ class JsonWriter {
     room(kNumberRoom);
     p_ = format(p_, v, decimals);
   }
+  // The shortest text that reads back as exactly `v`: for values copied through (a frame's
+  // time and stamp), where fixed decimals would round what the sender gave.
+  void number_exact(double v) {
+    separate();
+    if (!std::isfinite(v)) {
+      put("null");
+      return;
+    }
+    room(kNumberRoom);
+    p_ = std::to_chars(p_, p_ + kNumberRoom, v).ptr;
+  }
   // [a, b, c] with the writer's decimals: a point, in one step (most of a pose's numbers).
   void number_triple(double a, double b, double c) {
     if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(c)) {
@@ -229,6 +240,7 @@ class MsgpackWriter {
     if (v < 128) return byte(static_cast<std::uint8_t>(v));
     tagged_be64(0xcf, v);
   }
+  void number_exact(double v) { number(v, 0); }  // a double is exact already
   void number(double v) { number(v, 0); }
   void number(double v, int) {
     std::uint64_t bits;
