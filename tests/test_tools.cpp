@@ -1042,6 +1042,28 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
   CHECK(frames_code == 2);
   CHECK_THAT(frames_err,
              Catch::Contains("--frames: must be more than 0, not 0") && !Catch::Contains("000000"));
+  // NaN is in no range (CLI11's Range let it through: every comparison with NaN is false), and
+  // a negative count does not wrap to 2^64 - 1.
+  const std::vector<std::pair<std::vector<std::string>, std::string>> out_of_range = {
+      {{"bench", "fullbody", "--builtin-only", "--frames", "2", "--rate", "nan"},
+       "--rate: 'nan' is not a number"},
+      {{"watch", "--from", "tcp://127.0.0.1:5556", "--seconds", "nan"},
+       "--seconds: 'nan' is not a number"},
+      {{"solve", "--input", kSourceDir + "/config/default.json", "--output", "o.csv", "--filter-hz",
+        "nan"},
+       "--filter-hz: 'nan' is not a number"},
+      {{"replay", kSourceDir + "/config/default.json", "--frames", "-1"},
+       "--frames: Value -1 not in range"},
+      {{"calibrate", "--template", "t.json", "--static", "s.trc", "--output", "o.json",
+        "--first-frame", "-5"},
+       "--first-frame: Value -5 not in range"},
+  };
+  for (const auto& [args, said] : out_of_range) {
+    CAPTURE(args);
+    const auto [code, err] = fabrik::test::run_fabrik(args);
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains(said));
+  }
   // A refused --to is refused before the replay says where it sends (it once printed
   // "replay: ... -> tcp://127.0.0.1:99999 (json)" first).
   TempFile trial(".trc");

@@ -4,18 +4,19 @@
 #include <exception>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <memory>
 
 #include "calib/calibrate.hpp"
 #include "calib/keypoint_calibration.hpp"
 #include "calib/sensor_calibration.hpp"
-#include "cli_checks.hpp"
 #include "config/daemon_config.hpp"
 #include "config/json_reader.hpp"
 #include "config/lab_axes_json.hpp"
 #include "config/model_loader.hpp"
 #include "io/orientation_table.hpp"
 #include "read_recording.hpp"
+#include "tools/cli_checks.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik {
@@ -177,14 +178,15 @@ void add_calibrate_command(CLI::App& app) {
       ->required();
   cmd->add_option("--first-frame", args->options.first_frame,
                   "First frame of the averaging window, as numbered in the file (default: the "
-                  "first)");
+                  "first)")
+      ->check(cli::range(0LL, std::numeric_limits<long long>::max()));
   cmd->add_option("--frames", args->options.frames,
                   "Frames to average (default: to the end of the trial)")
-      ->check(apps::above_zero());
+      ->check(cli::above_zero());
   cmd->add_option("--auto-window", args->options.auto_window,
                   "Average the stillest window of N frames (fewest missing samples, then least "
                   "marker motion) instead of --first-frame/--frames")
-      ->check(apps::above_zero());
+      ->check(cli::above_zero());
   cmd->add_option("--lab-up", args->lab_up,
                   "The lab's up axis, e.g. +z (Vicon Nexus, QTM) or +y (OpenSim); overrides the "
                   "template's \"lab_axes\". Default: detected from the static trial");

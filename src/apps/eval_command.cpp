@@ -7,11 +7,11 @@
 #include <map>
 #include <memory>
 
-#include "cli_checks.hpp"
 #include "common/safe_text.hpp"
 #include "eval/eval.hpp"
 #include "offline/marker_match.hpp"
 #include "read_recording.hpp"
+#include "tools/cli_checks.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -169,10 +169,12 @@ void add_markerless(CLI::App* eval) {
       "jitter, dropouts and left/right swaps; calibrated from itself and tracked; joint centres "
       "and angles vs the truth");
   c->add_option("--template", a->o.template_path, "Keypoint template")->capture_default_str();
-  c->add_option("--seconds", a->o.seconds, "Duration")->capture_default_str()->check(
-      CLI::Range(0.5, 3600.0));
-  c->add_option("--rate", a->o.rate_hz, "Frame rate (Hz)")->capture_default_str()->check(
-      CLI::Range(1.0, 10000.0));
+  c->add_option("--seconds", a->o.seconds, "Duration")
+      ->capture_default_str()
+      ->check(cli::range(0.5, 3600.0));
+  c->add_option("--rate", a->o.rate_hz, "Frame rate (Hz)")
+      ->capture_default_str()
+      ->check(cli::range(1.0, 10000.0));
   c->add_option("--seed", a->o.seed, "Motion and corruption seed")->capture_default_str();
   c->add_option("--cases", a->o.cases, "Of clean, jitter, dropouts, swaps, all")
       ->capture_default_str();
@@ -197,7 +199,7 @@ void add_markerless(CLI::App* eval) {
       ->check(CLI::IsMember({"live", "offline"}))
       ->capture_default_str();
   c->add_option("--filter-hz", a->o.filter_hz, "offline path: the low-pass cutoff (Hz)")
-      ->check(CLI::Range(0.1, 1e4))
+      ->check(cli::range(0.1, 1e4))
       ->capture_default_str();
   c->add_option("--trial", a->o.trial_path,
                 "Instead of generating: a trial written by fabrik synth --keypoints (with its "
@@ -260,7 +262,7 @@ void add_eval_command(CLI::App& app) {
   gaps->add_option("--windows", ga->gaps.windows_s, "Gap lengths (s)")->capture_default_str();
   gaps->add_option("--stride", ga->gaps.stride_s, "Between window starts (s)")
       ->capture_default_str()
-      ->check(above_zero());
+      ->check(cli::above_zero());
   gaps->add_option("--modes", ga->gaps.modes, "live, offline or both")
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, eval::GapMode>{{"live", eval::GapMode::live},
@@ -278,7 +280,7 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   synth->add_option("--seconds", sa->synthetic.seconds, "Duration per noise level")
       ->capture_default_str()
-      ->check(above_zero());
+      ->check(cli::above_zero());
   synth->add_option("--seed", sa->synthetic.seed, "Motion and noise seed")->capture_default_str();
   auto ia = std::make_shared<EvalArgs>();
   ia->template_path = "config/templates/opensense_gait2354.json";
@@ -293,7 +295,7 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   imu->add_option("--seconds", ia->imu.seconds, "Synthetic duration")
       ->capture_default_str()
-      ->check(above_zero());
+      ->check(cli::above_zero());
   imu->add_option("--seed", ia->imu.seed, "Motion and noise seed")->capture_default_str();
   imu->add_option("--template", ia->template_path, "Template with sensors")->capture_default_str();
   imu->add_option("--static", ia->static_path, "Static marker trial (the body's geometry)")

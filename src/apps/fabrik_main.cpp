@@ -15,6 +15,7 @@
 #include "eval_command.hpp"
 #include "info_command.hpp"
 #include "solve_command.hpp"
+#include "tools/cli_checks.hpp"
 #include "tools/tools.hpp"
 #include "version.hpp"
 #include "view_command.hpp"
@@ -34,18 +35,21 @@ int main(int argc, char** argv) {
       "The paper's experiment: FABRIK with and without priorities against the Jacobian transpose");
   b_paper->add_option("--experiment", paper.experiment,
                       "Experiment JSON (default: the embedded config/paper_experiment.json)");
-  b_paper->add_option("--repeats", paper.repeats,
-                      "Solves per algorithm (default: the experiment's)");
+  b_paper
+      ->add_option("--repeats", paper.repeats, "Solves per algorithm (default: the experiment's)")
+      ->check(fabrik::cli::range(1, 100000000));
   b_paper->add_flag("--json", paper_json, "Print one JSON object instead of a table");
 
   fabrik::bench::FullbodyOptions body;
   bool body_json = false;
   CLI::App* b_body =
       bench->add_subcommand("fullbody", "Full-body tracking of synthetic motion, warm-started");
-  b_body->add_option("--frames", body.frames, "Frames to track")->check(CLI::Range(2, 10000000));
-  b_body->add_option("--rate", body.rate_hz, "Frame rate (Hz)")->check(CLI::Range(1.0, 100000.0));
+  b_body->add_option("--frames", body.frames, "Frames to track")
+      ->check(fabrik::cli::range(2, 10000000));
+  b_body->add_option("--rate", body.rate_hz, "Frame rate (Hz)")
+      ->check(fabrik::cli::range(1.0, 100000.0));
   b_body->add_option("--noise-mm", body.noise_mm, "Marker noise, standard deviation per axis (mm)")
-      ->check(CLI::Range(0.0, 100.0));
+      ->check(fabrik::cli::range(0.0, 100.0));
   b_body->add_option("--seed", body.seed, "Motion and noise seed");
   b_body->add_option("--model", body.model,
                      "Model file (default: the built-in config/models/fullbody.json)");
@@ -70,12 +74,12 @@ int main(int argc, char** argv) {
   b_body
       ->add_option("--step", body.steps,
                    "Replay every k-th frame of each trial, for each k given (default 1 2 3)")
-      ->check(CLI::Range(1, 100));
+      ->check(fabrik::cli::range(1, 100));
   b_body
       ->add_option("--speed", body.speeds,
                    "Synthetic motion of the calibrated model at these multiples of the default "
                    "cycle frequency (default 1 3)")
-      ->check(CLI::Range(0.01, 100.0));
+      ->check(fabrik::cli::range(0.01, 100.0));
   bool builtin_only = false;
   b_body->add_flag("--builtin-only", builtin_only,
                    "Only the built-in model (no calibrated template)");
@@ -87,15 +91,15 @@ int main(int argc, char** argv) {
       "End-to-end latency of the daemon pipeline over loopback tcp and ipc, against a bare "
       "ZeroMQ echo of the same sizes run alternately");
   b_latency->add_option("--rate", latency.rate_hz, "Marker frames per second")
-      ->check(CLI::Range(1.0, 100000.0));
+      ->check(fabrik::cli::range(1.0, 100000.0));
   b_latency
       ->add_option("--seconds", latency.seconds,
                    "Duration per transport, for the daemon and for the floor each")
-      ->check(CLI::Range(0.1, 3600.0));
+      ->check(fabrik::cli::range(0.1, 3600.0));
   b_latency
       ->add_option("--block-seconds", latency.block_seconds,
                    "The daemon and the floor take turns in blocks this long")
-      ->check(CLI::Range(0.001, 3600.0));
+      ->check(fabrik::cli::range(0.001, 3600.0));
   b_latency
       ->add_option("--config", latency.config,
                    "Daemon config to run (as `fabrik calibrate` writes it; default: the "
@@ -133,10 +137,10 @@ int main(int argc, char** argv) {
                    "writes them; repeatable)")
       ->check(CLI::ExistingFile);
   b_pipeline->add_option("--frames", pipeline.frames, "Frames measured per config")
-      ->check(CLI::Range(10, 10000000))
+      ->check(fabrik::cli::range(10, 10000000))
       ->capture_default_str();
   b_pipeline->add_option("--rate", pipeline.rate_hz, "Sampling rate of the synthetic motion (Hz)")
-      ->check(CLI::Range(1.0, 100000.0))
+      ->check(fabrik::cli::range(1.0, 100000.0))
       ->capture_default_str();
   b_pipeline->add_option("--transport", pipeline.transport, "The output's: tcp or ipc")
       ->check(CLI::IsMember({"tcp", "ipc"}))
@@ -159,13 +163,13 @@ int main(int argc, char** argv) {
       "subject's pose, and dropped frames, against the subject count");
   b_subjects->add_option("--counts", subjects.counts, "Subject counts, run in turn")
       ->delimiter(',')
-      ->check(CLI::Range(1, 64))
+      ->check(fabrik::cli::range(1, 64))
       ->capture_default_str();
   b_subjects->add_option("--rate", subjects.rate_hz, "Frames per second")
-      ->check(CLI::Range(1.0, 100000.0))
+      ->check(fabrik::cli::range(1.0, 100000.0))
       ->capture_default_str();
   b_subjects->add_option("--seconds", subjects.seconds, "Duration per count")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(fabrik::cli::range(0.1, 3600.0))
       ->capture_default_str();
   b_subjects
       ->add_option("--config", subjects.config,
@@ -180,14 +184,17 @@ int main(int argc, char** argv) {
       "view", "fabrik view in-process at 1 kHz input: poses/s to 1 and 5 WebSocket clients, "
               "latency, the view's CPU");
   b_view->add_option("--input-hz", view_bench.input_hz, "Poses per second into the view")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(fabrik::cli::range(1.0, 100000.0));
   b_view->add_option("--rate-hz", view_bench.rate_hz, "The view's per-client cap")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(fabrik::cli::range(0.1, 1000.0));
   b_view->add_option("--seconds", view_bench.seconds, "Duration per client count")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(fabrik::cli::range(0.1, 3600.0));
   b_view->add_option("--clients", view_bench.clients, "Client counts to run")
       ->delimiter(',')
-      ->check(CLI::Range(1, 64));
+      ->check(fabrik::cli::range(1, 64));
   b_view->add_flag("--json", view_json, "Print one JSON object instead of a table");
 
   fabrik::bench::ConvergenceOptions convergence;
@@ -197,23 +204,23 @@ int main(int argc, char** argv) {
       "Convergence on reachable targets: stars of 10-50 end effectors, chains of 100-200 "
       "segments, cold and warm");
   b_convergence->add_option("--solves", convergence.solves, "Solves per case and start")
-      ->check(CLI::Range(1, 10000000))
+      ->check(fabrik::cli::range(1, 10000000))
       ->capture_default_str();
   b_convergence->add_option("--seed", convergence.seed, "Pose seed")->capture_default_str();
   b_convergence
       ->add_option("--stall-ratio", convergence.stall_ratio,
                    "Stall tolerance as a fraction of the tolerance")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(fabrik::cli::range(0.0, 1.0))
       ->capture_default_str();
   b_convergence
       ->add_option("--max-turn", convergence.max_turn_rad,
                    "Each joint of a target posture turned by up to this from rest (rad; "
                    "default 0.1 for stars, 0.4 for chains)")
-      ->check(CLI::Range(0.0, 3.2));
+      ->check(fabrik::cli::range(0.0, 3.2));
   b_convergence
       ->add_option("--max-iterations", convergence.max_iterations,
                    "Iteration budget (default: the solver's)")
-      ->check(CLI::Range(1, 1000000));
+      ->check(fabrik::cli::range(1, 1000000));
   b_convergence
       ->add_option("--case", convergence.cases,
                    "Only these cases (star10 star20 star50 chain100 chain100_10um chain200 "

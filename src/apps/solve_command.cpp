@@ -9,10 +9,11 @@
 
 #include "common/safe_text.hpp"
 #include "offline/marker_match.hpp"
+#include "offline/prefilter.hpp"
 #include "offline/solve_trial.hpp"
 #include "offline/subject_markers.hpp"
-#include "offline/prefilter.hpp"
 #include "read_recording.hpp"
+#include "tools/cli_checks.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -188,7 +189,7 @@ void add_solve_command(CLI::App& app) {
                 "Low-pass the markers before the solve at this cutoff: a 2nd-order Butterworth "
                 "forward and backward (zero lag), per run of samples, gaps left as gaps. "
                 "Pose2Sim's default is 6 Hz. 0 (default): as recorded")
-      ->check(CLI::Range(0.0, 1e6));
+      ->check(cli::range(0.0, 1e6));
   c->add_flag("--quiet", o->quiet, "No progress bar");
   c->add_flag("--keep-zeros", o->keep_zeros,
               "Read exact (0, 0, 0) samples as positions (default: as missing markers)");

@@ -11,6 +11,7 @@
 #include "config/endpoint_check.hpp"
 #include "offline/marker_match.hpp"
 #include "read_recording.hpp"
+#include "tools/cli_checks.hpp"
 #include "tools/run_command.hpp"
 #include "tools/tools.hpp"
 #include "view/view_server.hpp"
@@ -99,10 +100,10 @@ void add_view_command(CLI::App& app) {
       ->capture_default_str();
   c->add_option("--rate-hz", a->rate_hz, "Poses per second per browser, at most (newest wins)")
       ->capture_default_str()
-      ->check(CLI::Range(0.1, 1000.0));
+      ->check(cli::range(0.1, 1000.0));
   c->add_option("--max-clients", a->max_clients, "WebSocket clients at once; more get 503")
       ->capture_default_str()
-      ->check(CLI::Range(1, 1024));
+      ->check(cli::range(1, 1024));
   c->add_option(
        "--web-root", a->web_root,
        "The page's files (default: an install's share/fabrik/view, else the source tree's)")

@@ -7,11 +7,12 @@
 #include <memory>
 #include <thread>
 
+#include "bridges/natnet_sim_server.hpp"
+#include "bridges/qtm/sim_server.hpp"
+#include "cli_checks.hpp"
 #include "common/safe_text.hpp"
 #include "replay.hpp"
 #include "run_command.hpp"
-#include "bridges/natnet_sim_server.hpp"
-#include "bridges/qtm/sim_server.hpp"
 #include "sim.hpp"
 #include "synth.hpp"
 #include "watch.hpp"
@@ -59,15 +60,17 @@ void add_replay_command(CLI::App& app) {
   cmd->add_option("--to", a->to, "ZeroMQ endpoint, e.g. tcp://127.0.0.1:5555")->required();
   cmd->add_flag("--bind", a->bind, "Bind the endpoint instead of connecting to it");
   cmd->add_option("--speed", a->speed, "Playback speed factor (0: as fast as possible)")
-      ->check(CLI::Range(0.0, 1000.0));
+      ->check(cli::range(0.0, 1000.0));
   cmd->add_flag("--loop", a->loop, "Start over at the end (frame numbers keep increasing)");
   cmd->add_option("--drop", a->drops,
                   "NAME:T0:T1 sends marker NAME as null from T0 to T1 s (repeatable)");
   cmd->add_option("--encoding", a->encoding, "Payload encoding")
       ->check(CLI::IsMember({"json", "msgpack"}));
-  cmd->add_option("--frames", a->frames, "Stop after N frames (0: all)");
+  cmd->add_option("--frames", a->frames, "Stop after N frames (0: all)")
+      ->check(cli::range(0LL, 1'000'000'000'000LL));  // signed: "-1" must not wrap to 2^64 - 1
   cmd->add_option("--wait-subscriber", a->wait_subscriber_s,
-                  "Wait up to S seconds for a `markers` subscriber before sending");
+                  "Wait up to S seconds for a `markers` subscriber before sending")
+      ->check(cli::range(0.0, 86400.0));
   cmd->add_flag("--keep-zeros", a->keep_zeros,
                 "Send exact (0, 0, 0) samples as positions (default: as null, missing)");
   cmd->callback([a] {
@@ -159,7 +162,7 @@ void add_watch_command(CLI::App& app) {
   cmd->add_option("--from", a->from, "ZeroMQ endpoint, e.g. tcp://127.0.0.1:5556")->required();
   cmd->add_flag("--bind", a->bind, "Bind the endpoint instead of connecting to it");
   cmd->add_option("--seconds", a->seconds, "Stop after S seconds (0: at Ctrl-C)")
-      ->check(CLI::Range(0.0, 1e9));
+      ->check(cli::range(0.0, 1e9));
   cmd->add_option("--topic", a->topic,
                   "The poses' topic: pose, a subject's pose/NAME or a pose view's (output.views)")
       ->capture_default_str()
@@ -208,16 +211,16 @@ void add_synth_command(CLI::App& app) {
   cmd->add_option("--output", a->output, "TRC file to write")->required();
   cmd->add_option("--seconds", a->o.seconds, "Duration")
       ->capture_default_str()
-      ->check(CLI::Range(0.01, 86400.0));
+      ->check(cli::range(0.01, 86400.0));
   cmd->add_option("--rate", a->o.rate_hz, "Frame rate (Hz)")
       ->capture_default_str()
-      ->check(CLI::Range(1.0, 10000.0));
+      ->check(cli::range(1.0, 10000.0));
   cmd->add_option("--noise-mm", a->o.noise_mm, "Marker noise, standard deviation per axis")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 100.0));
+      ->check(cli::range(0.0, 100.0));
   cmd->add_option("--gaps", a->o.gaps, "Occlusion windows of 0.2-1 s on random markers")
       ->capture_default_str()
-      ->check(CLI::Range(0, 1000000));
+      ->check(cli::range(0, 1000000));
   cmd->add_option("--seed", a->o.seed, "Motion, noise and gap seed")->capture_default_str();
   CLI::Option* keypoints =
       cmd->add_flag("--keypoints", a->keypoints,
@@ -228,32 +231,32 @@ void add_synth_command(CLI::App& app) {
                     "(true coordinates) and FILE.injected.csv (where each swap and dropout is)");
   cmd->add_option("--jitter-mm", a->k.jitter_mm, "--keypoints: jitter, sd per axis (mm)")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 200.0))
+      ->check(cli::range(0.0, 200.0))
       ->needs(keypoints);
   cmd->add_option("--dropouts-per-s", a->k.dropouts_per_s,
                   "--keypoints: runs of missing samples per second, on random keypoints")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(cli::range(0.0, 1000.0))
       ->needs(keypoints);
   cmd->add_option("--dropout-frames-max", a->k.dropout_frames_max,
                   "--keypoints: each dropout lasts 2 to this many frames")
       ->capture_default_str()
-      ->check(CLI::Range(2, 100000))
+      ->check(cli::range(2, 100000))
       ->needs(keypoints);
   cmd->add_option("--swaps-per-s", a->k.swaps_per_s,
                   "--keypoints: left/right label swaps per second")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 1000.0))
+      ->check(cli::range(0.0, 1000.0))
       ->needs(keypoints);
   cmd->add_option("--swap-frames-max", a->k.swap_frames_max,
                   "--keypoints: each swap lasts 2 to this many frames")
       ->capture_default_str()
-      ->check(CLI::Range(2, 100000))
+      ->check(cli::range(2, 100000))
       ->needs(keypoints);
   cmd->add_option("--limb-swap-share", a->k.limb_swap_share,
                   "--keypoints: share of swaps that swap a whole limb (else one pair)")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(cli::range(0.0, 1.0))
       ->needs(keypoints);
   cmd->add_option("--units", a->units, "Units of the written TRC files")
       ->capture_default_str()
@@ -310,10 +313,11 @@ void add_common_sim_options(CLI::App* cmd, SimArgs& a) {
   cmd->add_option("--file-up", a.file_up,
                   "The recording's up axis (+x, -y, +z, ...; default +y for TRC, +z for C3D)");
   cmd->add_option("--rate-scale", a.rate_scale, "Serve at this multiple of the file's rate")
-      ->check(CLI::Range(0.01, 100.0));
+      ->check(cli::range(0.01, 100.0));
   cmd->add_flag("--loop", a.loop, "Start over at the end (frame numbers keep increasing)");
-  cmd->add_option("--frames", a.frames, "Stop after N frames (default: the file, or forever with --loop)")
-      ->check(CLI::Range(std::int64_t{1}, std::numeric_limits<std::int64_t>::max()));
+  cmd->add_option("--frames", a.frames,
+                  "Stop after N frames (default: the file, or forever with --loop)")
+      ->check(cli::range(std::int64_t{1}, std::numeric_limits<std::int64_t>::max()));
   cmd->add_option("--pause-at", a.script.pauses, "T:S holds the stream for S s at time T (repeatable)");
   cmd->add_option("--drop", a.script.drops,
                   "NAME:T0:T1: the server does not see NAME from T0 to T1 s (repeatable)");
