@@ -1204,3 +1204,49 @@ TEST_CASE("solve --subject takes one subject of a Subject:Marker C3D, as its own
   CHECK(r_bob["residual_mm"]["rms_mean"].get<double>() ==
         Approx(r_c3d["residual_mm"]["rms_mean"].get<double>()).margin(1e-6));
 }
+
+TEST_CASE("An output that names an input or another output is refused before anything is written") {
+  using fabrik::test::run_fabrik;
+  using fabrik::test::slurp;
+  TempFile trial(".trc"), joints(".trc"), config(".json");
+  trial.also_remove(trial.path().substr(0, trial.path().size() - 4) + ".joints.trc");
+  REQUIRE(run_fabrik({"synth", "--config", kSourceDir + "/config/default.json", "--output",
+                      trial.path(), "--seconds", "0.1"})
+              .first == 0);
+  std::filesystem::copy_file(kSourceDir + "/config/default.json", config.path());
+  const std::string trial_text = slurp(trial.path()), config_text = slurp(config.path());
+  const std::vector<std::pair<std::vector<std::string>, std::string>> collisions = {
+      {{"solve", "--input", trial.path(), "--output", trial.path(), "--quiet"},
+       "--input and --output name the same file"},
+      {{"solve", "--input", trial.path(), "--output", joints.path(), "--report", trial.path()},
+       "--input and --report name the same file"},
+      {{"solve", "--input", trial.path(), "--output", joints.path(), "--markers", joints.path()},
+       "--output and --markers name the same file"},
+      {{"synth", "--config", config.path(), "--output", config.path()},
+       "--config and --output name the same file"},
+      {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
+        trial.path()},
+       "--static and --output name the same file"},
+      // Outputs that would be written wrong (found after the solve, or never written).
+      {{"solve", "--input", trial.path(), "--output", joints.path(), "--angles",
+        joints.path() + ".trc"},
+       "--angles: '" + joints.path() + ".trc': an OpenSim Coordinates table is written: use .mot"},
+      {{"solve", "--input", trial.path(), "--output", joints.path() + ".xyz"},
+       "--output: '" + joints.path() + ".xyz': unknown output format"},
+      {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
+        joints.path(), "--lengths-json", joints.path()},
+       "--output and --lengths-json name the same file"},
+      {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
+        joints.path() + ".json", "--lengths-json", joints.path()},
+       "--lengths-json goes with --trial"},
+  };
+  for (const auto& [args, said] : collisions) {
+    CAPTURE(args);
+    const auto [code, err] = run_fabrik(args);
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains(said));
+  }
+  CHECK(slurp(trial.path()) == trial_text);
+  CHECK(slurp(config.path()) == config_text);
+  CHECK_FALSE(std::filesystem::exists(joints.path()));
+}

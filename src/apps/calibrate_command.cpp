@@ -17,6 +17,7 @@
 #include "io/orientation_table.hpp"
 #include "read_recording.hpp"
 #include "tools/cli_checks.hpp"
+#include "tools/distinct_files.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik {
@@ -57,6 +58,17 @@ std::string calibrated_sensors(const SensorSection& spec, const Model& model,
 }
 
 void run_calibrate(const CalibrateArgs& a) {
+  tools::require_distinct_files({{"--template", a.template_path, false},
+                                 {"--static", a.static_path, false},
+                                 {"--trial", a.trial_path, false},
+                                 {"--static-orientations", a.orientations_path, false},
+                                 {"--config", a.config_path, false},
+                                 {"--output", a.output_path},
+                                 {"--lengths-json", a.lengths_json_path}});
+  if (!a.lengths_json_path.empty() && a.trial_path.empty())
+    throw std::invalid_argument(
+        "--lengths-json goes with --trial (the lengths measured from a "
+        "keypoint trial); without it there is nothing to write");
   if (!a.config_path.empty()) {
     // Sensors only: a subject's config, a new calibration pose (a new session).
     if (!a.template_path.empty() || !a.static_path.empty() || a.orientations_path.empty())

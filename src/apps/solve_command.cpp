@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 
+#include "common/ascii_case.hpp"
 #include "common/safe_text.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/prefilter.hpp"
@@ -14,6 +15,7 @@
 #include "offline/subject_markers.hpp"
 #include "read_recording.hpp"
 #include "tools/cli_checks.hpp"
+#include "tools/distinct_files.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -35,6 +37,25 @@ void progress_bar(std::size_t done, std::size_t total) {
 }
 
 void run(const SolveOptions& o) {
+  // Before the solve, which can take minutes: what the outputs would be is known now.
+  tools::require_distinct_files({{"--config", o.config, false},
+                                 {"--input", o.input, false},
+                                 {"--orientations", o.orientations, false},
+                                 {"--output", o.output},
+                                 {"--markers", o.markers_output},
+                                 {"--markers' FILE.filled.csv",
+                                  o.markers_output.empty() ? "" : o.markers_output + ".filled.csv"},
+                                 {"--report", o.report},
+                                 {"--angles", o.angles}});
+  for (const auto& [option, path] :
+       {std::pair<const char*, const std::string&>{"--output", o.output},
+        {"--markers", o.markers_output}})
+    if (!path.empty() && !has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
+      throw std::invalid_argument(std::string(option) + ": '" + path +
+                                  "': unknown output format: use .trc or .csv");
+  if (!o.angles.empty() && !has_suffix_ci(o.angles, ".mot") && !has_suffix_ci(o.angles, ".sto"))
+    throw std::invalid_argument("--angles: '" + o.angles +
+                                "': an OpenSim Coordinates table is written: use .mot (or .sto)");
   DaemonConfig config =
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
   // A multi-subject config: the tracking of the subject --subject names.

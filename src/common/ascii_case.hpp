@@ -25,4 +25,9 @@ inline bool iequals(std::string_view a, std::string_view b) {
   return true;
 }
 
+// A file name's extension in any case: "WALK.TRC" has ".trc".
+inline bool has_suffix_ci(std::string_view s, std::string_view suffix) {
+  return s.size() >= suffix.size() && iequals(s.substr(s.size() - suffix.size()), suffix);
+}
+
 }  // namespace fabrik

@@ -14,15 +14,6 @@
 
 namespace fabrik {
 
-namespace {
-
-bool ends_with_ci(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() &&
-         iequals(std::string_view(s).substr(s.size() - suffix.size()), suffix);
-}
-
-}  // namespace
-
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress,
                           const io::OrientationTable* orientations,
@@ -277,8 +268,8 @@ void write_filled_csv(const std::string& path, const TrialSolution& s, const io:
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
-  if (ends_with_ci(path, ".trc")) return io::write_trc(path, trial, "mm");
-  if (!ends_with_ci(path, ".csv"))
+  if (has_suffix_ci(path, ".trc")) return io::write_trc(path, trial, "mm");
+  if (!has_suffix_ci(path, ".csv"))
     throw io::FormatError(path, "unknown output format: use .trc or .csv");
   std::ofstream out(path);
   if (!out) throw io::FormatError(path, "cannot write the file");

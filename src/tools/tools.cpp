@@ -11,6 +11,7 @@
 #include "bridges/qtm/sim_server.hpp"
 #include "cli_checks.hpp"
 #include "common/safe_text.hpp"
+#include "distinct_files.hpp"
 #include "replay.hpp"
 #include "run_command.hpp"
 #include "sim.hpp"
@@ -263,6 +264,17 @@ void add_synth_command(CLI::App& app) {
       ->check(CLI::IsMember({"mm", "m"}));
   cmd->callback([a] {
     run_command("synth", [&] {
+      const std::string joints_path = joints_sidecar_path(a->output);
+      const std::string stem_path =
+          joints_path.substr(0, joints_path.size() - std::string(".joints.trc").size());
+      std::vector<NamedFile> files = {{"--config", a->config, false},
+                                      {"--output", a->output},
+                                      {"--output's FILE.joints.trc", joints_path}};
+      if (a->keypoints) {
+        files.push_back({"--output's FILE.truth.mot", stem_path + ".truth.mot"});
+        files.push_back({"--output's FILE.injected.csv", stem_path + ".injected.csv"});
+      }
+      require_distinct_files(files);
       if (a->keypoints) {
         a->k.seed = a->o.seed;
         const KeypointTrial t = make_keypoint_trial(load_synth_setup(a->config), a->o, a->k);

@@ -1,0 +1,35 @@
+#include "distinct_files.hpp"
+
+#include <filesystem>
+#include <stdexcept>
+
+namespace fabrik::tools {
+
+namespace {
+
+bool same_file(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::equivalent(a, b, ec) && !ec) return true;  // both exist: hard links included
+  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+  if (ec) return false;
+  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  return !ec && ca == cb;
+}
+
+}  // namespace
+
+void require_distinct_files(const std::vector<NamedFile>& files) {
+  for (std::size_t i = 0; i < files.size(); ++i)
+    for (std::size_t j = i + 1; j < files.size(); ++j) {
+      const NamedFile& a = files[i];
+      const NamedFile& b = files[j];
+      if (a.path.empty() || b.path.empty() || !(a.output || b.output)) continue;
+      if (same_file(a.path, b.path))
+        throw std::invalid_argument(a.option + " and " + b.option + " name the same file '" +
+                                    b.path + "': " + (a.output && b.output ? "one" : "the output") +
+                                    " would overwrite the other. Fix: give each its own file");
+    }
+}
+
+}  // namespace fabrik::tools
