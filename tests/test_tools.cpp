@@ -295,6 +295,39 @@ TEST_CASE("replay rejects a drop of a marker that is not in the recording") {
                     Catch::Contains("'RASI' is not in the recording"));
 }
 
+TEST_CASE("replay: a stop request ends the wait for a frame due far ahead, not at its deadline") {
+  zmq::context_t context;
+  ReplayOptions o = fast_options("inproc://nobody-slow");
+  o.bind = true;
+  o.wait_subscriber_s = -1.0;  // no subscriber: frames go nowhere, the pacing is what is tested
+  o.speed = 1.0 / 3000.0;      // 100 Hz: the second frame is due 30 s after the first
+  const auto start = std::chrono::steady_clock::now();
+  o.stop_requested = [&] {
+    return std::chrono::steady_clock::now() - start > std::chrono::milliseconds(200);
+  };
+  const ReplaySummary summary = replay_trial(context, small_trial(), o);
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  CHECK(summary.stopped);
+  CHECK(summary.frames_sent == 1);
+  CHECK(took_s < 5.0);  // it waited out the 30 s before
+}
+
+TEST_CASE(
+    "replay --bind that cannot bind names the option and the endpoint (watch opens its socket the "
+    "same way)") {
+  zmq::context_t context;
+  zmq::socket_t holder(context, zmq::socket_type::pub);
+  holder.set(zmq::sockopt::linger, 0);
+  holder.bind("tcp://127.0.0.1:*");
+  const std::string taken = holder.get(zmq::sockopt::last_endpoint);
+  ReplayOptions o = fast_options(taken);
+  o.bind = true;
+  CHECK_THROWS_WITH(replay_trial(context, small_trial(), o),
+                    Catch::StartsWith("--to: cannot bind to '" + taken + "'") &&
+                        Catch::Contains("leave out --bind"));
+}
+
 TEST_CASE("drop specs parse NAME T0 T1, names may contain colons, bad ones say why") {
   const DropSpec d = parse_drop_spec("RASI:0.5:1.25");
   CHECK(d.marker == "RASI");
@@ -1057,6 +1090,8 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
       {{"calibrate", "--template", "t.json", "--static", "s.trc", "--output", "o.json",
         "--first-frame", "-5"},
        "--first-frame: Value -5 not in range"},
+      {{"sim", "qtm", kSourceDir + "/config/default.json", "--file-up", "+w"},
+       "--file-up: +w not in"},  // sim natnet refused it, sim qtm served it
   };
   for (const auto& [args, said] : out_of_range) {
     CAPTURE(args);

@@ -1,5 +1,6 @@
 #include "replay.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <thread>
@@ -129,7 +130,14 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
     if (options.speed > 0.0) {
       deadline += std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(static_cast<double>(k) / rate_hz / options.speed));
-      std::this_thread::sleep_until(deadline);
+      // In steps of at most 50 ms: Ctrl-C ends a slow replay (--speed 0.001) promptly.
+      while (Clock::now() < deadline && !(options.stop_requested && options.stop_requested()))
+        std::this_thread::sleep_until(
+            std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
+      if (options.stop_requested && options.stop_requested()) {
+        summary.stopped = true;
+        break;
+      }
     }
     for (std::size_t m = 0; m < trial.markers(); ++m) {
       p_m[m] = trial.at(index, m);

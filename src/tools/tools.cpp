@@ -323,7 +323,8 @@ void add_common_sim_options(CLI::App* cmd, SimArgs& a) {
   cmd->add_option("file", a.file, "Recording (.trc or .c3d)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--bind", a.bind, "Address to serve on (0.0.0.0: every interface)");
   cmd->add_option("--file-up", a.file_up,
-                  "The recording's up axis (+x, -y, +z, ...; default +y for TRC, +z for C3D)");
+                  "The recording's up axis (+x, -y, +z, ...; default +y for TRC, +z for C3D)")
+      ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}));
   cmd->add_option("--rate-scale", a.rate_scale, "Serve at this multiple of the file's rate")
       ->check(cli::range(0.01, 100.0));
   cmd->add_flag("--loop", a.loop, "Start over at the end (frame numbers keep increasing)");
