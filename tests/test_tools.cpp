@@ -1285,3 +1285,30 @@ TEST_CASE("An output that names an input or another output is refused before any
   CHECK(slurp(config.path()) == config_text);
   CHECK_FALSE(std::filesystem::exists(joints.path()));
 }
+
+TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as missing, as fabrikd") {
+  using fabrik::test::run_fabrik;
+  using fabrik::test::slurp;
+  TempFile trial(".trc"), huge(".trc"), joints(".csv"), report(".json");
+  trial.also_remove(trial.path().substr(0, trial.path().size() - 4) + ".joints.trc");
+  REQUIRE(run_fabrik({"synth", "--config", kSourceDir + "/config/default.json", "--output",
+                      trial.path(), "--seconds", "0.2"})
+              .first == 0);
+  MarkerTrial t = fabrik::io::read_trial(trial.path());
+  for (std::size_t f = 0; f < 10; ++f) {
+    for (std::size_t m = 0; m < t.markers(); ++m) t.at(f, m).setConstant(1e9);  // 1e6 km
+    t.at(10 + f, 1) = Eigen::Vector3d(0.5, -150.0, 0.5);  // 150 m: beyond the default 100
+  }
+  const std::size_t beyond = 10 * t.markers() + 10;
+  fabrik::io::write_trc(huge.path(), t);
+  const auto [code, err] = run_fabrik({"solve", "--input", huge.path(), "--output", joints.path(),
+                                       "--report", report.path(), "--quiet"});
+  CAPTURE(err);
+  REQUIRE(code == 0);
+  CHECK_THAT(err, Catch::Contains("warning: " + std::to_string(beyond) +
+                                  " samples farther than input.max_abs_coordinate_mm"));
+  const json r = json::parse(slurp(report.path()));
+  CAPTURE(r.dump());
+  CHECK(r["frames_without_markers"] == 10);  // were solved to the 1e300 "markers"
+  CHECK(r["residual_mm"]["rms_max"].get<double>() < 20.0);
+}

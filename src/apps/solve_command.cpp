@@ -81,6 +81,12 @@ void run(const SolveOptions& o) {
   if (!o.input.empty()) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
     if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
+    if (const std::size_t implausible =
+            drop_implausible_samples(trial, config.max_abs_coordinate_m))
+      std::fprintf(stderr,
+                   "fabrik solve: warning: %zu samples farther than input.max_abs_coordinate_mm "
+                   "(%g mm) from the origin are taken as missing, as fabrikd takes them\n",
+                   implausible, config.max_abs_coordinate_m * 1e3);
     if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
     if (o.filter_hz > 0.0) {
       const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);

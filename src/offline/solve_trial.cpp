@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 
 #include "common/ascii_case.hpp"
@@ -265,6 +266,16 @@ void write_filled_csv(const std::string& path, const TrialSolution& s, const io:
         << trial.first_frame + static_cast<long long>(r.end) - 1 << ','
         << trial.file_time_s(r.first) << ',' << trial.file_time_s(r.end - 1) << ','
         << r.end - r.first << ',' << r.method << '\n';
+}
+
+std::size_t drop_implausible_samples(io::MarkerTrial& trial, double max_abs_coordinate_m) {
+  std::size_t dropped = 0;
+  for (Eigen::Vector3d& p_m : trial.positions_m)
+    if (p_m.allFinite() && !(p_m.cwiseAbs().maxCoeff() <= max_abs_coordinate_m)) {
+      p_m.setConstant(std::numeric_limits<double>::quiet_NaN());
+      ++dropped;
+    }
+  return dropped;
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {

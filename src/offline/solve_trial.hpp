@@ -98,6 +98,11 @@ io::OpenSimTable angles_table(const TrialSolution& s);
 // number and time as the trial's file counts them, samples.
 void write_filled_csv(const std::string& path, const TrialSolution& s, const io::MarkerTrial& trial);
 
+// Samples farther than `max_abs_coordinate_m` from the origin on any axis become missing, as
+// fabrikd takes them as occluded (input.max_abs_coordinate_mm): 1e300 in a file is not a
+// measurement. Returns how many samples were dropped.
+std::size_t drop_implausible_samples(io::MarkerTrial& trial, double max_abs_coordinate_m);
+
 // Writes a trial as .trc (mm) or .csv (header time + name_x/_y/_z in mm).
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial);
 
