@@ -688,6 +688,26 @@ TEST_CASE("qtm simulator: answers commands as the protocol document says", "[qtm
   CHECK_FALSE(c.next(0.1));  // nothing more streams
 }
 
+TEST_CASE("qtm simulator: the 3D parameters name the recording's up axis, each of the six",
+          "[qtm][client]") {
+  for (const std::string up : {"+x", "-x", "+y", "-y", "+z", "-z"}) {
+    CAPTURE(up);
+    bridges::SimRecording rec = recording();
+    rec.up = up;
+    ServerThread server(rec, looping());
+    RawConnection c(server.server.port_little_endian());
+    REQUIRE(c.reply());  // the welcome
+    c.command("getparameters 3d");
+    const auto xml = c.reply();
+    REQUIRE(xml);
+    Parameters3d p;
+    std::string error;
+    REQUIRE(read_parameters_3d(xml->second, p, error));
+    const std::string want{up[0], static_cast<char>(up[1] - 'a' + 'A')};
+    CHECK(p.axis_upwards == want);  // +x and -x were served as +Z
+  }
+}
+
 TEST_CASE("qtm simulator: a script that ends says so, pauses hold the frames back", "[qtm][client]") {
   bridges::SimScript s;
   s.rate_scale = 10.0;  // 1000 Hz: 100 frames in 0.1 s

@@ -1013,8 +1013,11 @@ TEST_CASE("eval markerless --trial describes the file it evaluates, not the gene
   const std::string stem = trial.path().substr(0, trial.path().size() - 4);
   for (const char* side : {".joints.trc", ".truth.mot", ".injected.csv"})
     trial.also_remove(stem + side);
-  REQUIRE(run_fabrik({"calibrate", "--template", halpe, "--nominal", "--output", config.path()})
+  TempFile lengths(".json");
+  REQUIRE(run_fabrik({"calibrate", "--template", halpe, "--nominal", "--output", config.path(),
+                      "--lengths-json", lengths.path()})
               .first == 0);
+  CHECK(json::parse(slurp(lengths.path())).contains("lengths"));  // --nominal writes it too
   REQUIRE(run_fabrik({"synth", "--keypoints", "--config", config.path(), "--seconds", "1", "--rate",
                       "120", "--jitter-mm", "3", "--output", trial.path()})
               .first == 0);
@@ -1273,7 +1276,8 @@ TEST_CASE("An output that names an input or another output is refused before any
        "--output and --lengths-json name the same file"},
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         joints.path() + ".json", "--lengths-json", joints.path()},
-       "--lengths-json goes with --trial"},
+       "--lengths-json goes with --trial (the lengths measured from a keypoint trial) or "
+       "--nominal"},
   };
   for (const auto& [args, said] : collisions) {
     CAPTURE(args);
@@ -1284,6 +1288,13 @@ TEST_CASE("An output that names an input or another output is refused before any
   CHECK(slurp(trial.path()) == trial_text);
   CHECK(slurp(config.path()) == config_text);
   CHECK_FALSE(std::filesystem::exists(joints.path()));
+  // A config's sensors recalibrated in place is not a collision (this one has none to calibrate).
+  const auto [in_place_code, in_place_err] =
+      run_fabrik({"calibrate", "--config", config.path(), "--static-orientations", "s.sto",
+                  "--output", config.path()});
+  CHECK(in_place_code == 2);
+  CHECK_THAT(in_place_err, Catch::Contains("has no \"sensors\" to calibrate") &&
+                               !Catch::Contains("the same file"));
 }
 
 TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as missing, as fabrikd") {

@@ -62,13 +62,15 @@ void run_calibrate(const CalibrateArgs& a) {
                                  {"--static", a.static_path, false},
                                  {"--trial", a.trial_path, false},
                                  {"--static-orientations", a.orientations_path, false},
-                                 {"--config", a.config_path, false},
+                                 // --config may be --output: its sensors recalibrated in place
+                                 // (read whole before the write).
                                  {"--output", a.output_path},
                                  {"--lengths-json", a.lengths_json_path}});
-  if (!a.lengths_json_path.empty() && a.trial_path.empty())
+  if (!a.lengths_json_path.empty() && a.trial_path.empty() && !a.nominal)
     throw std::invalid_argument(
         "--lengths-json goes with --trial (the lengths measured from a "
-        "keypoint trial); without it there is nothing to write");
+        "keypoint trial) or --nominal; with --static it has nothing to "
+        "write");
   if (!a.config_path.empty()) {
     // Sensors only: a subject's config, a new calibration pose (a new session).
     if (!a.template_path.empty() || !a.static_path.empty() || a.orientations_path.empty())
@@ -179,7 +181,8 @@ void add_calibrate_command(CLI::App& app) {
                 "Keypoint templates, instead of --trial: the template at its nominal lengths "
                 "(the truth model of `fabrik synth --keypoints`)");
   cmd->add_option("--lengths-json", args->lengths_json_path,
-                  "With --trial: also write each measured length and its spread as JSON");
+                  "With --trial (or --nominal): also write each measured length and its spread "
+                  "as JSON");
   cmd->add_option("--static-orientations", args->orientations_path,
                   "Orientation sensors recorded in the model's rest posture (OpenSim quaternion "
                   ".sto): calibrates the template's sensors");

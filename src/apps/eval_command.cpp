@@ -179,17 +179,24 @@ void add_markerless(CLI::App* eval) {
   c->add_option("--cases", a->o.cases, "Of clean, jitter, dropouts, swaps, all")
       ->capture_default_str();
   KeypointCorruption& k = a->o.corruption;
-  c->add_option("--jitter-mm", k.jitter_mm, "Jitter sd per axis (mm)")->capture_default_str();
+  c->add_option("--jitter-mm", k.jitter_mm, "Jitter sd per axis (mm)")
+      ->capture_default_str()
+      ->check(cli::range(0.0, 200.0));
   c->add_option("--dropouts-per-s", k.dropouts_per_s, "Dropout runs per second")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cli::range(0.0, 1000.0));
   c->add_option("--dropout-frames-max", k.dropout_frames_max, "Each dropout: 2 to N frames")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cli::range(2, 100000));
   c->add_option("--swaps-per-s", k.swaps_per_s, "Left/right swaps per second")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cli::range(0.0, 1000.0));
   c->add_option("--swap-frames-max", k.swap_frames_max, "Each swap: 2 to N frames")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cli::range(2, 100000));
   c->add_option("--limb-swap-share", k.limb_swap_share, "Share of swaps of a whole limb")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cli::range(0.0, 1.0));
   c->add_option("--config-overrides", a->overrides,
                 "JSON (or @FILE) merged into the calibrated config before tracking (RFC 7396 "
                 "merge patch), e.g. tracking options a config sets");

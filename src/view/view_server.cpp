@@ -774,7 +774,7 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     try {
       if (s.o.pose_bind) {
         s.sub->bind(s.o.pose_endpoint);
-        // A wildcard port ("tcp://*:*") is only known now: name what fabrikd must connect to.
+        // A wildcard port ("tcp://127.0.0.1:*") is chosen by the system: name the port bound.
         s.o.pose_endpoint = s.sub->get(zmq::sockopt::last_endpoint);
         s.stream_status = StreamStatus(s.o.stall_after_s, s.o.pose_endpoint);
       } else {

@@ -253,5 +253,6 @@ def test_two_static_trials_are_named_as_what_was_found(tmp_path):
     assert code == 1
     errors = {r["error"] for r in summary(out)}
     assert len(errors) == 1
-    assert "more than one static trial" in errors.pop()
-    assert "found 2: a_static.trc, b_STATIC.trc)" in next(iter({r["error"] for r in summary(out)}))
+    error = errors.pop()
+    assert "more than one static trial" in error
+    assert "found 2: a_static.trc, b_STATIC.trc)" in error

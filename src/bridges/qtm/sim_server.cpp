@@ -197,7 +197,11 @@ struct QtmSimServer::Impl {
     const std::string version = vtext(vless(c.version, kOldest) ? kOldest : c.version);
     Parameters3d p;
     p.labels = labels;
-    p.axis_upwards = rec.up == "+y" ? "+Y" : rec.up == "-y" ? "-Y" : rec.up == "-z" ? "-Z" : "+Z";
+    p.axis_upwards =
+        rec.up.size() == 2
+            ? std::string{rec.up[0],
+                          static_cast<char>(std::toupper(static_cast<unsigned char>(rec.up[1])))}
+            : "+Z";
     std::string xml = write_parameters_3d(p, version);
     if (!three_d) {  // keep the root, drop The_3D
       const std::size_t a = xml.find("  <The_3D>"), b = xml.find("  </The_3D>\n");
