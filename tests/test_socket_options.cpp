@@ -1,12 +1,14 @@
 // What fabrikd's sockets are given (src/transport/socket_options.hpp): the
 // input's queue follows the config within its memory bound, and a socket
-// kept across a reload ends with the limits a new one would get.
+// kept across a reload ends with the limits a new one would get; and how a
+// socket is opened (src/transport/open_socket.hpp): what a failure says.
 #include <catch2/catch.hpp>
 #include <cstdint>
 #include <zmq.hpp>
 
 #include "config/daemon_config.hpp"
 #include "transport/daemon.hpp"
+#include "transport/open_socket.hpp"
 #include "transport/socket_options.hpp"
 
 using namespace fabrik;
@@ -65,4 +67,38 @@ TEST_CASE("A socket kept across a reload gets the limits a new socket would") {
   REQUIRE(new_out.get(zmq::sockopt::sndhwm) != subscriber_queue_before);
   CHECK(kept_out.get(zmq::sockopt::sndhwm) == new_out.get(zmq::sockopt::sndhwm));
   CHECK(new_out.get(zmq::sockopt::sndhwm) == wire::pose_queue_messages(after.max_backlog_frames));
+}
+
+TEST_CASE("Opening a socket: a taken port, an address not of this machine and an IPv6 literal") {
+  zmq::context_t context(1);
+  const wire::OpenAdvice advice{"the input socket", "here or with --input",
+                                "write connect: before it"};
+  zmq::socket_t holder(context, zmq::socket_type::pub);
+  REQUIRE_FALSE(wire::open_socket(holder, "tcp://127.0.0.1:*", SocketMode::bind, advice));
+  const std::string taken = holder.get(zmq::sockopt::last_endpoint);
+
+  zmq::socket_t s(context, zmq::socket_type::sub);
+  const auto in_use = wire::open_socket(s, taken, SocketMode::bind, advice);
+  REQUIRE(in_use);
+  CHECK_THAT(in_use->problem,
+             Catch::StartsWith("cannot bind the input socket to '" + taken + "': "));
+  CHECK_THAT(in_use->fix, Catch::Contains("choose another port here or with --input") &&
+                              Catch::Contains("or write connect: before it"));
+
+  const auto elsewhere = wire::open_socket(s, "tcp://192.0.2.1:5555", SocketMode::bind, {});
+  REQUIRE(elsewhere);
+  CHECK_THAT(elsewhere->problem, Catch::StartsWith("cannot bind to 'tcp://192.0.2.1:5555': "));
+  CHECK_THAT(elsewhere->fix,
+             Catch::StartsWith("bind to an address of this machine") &&
+                 Catch::EndsWith("for every interface)"));  // no way to connect given: none offered
+
+  // ZeroMQ refuses an IPv6 address on a socket not switched to IPv6.
+  zmq::socket_t v6(context, zmq::socket_type::sub);
+  const auto loopback6 = wire::open_socket(v6, "tcp://[::1]:*", SocketMode::bind, advice);
+  if (loopback6 && loopback6->problem.find("not available") != std::string::npos) {
+    WARN("SKIPPED the IPv6 part: this machine has no ::1 (" << loopback6->problem << ")");
+    return;
+  }
+  CHECK_FALSE(loopback6);
+  CHECK(v6.get(zmq::sockopt::ipv6));
 }

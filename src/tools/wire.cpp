@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "config/endpoint_check.hpp"
+#include "transport/open_socket.hpp"
 #include "transport/payload_document.hpp"
 
 namespace fabrik::tools {
@@ -40,20 +41,11 @@ Endpoint tool_endpoint(const std::string& spec, bool bind, const char* option) {
 
 void open_endpoint(zmq::socket_t& socket, const std::string& spec, bool bind, const char* option) {
   const Endpoint e = tool_endpoint(spec, bind, option);
-  if (ipv6_literal(e.address)) socket.set(zmq::sockopt::ipv6, true);
-  try {
-    if (e.mode == SocketMode::bind)
-      socket.bind(e.address);
-    else
-      socket.connect(e.address);
-  } catch (const zmq::error_t& error) {
-    const bool bound = e.mode == SocketMode::bind;
-    throw std::invalid_argument(
-        std::string(option) + ": cannot " + (bound ? "bind" : "connect") + " to '" + e.address +
-        "': " + error.what() +
-        (bound ? ". Fix: give a free port on an address of this machine, or leave out --bind"
-               : ""));
-  }
+  const auto failure = wire::open_socket(socket, e.address, e.mode,
+                                         {"", std::string("with ") + option, "leave out --bind"});
+  if (failure)
+    throw std::invalid_argument(std::string(option) + ": " + failure->problem +
+                                ". Fix: " + failure->fix);
 }
 
 bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout) {

@@ -23,6 +23,7 @@
 #include "config/config_error.hpp"
 #include "config/endpoint_check.hpp"
 #include "model_codec.hpp"
+#include "open_socket.hpp"
 #include "session_revival.hpp"
 #include "socket_monitor.hpp"
 #include "socket_options.hpp"
@@ -56,8 +57,6 @@ std::string_view view(const zmq::message_t& m) {
 // events of a session ZeroMQ gives up at once can be missed (session_revival.hpp).
 zmq::socket_t make_socket(zmq::context_t& context, zmq::socket_type type, const DaemonConfig& c) {
   zmq::socket_t s(context, type);
-  if (ipv6_literal(type == zmq::socket_type::sub ? c.input.address : c.output.address))
-    s.set(zmq::sockopt::ipv6, true);
   if (type == zmq::socket_type::sub)
     set_input_options(s, c);
   else
@@ -69,41 +68,15 @@ zmq::socket_t make_socket(zmq::context_t& context, zmq::socket_type type, const 
 void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& c) {
   const bool input = type == zmq::socket_type::sub;
   const Endpoint& e = input ? c.input : c.output;
-  const char* role = input ? "input" : "output";
-  try {
-    if (e.mode == SocketMode::bind)
-      s.bind(e.address);
-    else
-      s.connect(e.address);
-  } catch (const zmq::error_t& err) {
-    const std::string how = e.mode == SocketMode::bind ? "bind" : "connect";
-    std::string fix;
-    switch (err.num()) {
-      case EADDRINUSE:
-        fix = "another fabrikd running? choose another port here or with --" + std::string(role);
-        break;
-      case EADDRNOTAVAIL:
-      case ENODEV:
-        fix =
-            "bind to an address of this machine (127.0.0.1, or 0.0.0.0 for every interface), "
-            "or " +
-            std::string(e.option.empty() ? "use \"mode\": \"connect\""
-                                         : "write connect: before it") +
-            " to reach another machine";
-        break;
-      case EACCES:
-        fix = "use a port above 1023, or a path you may write for ipc://";
-        break;
-      default:
-        fix = "check the endpoint (transport://address:port), here or with --" +
-              std::string(role);
-    }
-    const std::string problem =
-        "cannot " + how + " the " + role + " socket to '" + e.address + "': " + err.what();
-    if (!e.option.empty())  // given on the command line: not the config file's fault
-      throw std::invalid_argument(e.option + ": " + problem + ". Fix: " + fix);
-    throw ConfigError(c.file, std::string("/") + role + "/endpoint", problem, fix);
-  }
+  const std::string role = input ? "input" : "output";
+  const OpenAdvice advice{
+      "the " + role + " socket", "here or with --" + role,
+      e.option.empty() ? "use \"mode\": \"connect\"" : "write connect: before it"};
+  const auto failure = open_socket(s, e.address, e.mode, advice);
+  if (!failure) return;
+  if (!e.option.empty())  // given on the command line: not the config file's fault
+    throw std::invalid_argument(e.option + ": " + failure->problem + ". Fix: " + failure->fix);
+  throw ConfigError(c.file, "/" + role + "/endpoint", failure->problem, failure->fix);
 }
 
 // Whether every number of a result can be written: a pose never carries

@@ -23,6 +23,7 @@
 #include "common/ascii_case.hpp"
 #include "config/endpoint_check.hpp"
 #include "stream_status.hpp"
+#include "transport/open_socket.hpp"
 #include "transport/payload_document.hpp"
 #include "web_files.hpp"
 
@@ -771,20 +772,15 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     s.sub->set(zmq::sockopt::rcvhwm, 100);  // 0.1 s at 1 kHz: newest wins, not a backlog
     s.sub->set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(s.o.max_payload_bytes));
     for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
-    try {
-      if (s.o.pose_bind) {
-        s.sub->bind(s.o.pose_endpoint);
-        // A wildcard port ("tcp://127.0.0.1:*") is chosen by the system: name the port bound.
-        s.o.pose_endpoint = s.sub->get(zmq::sockopt::last_endpoint);
-        s.stream_status = StreamStatus(s.o.stall_after_s, s.o.pose_endpoint);
-      } else {
-        s.sub->connect(s.o.pose_endpoint);
-      }
-    } catch (const zmq::error_t& e) {
-      throw std::invalid_argument(
-          std::string("--pose: cannot ") + (s.o.pose_bind ? "bind" : "connect") + " to '" +
-          s.o.pose_endpoint + "': " + e.what() +
-          ". Fix: give a free port on an address of this machine, or connect to fabrikd's output");
+    const auto failure = wire::open_socket(
+        *s.sub, s.o.pose_endpoint, s.o.pose_bind ? SocketMode::bind : SocketMode::connect,
+        {"", "with --pose", "leave out bind: (connect to fabrikd's output)"});
+    if (failure)
+      throw std::invalid_argument("--pose: " + failure->problem + ". Fix: " + failure->fix);
+    if (s.o.pose_bind) {
+      // A wildcard port ("tcp://127.0.0.1:*") is chosen by the system: name the port bound.
+      s.o.pose_endpoint = s.sub->get(zmq::sockopt::last_endpoint);
+      s.stream_status = StreamStatus(s.o.stall_after_s, s.o.pose_endpoint);
     }
   }
 }

@@ -1,0 +1,50 @@
+#include "open_socket.hpp"
+
+#include <cerrno>
+
+#include "config/endpoint_check.hpp"
+
+namespace fabrik::wire {
+
+namespace {
+
+std::string fix_for(int error, SocketMode mode, const OpenAdvice& a) {
+  const std::string change = a.change_at.empty() ? "" : " " + a.change_at;
+  switch (error) {
+    case EADDRINUSE:
+      return "the port is taken (another fabrikd or tool running?): choose another port" + change +
+             (a.to_connect.empty() ? std::string()
+                                   : ", or " + a.to_connect + " to reach the program holding it");
+    case EADDRNOTAVAIL:
+    case ENODEV:
+      return "bind to an address of this machine (127.0.0.1, or 0.0.0.0 for every interface)" +
+             (a.to_connect.empty() ? std::string()
+                                   : ", or " + a.to_connect + " to reach another machine");
+    case EACCES:
+      return "use a port above 1023, or a path you may write for ipc://";
+    default:
+      return mode == SocketMode::bind ? "give a free port on an address of this machine" + change
+                                      : "check the endpoint (transport://address:port)" + change;
+  }
+}
+
+}  // namespace
+
+std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string& address,
+                                       SocketMode mode, const OpenAdvice& advice) {
+  if (ipv6_literal(address)) socket.set(zmq::sockopt::ipv6, true);  // else ZeroMQ refuses [::1]
+  try {
+    if (mode == SocketMode::bind)
+      socket.bind(address);
+    else
+      socket.connect(address);
+    return std::nullopt;
+  } catch (const zmq::error_t& e) {
+    const std::string how = mode == SocketMode::bind ? "bind " : "connect ";
+    const std::string socket_name = advice.socket.empty() ? "" : advice.socket + " ";
+    return OpenFailure{"cannot " + how + socket_name + "to '" + address + "': " + e.what(),
+                       fix_for(e.num(), mode, advice)};
+  }
+}
+
+}  // namespace fabrik::wire

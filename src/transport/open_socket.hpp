@@ -1,0 +1,34 @@
+// Binding or connecting a ZeroMQ socket, and saying why it failed in words a
+// user can act on. fabrikd's sockets, the tools' (replay --to, watch --from)
+// and the view's --pose all open through here, so one errno gets one advice.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <zmq.hpp>
+
+#include "config/daemon_config.hpp"
+
+namespace fabrik::wire {
+
+// What the caller's user can change, worded for where they change it.
+struct OpenAdvice {
+  std::string socket;      // named in the problem: "the input socket", or empty
+  std::string change_at;   // where the endpoint is given: "here or with --input", "with --to"
+  std::string to_connect;  // how to connect instead of binding: "leave out --bind"
+};
+
+// Why binding or connecting failed, and what to do about it.
+struct OpenFailure {
+  std::string problem;  // "cannot bind the input socket to 'A': <ZeroMQ's reason>"
+  std::string fix;
+};
+
+// Binds (mode bind) or connects `socket` to `address` (an IPv6 literal
+// switches the socket to IPv6 first); nothing on success.
+std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string& address,
+                                       SocketMode mode, const OpenAdvice& advice);
+
+}  // namespace fabrik::wire
