@@ -214,9 +214,12 @@ TEST_CASE("TRC reader rejects broken files with the path and the problem", "[io]
       {"a word for a number", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\tabc\t3\n",
        "line 7, column 4: 'abc' is not a number"},
       {"zero rate", header + "0\t0\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
-       "DataRate '0' and CameraRate '0' are not positive numbers"},
-      {"no rate", "PathFileType\t4\t(X/Y/Z)\tx.trc\nNumFrames\tNumMarkers\tUnits\n1\t1\tmm\n" +
-                      names + "1\t0\t1\t2\t3\n",
+       "DataRate '0' and CameraRate '0' are not frame rates (0.001 Hz to 1 MHz)"},
+      {"a rate no capture has", header + "1e-308\t1e308\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
+       "DataRate '1e-308' and CameraRate '1e308' are not frame rates (0.001 Hz to 1 MHz)"},
+      {"no rate",
+       "PathFileType\t4\t(X/Y/Z)\tx.trc\nNumFrames\tNumMarkers\tUnits\n1\t1\tmm\n" + names +
+           "1\t0\t1\t2\t3\n",
        "DataRate missing"},
       {"no frame column", header + "60\t60\t1\t1\tmm\nTime\tA\t\t\n\tX1\tY1\tZ1\n\n",
        "line 4: expected 'Frame#'"},
@@ -621,8 +624,8 @@ TEST_CASE("TRC DataRate 0 with CameraRate set reads at the CameraRate, with a wa
   const MarkerTrial t = read_text_trc(small_trc(kKeys, "0\t120\t3\t2\tmm\t0\t1\t3"));
   CHECK(t.rate_hz == 120.0);
   REQUIRE(t.warnings.size() == 1);
-  CHECK_THAT(t.warnings[0], Catch::Contains("DataRate '0' is not a positive number: read the "
-                                            "CameraRate, 120 Hz"));
+  CHECK_THAT(t.warnings[0], Catch::Contains("DataRate '0' is not a frame rate (0.001 Hz to 1 MHz): "
+                                            "read the CameraRate, 120 Hz"));
   // No DataRate at all: the CameraRate, as before.
   const MarkerTrial c = read_text_trc(small_trc("CameraRate\tNumFrames\tNumMarkers\tUnits",
                                                 "50\t3\t2\tmm"));

@@ -339,10 +339,13 @@ class C3dReader {
         std::string(c3d::processor_name(processor_)) + (float_data ? " float" : " int16");
 
     double rate_hz = number(find("POINT", "RATE")).value_or(0.0);
-    if (!(rate_hz > 0.0) || !std::isfinite(rate_hz)) rate_hz = num_.f32(&header_[c3d::kHeaderRate]);
-    if (!(rate_hz > 0.0) || !std::isfinite(rate_hz)) {
+    if (!plausible_frame_rate(rate_hz)) rate_hz = num_.f32(&header_[c3d::kHeaderRate]);
+    if (!plausible_frame_rate(rate_hz)) {
       // A file without points may have no point rate; it has no markers to time either.
-      if (points > 0) fail("parameter section: POINT:RATE and the header's frame rate are not positive");
+      if (points > 0)
+        fail(
+            "parameter section: POINT:RATE and the header's frame rate are not frame rates (0.001 "
+            "Hz to 1 MHz)");
       rate_hz = 0.0;
     }
     trial.rate_hz = rate_hz;

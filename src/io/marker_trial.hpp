@@ -60,6 +60,14 @@ struct RecordingFacts {
   /// TRC rows whose Time equals the previous row's (a warning only).
 };
 
+/// The frame rates a recording may have: outside them a header is corrupt, not a capture
+/// (1 mHz is a frame every 17 minutes; 1 MHz is 100 times the fastest mocap camera).
+inline constexpr double kMinFrameRateHz = 1e-3;
+inline constexpr double kMaxFrameRateHz = 1e6;
+inline bool plausible_frame_rate(double rate_hz) {
+  return rate_hz >= kMinFrameRateHz && rate_hz <= kMaxFrameRateHz;  // false for NaN
+}
+
 /// How a source numbers and times its frames, to name them in outputs as the source does.
 struct FrameClock {
   int first_frame = 1;  ///< number of the first frame

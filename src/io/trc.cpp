@@ -276,12 +276,12 @@ class TrcParser {
     return h;
   }
 
-  // DataRate, or CameraRate when DataRate is absent or not positive.
+  // DataRate, or CameraRate when DataRate is absent or not a frame rate.
   double rate_of(const Header& header, MarkerTrial& trial) const {
     const auto positive = [](std::optional<std::string_view> text) -> std::optional<double> {
       if (!text) return std::nullopt;
       const std::optional<double> v = parse_number(*text);
-      if (!v || !(*v > 0.0) || !std::isfinite(*v)) return std::nullopt;
+      if (!v || !plausible_frame_rate(*v)) return std::nullopt;
       return v;
     };
     const std::optional<std::string_view> data = header.value_of("DataRate");
@@ -290,14 +290,14 @@ class TrcParser {
     if (const auto rate = positive(camera)) {
       if (data) {
         trial.warnings.push_back("header: DataRate " + quoted(*data) +
-                                 " is not a positive number: read the CameraRate, " +
+                                 " is not a frame rate (0.001 Hz to 1 MHz): read the CameraRate, " +
                                  std::string(trim(*camera)) + " Hz");
       }
       return *rate;
     }
     if (!data && !camera) fail("header: DataRate missing (line 2 names the header fields)");
     fail("header: DataRate " + quoted(data.value_or("")) + " and CameraRate " +
-         quoted(camera.value_or("")) + " are not positive numbers");
+         quoted(camera.value_or("")) + " are not frame rates (0.001 Hz to 1 MHz)");
   }
 
   [[noreturn]] void fail(const std::string& problem) const { throw FormatError(path_, problem); }

@@ -14,8 +14,8 @@ inline void require_valid_trial(const io::MarkerTrial& trial) {
           "positions are not frames x markers");
   // A file without points (analog only) may have no point rate: it has no
   // markers to time, and the commands refuse it (io::require_marker_data).
-  require(trial.labels.empty() || (std::isfinite(trial.rate_hz) && trial.rate_hz > 0.0),
-          "a trial with markers has a rate that is not a positive number");
+  require(trial.labels.empty() || io::plausible_frame_rate(trial.rate_hz),
+          "a trial with markers has a rate outside 0.001 Hz to 1 MHz");
 }
 
 }  // namespace fabrik::fuzz
