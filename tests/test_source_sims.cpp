@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <future>
 #include <map>
+#include <optional>
 #include <thread>
 
 #include "bridges/natnet_sim_server.hpp"
@@ -177,6 +178,9 @@ Comparison through_simulator(Protocol p, const DaemonConfig& config, const bridg
   // lost to it, and the test needs every recording frame posed once.
   script.pauses.push_back({0, 0.3});
   DaemonConfig with_source = on_inproc(config, p == Protocol::qtm ? "qtm-walk" : "natnet-walk");
+  // A daemon behind its source (a sanitizer build, a loaded host) answers every frame late
+  // instead of superseding the waiting ones: the passes then only have to make up for UDP.
+  with_source.max_backlog_frames = 10000;
   std::unique_ptr<qtm::QtmSimServer> qtm_server;
   std::unique_ptr<bridges::NatNetSimServer> natnet_server;
   if (p == Protocol::qtm) {
@@ -322,6 +326,7 @@ TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is
     zmq::context_t context;
     const std::string name = p == Protocol::qtm ? "qtm-script" : "natnet-script";
     DaemonConfig with_source = on_inproc(config, name);
+    with_source.max_backlog_frames = 10000;  // late, not superseded, on a slow host (see above)
     // A short stall and backoff, so that the restart is seen and recovered from quickly.
     const std::string options =
         R"("connect_timeout_s": 1, "stall_timeout_s": 0.2, "reconnect_min_s": 0.05, "reconnect_max_s": 0.2)";
@@ -355,22 +360,34 @@ TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is
     CHECK(got.poses.back()["frame"] == last);
 
     // Before the rename the marker is measured; from shortly after it (the
-    // labels are re-read on QTM's event / Motive's model change) it is
-    // occluded, and stays so across the restart.
-    std::size_t before = 0, renamed_before_restart = 0, after = 0, after_restart = 0;
+    // labels are re-read on QTM's event / Motive's model change), before the
+    // restart, it is occluded, and stays so across the restart. Properties of
+    // the frames posed, not counts in windows of wall-clock time: a loaded
+    // host connects late and reconnects slowly.
+    std::optional<std::int64_t> first_renamed;  // the first frame posed with the marker occluded
+    std::size_t measured_before = 0, occluded_before = 0, measured_after_renamed = 0,
+                occluded_poses = 0, after_restart = 0;
     for (const json& pose : got.poses) {
       const std::int64_t g = index_of(p, pose["frame"].get<std::uint64_t>());
-      if (g < 50) before += occluded(pose, renamed) ? 0 : 1;
-      if (g >= 60 && g < 100) renamed_before_restart += occluded(pose, renamed) ? 1 : 0;
-      if (g >= 75) after += occluded(pose, renamed) ? 1 : 0;
+      const bool hidden = occluded(pose, renamed);
+      if (g < 50) (hidden ? occluded_before : measured_before) += 1;
+      if (hidden) {
+        ++occluded_poses;
+        if (!first_renamed) first_renamed = g;
+      } else if (first_renamed) {
+        ++measured_after_renamed;
+      }
       if (g >= 150) ++after_restart;
     }
-    // Thresholds leave room for a loaded machine: a late connect, a slow reconnect.
-    CHECK(before >= 30);
-    CHECK(renamed_before_restart >= 25);  // the labels re-read in the stream, not at the reconnect
-    CHECK(after >= 120);
-    CHECK(after_restart >= 100);  // streaming resumed after the restart
-    // The stats: two connections (one reconnect), the renamed marker unknown, no frame lost by fabrikd.
+    CHECK(measured_before >= 1);
+    CHECK(occluded_before == 0);
+    REQUIRE(first_renamed);
+    CHECK(*first_renamed >= 50);
+    CHECK(*first_renamed < 100);  // the labels re-read in the stream, not at the reconnect
+    CHECK(measured_after_renamed == 0);
+    CHECK(after_restart >= 1);  // streaming resumed after the restart
+    // The stats: two connections (one reconnect), the renamed marker unknown, no frame lost by
+    // fabrikd.
     const auto stats = client.stats_until([](const json& s) { return s["source"]["reconnects"] >= 1; }, 5s);
     REQUIRE(stats);
     const json& source = (*stats)["source"];
@@ -381,7 +398,9 @@ TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is
     CHECK(source["frames"] >= got.poses.size());
     CHECK(source["frames"] <= rec.p_mm.size());  // each served frame counted once
     CHECK(source["last_error"].is_string());  // what the restart looked like to the client
-    CHECK((*stats)["unknown_markers"] >= 120);
+    CHECK((*stats)["unknown_markers"] >=
+          occluded_poses);  // each frame posed with the new name counted
+    CHECK((*stats)["frames_dropped"] == 0);
     UNSCOPED_INFO("stats after the rename and restart: " << source.dump());
   }
 }
