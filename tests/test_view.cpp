@@ -11,12 +11,13 @@
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include "config/daemon_config.hpp"
+#include "sanitized.hpp"
 #include "view/stream_status.hpp"
 #include "view/view_server.hpp"
 #include "view/view_trial.hpp"
 #include "view/web_files.hpp"
 #include "view/ws_client.hpp"
-#include "config/daemon_config.hpp"
 
 using namespace fabrik;
 using namespace fabrik::view::client;
@@ -287,6 +288,12 @@ TEST_CASE("view websocket: an inbound message above 4 KiB closes that client") {
   CHECK(read_until(small, "status", [](const json&) { return true; }));
 }
 
+#if defined(FABRIK_TEST_SANITIZED)
+constexpr double kLeastShareOfCap = 0.25;
+#else
+constexpr double kLeastShareOfCap = 0.8;
+#endif
+
 TEST_CASE("view websocket: newest pose wins at the rate cap and a client that does not read costs the others nothing") {
   FedView fed([](view::ViewOptions& o) { o.rate_hz = 50.0; });
   LiveView& v = *fed.live;
@@ -343,14 +350,25 @@ TEST_CASE("view websocket: newest pose wins at the rate cap and a client that do
   publisher.join();
   for (std::size_t i = 0; i < readers.size(); ++i) {
     INFO("reader " << i << " got " << frames[i].size() << " poses in " << seconds << " s");
-    // At most the rate (plus the first one at once), and no less than 80 % of it.
+    // At most the rate (plus the first one at once), and no less than 80 % of it
+    // (a quarter in a sanitizer build, whose pace on a loaded host is the host's:
+    // there the claim is that the readers go on receiving, which a view blocked
+    // on the stuck client would not).
     CHECK(frames[i].size() <= static_cast<std::size_t>(o.rate_hz * seconds) + 2);
-    CHECK(frames[i].size() >= static_cast<std::size_t>(0.8 * o.rate_hz * seconds));
+    CHECK(frames[i].size() >= static_cast<std::size_t>(kLeastShareOfCap * o.rate_hz * seconds));
     // Newest wins: strictly increasing, about published_hz / rate_hz frames
     // apart (1000 / 50 = 20 at full pace), where oldest-first would give 1.
     for (std::size_t k = 1; k < frames[i].size(); ++k) CHECK(frames[i][k] > frames[i][k - 1]);
     INFO("published at " << published_hz << " Hz");
-    REQUIRE(published_hz > 4.0 * o.rate_hz);  // else the cap is not what limits the poses
+    if (!(published_hz > 4.0 * o.rate_hz)) {  // else the cap is not what limits the poses
+#if defined(FABRIK_TEST_SANITIZED)
+      WARN("the newest-wins gap is not checked: the publisher ran at " << published_hz << " Hz");
+      continue;
+#else
+      FAIL("the publisher ran at " << published_hz
+                                   << " Hz: too slow for the cap to limit the poses");
+#endif
+    }
     if (frames[i].size() > 10) {
       const double gap = static_cast<double>(frames[i].back() - frames[i].front()) /
                          static_cast<double>(frames[i].size() - 1);
