@@ -52,10 +52,13 @@ std::uint64_t handshake(test::SocketClient& client, const DaemonConfig& c, Synth
                                                        test::subject_offset_m(0),
                                                        c.subjects[0].name + ":")}}
                     .dump());
-    if (client.receive("pose/" + c.subjects[0].name, 50ms)) {
-      // The answers to probes still in flight (stats keep coming: bounded by time).
-      const auto until = std::chrono::steady_clock::now() + 300ms;
-      while (std::chrono::steady_clock::now() < until) (void)client.receive_any(50ms);
+    const std::string topic = "pose/" + c.subjects[0].name;
+    if (const auto pose = client.receive(topic, 50ms)) {
+      // The answers to probes still in flight: up to the last one sent.
+      const std::uint64_t last = 1000000 + static_cast<std::uint64_t>(i);
+      if ((*pose)["frame"] != last)
+        REQUIRE(client.receive_until(
+            topic, [last](const json& p) { return p["frame"] == last; }, 5s));
       return 2000000;
     }
   }
