@@ -323,9 +323,16 @@ TEST_CASE(
   const std::string taken = holder.get(zmq::sockopt::last_endpoint);
   ReplayOptions o = fast_options(taken);
   o.bind = true;
+  int opened = 0;  // the start line is printed from here: never for a socket not open
+  o.opened = [&] { ++opened; };
   CHECK_THROWS_WITH(replay_trial(context, small_trial(), o),
                     Catch::StartsWith("--to: cannot bind to '" + taken + "'") &&
                         Catch::Contains("leave out --bind"));
+  CHECK(opened == 0);
+  o.endpoint = "tcp://127.0.0.1:*";
+  o.wait_subscriber_s = -1.0;  // no one listens: sent to nobody
+  (void)replay_trial(context, small_trial(), o);
+  CHECK(opened == 1);
 }
 
 TEST_CASE("drop specs parse NAME T0 T1, names may contain colons, bad ones say why") {

@@ -72,6 +72,7 @@ ReplaySummary replay_trial(zmq::context_t& context, const io::MarkerTrial& trial
   pub.set(zmq::sockopt::linger, 5000);  // let queued frames out when we close
   pub.set(zmq::sockopt::sndhwm, 100000);
   open_endpoint(pub, options.endpoint, options.bind, "--to");
+  if (options.opened) options.opened();
 
   if (options.wait_subscriber_s >= 0.0) {
     const auto deadline =

@@ -56,6 +56,7 @@ struct ReplayOptions {
   // times. Not owned; may be null.
   const io::OrientationTable* orientations = nullptr;
   std::function<bool()> stop_requested;                 // polled between frames
+  std::function<void()> opened;                         // once the socket is bound or connected
   std::function<void(const ReplayProgress&)> progress;  // called at most once per interval
   std::chrono::milliseconds progress_interval{500};
 };

@@ -120,11 +120,14 @@ void add_replay_command(CLI::App& app) {
           std::fprintf(stderr, "\rreplay: %llu frames, %.1f s, %.1f ms behind   ",
                        static_cast<unsigned long long>(p.frames_sent), p.elapsed_s, p.behind_ms);
       };
-      if (!a->file.empty())
-        std::fprintf(stderr, "replay: %s: %zu frames x %zu markers at %g Hz -> %s (%s%s)\n",
-                     safe_lines(a->file).c_str(), trial.frames(), trial.markers(), trial.rate_hz,
-                     safe_lines(to.address).c_str(), a->encoding.c_str(),
-                     to.mode == SocketMode::bind ? ", bound" : "");
+      // Said once the socket is open: a --bind that fails prints only why.
+      o.opened = [&] {
+        if (!a->file.empty())
+          std::fprintf(stderr, "replay: %s: %zu frames x %zu markers at %g Hz -> %s (%s%s)\n",
+                       safe_lines(a->file).c_str(), trial.frames(), trial.markers(), trial.rate_hz,
+                       safe_lines(to.address).c_str(), a->encoding.c_str(),
+                       to.mode == SocketMode::bind ? ", bound" : "");
+      };
       zmq::context_t context;
       const ReplaySummary s = replay_trial(context, trial, o);
       std::size_t zeros = 0;
