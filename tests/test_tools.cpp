@@ -1281,6 +1281,17 @@ TEST_CASE("An output that names an input or another output is refused before any
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         joints.path(), "--lengths-json", joints.path()},
        "--output and --lengths-json name the same file"},
+      // Outputs whose folder is missing, or that are folders: found before the work.
+      {{"solve", "--input", trial.path(), "--output", joints.path(), "--report",
+        joints.path() + ".d/r.json"},
+       "--report: '" + joints.path() + ".d/r.json': the folder '" + joints.path() +
+           ".d' does not exist"},
+      {{"synth", "--config", config.path(), "--output", joints.path() + ".d/s.trc"},
+       "--output: '" + joints.path() + ".d/s.trc': the folder '" + joints.path() +
+           ".d' does not exist"},
+      {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
+        std::filesystem::temp_directory_path().string()},
+       "--output: '" + std::filesystem::temp_directory_path().string() + "' is a folder"},
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         joints.path() + ".json", "--lengths-json", joints.path()},
        "--lengths-json goes with --trial (the lengths measured from a keypoint trial) or "

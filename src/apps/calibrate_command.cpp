@@ -58,14 +58,17 @@ std::string calibrated_sensors(const SensorSection& spec, const Model& model,
 }
 
 void run_calibrate(const CalibrateArgs& a) {
-  tools::require_distinct_files({{"--template", a.template_path, false},
-                                 {"--static", a.static_path, false},
-                                 {"--trial", a.trial_path, false},
-                                 {"--static-orientations", a.orientations_path, false},
-                                 // --config may be --output: its sensors recalibrated in place
-                                 // (read whole before the write).
-                                 {"--output", a.output_path},
-                                 {"--lengths-json", a.lengths_json_path}});
+  const std::vector<tools::NamedFile> files = {
+      {"--template", a.template_path, false},
+      {"--static", a.static_path, false},
+      {"--trial", a.trial_path, false},
+      {"--static-orientations", a.orientations_path, false},
+      // --config may be --output: its sensors recalibrated in place
+      // (read whole before the write).
+      {"--output", a.output_path},
+      {"--lengths-json", a.lengths_json_path}};
+  tools::require_distinct_files(files);
+  tools::require_output_folders(files);
   if (!a.lengths_json_path.empty() && a.trial_path.empty() && !a.nominal)
     throw std::invalid_argument(
         "--lengths-json goes with --trial (the lengths measured from a "

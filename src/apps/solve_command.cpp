@@ -38,15 +38,18 @@ void progress_bar(std::size_t done, std::size_t total) {
 
 void run(const SolveOptions& o) {
   // Before the solve, which can take minutes: what the outputs would be is known now.
-  tools::require_distinct_files({{"--config", o.config, false},
-                                 {"--input", o.input, false},
-                                 {"--orientations", o.orientations, false},
-                                 {"--output", o.output},
-                                 {"--markers", o.markers_output},
-                                 {"--markers' FILE.filled.csv",
-                                  o.markers_output.empty() ? "" : o.markers_output + ".filled.csv"},
-                                 {"--report", o.report},
-                                 {"--angles", o.angles}});
+  const std::vector<tools::NamedFile> files = {
+      {"--config", o.config, false},
+      {"--input", o.input, false},
+      {"--orientations", o.orientations, false},
+      {"--output", o.output},
+      {"--markers", o.markers_output},
+      {"--markers' FILE.filled.csv",
+       o.markers_output.empty() ? "" : o.markers_output + ".filled.csv"},
+      {"--report", o.report},
+      {"--angles", o.angles}};
+  tools::require_distinct_files(files);
+  tools::require_output_folders(files);
   for (const auto& [option, path] :
        {std::pair<const char*, const std::string&>{"--output", o.output},
         {"--markers", o.markers_output}})

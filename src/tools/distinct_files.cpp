@@ -32,4 +32,22 @@ void require_distinct_files(const std::vector<NamedFile>& files) {
     }
 }
 
+void require_output_folders(const std::vector<NamedFile>& files) {
+  namespace fs = std::filesystem;
+  for (const NamedFile& f : files) {
+    if (!f.output || f.path.empty()) continue;
+    std::error_code ec;
+    const fs::path path(f.path);
+    if (fs::is_directory(path, ec))
+      throw std::invalid_argument(f.option + ": '" + f.path +
+                                  "' is a folder. Fix: name a file in it");
+    const fs::path folder = path.has_parent_path() ? path.parent_path() : fs::path(".");
+    if (!fs::is_directory(folder, ec))
+      throw std::invalid_argument(
+          f.option + ": '" + f.path + "': the folder '" + folder.string() +
+          (fs::exists(folder, ec) ? "' is not a folder" : "' does not exist") +
+          ". Fix: create it, or write elsewhere");
+  }
+}
+
 }  // namespace fabrik::tools

@@ -1,6 +1,6 @@
-// Refuses a command whose output would overwrite one of its inputs or another of its outputs:
-// `fabrik solve --input walk.trc --output walk.trc` replaced the trial it read, and
-// `--output j.trc --angles j.trc` lost the joint centres to the angles.
+// Refuses, before any work, a command whose outputs cannot be written as asked: an output that
+// would overwrite one of its inputs or another output (`fabrik solve --input walk.trc --output
+// walk.trc` replaced the trial it read), or that names a folder that does not exist.
 #pragma once
 
 #include <string>
@@ -18,5 +18,10 @@ struct NamedFile {
 // Throws std::invalid_argument naming both options when an output's path is the same file as
 // another given path (the same after symlinks, `.` and `..`; or a hard link of it).
 void require_distinct_files(const std::vector<NamedFile>& files);
+
+// Throws std::invalid_argument naming the option when an output's path is a folder, or its
+// folder does not exist or is not one: found at once, not after a solve of minutes.
+// (Permissions are left to the write: root may write where access() says no.)
+void require_output_folders(const std::vector<NamedFile>& files);
 
 }  // namespace fabrik::tools

@@ -278,6 +278,7 @@ void add_synth_command(CLI::App& app) {
         files.push_back({"--output's FILE.injected.csv", stem_path + ".injected.csv"});
       }
       require_distinct_files(files);
+      require_output_folders(files);
       if (a->keypoints) {
         a->k.seed = a->o.seed;
         const KeypointTrial t = make_keypoint_trial(load_synth_setup(a->config), a->o, a->k);
