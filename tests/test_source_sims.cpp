@@ -134,7 +134,8 @@ nlohmann::ordered_json zmq_frame(Protocol p, const bridges::SimRecording& rec, s
 }
 
 // Poses until every one of the recording's `frames` has been posed at least
-// once, the server's last frame has been posed, or `timeout` passes.
+// once, or `timeout` passes (stats go on after the server's last frame: a
+// source that never covers the file fails at the timeout).
 Collected collect_until_covered(test::SocketClient& client, Protocol p, std::size_t frames,
                                 std::chrono::milliseconds timeout) {
   Collected c;

@@ -221,7 +221,7 @@ OpenSimTable read_opensim_table(const std::string& path) {
     const std::string& key = entry.first;
     const std::string& value = entry.second;
     const std::optional<double> v = number(value);
-    if (key == "DataRate" && v && *v > 0.0 && std::isfinite(*v)) {
+    if (key == "DataRate" && v && plausible_frame_rate(*v)) {
       t.rate_hz = *v;
       t.rate_source = "from DataRate";
     }

@@ -41,8 +41,10 @@ Endpoint tool_endpoint(const std::string& spec, bool bind, const char* option) {
 
 void open_endpoint(zmq::socket_t& socket, const std::string& spec, bool bind, const char* option) {
   const Endpoint e = tool_endpoint(spec, bind, option);
-  const auto failure = wire::open_socket(socket, e.address, e.mode,
-                                         {"", std::string("with ") + option, "leave out --bind"});
+  const auto failure =
+      wire::open_socket(socket, e.address, e.mode,
+                        {"", std::string("with ") + option, "leave out --bind",
+                         "leave out --bind if the program holding it is the one to reach"});
   if (failure)
     throw std::invalid_argument(std::string(option) + ": " + failure->problem +
                                 ". Fix: " + failure->fix);

@@ -8,13 +8,12 @@ namespace fabrik::wire {
 
 namespace {
 
-std::string fix_for(int error, SocketMode mode, const OpenAdvice& a) {
+std::string fix_for(int error, const OpenAdvice& a) {
   const std::string change = a.change_at.empty() ? "" : " " + a.change_at;
   switch (error) {
     case EADDRINUSE:
       return "the port is taken (another fabrikd or tool running?): choose another port" + change +
-             (a.to_connect.empty() ? std::string()
-                                   : ", or " + a.to_connect + " to reach the program holding it");
+             (a.when_taken.empty() ? std::string() : ", or " + a.when_taken);
     case EADDRNOTAVAIL:
     case ENODEV:
       return "bind to an address of this machine (127.0.0.1, or 0.0.0.0 for every interface)" +
@@ -23,8 +22,7 @@ std::string fix_for(int error, SocketMode mode, const OpenAdvice& a) {
     case EACCES:
       return "use a port above 1023, or a path you may write for ipc://";
     default:
-      return mode == SocketMode::bind ? "give a free port on an address of this machine" + change
-                                      : "check the endpoint (transport://address:port)" + change;
+      return "check the endpoint (transport://address:port)" + change;
   }
 }
 
@@ -43,7 +41,7 @@ std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string&
     const std::string how = mode == SocketMode::bind ? "bind " : "connect ";
     const std::string socket_name = advice.socket.empty() ? "" : advice.socket + " ";
     return OpenFailure{"cannot " + how + socket_name + "to '" + address + "': " + e.what(),
-                       fix_for(e.num(), mode, advice)};
+                       fix_for(e.num(), advice), e.num()};
   }
 }
 

@@ -18,12 +18,16 @@ struct OpenAdvice {
   std::string socket;      // named in the problem: "the input socket", or empty
   std::string change_at;   // where the endpoint is given: "here or with --input", "with --to"
   std::string to_connect;  // how to connect instead of binding: "leave out --bind"
+  // Offered for a taken port, after choosing another: where the holder may be
+  // the program to reach (fabrikd's input for `replay --bind`), not a twin.
+  std::string when_taken;
 };
 
 // Why binding or connecting failed, and what to do about it.
 struct OpenFailure {
   std::string problem;  // "cannot bind the input socket to 'A': <ZeroMQ's reason>"
   std::string fix;
+  int error = 0;  // ZeroMQ's errno
 };
 
 // Binds (mode bind) or connects `socket` to `address` (an IPv6 literal

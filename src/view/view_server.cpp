@@ -774,7 +774,8 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
     const auto failure = wire::open_socket(
         *s.sub, s.o.pose_endpoint, s.o.pose_bind ? SocketMode::bind : SocketMode::connect,
-        {"", "with --pose", "leave out bind: (connect to fabrikd's output)"});
+        {"", "with --pose", "connect (leave out bind:)",
+         "connect (leave out bind:) if fabrikd's output holds it"});
     if (failure)
       throw std::invalid_argument("--pose: " + failure->problem + ". Fix: " + failure->fix);
     if (s.o.pose_bind) {
