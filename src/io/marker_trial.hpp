@@ -60,12 +60,14 @@ struct RecordingFacts {
   /// TRC rows whose Time equals the previous row's (a warning only).
 };
 
-/// The frame rates a recording may have: outside them a header is corrupt, not a capture
-/// (1 mHz is a frame every 17 minutes; 1 MHz is 100 times the fastest mocap camera).
+/// The lowest frame rate a recording may have (a frame every 17 minutes); below it a header is
+/// corrupt, not a capture.
 inline constexpr double kMinFrameRateHz = 1e-3;
+/// The highest frame rate a recording may have (100 times the fastest mocap camera).
 inline constexpr double kMaxFrameRateHz = 1e6;
+/// Whether `rate_hz` is within [kMinFrameRateHz, kMaxFrameRateHz] (false for NaN).
 inline bool plausible_frame_rate(double rate_hz) {
-  return rate_hz >= kMinFrameRateHz && rate_hz <= kMaxFrameRateHz;  // false for NaN
+  return rate_hz >= kMinFrameRateHz && rate_hz <= kMaxFrameRateHz;
 }
 
 /// How a source numbers and times its frames, to name them in outputs as the source does.
