@@ -61,13 +61,14 @@ SourceConfig source_of(const std::string& input_json) {
   return read_source_config(JsonReader(j, "test.json", "/input"));
 }
 
-// Poses and the last stats from a daemon's output until `last_frame` has been
-// posed or `timeout` passes.
+// Poses and the last stats from a daemon's output until done(pose) holds for
+// a pose or `timeout` passes.
 struct Collected {
   std::vector<json> poses;
   json stats;
 };
-Collected collect(test::SocketClient& client, std::uint64_t last_frame, std::chrono::milliseconds timeout) {
+template <class Done>
+Collected collect(test::SocketClient& client, Done done, std::chrono::milliseconds timeout) {
   Collected c;
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < deadline) {
@@ -77,7 +78,7 @@ Collected collect(test::SocketClient& client, std::uint64_t last_frame, std::chr
     if (m->first == "stats") c.stats = m->second;
     if (m->first != "pose") continue;
     c.poses.push_back(std::move(m->second));
-    if (c.poses.back()["frame"] == last_frame) break;
+    if (done(c.poses.back())) break;
   }
   return c;
 }
@@ -133,28 +134,20 @@ nlohmann::ordered_json zmq_frame(Protocol p, const bridges::SimRecording& rec, s
   return {{"frame", frame}, {"time", time_s}, {"units", "mm"}, {"markers", markers}};
 }
 
-// Poses until every one of the recording's `frames` has been posed at least
-// once, or `timeout` passes (stats go on after the server's last frame: a
-// source that never covers the file fails at the timeout).
-Collected collect_until_covered(test::SocketClient& client, Protocol p, std::size_t frames,
-                                std::chrono::milliseconds timeout) {
-  Collected c;
-  std::vector<bool> seen(frames, false);
+// Whether every one of the recording's `frames` has been posed at least once,
+// fed the poses one by one.
+struct Coverage {
+  Protocol p;
+  std::vector<bool> seen;
   std::size_t covered = 0;
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (covered < frames && std::chrono::steady_clock::now() < deadline) {
-    auto m = client.receive_any(std::chrono::duration_cast<std::chrono::milliseconds>(
-        deadline - std::chrono::steady_clock::now()));
-    if (!m) break;
-    if (m->first != "pose") continue;
+  bool operator()(const json& pose) {
     const auto index =
-        static_cast<std::size_t>(index_of(p, m->second["frame"].get<std::uint64_t>())) % frames;
+        static_cast<std::size_t>(index_of(p, pose["frame"].get<std::uint64_t>())) % seen.size();
     if (!seen[index]) ++covered;
     seen[index] = true;
-    c.poses.push_back(std::move(m->second));
+    return covered == seen.size();
   }
-  return c;
-}
+};
 
 struct Comparison {
   std::size_t frames = 0, covered = 0;
@@ -209,7 +202,9 @@ Comparison through_simulator(Protocol p, const DaemonConfig& config, const bridg
     std::optional<ServerThread<bridges::NatNetSimServer>> natnet_thread;
     if (qtm_server) qtm_thread.emplace(*qtm_server);
     if (natnet_server) natnet_thread.emplace(*natnet_server);
-    got = collect_until_covered(client, p, rec.p_mm.size(), 60s);
+    // (stats go on after the server's last frame: a source that never covers the file fails at the
+    // timeout)
+    got = collect(client, Coverage{p, std::vector<bool>(rec.p_mm.size(), false)}, 60s);
   }
   REQUIRE(!got.poses.empty());
 
@@ -356,7 +351,8 @@ TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is
     if (qtm_server) qtm_thread.emplace(*qtm_server);
     if (natnet_server) natnet_thread.emplace(*natnet_server);
     const std::uint64_t last = p == Protocol::qtm ? 300 : 299;
-    const Collected got = collect(client, last, 20s);
+    const Collected got = collect(
+        client, [last](const json& pose) { return pose["frame"] == last; }, 20s);
     REQUIRE(!got.poses.empty());
     CHECK(got.poses.back()["frame"] == last);
 

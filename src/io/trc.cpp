@@ -278,7 +278,7 @@ class TrcParser {
 
   // DataRate, or CameraRate when DataRate is absent or not a frame rate.
   double rate_of(const Header& header, MarkerTrial& trial) const {
-    const auto positive = [](std::optional<std::string_view> text) -> std::optional<double> {
+    const auto frame_rate = [](std::optional<std::string_view> text) -> std::optional<double> {
       if (!text) return std::nullopt;
       const std::optional<double> v = parse_number(*text);
       if (!v || !plausible_frame_rate(*v)) return std::nullopt;
@@ -286,8 +286,8 @@ class TrcParser {
     };
     const std::optional<std::string_view> data = header.value_of("DataRate");
     const std::optional<std::string_view> camera = header.value_of("CameraRate");
-    if (const auto rate = positive(data)) return *rate;
-    if (const auto rate = positive(camera)) {
+    if (const auto rate = frame_rate(data)) return *rate;
+    if (const auto rate = frame_rate(camera)) {
       if (data) {
         trial.warnings.push_back("header: DataRate " + quoted(*data) +
                                  " is not a frame rate (0.001 Hz to 1 MHz): read the CameraRate, " +

@@ -45,9 +45,7 @@ void open_endpoint(zmq::socket_t& socket, const std::string& spec, bool bind, co
       wire::open_socket(socket, e.address, e.mode,
                         {"", std::string("with ") + option, "leave out --bind",
                          "leave out --bind if the program holding it is the one to reach"});
-  if (failure)
-    throw std::invalid_argument(std::string(option) + ": " + failure->problem +
-                                ". Fix: " + failure->fix);
+  if (failure) throw std::invalid_argument(failure->message(option));
 }
 
 bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout) {

@@ -75,7 +75,7 @@ void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& 
   const auto failure = open_socket(s, e.address, e.mode, advice);
   if (!failure) return;
   if (!e.option.empty())  // given on the command line: not the config file's fault
-    throw std::invalid_argument(e.option + ": " + failure->problem + ". Fix: " + failure->fix);
+    throw std::invalid_argument(failure->message(e.option));
   throw ConfigError(c.file, "/" + role + "/endpoint", failure->problem, failure->fix);
 }
 

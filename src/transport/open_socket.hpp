@@ -28,6 +28,11 @@ struct OpenFailure {
   std::string problem;  // "cannot bind the input socket to 'A': <ZeroMQ's reason>"
   std::string fix;
   int error = 0;  // ZeroMQ's errno
+
+  // "<option>: <problem>. Fix: <fix>", for an endpoint given on the command line.
+  std::string message(std::string_view option) const {
+    return std::string(option) + ": " + problem + ". Fix: " + fix;
+  }
 };
 
 // Binds (mode bind) or connects `socket` to `address` (an IPv6 literal

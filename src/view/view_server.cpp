@@ -776,8 +776,7 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
         *s.sub, s.o.pose_endpoint, s.o.pose_bind ? SocketMode::bind : SocketMode::connect,
         {"", "with --pose", "connect (leave out bind:)",
          "connect (leave out bind:) if fabrikd's output holds it"});
-    if (failure)
-      throw std::invalid_argument("--pose: " + failure->problem + ". Fix: " + failure->fix);
+    if (failure) throw std::invalid_argument(failure->message("--pose"));
     if (s.o.pose_bind) {
       // A wildcard port ("tcp://127.0.0.1:*") is chosen by the system: name the port bound.
       s.o.pose_endpoint = s.sub->get(zmq::sockopt::last_endpoint);
