@@ -699,6 +699,23 @@ TEST_CASE("fabrik view --pose takes bind: and connect: before its endpoint, and 
                       Catch::Contains("Fix: "));
 }
 
+TEST_CASE("fabrik view refuses a --pose that is its own --listen address, exit 2 at once") {
+  // Before: the view subscribed to its own web server, ZeroMQ's handshake met HTTP, and the page
+  // stayed empty without a word. A view that starts runs until the limit: the test then fails.
+  const std::vector<std::pair<std::string, std::string>> clashes = {
+      {"tcp://127.0.0.1:28081", "127.0.0.1:28081"},
+      {"tcp://localhost:28081", "127.0.0.1:28081"},
+      {"tcp://127.0.0.1:28081", "0.0.0.0:28081"},
+      {"bind:tcp://*:28081", "127.0.0.1:28081"}};
+  for (const auto& [pose, listen] : clashes) {
+    CAPTURE(pose, listen);
+    const auto [code, err] = run_fabrik({"view", "--pose", pose, "--listen", listen}, "/dev/null",
+                                        std::chrono::seconds(20));
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains("is the view's own --listen address '" + listen + "'"));
+  }
+}
+
 TEST_CASE("fabrik solve prints its summary when --angles cannot be honoured, then refuses, exit 2") {
   // A model without coordinates: nothing to write as angles.
   TempFile config(".json"), trc(".trc"), out(".trc"), mot(".mot"), summary(".txt");
@@ -1120,11 +1137,66 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
   CHECK(to_code == 2);
   CHECK_THAT(to_err, Catch::StartsWith("fabrik replay: --to: port '99999'") &&
                          !Catch::Contains("replay: " + trial.path()));
+  // A word that names no command is named (CLI11 said "A subcommand is required").
+  for (const auto& [args, said] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"nosuch"}, "fabrik: 'nosuch' is not a command; the commands: bench, solve"},
+           {{"bench", "nosuch", "--json"}, "fabrik bench: 'nosuch' is not a command"},
+           {{"sim", "vicon"}, "fabrik sim: 'vicon' is not a command; the commands: qtm, natnet"}}) {
+    CAPTURE(args);
+    const auto [code, err] = fabrik::test::run_fabrik(args);
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::StartsWith(said) && Catch::Contains("--help"));
+  }
   for (const std::vector<std::string>& args :
        std::vector<std::vector<std::string>>{{"--help"}, {"solve", "--help"}, {"bench", "--help"}}) {
     CAPTURE(args);
     CHECK(fabrik::test::run_fabrik(args).first == 0);
   }
+}
+
+TEST_CASE("An empty value is refused on every fabrik option, not read as its default") {
+  // `--config ""` (an unset shell variable) ran solve and bench fullbody on the embedded default
+  // and calibrate ignored `--lab-up ""`; fabrikd refused it. Each refusal comes before any work.
+  TempFile out(".trc");
+  const std::string trial = kSourceDir + "/config/default.json";  // never read: refused first
+  const std::vector<std::vector<std::string>> empty = {
+      {"solve", "--config", "", "--input", trial, "--output", out.path()},
+      {"solve", "--input", trial, "--output", out.path(), "--report", ""},
+      {"calibrate", "--template", "t.json", "--static", "s.trc", "--output", "o.json", "--lab-up",
+       ""},
+      {"bench", "fullbody", "--config", "", "--frames", "2"},
+      {"view", "--config", "", "--listen", "127.0.0.1:0"},
+      {"synth", "--config", "", "--output", out.path()},
+      {"watch", "--from", "tcp://127.0.0.1:5556", "--topic", ""},
+      {"info", ""}};
+  for (const std::vector<std::string>& args : empty) {
+    CAPTURE(args);
+    const auto [code, err] = fabrik::test::run_fabrik(args, "/dev/null", std::chrono::seconds(20));
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains(": is empty. Fix: give a value"));
+  }
+  CHECK(slurp(out.path()).empty());
+}
+
+TEST_CASE("Whole numbers on fabrik's command line are read in decimal") {
+  // CLI11 reads integers with strtoll base 0: `--frames 010` ran 8 frames and `--frames 1e1`
+  // was "not in range 2 to 10000000".
+  const auto frames_of = [](const std::string& text) {
+    TempFile json_out(".json");
+    const auto [code, err] = fabrik::test::run_fabrik(
+        {"bench", "fullbody", "--builtin-only", "--frames", text, "--json"}, json_out.path());
+    CAPTURE(text, err);
+    REQUIRE(code == 0);
+    return json::parse(slurp(json_out.path())).at("motion").at("frames").get<int>();
+  };
+  CHECK(frames_of("10") == 10);
+  CHECK(frames_of("010") == 10);
+  CHECK(frames_of("1e1") == 10);
+  CHECK(frames_of("10.0") == 10);
+  const auto [code, err] =
+      fabrik::test::run_fabrik({"bench", "fullbody", "--builtin-only", "--frames", "2.5"});
+  CHECK(code == 2);
+  CHECK_THAT(err, Catch::Contains("--frames: '2.5' is not a whole number"));
 }
 
 // Ctrl-C while a tool waits on ZeroMQ: zmq_poll then fails with EINTR whatever SA_RESTART
@@ -1278,6 +1350,8 @@ TEST_CASE("An output that names an input or another output is refused before any
        "--angles: '" + joints.path() + ".trc': an OpenSim Coordinates table is written: use .mot"},
       {{"solve", "--input", trial.path(), "--output", joints.path() + ".xyz"},
        "--output: '" + joints.path() + ".xyz': unknown output format"},
+      {{"synth", "--config", config.path(), "--output", joints.path() + ".csv"},
+       "--output: '" + joints.path() + ".csv': synth writes a TRC file: name it .trc"},
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         joints.path(), "--lengths-json", joints.path()},
        "--output and --lengths-json name the same file"},
@@ -1306,6 +1380,7 @@ TEST_CASE("An output that names an input or another output is refused before any
   CHECK(slurp(trial.path()) == trial_text);
   CHECK(slurp(config.path()) == config_text);
   CHECK_FALSE(std::filesystem::exists(joints.path()));
+  CHECK_FALSE(std::filesystem::exists(joints.path() + ".csv"));
   // A config's sensors recalibrated in place is not a collision (this one has none to calibrate).
   const auto [in_place_code, in_place_err] =
       run_fabrik({"calibrate", "--config", config.path(), "--static-orientations", "s.sto",

@@ -7,6 +7,9 @@
 #include <cstdio>
 #include <iostream>
 #include <sstream>
+#include <string>
+#include <string_view>
+#include <vector>
 
 #include "common/safe_text.hpp"
 
@@ -26,6 +29,31 @@ inline int exit_safely(CLI::App& app, const CLI::Error& e) {
       dynamic_cast<const CLI::ParseError*>(&e) != nullptr)
     return 2;
   return code;
+}
+
+// The leading words of a command line that name no command of `app`, said as such: CLI11
+// answers `fabrik nosuch` and `fabrik bench nosuch` with "A subcommand is required". Empty when
+// every word up to the first option or argument names a command.
+inline std::string unknown_command(const CLI::App& app, int argc, const char* const* argv) {
+  const CLI::App* at = &app;
+  std::string said = "fabrik";
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view word = argv[i];
+    const std::vector<const CLI::App*> commands = at->get_subcommands({});
+    if (word.empty() || word[0] == '-' || commands.empty()) break;
+    const CLI::App* next = nullptr;
+    std::string names;
+    for (const CLI::App* c : commands) {
+      if (c->check_name(std::string(word))) next = c;
+      names += (names.empty() ? "" : ", ") + c->get_name();
+    }
+    if (next == nullptr)
+      return said + ": '" + std::string(word) + "' is not a command; the commands: " + names +
+             "\nRun with --help for more information.\n";
+    at = next;
+    said += " " + std::string(word);
+  }
+  return {};
 }
 
 }  // namespace fabrik::apps

@@ -234,6 +234,12 @@ int main(int argc, char** argv) {
   fabrik::apps::add_eval_command(app);
   fabrik::apps::add_view_command(app);
   fabrik::tools::add_tool_commands(app);  // run from their own callbacks
+  fabrik::cli::refuse_surprising_values(app);
+  if (const std::string unknown = fabrik::apps::unknown_command(app, argc, argv);
+      !unknown.empty()) {
+    std::fputs(fabrik::safe_lines(unknown).c_str(), stderr);
+    return 2;
+  }
 
   try {
     app.parse(argc, argv);  // subcommands with callbacks run here

@@ -46,6 +46,17 @@ void run(const ViewArgs& a) {
   o.pose_endpoint = pose.address;
   o.pose_bind = pose.mode == SocketMode::bind;
   std::tie(o.listen_host, o.listen_port) = view::parse_listen(a.listen);
+  // A ZeroMQ subscriber connected to the view's own web server handshakes with HTTP and never
+  // gets a pose: the page would stay empty without a word.
+  const bool ipv6_host = o.listen_host.find(':') != std::string::npos;
+  const Endpoint web{"tcp://" + (ipv6_host ? "[" + o.listen_host + "]" : o.listen_host) + ":" +
+                         std::to_string(o.listen_port),
+                     SocketMode::bind};
+  if (o.listen_port != 0 && endpoints_clash(pose, web))
+    throw std::invalid_argument("--pose '" + a.pose + "' is the view's own --listen address '" +
+                                a.listen +
+                                "'. Fix: give fabrikd's pose output (its "
+                                "output.endpoint, e.g. tcp://127.0.0.1:5556), or another --listen");
   o.rate_hz = a.rate_hz;
   o.max_clients = a.max_clients;
   o.max_connections = a.max_clients + 48;  // room for page loads beside the WebSockets

@@ -1,12 +1,16 @@
-// Checks of command-line numbers whose refusals read as a user would say them, for every
+// Checks of command-line values whose refusals read as a user would say them, for every
 // command's options. CLI11's own PositiveNumber printed "Value 0 not in range
 // 0.000000 to 1797693134862315708145...", and its Range lets NaN through (every comparison with
 // NaN is false), so `--rate nan` passed "FLOAT in [1 - 100000]".
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <string>
+#include <string_view>
+#include <system_error>
 #include <type_traits>
 
 namespace fabrik::cli {
@@ -38,6 +42,58 @@ CLI::Validator range(T lo, T hi) {
         return inner(text);
       },
       inner.get_description());
+}
+
+namespace details {
+
+// Before CLI11 converts a whole number, which it does with strtoll base 0: `--frames 010` was
+// 8 (octal) and `--frames 1e3` "not in range". Decimal digits lose their leading zeros, and a
+// number written with a point or an exponent is taken when it is whole. Hexadecimal (0x...)
+// is written on purpose and left to CLI11.
+inline std::string whole_number_in_decimal(std::string& text) {
+  const std::size_t sign = !text.empty() && (text[0] == '+' || text[0] == '-') ? 1 : 0;
+  const std::string_view digits = std::string_view(text).substr(sign);
+  if (digits.empty()) return {};
+  if (digits.find_first_not_of("0123456789") == std::string_view::npos) {
+    const std::size_t first = std::min(digits.find_first_not_of('0'), digits.size() - 1);
+    text = text.substr(0, sign) + std::string(digits.substr(first));
+    return {};
+  }
+  if (digits.size() > 1 && digits[0] == '0' && (digits[1] == 'x' || digits[1] == 'X')) return {};
+  double value = 0.0;
+  const char* end = text.data() + text.size();
+  const auto [stop, error] = std::from_chars(text.data() + (text[0] == '+' ? 1 : 0), end, value);
+  if (error != std::errc() || stop != end || !std::isfinite(value)) return {};
+  if (value != std::floor(value)) return "'" + text + "' is not a whole number";
+  constexpr double kExact = 9007199254740992.0;  // 2^53: every whole double below it is exact
+  if (std::abs(value) < kExact) text = std::to_string(static_cast<long long>(value));
+  return {};
+}
+
+}  // namespace details
+
+// Every option of every command of `app`, as a user expects of them all: an empty value
+// (`--config ""`, an unset shell variable) is refused instead of read as "the default" or as
+// no file, and whole numbers are read in decimal (details::whole_number_in_decimal). Call once
+// the commands are added, before the parse.
+inline void refuse_surprising_values(CLI::App& app) {
+  for (CLI::Option* opt : app.get_options({})) {
+    if (opt->get_type_size_max() == 0) continue;  // a flag
+    const std::string type = opt->get_type_name();
+    const std::string name = opt->get_name();
+    const std::string kind = type.substr(0, type.find_first_of(": "));
+    if (kind == "TEXT") {
+      const std::string fix = opt->get_required() ? "is empty. Fix: give a value"
+                                                  : "is empty. Fix: give a value, or leave out " +
+                                                        name + " for its default";
+      opt->transform(CLI::Validator(
+          [fix](std::string& text) -> std::string { return text.empty() ? fix : std::string(); },
+          ""));
+    } else if (kind == "INT" || kind == "UINT") {
+      opt->transform(CLI::Validator(details::whole_number_in_decimal, ""));
+    }
+  }
+  for (CLI::App* sub : app.get_subcommands({})) refuse_surprising_values(*sub);
 }
 
 }  // namespace fabrik::cli

@@ -212,7 +212,7 @@ void add_synth_command(CLI::App& app) {
       "Write a synthetic TRC of a daemon config's model: smooth motion, Gaussian marker noise, "
       "occlusion gaps; the true joint centres go to FILE.joints.trc");
   cmd->add_option("--config", a->config, "Daemon config (fabrikd-config/1)")->required();
-  cmd->add_option("--output", a->output, "TRC file to write")->required();
+  cmd->add_option("--output", a->output, "TRC file to write (.trc)")->required();
   cmd->add_option("--seconds", a->o.seconds, "Duration")
       ->capture_default_str()
       ->check(cli::range(0.01, 86400.0));
@@ -279,15 +279,17 @@ void add_synth_command(CLI::App& app) {
       }
       require_distinct_files(files);
       require_output_folders(files);
+      // What the name says is what a reader expects: a TRC named .csv was written as TRC.
+      if (!has_suffix_ci(a->output, ".trc"))
+        throw std::invalid_argument("--output: '" + a->output +
+                                    "': synth writes a TRC file: name it .trc");
       if (a->keypoints) {
         a->k.seed = a->o.seed;
         const KeypointTrial t = make_keypoint_trial(load_synth_setup(a->config), a->o, a->k);
-        const std::string joints = joints_sidecar_path(a->output);
-        const std::string stem = joints.substr(0, joints.size() - std::string(".joints.trc").size());
         io::write_trc(a->output, t.keypoints, a->units);
-        io::write_trc(joints, t.truth.joints, a->units);
-        write_truth_mot(stem + ".truth.mot", t.truth);
-        write_injected_csv(stem + ".injected.csv", t);
+        io::write_trc(joints_path, t.truth.joints, a->units);
+        write_truth_mot(stem_path + ".truth.mot", t.truth);
+        write_injected_csv(stem_path + ".injected.csv", t);
         std::size_t swaps = 0;
         for (const InjectedRun& r : t.injected) swaps += r.kind != InjectedRun::Kind::dropout;
         std::fprintf(stderr,
@@ -295,16 +297,16 @@ void add_synth_command(CLI::App& app) {
                      "%zu swaps; truth: %s, %s.truth.mot; injected: %s.injected.csv\n",
                      safe_lines(a->output).c_str(), t.keypoints.frames(), t.keypoints.markers(),
                      t.keypoints.rate_hz, a->k.jitter_mm, t.injected.size() - swaps, swaps,
-                     safe_lines(joints).c_str(), safe_lines(stem).c_str(), safe_lines(stem).c_str());
+                     safe_lines(joints_path).c_str(), safe_lines(stem_path).c_str(),
+                     safe_lines(stem_path).c_str());
         return;
       }
       const SynthTrial t = make_synth_trial(load_synth_setup(a->config), a->o);
-      const std::string joints = joints_sidecar_path(a->output);
       io::write_trc(a->output, t.markers, a->units);
-      io::write_trc(joints, t.joints, a->units);
+      io::write_trc(joints_path, t.joints, a->units);
       std::fprintf(stderr, "synth: %s: %zu frames x %zu markers at %g Hz, %zu gaps; joints: %s\n",
                    safe_lines(a->output).c_str(), t.markers.frames(), t.markers.markers(),
-                   t.markers.rate_hz, t.gaps.size(), safe_lines(joints).c_str());
+                   t.markers.rate_hz, t.gaps.size(), safe_lines(joints_path).c_str());
     });
   });
 }
