@@ -313,8 +313,10 @@ TEST_CASE("A template beyond the model's limits is refused as it is read, with t
       t["segments"].push_back({{"name", name}, {"parent", parent}, {"base", "r_ankle"}});
       parent = name;
     }
-    CHECK_THAT(template_error(t), Catch::Contains("at /segments/64/parent:") &&
-                                      Catch::Contains("more than 64 segments from the root"));
+    CHECK_THAT(
+        template_error(t),
+        Catch::Contains("at /segments/64/parent:") &&
+            Catch::Contains("ends a chain of more than 64 segments from the root (both counted)"));
   }
   SECTION("markers on one segment, and in the template") {
     json t = leg_template();

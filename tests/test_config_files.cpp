@@ -107,10 +107,32 @@ TEST_CASE("Daemon config and model files go through the same checks", "[config][
   CHECK_THAT(error_of([&] { load_daemon_config_file(config.path()); }),
              Catch::Contains(config.path() + ": at /model: model file '" + model_dir.path() +
                              "' is a directory, not a regular file. Fix:"));
+  // An empty path once read as the config's own folder: "is a directory".
+  std::ofstream(config.path()) << json{{"format", "fabrikd-config/1"}, {"model", ""}};
+  CHECK_THAT(error_of([&] { load_daemon_config_file(config.path()); }),
+             Catch::Contains(config.path() + ": at /model: the model's path is empty. Fix:"));
   // An embedded default still stands in where nothing is on disk.
   std::ofstream(config.path()) << json{{"format", "fabrikd-config/1"},
                                        {"model", "models/fullbody.json"}};
   CHECK_NOTHROW(load_daemon_config_file(config.path()));
+}
+
+TEST_CASE("A model or a template given as a daemon config is named for what it is", "[config]") {
+  // Before: "at /coordinates: unknown field 'coordinates'", the file's first field a config
+  // does not have.
+  const std::string source = FABRIK_SOURCE_DIR;
+  CHECK_THAT(
+      error_of([&] { load_daemon_config_file(source + "/config/models/fullbody.json"); }),
+      Catch::Contains("at /format: this is a model, not a daemon config (fabrikd-config/1)") &&
+          Catch::Contains("as a config's \"model\""));
+  CHECK_THAT(error_of([&] { load_daemon_config_file(source + "/config/templates/gait2354.json"); }),
+             Catch::Contains("at /format: this is a model template, not a daemon config") &&
+                 Catch::Contains("fabrik calibrate --template"));
+  json model = json::parse(R"({"segments": [], "description": "no format"})");
+  CHECK_THAT(error_of([&] { load_daemon_config(model.dump(), "m.json"); }),
+             Catch::Contains("m.json: at /: this is a model, not a daemon config"));
+  CHECK_THAT(error_of([&] { load_daemon_config(R"({"format": "other/2"})", "o.json"); }),
+             Catch::Contains("at /format: unsupported format 'other/2'"));
 }
 
 TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {

@@ -212,7 +212,8 @@ TEST_CASE("A model beyond what a body needs is refused with the limit, its point
   SECTION("depth") {
     const std::string e = error_of(generated(L::kDepth + 1, 0, true));
     CHECK_THAT(e, Catch::Contains("at /segments/64/parent:") &&
-                      Catch::Contains("more than 64 segments from the root"));
+                      Catch::Contains(
+                          "ends a chain of more than 64 segments from the root (both counted)"));
     // Listed leaf first, the leaf is named.
     json reversed = generated(L::kDepth + 1, 0, true);
     std::reverse(reversed["segments"].begin(), reversed["segments"].end());

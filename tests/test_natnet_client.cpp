@@ -559,6 +559,11 @@ TEST_CASE("NatNet simulator refuses what it cannot serve, with a clear message",
   many.p_mm[0].assign(3000, Eigen::Vector3d::Zero());
   CHECK_THROWS_WITH(NatNetSimServer(many, SimScript{}, unicast_server()),
                     Catch::Contains("do not fit one NatNet datagram"));
+  auto unicast_group = unicast_server();  // a multicast server's group that is one host
+  unicast_group.multicast = true;
+  unicast_group.multicast_group = "10.0.0.5";
+  CHECK_THROWS_WITH(NatNetSimServer(recording(3), SimScript{}, unicast_group),
+                    Catch::Contains("'10.0.0.5' is not an IPv4 multicast group"));
   NatNetSimServer first(recording(3), SimScript{}, unicast_server());
   auto same = unicast_server();
   same.command_port = first.command_port();

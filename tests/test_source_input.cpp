@@ -143,6 +143,19 @@ TEST_CASE("Source URLs and options are read, and wrong ones refused with the fix
   CHECK_THAT(config_error(R"({"source_options": {}})"), Catch::Contains("without a source"));
   CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"axes": {"up": "x"}}})"),
              Catch::Contains("no forward axis"));
+  // A unicast address as the group: the client's join failed at every retry.
+  for (const char* group : {"10.0.0.5", "240.0.0.1", "223.255.255.255", "motive.lab", ""}) {
+    CAPTURE(group);
+    CHECK_THAT(config_error(R"({"source": "natnet://h", "source_options": {"multicast_group": ")" +
+                            std::string(group) + R"("}})"),
+               Catch::Contains("is not an IPv4 multicast group (224.0.0.0 to 239.255.255.255)") &&
+                   Catch::Contains("multicast_group"));
+  }
+  CHECK(source_of(R"({"source": "natnet://h", "source_options": {"multicast_group": "224.0.0.1"}})")
+            .multicast_group == "224.0.0.1");
+  CHECK(source_of(R"({"source": "natnet://h", "source_options": {"multicast_group": "10.0.0.5",
+                      "natnet_data": "unicast"}})")
+            .kind == SourceKind::natnet);
 }
 
 TEST_CASE(

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "bridges/ipv4_multicast.hpp"
 #include "bridges/udp_socket.hpp"
 
 namespace fabrik::bridges {
@@ -108,6 +109,9 @@ struct NatNetSimServer::Impl {
     std::string error;
     const auto g = resolve_ipv4(opt.multicast_group, opt.data_port, error);
     if (!g) fail("multicast group: " + error);
+    if (opt.multicast && !ipv4_multicast(opt.multicast_group))
+      fail("multicast group: '" + opt.multicast_group + "' is not an IPv4 multicast group (" +
+           kMulticastRange + "); Motive's default is 239.255.42.99");
     group = *g;
     command_port = opt.command_port;
     data_port = opt.data_port;

@@ -26,6 +26,10 @@ constexpr const char* kEmbeddedDefault = "<embedded>/default.json";
 Model read_model(const JsonReader& model, const std::string& config_file) {
   if (model.value().is_object()) return load_model(model);
   const std::string name = model.as_string();
+  if (name.empty())  // else the config's own folder, "a directory"
+    model.fail("the model's path is empty",
+               "give a path relative to the config file, an embedded model "
+               "(models/fullbody.json, models/paper_upper_body.json) or the model object itself");
   std::filesystem::path path(name);
   if (config_file != kEmbeddedDefault && path.is_relative())
     path = std::filesystem::path(config_file).parent_path() / path;
@@ -287,6 +291,25 @@ void read_subjects(const JsonReader& list, const std::string& file,
     out.push_back(std::move(s));
   }
 }
+
+// A model or a template given where a config belongs is named for what it is, before its
+// fields are refused one by one as a config's unknown ones.
+void refuse_other_formats(const JsonReader& root) {
+  const bool has_format = root.has("format") && root.at("format").value().is_string();
+  const std::string format = has_format ? root.at("format").as_string() : std::string();
+  const bool model =
+      format.starts_with("fabrikd-model/") || (!root.has("format") && root.has("segments"));
+  if (model)
+    (has_format ? root.at("format") : root)
+        .fail(std::string("this is a model, not a daemon config (") + kFormat + ")",
+              "give it as a config's \"model\" (docs/models.md), or give a daemon config");
+  if (format.starts_with("fabrikd-template/"))
+    root.at("format").fail(
+        std::string("this is a model template, not a daemon config (") + kFormat + ")",
+        "calibrate it into one: fabrik calibrate --template FILE --static "
+        "TRIAL --output CONFIG");
+}
+
 }  // namespace
 
 std::string unprefix_subject_targets(TrackerSetup& tracker, std::string_view subject) {
@@ -309,6 +332,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   const nlohmann::json doc = JsonReader::parse(text, file);
   const JsonReader root(doc, file);
   root.expect_object();
+  refuse_other_formats(root);
   const bool multi = root.has("subjects");
   if (multi)  // the tracking parts come from each subject's own config
     root.only_keys({"format", "description", "subjects", "subject_timeout_s", "input", "output",

@@ -202,8 +202,9 @@ void ModelLimits::check_markers(const JsonReader& where, std::size_t n) {
 
 void ModelLimits::check_depth(const JsonReader& parent, const std::string& segment, int depth) {
   if (depth > kDepth)
-    parent.fail("segment '" + segment + "' is more than " + std::to_string(kDepth) +
-                    " segments from the root; fabrikd takes at most " + std::to_string(kDepth),
+    parent.fail("segment '" + segment + "' ends a chain of more than " + std::to_string(kDepth) +
+                    " segments from the root (both counted); fabrikd takes at most " +
+                    std::to_string(kDepth),
                 "attach long chains nearer the root, or merge segments that do not move "
                 "relative to each other");
 }

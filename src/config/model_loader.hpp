@@ -20,7 +20,7 @@ struct ModelLimits {
   static constexpr int kSegments = 512;
   static constexpr int kPointsPerSegment = 256;  // points and markers of one segment
   static constexpr int kMarkers = 1024;          // in the whole model
-  static constexpr int kDepth = 64;              // segments from the root to a leaf
+  static constexpr int kDepth = 64;              // segments from the root to a leaf, both counted
   static constexpr int kCoordinates = 1024;
 
   // Each throws ConfigError at `where` when its limit is passed (models and
