@@ -23,6 +23,7 @@
 #include "process.hpp"
 #include "run_fabrik.hpp"
 #include "temp_file.hpp"
+#include "tools/distinct_files.hpp"
 #include "tools/replay.hpp"
 #include "tools/sim.hpp"
 #include "tools/synth.hpp"
@@ -1388,6 +1389,23 @@ TEST_CASE("An output that names an input or another output is refused before any
   CHECK(in_place_code == 2);
   CHECK_THAT(in_place_err, Catch::Contains("has no \"sensors\" to calibrate") &&
                                !Catch::Contains("the same file"));
+}
+
+TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not") {
+  using fabrik::tools::NamedFile;
+  using fabrik::tools::require_distinct_files;
+  TempFile file(".json");
+  std::ofstream(file.path()) << "{}";
+  CHECK_THROWS_WITH(require_distinct_files({{"--output", file.path()}, {"--report", file.path()}}),
+                    Catch::Contains("--output and --report name the same file"));
+  CHECK_THROWS_WITH(
+      require_distinct_files({{"--input", file.path(), false}, {"--report", file.path()}}),
+      Catch::Contains("the output would overwrite the other"));
+  CHECK_NOTHROW(
+      require_distinct_files({{"--input", file.path(), false}, {"--config", file.path(), false}}));
+  // Discarding two outputs was refused as "the same file".
+  CHECK_NOTHROW(
+      require_distinct_files({{"--output", "/dev/null"}, {"--lengths-json", "/dev/null"}}));
 }
 
 TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as missing, as fabrikd") {

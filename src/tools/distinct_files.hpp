@@ -16,7 +16,8 @@ struct NamedFile {
 };
 
 // Throws std::invalid_argument naming both options when an output's path is the same file as
-// another given path (the same after symlinks, `.` and `..`; or a hard link of it).
+// another given path (the same after symlinks, `.` and `..`; or a hard link of it). A
+// character device (/dev/null) may be named twice.
 void require_distinct_files(const std::vector<NamedFile>& files);
 
 // Throws std::invalid_argument naming the option when an output's path is a folder, or its
