@@ -619,18 +619,19 @@ TEST_CASE("TRC Frame# in any case", "[io][trc]") {
   }
 }
 
-TEST_CASE("TRC DataRate 0 with CameraRate set reads at the CameraRate, with a warning",
+TEST_CASE("TRC DataRate 0 or absent with CameraRate set reads at the CameraRate, with a warning",
           "[io][trc]") {
   const MarkerTrial t = read_text_trc(small_trc(kKeys, "0\t120\t3\t2\tmm\t0\t1\t3"));
   CHECK(t.rate_hz == 120.0);
   REQUIRE(t.warnings.size() == 1);
   CHECK_THAT(t.warnings[0], Catch::Contains("DataRate '0' is not a frame rate (0.001 Hz to 1 MHz): "
                                             "read the CameraRate, 120 Hz"));
-  // No DataRate at all: the CameraRate, as before.
+  // No DataRate at all: the CameraRate, said (it was read silently).
   const MarkerTrial c = read_text_trc(small_trc("CameraRate\tNumFrames\tNumMarkers\tUnits",
                                                 "50\t3\t2\tmm"));
   CHECK(c.rate_hz == 50.0);
-  CHECK(c.warnings.empty());
+  REQUIRE(c.warnings.size() == 1);
+  CHECK(c.warnings[0] == "header: no DataRate: read the CameraRate, 50 Hz");
 }
 
 TEST_CASE("TRC NumFrames and NumMarkers that disagree with the data: the data win, with warnings",

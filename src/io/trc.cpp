@@ -288,11 +288,12 @@ class TrcParser {
     const std::optional<std::string_view> camera = header.value_of("CameraRate");
     if (const auto rate = frame_rate(data)) return *rate;
     if (const auto rate = frame_rate(camera)) {
-      if (data) {
-        trial.warnings.push_back("header: DataRate " + quoted(*data) +
-                                 " is not a frame rate (0.001 Hz to 1 MHz): read the CameraRate, " +
-                                 std::string(trim(*camera)) + " Hz");
-      }
+      // Said either way: the file's times and a solve's rate rest on it.
+      trial.warnings.push_back(
+          "header: " +
+          (data ? "DataRate " + quoted(*data) + " is not a frame rate (0.001 Hz to 1 MHz)"
+                : std::string("no DataRate")) +
+          ": read the CameraRate, " + std::string(trim(*camera)) + " Hz");
       return *rate;
     }
     if (!data && !camera) fail("header: DataRate missing (line 2 names the header fields)");
