@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -511,6 +512,27 @@ TEST_CASE("Broken C3D files throw FormatError naming the file and the problem", 
     CHECK_THAT(t.warnings[0], Catch::Contains("frame counts disagree") &&
                                   Catch::Contains("POINT:FRAMES (20): 20 frames") &&
                                   Catch::Contains("read 20 as POINT:FRAMES (20) says"));
+  }
+  SECTION("frame rates outside 0.001 Hz to 1 MHz") {
+    // An Intel float, as the file's own numbers: POINT:RATE's value follows its name, its
+    // offset, type and dimension count; the header's rate is bytes 20-23.
+    const auto f32 = [](float v) {
+      std::vector<char> b(4);
+      std::memcpy(b.data(), &v, 4);
+      return b;
+    };
+    std::vector<char> b = patched("RATE", 4, f32(2e6F));
+    write_bytes(bad.path(), b);
+    CHECK(read_c3d(bad.path()).rate_hz == 120.0);  // the header's rate stands in
+    const std::vector<char> header_rate = f32(0.0F);
+    std::copy(header_rate.begin(), header_rate.end(), b.begin() + 20);
+    CHECK_THAT(message_for(b), Catch::Contains("POINT:RATE and the header's frame rate are not "
+                                               "frame rates (0.001 Hz to 1 MHz)"));
+    const std::vector<char> slow = patched("RATE", 4, f32(0.0005F));
+    std::vector<char> both_slow = slow;
+    std::copy(header_rate.begin(), header_rate.end(), both_slow.begin() + 20);
+    CHECK_THAT(message_for(both_slow), Catch::Contains("are not frame rates"));
+    CHECK(read_c3d(good.path()).rate_hz == 120.0);
   }
   SECTION("parameters missing or wrong") {
     CHECK_THAT(message_for(patched("LABEL", 0, {'X'})),
