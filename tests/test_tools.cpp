@@ -1169,7 +1169,12 @@ TEST_CASE("An empty value is refused on every fabrik option, not read as its def
       {"view", "--config", "", "--listen", "127.0.0.1:0"},
       {"synth", "--config", "", "--output", out.path()},
       {"watch", "--from", "tcp://127.0.0.1:5556", "--topic", ""},
-      {"info", ""}};
+      {"info", ""},
+      // Numbers too: CLI11 read an empty whole number as 0, an empty one with a range as
+      // "Value  not in range".
+      {"bench", "fullbody", "--builtin-only", "--frames", "2", "--seed", ""},
+      {"bench", "fullbody", "--builtin-only", "--frames", "2", "--noise-mm", ""},
+      {"bench", "fullbody", "--builtin-only", "--frames", ""}};
   for (const std::vector<std::string>& args : empty) {
     CAPTURE(args);
     const auto [code, err] = fabrik::test::run_fabrik(args, "/dev/null", std::chrono::seconds(20));
@@ -1194,10 +1199,19 @@ TEST_CASE("Whole numbers on fabrik's command line are read in decimal") {
   CHECK(frames_of("010") == 10);
   CHECK(frames_of("1e1") == 10);
   CHECK(frames_of("10.0") == 10);
-  const auto [code, err] =
-      fabrik::test::run_fabrik({"bench", "fullbody", "--builtin-only", "--frames", "2.5"});
-  CHECK(code == 2);
-  CHECK_THAT(err, Catch::Contains("--frames: '2.5' is not a whole number"));
+  CHECK(frames_of("0x0a") == 10);  // hexadecimal, written on purpose
+  for (const auto& [text, said] : std::vector<std::pair<std::string, std::string>>{
+           {"2.5", "'2.5' is not a whole number"},
+           {" 010", "' 010' is not a whole number"},  // strtoll skipped the blank: 8
+           {"+-10", "'+-10' is not a whole number"},
+           {"-", "'-' is not a whole number"},
+           {"1e16", "'1e16' is too large to write with a point or an exponent"}}) {
+    CAPTURE(text);
+    const auto [code, err] =
+        fabrik::test::run_fabrik({"bench", "fullbody", "--builtin-only", "--frames", text});
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains("--frames: " + said));
+  }
 }
 
 // Ctrl-C while a tool waits on ZeroMQ: zmq_poll then fails with EINTR whatever SA_RESTART
@@ -1391,7 +1405,7 @@ TEST_CASE("An output that names an input or another output is refused before any
                                !Catch::Contains("the same file"));
 }
 
-TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not") {
+TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not, in any format") {
   using fabrik::tools::NamedFile;
   using fabrik::tools::require_distinct_files;
   TempFile file(".json");
@@ -1406,6 +1420,19 @@ TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not") 
   // Discarding two outputs was refused as "the same file".
   CHECK_NOTHROW(
       require_distinct_files({{"--output", "/dev/null"}, {"--lengths-json", "/dev/null"}}));
+  // ... and solve's extension checks refused /dev/null ("unknown output format").
+  TempFile trial(".trc"), report(".json");
+  trial.also_remove(trial.path().substr(0, trial.path().size() - 4) + ".joints.trc");
+  REQUIRE(fabrik::test::run_fabrik({"synth", "--config", kSourceDir + "/config/default.json",
+                                    "--output", trial.path(), "--seconds", "0.05"})
+              .first == 0);
+  const auto [code, err] =
+      fabrik::test::run_fabrik({"solve", "--input", trial.path(), "--output", "/dev/null",
+                                "--angles", "/dev/null", "--report", report.path(), "--quiet"});
+  CAPTURE(err);
+  CHECK(code == 0);
+  CHECK(json::parse(slurp(report.path())).at("frames").get<int>() == 5);
+  CHECK(std::filesystem::is_character_file("/dev/null"));
 }
 
 TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as missing, as fabrikd") {

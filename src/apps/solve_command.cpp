@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <tuple>
 
 #include "common/ascii_case.hpp"
 #include "common/safe_text.hpp"
@@ -50,13 +52,20 @@ void run(const SolveOptions& o) {
       {"--angles", o.angles}};
   tools::require_distinct_files(files);
   tools::require_output_folders(files);
-  for (const auto& [option, path] :
-       {std::pair<const char*, const std::string&>{"--output", o.output},
-        {"--markers", o.markers_output}})
-    if (!path.empty() && !has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
+  // The extension says what is written; a device (/dev/null, to discard) has none to say.
+  // Not --markers: its FILE.filled.csv beside a device would be a file in /dev.
+  const auto named_file = [](const std::string& path) {
+    std::error_code ec;
+    return !path.empty() && !std::filesystem::is_character_file(path, ec);
+  };
+  for (const auto& [option, path, checked] :
+       {std::tuple<const char*, const std::string&, bool>{"--output", o.output,
+                                                          named_file(o.output)},
+        {"--markers", o.markers_output, !o.markers_output.empty()}})
+    if (checked && !has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
       throw std::invalid_argument(std::string(option) + ": '" + path +
                                   "': unknown output format: use .trc or .csv");
-  if (!o.angles.empty() && !has_suffix_ci(o.angles, ".mot") && !has_suffix_ci(o.angles, ".sto"))
+  if (named_file(o.angles) && !has_suffix_ci(o.angles, ".mot") && !has_suffix_ci(o.angles, ".sto"))
     throw std::invalid_argument("--angles: '" + o.angles +
                                 "': an OpenSim Coordinates table is written: use .mot (or .sto)");
   DaemonConfig config =

@@ -9,13 +9,16 @@
 
 namespace fabrik::bridges {
 
-// A dotted IPv4 address in 224.0.0.0/4 (224.0.0.0 to 239.255.255.255); names are not resolved.
-inline bool ipv4_multicast(const std::string& dotted) {
+// What is wrong with `dotted` as a multicast group, or "" for a dotted IPv4 address in
+// 224.0.0.0/4 (224.0.0.0 to 239.255.255.255). Names are not resolved.
+inline std::string multicast_group_problem(const std::string& dotted) {
   in_addr a{};
-  if (inet_pton(AF_INET, dotted.c_str(), &a) != 1) return false;
-  return (ntohl(a.s_addr) >> 28) == 0xE;
+  if (inet_pton(AF_INET, dotted.c_str(), &a) != 1)
+    return "'" + dotted +
+           "' is not a dotted IPv4 address (four numbers 0-255, no leading zeros, no host name)";
+  if ((ntohl(a.s_addr) >> 28) != 0xE)
+    return "'" + dotted + "' is not an IPv4 multicast group (224.0.0.0 to 239.255.255.255)";
+  return {};
 }
-
-inline constexpr const char* kMulticastRange = "224.0.0.0 to 239.255.255.255";
 
 }  // namespace fabrik::bridges

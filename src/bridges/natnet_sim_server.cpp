@@ -109,9 +109,9 @@ struct NatNetSimServer::Impl {
     std::string error;
     const auto g = resolve_ipv4(opt.multicast_group, opt.data_port, error);
     if (!g) fail("multicast group: " + error);
-    if (opt.multicast && !ipv4_multicast(opt.multicast_group))
-      fail("multicast group: '" + opt.multicast_group + "' is not an IPv4 multicast group (" +
-           kMulticastRange + "); Motive's default is 239.255.42.99");
+    if (const std::string problem = multicast_group_problem(opt.multicast_group);
+        opt.multicast && !problem.empty())
+      fail("multicast group: " + problem + "; Motive's default is 239.255.42.99");
     group = *g;
     command_port = opt.command_port;
     data_port = opt.data_port;

@@ -107,12 +107,13 @@ SourceConfig read_source_config(const JsonReader& input) {
     c.multicast = read_choice<bool>(o.at("natnet_data"), "NatNet data channel",
                                     {{"multicast", true}, {"unicast", false}});
   c.multicast_group = o.get("multicast_group", c.multicast_group);
-  if (c.multicast && !bridges::ipv4_multicast(c.multicast_group))
+  // Refused in unicast too (as the schema does): a group given is meant to be one.
+  if (const std::string problem = bridges::multicast_group_problem(c.multicast_group);
+      !problem.empty())
     (o.has("multicast_group") ? o.at("multicast_group") : o)
-        .fail("'" + c.multicast_group + "' is not an IPv4 multicast group (" +
-                  bridges::kMulticastRange + ")",
+        .fail(problem,
               "give Motive's group (Streaming > Multicast Interface; its default is "
-              "239.255.42.99), or \"natnet_data\": \"unicast\"");
+              "239.255.42.99), or leave it out");
   c.data_port = static_cast<std::uint16_t>(
       o.get("data_port", static_cast<long long>(c.data_port), 1LL, 65535LL));
   c.local_interface = o.get("local_interface", c.local_interface);

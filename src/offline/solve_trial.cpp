@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -279,7 +280,9 @@ std::size_t drop_implausible_samples(io::MarkerTrial& trial, double max_abs_coor
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
-  if (has_suffix_ci(path, ".trc")) return io::write_trc(path, trial, "mm");
+  std::error_code ec;  // a device (/dev/null) takes the TRC
+  if (has_suffix_ci(path, ".trc") || std::filesystem::is_character_file(path, ec))
+    return io::write_trc(path, trial, "mm");
   if (!has_suffix_ci(path, ".csv"))
     throw io::FormatError(path, "unknown output format: use .trc or .csv");
   std::ofstream out(path);

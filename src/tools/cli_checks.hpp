@@ -48,12 +48,16 @@ namespace details {
 
 // Before CLI11 converts a whole number, which it does with strtoll base 0: `--frames 010` was
 // 8 (octal) and `--frames 1e3` "not in range". Decimal digits lose their leading zeros, and a
-// number written with a point or an exponent is taken when it is whole. Hexadecimal (0x...)
-// is written on purpose and left to CLI11.
+// number written with a point or an exponent is taken when it is whole and exact as a double
+// (below 2^53). Hexadecimal (0x...) is written on purpose and left to CLI11. Blanks and a
+// second sign, which strtoll would skip or take, are refused.
 inline std::string whole_number_in_decimal(std::string& text) {
+  const std::string not_whole = "'" + text + "' is not a whole number";
   const std::size_t sign = !text.empty() && (text[0] == '+' || text[0] == '-') ? 1 : 0;
   const std::string_view digits = std::string_view(text).substr(sign);
-  if (digits.empty()) return {};
+  if (digits.empty() || digits[0] == '+' || digits[0] == '-' ||
+      text.find_first_of(" \t\n\r\f\v") != std::string::npos)
+    return not_whole;
   if (digits.find_first_not_of("0123456789") == std::string_view::npos) {
     const std::size_t first = std::min(digits.find_first_not_of('0'), digits.size() - 1);
     text = text.substr(0, sign) + std::string(digits.substr(first));
@@ -64,34 +68,35 @@ inline std::string whole_number_in_decimal(std::string& text) {
   const char* end = text.data() + text.size();
   const auto [stop, error] = std::from_chars(text.data() + (text[0] == '+' ? 1 : 0), end, value);
   if (error != std::errc() || stop != end || !std::isfinite(value)) return {};
-  if (value != std::floor(value)) return "'" + text + "' is not a whole number";
+  if (value != std::floor(value)) return not_whole;
   constexpr double kExact = 9007199254740992.0;  // 2^53: every whole double below it is exact
-  if (std::abs(value) < kExact) text = std::to_string(static_cast<long long>(value));
+  if (!(std::abs(value) < kExact))
+    return "'" + text + "' is too large to write with a point or an exponent: write its digits";
+  text = std::to_string(static_cast<long long>(value));
   return {};
 }
 
 }  // namespace details
 
 // Every option of every command of `app`, as a user expects of them all: an empty value
-// (`--config ""`, an unset shell variable) is refused instead of read as "the default" or as
-// no file, and whole numbers are read in decimal (details::whole_number_in_decimal). Call once
-// the commands are added, before the parse.
+// (`--config ""`, `--seed ""`, an unset shell variable) is refused instead of read as "the
+// default", as no file or as 0, and whole numbers are read in decimal
+// (details::whole_number_in_decimal). Call once the commands are added, before the parse.
 inline void refuse_surprising_values(CLI::App& app) {
   for (CLI::Option* opt : app.get_options({})) {
     if (opt->get_type_size_max() == 0) continue;  // a flag
     const std::string type = opt->get_type_name();
-    const std::string name = opt->get_name();
     const std::string kind = type.substr(0, type.find_first_of(": "));
-    if (kind == "TEXT") {
-      const std::string fix = opt->get_required() ? "is empty. Fix: give a value"
-                                                  : "is empty. Fix: give a value, or leave out " +
-                                                        name + " for its default";
-      opt->transform(CLI::Validator(
-          [fix](std::string& text) -> std::string { return text.empty() ? fix : std::string(); },
-          ""));
-    } else if (kind == "INT" || kind == "UINT") {
+    if (kind == "INT" || kind == "UINT")
       opt->transform(CLI::Validator(details::whole_number_in_decimal, ""));
-    }
+    const std::string name = opt->get_name();
+    const std::string fix = opt->get_required() ? "is empty. Fix: give a value"
+                                                : "is empty. Fix: give a value, or leave out " +
+                                                      name + " for its default";
+    // A transform goes before every check added so far: this one runs first.
+    opt->transform(CLI::Validator(
+        [fix](std::string& text) -> std::string { return text.empty() ? fix : std::string(); },
+        ""));
   }
   for (CLI::App* sub : app.get_subcommands({})) refuse_surprising_values(*sub);
 }

@@ -65,6 +65,12 @@ def bad_configs(good):
         ("min_markers beyond 10000", edit(put(["outliers", "min_markers"], 20000))),
         ("subject_timeout_s without subjects", edit(put(["subject_timeout_s"], 1))),
         ("source_options without a source", edit(put(["input", "source_options"], {}))),
+        ("unicast address as a NatNet multicast group",
+         edit(put(["input"], {"source": "natnet://127.0.0.1",
+                              "source_options": {"multicast_group": "10.0.0.5"}}))),
+        ("NatNet multicast group with leading zeros",
+         edit(put(["input"], {"source": "natnet://127.0.0.1",
+                              "source_options": {"multicast_group": "239.001.1.1"}}))),
         ("confidence beside subjects",
          {"format": "fabrikd-config/1", "subjects": [{"name": "A", "config": "a.json"}],
           "confidence": {"threshold": 0.5}}),
@@ -127,6 +133,11 @@ def main():
     good.setdefault("input", {}).update({"max_abs_coordinate_mm": 5000, "zero_is_missing": False})
     for e in validator.iter_errors(good):
         failures.append(f"valid input limits rejected by the schema: {e.message}")
+    natnet = copy.deepcopy(default)
+    natnet["input"] = {"source": "natnet://127.0.0.1",
+                       "source_options": {"multicast_group": "239.255.42.99"}}
+    for e in validator.iter_errors(natnet):
+        failures.append(f"Motive's default multicast group rejected by the schema: {e.message}")
 
     # What users run: a config `fabrik calibrate` writes (it once wrote a solver key the
     # schema did not have, subtree_carry).
