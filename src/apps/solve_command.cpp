@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <optional>
-#include <tuple>
 
 #include "common/ascii_case.hpp"
+#include "common/device_path.hpp"
 #include "common/safe_text.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/prefilter.hpp"
@@ -54,18 +53,15 @@ void run(const SolveOptions& o) {
   tools::require_output_folders(files);
   // The extension says what is written; a device (/dev/null, to discard) has none to say.
   // Not --markers: its FILE.filled.csv beside a device would be a file in /dev.
-  const auto named_file = [](const std::string& path) {
-    std::error_code ec;
-    return !path.empty() && !std::filesystem::is_character_file(path, ec);
-  };
-  for (const auto& [option, path, checked] :
-       {std::tuple<const char*, const std::string&, bool>{"--output", o.output,
-                                                          named_file(o.output)},
-        {"--markers", o.markers_output, !o.markers_output.empty()}})
-    if (checked && !has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
+  const auto require_trc_or_csv = [](const char* option, const std::string& path) {
+    if (!has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
       throw std::invalid_argument(std::string(option) + ": '" + path +
                                   "': unknown output format: use .trc or .csv");
-  if (named_file(o.angles) && !has_suffix_ci(o.angles, ".mot") && !has_suffix_ci(o.angles, ".sto"))
+  };
+  if (!is_device(o.output)) require_trc_or_csv("--output", o.output);
+  if (!o.markers_output.empty()) require_trc_or_csv("--markers", o.markers_output);
+  if (!o.angles.empty() && !is_device(o.angles) && !has_suffix_ci(o.angles, ".mot") &&
+      !has_suffix_ci(o.angles, ".sto"))
     throw std::invalid_argument("--angles: '" + o.angles +
                                 "': an OpenSim Coordinates table is written: use .mot (or .sto)");
   DaemonConfig config =

@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 
 #include "common/ascii_case.hpp"
+#include "common/device_path.hpp"
 #include "common/quantile.hpp"
 #include "solver/units.hpp"
 #include "tracking/tracker.hpp"
@@ -280,9 +280,7 @@ std::size_t drop_implausible_samples(io::MarkerTrial& trial, double max_abs_coor
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
-  std::error_code ec;  // a device (/dev/null) takes the TRC
-  if (has_suffix_ci(path, ".trc") || std::filesystem::is_character_file(path, ec))
-    return io::write_trc(path, trial, "mm");
+  if (has_suffix_ci(path, ".trc") || is_device(path)) return io::write_trc(path, trial, "mm");
   if (!has_suffix_ci(path, ".csv"))
     throw io::FormatError(path, "unknown output format: use .trc or .csv");
   std::ofstream out(path);

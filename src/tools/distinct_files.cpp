@@ -3,6 +3,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "common/device_path.hpp"
+
 namespace fabrik::tools {
 
 namespace {
@@ -10,8 +12,7 @@ namespace {
 bool same_file(const std::string& a, const std::string& b) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  // A device such as /dev/null takes any number of writers, none of which replaces another.
-  if (fs::is_character_file(a, ec)) return false;
+  if (is_device(a)) return false;                    // /dev/null twice replaces nothing
   if (fs::equivalent(a, b, ec) && !ec) return true;  // both exist: hard links included
   const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
   if (ec) return false;
