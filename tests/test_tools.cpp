@@ -1120,6 +1120,26 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
        "--first-frame: Value -5 not in range"},
       {{"sim", "qtm", kSourceDir + "/config/default.json", "--file-up", "+w"},
        "--file-up: +w not in"},  // sim natnet refused it, sim qtm served it
+      // The simulated Motive's own values are refused before its recording is read (here a
+      // config, which would be refused as a recording): the group once only after.
+      {{"sim", "natnet", kSourceDir + "/config/default.json", "--multicast-group", "10.0.0.5"},
+       "--multicast-group: '10.0.0.5' is not an IPv4 multicast group"},
+      {{"sim", "natnet", kSourceDir + "/config/default.json", "--natnet-version", "2.0"},
+       "--natnet-version: NatNet 2.0 cannot be served"},
+      {{"sim", "natnet", kSourceDir + "/config/default.json", "--natnet-version", "4"},
+       "--natnet-version: '4': expected MAJOR.MINOR"},
+      {{"sim", "natnet", kSourceDir + "/config/default.json", "--up-axis", "y"},
+       "--up-axis: y not in"},
+      {{"sim", "natnet", kSourceDir + "/config/default.json", "--data-port", "65536"},
+       "--data-port: Value 65536 not in range"},
+      {{"sim", "qtm", kSourceDir + "/config/default.json", "--base-port", "65534"},
+       "--base-port: Value 65534 not in range"},
+      // An unsigned number below 0 is quoted as written (it was "Could not convert: --seed =
+      // -1000").
+      {{"bench", "fullbody", "--builtin-only", "--frames", "2", "--seed", "-1e3"},
+       "--seed: '-1e3' is below 0"},
+      {{"bench", "fullbody", "--builtin-only", "--frames", "2", "--seed", "-7"},
+       "--seed: '-7' is below 0"},
   };
   for (const auto& [args, said] : out_of_range) {
     CAPTURE(args);
@@ -1169,7 +1189,6 @@ TEST_CASE("An empty value is refused on every fabrik option, not read as its def
       {"view", "--config", "", "--listen", "127.0.0.1:0"},
       {"synth", "--config", "", "--output", out.path()},
       {"watch", "--from", "tcp://127.0.0.1:5556", "--topic", ""},
-      {"info", ""},
       // Numbers too: CLI11 read an empty whole number as 0, an empty one with a range as
       // "Value  not in range".
       {"bench", "fullbody", "--builtin-only", "--frames", "2", "--seed", ""},
@@ -1182,6 +1201,34 @@ TEST_CASE("An empty value is refused on every fabrik option, not read as its def
     CHECK_THAT(err, Catch::Contains(": is empty. Fix: give a value"));
   }
   CHECK(slurp(out.path()).empty());
+  // A positional is named by its help's word; the message says which of several is empty.
+  const auto [info_code, info_err] = fabrik::test::run_fabrik({"info", "", "x.trc"});
+  CHECK(info_code == 2);
+  CHECK_THAT(info_err, Catch::StartsWith("files: one of them is empty (\"\")"));
+}
+
+TEST_CASE("A write that fails is an error, not a truncated file and exit 0") {
+  // /dev/full takes the open and fails each write (ENOSPC), as a full disk does. The report
+  // and eval's JSON were streamed without a check after the last write: exit 0, nothing
+  // written.
+  if (!std::filesystem::exists("/dev/full")) {
+    WARN("skipped: no /dev/full on this machine");
+    return;
+  }
+  TempFile trial(".trc"), joints(".trc");
+  REQUIRE(run_fabrik({"synth", "--config", kSourceDir + "/config/default.json", "--output",
+                      trial.path(), "--seconds", "0.05"})
+              .first == 0);
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"solve", "--input", trial.path(), "--output", joints.path(), "--report", "/dev/full",
+            "--quiet"},
+           {"solve", "--input", trial.path(), "--output", "/dev/full", "--quiet"},
+           {"eval", "synthetic", "--seconds", "0.2", "--json", "/dev/full"}}) {
+    CAPTURE(args);
+    const auto [code, err] = run_fabrik(args, "/dev/null", std::chrono::seconds(60));
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains("/dev/full: writing failed"));
+  }
 }
 
 TEST_CASE("Whole numbers on fabrik's command line are read in decimal") {
@@ -1381,6 +1428,11 @@ TEST_CASE("An output that names an input or another output is refused before any
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         std::filesystem::temp_directory_path().string()},
        "--output: '" + std::filesystem::temp_directory_path().string() + "' is a folder"},
+      // A folder where no file can be made (procfs, even for root, whom access() answers yes):
+      // tried by opening it, before the solve.
+      {{"solve", "--input", trial.path(), "--output", joints.path(), "--report",
+        "/proc/self/r.json"},
+       "--report: '/proc/self/r.json' cannot be written ("},
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         joints.path() + ".json", "--lengths-json", joints.path()},
        "--lengths-json goes with --trial (the lengths measured from a keypoint trial) or "

@@ -15,6 +15,7 @@
 #include "config/lab_axes_json.hpp"
 #include "config/model_loader.hpp"
 #include "io/orientation_table.hpp"
+#include "io/output_file.hpp"
 #include "read_recording.hpp"
 #include "tools/cli_checks.hpp"
 #include "tools/distinct_files.hpp"
@@ -36,11 +37,9 @@ struct CalibrateArgs {
 DaemonConfig write_config(const nlohmann::ordered_json& config, const std::string& path) {
   const std::string text = config.dump(2) + "\n";
   DaemonConfig loaded = load_daemon_config(text, path);
-  std::ofstream out(path, std::ios::binary);
-  if (!out) throw std::runtime_error(path + ": cannot write the config");
+  std::ofstream out = io::open_output_file(path);
   out << text;
-  out.close();
-  if (!out) throw std::runtime_error(path + ": writing the config failed");
+  io::finish_output_file(out, path);
   return loaded;
 }
 
@@ -140,9 +139,9 @@ void run_calibrate(const CalibrateArgs& a) {
     }
     const DaemonConfig written = write_config(k.result.config, a.output_path);
     if (!a.lengths_json_path.empty()) {
-      std::ofstream out(a.lengths_json_path);
+      std::ofstream out = io::open_output_file(a.lengths_json_path);
       out << calib::keypoint_lengths_json(k).dump(2) << "\n";
-      if (!out) throw std::runtime_error(a.lengths_json_path + ": cannot write");
+      io::finish_output_file(out, a.lengths_json_path);
     }
     std::cout << calib::keypoint_length_report(k) << calib::calibration_report(k.result)
               << "Wrote " << a.output_path << " (model '" << tmpl.name << "', "

@@ -9,6 +9,7 @@
 
 #include "common/safe_text.hpp"
 #include "eval/eval.hpp"
+#include "io/output_file.hpp"
 #include "offline/marker_match.hpp"
 #include "read_recording.hpp"
 #include "tools/cli_checks.hpp"
@@ -66,9 +67,9 @@ std::pair<DaemonConfig, io::MarkerTrial> subject(const EvalArgs& a) {
 
 void write_json(const std::string& path, const nlohmann::json& j) {
   if (path.empty()) return;
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write");
+  std::ofstream out = io::open_output_file(path);
   out << j.dump(2) << '\n';
+  io::finish_output_file(out, path);
 }
 
 void run(const std::string& which, const EvalArgs& a) {

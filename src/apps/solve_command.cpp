@@ -10,6 +10,7 @@
 #include "common/ascii_case.hpp"
 #include "common/device_path.hpp"
 #include "common/safe_text.hpp"
+#include "io/output_file.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/prefilter.hpp"
 #include "offline/solve_trial.hpp"
@@ -141,9 +142,9 @@ void run(const SolveOptions& o) {
   if (!o.angles.empty() && !angles_refused) io::write_opensim_table(o.angles, angles_table(s));
   const nlohmann::json summary = solution_summary(s);
   if (!o.report.empty()) {
-    std::ofstream out(o.report);
-    if (!out) throw std::runtime_error(o.report + ": cannot write the report");
+    std::ofstream out = io::open_output_file(o.report);
     out << summary.dump(2) << '\n';
+    io::finish_output_file(out, o.report);
   }
   const auto& r = summary["residual_mm"];
   std::printf("frames            %zu (%zu without any tracked marker, left out of the residual)\n",

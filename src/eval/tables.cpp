@@ -5,8 +5,9 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "text_format.hpp"
+#include "io/output_file.hpp"
 #include "solver/units.hpp"
+#include "text_format.hpp"
 
 namespace fabrik::eval {
 
@@ -56,14 +57,14 @@ nlohmann::json walk_json(const WalkReport& r) {
 }
 
 void write_walk_csv(const std::string& path, const WalkReport& r) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write");
+  std::ofstream out = io::open_output_file(path);
   out << "frame,time_s,rms_mm,max_mm,worst_marker,cluster_max_mm,cluster_worst_marker\n";
   for (std::size_t f = 0; f < r.rms_m.size(); ++f)
     out << r.clock.number(f) << ',' << fmt("%.4f", r.clock.time_s(f)) << ','
         << fmt("%.3f", r.rms_m[f] * 1e3) << ',' << fmt("%.3f", r.max_m[f] * 1e3) << ','
         << r.worst[f] << ',' << fmt("%.3f", r.cluster_max_m[f] * 1e3) << ',' << r.cluster_worst[f]
         << '\n';
+  io::finish_output_file(out, path);
 }
 
 std::string gaps_table(const GapReport& r) {
@@ -153,8 +154,7 @@ nlohmann::json gaps_json(const GapReport& r) {
 }
 
 void write_gaps_csv(const std::string& path, const GapReport& r) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write");
+  std::ofstream out = io::open_output_file(path);
   out << "marker,mode,window_s,start_frame,frame,time_s,real_x_mm,real_y_mm,real_z_mm,pred_x_mm,"
          "pred_y_mm,pred_z_mm,error_mm\n";
   for (const GapTrace& t : r.traces)
@@ -167,6 +167,7 @@ void write_gaps_csv(const std::string& path, const GapReport& r) {
         for (int a = 0; a < 3; ++a) out << ',' << fmt("%.3f", (*v)[a] * 1e3);
       out << ',' << fmt("%.3f", (t.predicted_m[k] - t.real_m[k]).norm() * 1e3) << '\n';
     }
+  io::finish_output_file(out, path);
 }
 
 std::string reduction_table(const std::vector<ReductionRow>& rows) {
@@ -303,14 +304,14 @@ nlohmann::json angles_json(const AngleReport& r) {
 }
 
 void write_angles_csv(const std::string& path, const AngleReport& r) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write");
+  std::ofstream out = io::open_output_file(path);
   out << "coordinate,unit,frame,time_s,fabrik,reference\n";
   for (const CoordinateComparison& c : r.rows)
     for (std::size_t k = 0; k < c.fabrik_si.size(); ++k)
       out << c.name << ',' << display_unit(c) << ',' << r.frame_numbers[k] << ','
           << fmt("%.5f", r.time_s[k]) << ',' << fmt("%.4f", display(c, c.fabrik_si[k])) << ','
           << fmt("%.4f", display(c, c.reference_si[k])) << '\n';
+  io::finish_output_file(out, path);
 }
 
 }  // namespace fabrik::eval

@@ -11,6 +11,7 @@
 #include "io/c3d_format.hpp"
 #include "io/io_detail.hpp"
 #include "io/marker_trial.hpp"
+#include "io/output_file.hpp"
 
 namespace fabrik::io {
 
@@ -228,7 +229,7 @@ void write_c3d(const std::string& path, const MarkerTrial& trial, const C3dWrite
   section[3] = static_cast<std::uint8_t>(c3d::kProcessorBase + 1 + static_cast<int>(o.processor));
   std::copy(records.begin(), records.end(), section + 4);
 
-  std::ofstream out = detail::open_output(path);
+  std::ofstream out = open_output_file(path);
   out.write(reinterpret_cast<const char*>(head.data()), static_cast<std::streamsize>(head.size()));
   const auto put_word = [&](std::uint8_t* w, double v) {
     if (o.float_data) {
@@ -273,8 +274,7 @@ void write_c3d(const std::string& path, const MarkerTrial& trial, const C3dWrite
     }
     pad_to_block(out, frames * o.rotations * rotation.size());
   }
-  out.close();
-  detail::check_written(out, path);
+  finish_output_file(out, path);
 }
 
 }  // namespace fabrik::io

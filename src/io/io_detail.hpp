@@ -13,11 +13,6 @@ namespace fabrik::io::detail {
 
 // Opens `path` for binary reading; FormatError if it is missing, not a file or unreadable.
 std::ifstream open_input(const std::string& path);
-// Opens `path` for binary writing (truncating); FormatError if that fails.
-std::ofstream open_output(const std::string& path);
-// Throws FormatError if `out` failed; call after the last write and after close().
-void check_written(std::ofstream& out, const std::string& path);
-
 // Checks what both writers need: a positive rate and positions_m sized frames x markers
 // (std::invalid_argument otherwise). Returns the metres -> file units factor for "mm" or "m".
 double check_trial_for_writing(const MarkerTrial& trial, const std::string& units,

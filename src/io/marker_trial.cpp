@@ -66,16 +66,6 @@ std::ifstream open_input(const std::string& path) {
   return in;
 }
 
-std::ofstream open_output(const std::string& path) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw FormatError(path, "cannot open the file for writing");
-  return out;
-}
-
-void check_written(std::ofstream& out, const std::string& path) {
-  if (!out) throw FormatError(path, "writing failed (disk full or file removed?)");
-}
-
 double check_trial_for_writing(const MarkerTrial& trial, const std::string& units,
                                const char* writer) {
   const std::string what = std::string(writer) + ": ";

@@ -12,6 +12,7 @@
 #include "common/ascii_case.hpp"
 #include "io/io_detail.hpp"
 #include "io/marker_trial.hpp"
+#include "io/output_file.hpp"
 
 namespace fabrik::io {
 
@@ -254,7 +255,7 @@ void write_opensim_table(const std::string& path, const OpenSimTable& t) {
     if (l.empty() || l.find_first_of("\t\r\n, ") != std::string::npos)
       throw std::invalid_argument("write_opensim_table: label '" + l +
                                   "' is empty or holds a space, tab, comma or line break");
-  std::ofstream out = detail::open_output(path);
+  std::ofstream out = open_output_file(path);
   if (!t.name.empty()) out << t.name << '\n';
   for (const auto& entry : t.header) {
     // Named references, not a structured binding: the lambda below captures
@@ -288,8 +289,7 @@ void write_opensim_table(const std::string& path, const OpenSimTable& t) {
     }
     out << '\n';
   }
-  out.close();
-  detail::check_written(out, path);
+  finish_output_file(out, path);
 }
 
 }  // namespace fabrik::io

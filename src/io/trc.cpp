@@ -17,6 +17,7 @@
 #include "common/format_number.hpp"
 #include "io/io_detail.hpp"
 #include "io/marker_trial.hpp"
+#include "io/output_file.hpp"
 
 namespace fabrik::io {
 
@@ -465,7 +466,7 @@ void write_trc(const std::string& path, const MarkerTrial& trial, const std::str
   }
   text += "\n\n";  // OpenSim's files leave line 6 blank
 
-  std::ofstream out = detail::open_output(path);
+  std::ofstream out = open_output_file(path);
   out.write(text.data(), static_cast<std::streamsize>(text.size()));
   for (std::size_t f = 0; f < frames; ++f) {
     text = std::to_string(static_cast<long long>(trial.first_frame) + static_cast<long long>(f));
@@ -485,8 +486,7 @@ void write_trc(const std::string& path, const MarkerTrial& trial, const std::str
     text += '\n';
     out.write(text.data(), static_cast<std::streamsize>(text.size()));
   }
-  out.close();
-  detail::check_written(out, path);
+  finish_output_file(out, path);
 }
 
 }  // namespace fabrik::io

@@ -10,6 +10,7 @@
 #include "common/ascii_case.hpp"
 #include "common/device_path.hpp"
 #include "common/quantile.hpp"
+#include "io/output_file.hpp"
 #include "solver/units.hpp"
 #include "tracking/tracker.hpp"
 #include "tracking/two_sided_fill.hpp"
@@ -259,14 +260,14 @@ io::OpenSimTable angles_table(const TrialSolution& s) {
 }
 
 void write_filled_csv(const std::string& path, const TrialSolution& s, const io::MarkerTrial& trial) {
-  std::ofstream out(path);
-  if (!out) throw io::FormatError(path, "cannot write the file");
+  std::ofstream out = io::open_output_file(path);
   out << "marker,first_frame,last_frame,first_time_s,last_time_s,samples,method\n";
   for (const FilledRun& r : s.filled)
     out << r.marker << ',' << trial.first_frame + static_cast<long long>(r.first) << ','
         << trial.first_frame + static_cast<long long>(r.end) - 1 << ','
         << trial.file_time_s(r.first) << ',' << trial.file_time_s(r.end - 1) << ','
         << r.end - r.first << ',' << r.method << '\n';
+  io::finish_output_file(out, path);
 }
 
 std::size_t drop_implausible_samples(io::MarkerTrial& trial, double max_abs_coordinate_m) {
@@ -283,8 +284,7 @@ void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
   if (has_suffix_ci(path, ".trc") || is_device(path)) return io::write_trc(path, trial, "mm");
   if (!has_suffix_ci(path, ".csv"))
     throw io::FormatError(path, "unknown output format: use .trc or .csv");
-  std::ofstream out(path);
-  if (!out) throw io::FormatError(path, "cannot write the file");
+  std::ofstream out = io::open_output_file(path);
   out << "frame,time_s";
   for (const std::string& l : trial.labels)
     out << ',' << l << "_x_mm," << l << "_y_mm," << l << "_z_mm";
@@ -307,6 +307,7 @@ void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
       }
     out << '\n';
   }
+  io::finish_output_file(out, path);
 }
 
 }  // namespace fabrik

@@ -1,5 +1,10 @@
 #include "distinct_files.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 
@@ -18,6 +23,25 @@ bool same_file(const std::string& a, const std::string& b) {
   if (ec) return false;
   const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
   return !ec && ca == cb;
+}
+
+// Why `path` cannot be written, or "": tried by opening it, since access() answers root yes
+// where the write then fails (a read-only filesystem, /sys, /proc). A regular file is opened
+// for appending, which changes nothing; a new one is made and removed at once. Other kinds
+// (a pipe, a device) are left to the write: opening a pipe waits for its reader.
+std::string cannot_write(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (is_device(path)) return {};
+  const fs::file_status status = fs::status(path, ec);
+  if (fs::exists(status) && !fs::is_regular_file(status)) return {};
+  const bool made = !fs::exists(status);
+  const int fd = made ? ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666)
+                      : ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+  if (fd < 0) return std::strerror(errno);
+  ::close(fd);
+  if (made) ::unlink(path.c_str());
+  return {};
 }
 
 }  // namespace
@@ -50,6 +74,9 @@ void require_output_folders(const std::vector<NamedFile>& files) {
           f.option + ": '" + f.path + "': the folder '" + folder.string() +
           (fs::exists(folder, ec) ? "' is not a folder" : "' does not exist") +
           ". Fix: create it, or write elsewhere");
+    if (const std::string why = cannot_write(f.path); !why.empty())
+      throw std::invalid_argument(f.option + ": '" + f.path + "' cannot be written (" + why +
+                                  "). Fix: write elsewhere");
   }
 }
 

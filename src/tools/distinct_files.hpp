@@ -20,9 +20,9 @@ struct NamedFile {
 // character device (/dev/null) may be named twice.
 void require_distinct_files(const std::vector<NamedFile>& files);
 
-// Throws std::invalid_argument naming the option when an output's path is a folder, or its
-// folder does not exist or is not one: found at once, not after a solve of minutes.
-// (Permissions are left to the write: root may write where access() says no.)
+// Throws std::invalid_argument naming the option when an output's path is a folder, its
+// folder does not exist or is not one, or the file cannot be written there (tried by opening
+// it; a file made by the try is removed): found at once, not after a solve of minutes.
 void require_output_folders(const std::vector<NamedFile>& files);
 
 }  // namespace fabrik::tools

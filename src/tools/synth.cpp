@@ -8,6 +8,7 @@
 #include "common/ascii_case.hpp"
 #include "config/daemon_config.hpp"
 #include "io/opensim_table.hpp"
+#include "io/output_file.hpp"
 #include "solver/joint_angles.hpp"
 #include "solver/posture.hpp"
 #include "solver/units.hpp"
@@ -114,8 +115,7 @@ KeypointTrial make_keypoint_trial(const SynthSetup& setup, const SynthOptions& o
 }
 
 void write_injected_csv(const std::string& path, const KeypointTrial& t) {
-  std::ofstream out(path);
-  if (!out) throw std::runtime_error(path + ": cannot write");
+  std::ofstream out = io::open_output_file(path);
   out << "frame,time_s,kind,keypoints\n";
   const auto& labels = t.keypoints.labels;
   for (const InjectedRun& r : t.injected) {
@@ -126,7 +126,7 @@ void write_injected_csv(const std::string& path, const KeypointTrial& t) {
       out << t.keypoints.first_frame + f << ',' << t.keypoints.time_s(static_cast<std::size_t>(f))
           << ',' << injected_kind_name(r.kind) << ',' << names << '\n';
   }
-  if (!out) throw std::runtime_error(path + ": writing failed");
+  io::finish_output_file(out, path);
 }
 
 void write_truth_mot(const std::string& path, const SynthTrial& t) {

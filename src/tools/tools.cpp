@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <thread>
 
+#include "bridges/ipv4_multicast.hpp"
 #include "bridges/natnet_sim_server.hpp"
 #include "bridges/qtm/sim_server.hpp"
 #include "cli_checks.hpp"
@@ -395,6 +397,16 @@ void serve_until_stopped(const char* command, Server& server) {
                g_stop.load() ? ", stopped by signal" : ", end of the script");
 }
 
+// "4.1" as a NatNet version, or nothing when it is not MAJOR.MINOR with each part 0-255.
+std::optional<natnet::Version> natnet_version_of(const std::string& text) {
+  int major = 0, minor = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%d.%d%c", &major, &minor, &tail) != 2 || major < 0 ||
+      major > 255 || minor < 0 || minor > 255)
+    return std::nullopt;
+  return natnet::Version{static_cast<std::uint8_t>(major), static_cast<std::uint8_t>(minor), 0, 0};
+}
+
 std::uint16_t port_of(int port, const char* option) {
   if (port < 0 || port > 65535) throw std::invalid_argument(std::string(option) + " must be 0-65535");
   return static_cast<std::uint16_t>(port);
@@ -413,8 +425,10 @@ void add_sim_command(CLI::App& app) {
       "qtm", "A QTM RT server (protocol 1.8 and later, over TCP; the 3D component, labels from the 3D "
              "parameters, events on label changes): fabrikd connects with \"source\": \"qtm://HOST\"");
   add_common_sim_options(qtm_cmd, *q);
-  qtm_cmd->add_option("--base-port", q->base_port,
-                      "QTM's base port: little endian on base + 1, big endian on base + 2");
+  qtm_cmd
+      ->add_option("--base-port", q->base_port,
+                   "QTM's base port: little endian on base + 1, big endian on base + 2")
+      ->check(cli::range(0, 65533));
   qtm_cmd->callback([q] {
     run_command("sim qtm", [&] {
       auto [recording, script] = sim_inputs("sim qtm", *q);
@@ -434,12 +448,33 @@ void add_sim_command(CLI::App& app) {
       "natnet", "A Motive NatNet server (command channel, model definitions, frames of data in metres, "
                 "Y up by default): fabrikd connects with \"source\": \"natnet://HOST\"");
   add_common_sim_options(natnet_cmd, *n);
-  natnet_cmd->add_option("--command-port", n->command_port, "Command port");
-  natnet_cmd->add_option("--data-port", n->data_port, "Data port");
+  // Each value is checked here, before the recording is read (a long one took seconds to be
+  // told its group was wrong).
+  natnet_cmd->add_option("--command-port", n->command_port, "Command port")
+      ->check(cli::range(0, 65535));
+  natnet_cmd->add_option("--data-port", n->data_port, "Data port")->check(cli::range(0, 65535));
   natnet_cmd->add_flag("--unicast", n->unicast, "Send frames to each connected client instead of the group");
-  natnet_cmd->add_option("--multicast-group", n->multicast_group, "Multicast group of the frames");
-  natnet_cmd->add_option("--up-axis", n->up_axis, "Motive's streaming up axis (+y as Motive's default, or +z)");
-  natnet_cmd->add_option("--natnet-version", n->version, "NatNet version served, e.g. 3.1 or 4.1");
+  natnet_cmd->add_option("--multicast-group", n->multicast_group, "Multicast group of the frames")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            const std::string problem = bridges::multicast_group_problem(text);
+            return problem.empty() ? problem : problem + "; Motive's default is 239.255.42.99";
+          },
+          "GROUP"));
+  natnet_cmd
+      ->add_option("--up-axis", n->up_axis,
+                   "Motive's streaming up axis (+y as Motive's default, or +z)")
+      ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}));
+  natnet_cmd->add_option("--natnet-version", n->version, "NatNet version served, e.g. 3.1 or 4.1")
+      ->check(CLI::Validator(
+          [](std::string& text) {
+            const std::optional<natnet::Version> v = natnet_version_of(text);
+            if (!v) return "'" + text + "': expected MAJOR.MINOR, e.g. 4.1";
+            if (!natnet::supported(*v))
+              return "NatNet " + text + " cannot be served (3.x and 4.x can)";
+            return std::string();
+          },
+          "MAJOR.MINOR"));
   natnet_cmd->add_option("--subject", n->subject,
                          "Marker set name: markers are named SUBJECT:MARKER (default: Subject, names bare)");
   natnet_cmd->callback([n] {
@@ -453,12 +488,7 @@ void add_sim_command(CLI::App& app) {
       o.multicast = !n->unicast;
       o.multicast_group = n->multicast_group;
       o.up_axis = n->up_axis;
-      int major = 0, minor = 0;
-      char tail = 0;
-      if (std::sscanf(n->version.c_str(), "%d.%d%c", &major, &minor, &tail) != 2 || major < 0 ||
-          major > 255 || minor < 0 || minor > 255)
-        throw std::invalid_argument("--natnet-version '" + n->version + "': expected MAJOR.MINOR, e.g. 4.1");
-      o.version = {static_cast<std::uint8_t>(major), static_cast<std::uint8_t>(minor), 0, 0};
+      o.version = natnet_version_of(n->version).value();  // checked at the parse
       bridges::NatNetSimServer server(std::move(recording), std::move(script), o);
       std::fprintf(stderr, "sim natnet: commands on %s:%u, data %s port %u (fabrikd: \"natnet://%s:%u\"%s)\n",
                    safe_lines(n->bind).c_str(), server.command_port(),
