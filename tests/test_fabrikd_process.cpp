@@ -813,6 +813,17 @@ TEST_CASE("A subscriber can neither stall the daemon nor grow its memory: subscr
   p.signal(SIGTERM);
   CHECK(p.wait(1s) == 0);
   WARN("SIGTERM to exit: " << ms(Clock::now() - t0) << " ms");
+  // The operator is told what was refused, that the subscriber was dropped, and what is
+  // published instead; the topic is cut short (each was 128-512 KiB).
+  const std::string& log = p.stderr_text();
+  const std::size_t said = log.find("refused a subscription to '");
+  REQUIRE(said != std::string::npos);
+  const std::string line = log.substr(said, log.find('\n', said) - said);
+  CAPTURE(line);
+  CHECK_THAT(line, Catch::Contains("on the output, subscriber disconnected: fabrikd publishes "
+                                   "only the topics pose, stats and model") &&
+                       Catch::EndsWith("(stats: subscriptions_refused)"));
+  CHECK(line.size() < 400);
 }
 
 TEST_CASE("A raw peer's unsubscriptions of what others subscribed to do not stop their poses",
@@ -956,6 +967,39 @@ TEST_CASE("Empty --config, --input, --output and ports ZeroMQ would wrap exit 2 
     CHECK(p.wait(5s) == 2);
     CHECK_THAT(p.stderr_text(), Catch::Contains(c.expected) && Catch::Contains("Fix: "));
   }
+}
+
+TEST_CASE("A taken port names the fix of a second fabrikd and of a program to connect to",
+          "[fabrikd][cli]") {
+  // Said only "choose another port": a daemon meant to connect to a source that binds (a
+  // bridge, `fabrik replay --bind`) was not told so.
+  const int holder = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  REQUIRE(holder >= 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t n = sizeof a;
+  REQUIRE(bind(holder, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+  REQUIRE(listen(holder, 1) == 0);
+  REQUIRE(getsockname(holder, reinterpret_cast<sockaddr*>(&a), &n) == 0);
+  const std::string taken = "tcp://127.0.0.1:" + std::to_string(ntohs(a.sin_port));
+  json c = good_config("taken");
+  c["output"]["endpoint"] = taken;
+  const std::string config_path = write_file("taken.json", c.dump());
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{kFabrikd, "--input", taken},
+       "choose another port here or with --input, or if the program that sends the markers "
+       "binds it, connect to it: write connect: before it"},
+      {{kFabrikd, "--config", config_path},
+       "choose another port here or with --output, or if the program that takes the poses "
+       "binds it, connect to it: use \"mode\": \"connect\""}};
+  for (const auto& [args, fix] : cases) {
+    Process p(args);
+    CAPTURE(args);
+    CHECK(p.wait(5s) == 2);
+    CHECK_THAT(p.stderr_text(), Catch::Contains("the port is taken") && Catch::Contains(fix));
+  }
+  close(holder);
 }
 
 TEST_CASE("Bytes that are not UTF-8 in arguments and config files reach stderr as escapes",

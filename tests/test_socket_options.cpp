@@ -84,7 +84,7 @@ TEST_CASE("Opening a socket: a taken port, an address not of this machine and an
   CHECK_THAT(in_use->problem,
              Catch::StartsWith("cannot bind the input socket to '" + taken + "': "));
   CHECK(in_use->error == EADDRINUSE);
-  // fabrikd's twin holds it most likely: no connect offered
+  // No holder to connect to named: none offered
   CHECK_THAT(in_use->fix, Catch::EndsWith("choose another port here or with --input"));
   const auto in_use_tool =
       wire::open_socket(s, taken, SocketMode::bind, {"", "with --to", "", "leave out --bind"});

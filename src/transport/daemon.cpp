@@ -69,9 +69,14 @@ void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& 
   const bool input = type == zmq::socket_type::sub;
   const Endpoint& e = input ? c.input : c.output;
   const std::string role = input ? "input" : "output";
-  const OpenAdvice advice{
-      "the " + role + " socket", "here or with --" + role,
-      e.option.empty() ? "use \"mode\": \"connect\"" : "write connect: before it"};
+  const std::string connect =
+      e.option.empty() ? "use \"mode\": \"connect\"" : "write connect: before it";
+  // A taken port is most often a second fabrikd; where the holder is the program to reach (a
+  // source or recorder that binds), connecting is the fix.
+  const OpenAdvice advice{"the " + role + " socket", "here or with --" + role, connect,
+                          std::string(input ? "if the program that sends the markers binds it"
+                                            : "if the program that takes the poses binds it") +
+                              ", connect to it: " + connect};
   const auto failure = open_socket(s, e.address, e.mode, advice);
   if (!failure) return;
   if (!e.option.empty())  // given on the command line: not the config file's fault
