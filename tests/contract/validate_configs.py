@@ -68,6 +68,14 @@ def bad_configs(good):
         ("unicast address as a NatNet multicast group",
          edit(put(["input"], {"source": "natnet://127.0.0.1",
                               "source_options": {"multicast_group": "10.0.0.5"}}))),
+        # Python's `$` also matches before a last newline (ECMA-262's does not): the patterns
+        # end in `$(?!\n)`, as the loader refuses these.
+        ("NatNet multicast group with a trailing newline",
+         edit(put(["input"], {"source": "natnet://127.0.0.1",
+                              "source_options": {"multicast_group": "239.255.42.99\n"}}))),
+        ("source axes with a trailing newline",
+         edit(put(["input"], {"source": "qtm://127.0.0.1",
+                              "source_options": {"axes": {"up": "+z\n"}}}))),
         ("NatNet multicast group with leading zeros",
          edit(put(["input"], {"source": "natnet://127.0.0.1",
                               "source_options": {"multicast_group": "239.001.1.1"}}))),
