@@ -1114,7 +1114,7 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
         "nan"},
        "--filter-hz: 'nan' is not a number"},
       {{"replay", kSourceDir + "/config/default.json", "--frames", "-1"},
-       "--frames: Value -1 not in range"},
+       "--frames: '-1' is below 0"},
       {{"calibrate", "--template", "t.json", "--static", "s.trc", "--output", "o.json",
         "--first-frame", "-5"},
        "--first-frame: Value -5 not in range"},
@@ -1204,7 +1204,7 @@ TEST_CASE("An empty value is refused on every fabrik option, not read as its def
   // A positional is named by its help's word; the message says which of several is empty.
   const auto [info_code, info_err] = fabrik::test::run_fabrik({"info", "", "x.trc"});
   CHECK(info_code == 2);
-  CHECK_THAT(info_err, Catch::StartsWith("files: one of them is empty (\"\")"));
+  CHECK_THAT(info_err, Catch::StartsWith("files: an empty value (\"\") was given"));
 }
 
 TEST_CASE("A write that fails is an error, not a truncated file and exit 0") {
@@ -1229,6 +1229,41 @@ TEST_CASE("A write that fails is an error, not a truncated file and exit 0") {
     CHECK(code == 2);
     CHECK_THAT(err, Catch::Contains("/dev/full: writing failed"));
   }
+  // Results on standard output (`info --json > FILE` on a full disk): exit 0 before.
+  for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
+           {"info", trial.path(), "--json"},
+           {"solve", "--input", trial.path(), "--output", joints.path()}}) {
+    CAPTURE(args);
+    const auto [code, err] = run_fabrik(args, "/dev/full", std::chrono::seconds(60));
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::Contains("fabrik: writing the standard output failed"));
+  }
+}
+
+TEST_CASE("The check that an output can be written leaves the names alone") {
+  // It once opened the output's own name with O_EXCL: a link to a file not yet made was
+  // "File exists", and a file another program made meanwhile could be removed.
+  namespace fs = std::filesystem;
+  TempFile trial(".trc"), joints(".trc");
+  const fs::path folder =
+      fs::path(joints.path()).parent_path() / ("probe-" + fs::path(joints.path()).stem().string());
+  fs::create_directories(folder);
+  REQUIRE(run_fabrik({"synth", "--config", kSourceDir + "/config/default.json", "--output",
+                      trial.path(), "--seconds", "0.05"})
+              .first == 0);
+  fs::create_symlink("target.json", folder / "link.json");
+  const auto [code, err] = run_fabrik({"solve", "--input", trial.path(), "--output", joints.path(),
+                                       "--report", (folder / "link.json").string(), "--quiet"});
+  CAPTURE(err);
+  CHECK(code == 0);
+  CHECK(json::parse(slurp((folder / "target.json").string()), nullptr, false).is_object());
+  // Nothing of the check's own is left behind.
+  std::vector<std::string> names;
+  for (const fs::directory_entry& e : fs::directory_iterator(folder))
+    names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  CHECK(names == std::vector<std::string>{"link.json", "target.json"});
+  fs::remove_all(folder);
 }
 
 TEST_CASE("Whole numbers on fabrik's command line are read in decimal") {
@@ -1401,7 +1436,7 @@ TEST_CASE("An output that names an input or another output is refused before any
        "--input and --report name the same file"},
       {{"solve", "--input", trial.path(), "--output", joints.path(), "--markers", joints.path()},
        "--output and --markers name the same file"},
-      {{"synth", "--config", config.path(), "--output", config.path()},
+      {{"synth", "--config", trial.path(), "--output", trial.path()},
        "--config and --output name the same file"},
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         trial.path()},
@@ -1428,8 +1463,13 @@ TEST_CASE("An output that names an input or another output is refused before any
       {{"calibrate", "--template", config.path(), "--static", trial.path(), "--output",
         std::filesystem::temp_directory_path().string()},
        "--output: '" + std::filesystem::temp_directory_path().string() + "' is a folder"},
+      // eval's outputs too (one overwrote the other, after minutes on a walk).
+      {{"eval", "walk", "--json", joints.path() + ".csv", "--csv", joints.path() + ".csv"},
+       "--json and --csv name the same file"},
+      {{"eval", "synthetic", "--json", "/proc/self/e.json"},
+       "--json: '/proc/self/e.json' cannot be written ("},
       // A folder where no file can be made (procfs, even for root, whom access() answers yes):
-      // tried by opening it, before the solve.
+      // tried before the solve.
       {{"solve", "--input", trial.path(), "--output", joints.path(), "--report",
         "/proc/self/r.json"},
        "--report: '/proc/self/r.json' cannot be written ("},

@@ -66,8 +66,7 @@ void run_calibrate(const CalibrateArgs& a) {
       // (read whole before the write).
       {"--output", a.output_path},
       {"--lengths-json", a.lengths_json_path}};
-  tools::require_distinct_files(files);
-  tools::require_output_folders(files);
+  tools::require_usable_outputs(files);
   if (!a.lengths_json_path.empty() && a.trial_path.empty() && !a.nominal)
     throw std::invalid_argument(
         "--lengths-json goes with --trial (the lengths measured from a "

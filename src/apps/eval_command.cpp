@@ -13,6 +13,7 @@
 #include "offline/marker_match.hpp"
 #include "read_recording.hpp"
 #include "tools/cli_checks.hpp"
+#include "tools/distinct_files.hpp"
 #include "tools/run_command.hpp"
 
 namespace fabrik::apps {
@@ -73,6 +74,18 @@ void write_json(const std::string& path, const nlohmann::json& j) {
 }
 
 void run(const std::string& which, const EvalArgs& a) {
+  // Before the evaluation (minutes on a walk): an output that would replace an input or the
+  // other output, or that cannot be written. Inputs a command does not read are named too:
+  // harmless, and one list for every command.
+  tools::require_usable_outputs({{"--config", a.config_path, false},
+                                 {"--walk", a.walk_path, false},
+                                 {"--template", a.template_path, false},
+                                 {"--static", a.static_path, false},
+                                 {"--reference", a.reference_path, false},
+                                 {"--placement", a.placement_path, false},
+                                 {"--json", a.json_path},
+                                 {"--csv", a.csv_path},
+                                 {"--angles", a.angles_path}});
   if (which == "synthetic") {
     const DaemonConfig config =
         a.config_path.empty() ? default_daemon_config() : load_daemon_config_file(a.config_path);
@@ -215,6 +228,9 @@ void add_markerless(CLI::App* eval) {
   c->add_option("--json", a->json_path, "Also write the results as JSON");
   c->callback([a] {
     tools::run_command("eval markerless", [&] {
+      tools::require_usable_outputs({{"--template", a->o.template_path, false},
+                                     {"--trial", a->o.trial_path, false},
+                                     {"--json", a->json_path}});
       require_file(a->o.template_path, "--template");
       if (!a->o.trial_path.empty()) require_file(a->o.trial_path, "--trial");
       if (!a->overrides.empty()) {

@@ -50,8 +50,6 @@ void run(const SolveOptions& o) {
        o.markers_output.empty() ? "" : o.markers_output + ".filled.csv"},
       {"--report", o.report},
       {"--angles", o.angles}};
-  tools::require_distinct_files(files);
-  tools::require_output_folders(files);
   // The extension says what is written; a device (/dev/null, to discard) has none to say.
   // Not --markers: its FILE.filled.csv beside a device would be a file in /dev.
   const auto require_trc_or_csv = [](const char* option, const std::string& path) {
@@ -65,6 +63,7 @@ void run(const SolveOptions& o) {
       !has_suffix_ci(o.angles, ".sto"))
     throw std::invalid_argument("--angles: '" + o.angles +
                                 "': an OpenSim Coordinates table is written: use .mot (or .sto)");
+  tools::require_usable_outputs(files);  // after the names: no file is tried for a refused one
   DaemonConfig config =
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
   // A multi-subject config: the tracking of the subject --subject names.

@@ -104,9 +104,9 @@ inline void refuse_surprising_values(CLI::App& app) {
     const std::string name = opt->get_name();
     // A positional is named by its help's word ("files"), which CLI11 puts before the message.
     const std::string fix =
-        !opt->nonpositional()
-            ? (opt->get_expected_max() > 1 ? "one of them is empty (\"\"). Fix: give each a value"
-                                           : "is empty (\"\"). Fix: give a value")
+        !opt->nonpositional() ? (opt->get_expected_max() > 1
+                                     ? "an empty value (\"\") was given. Fix: give each a value"
+                                     : "is empty (\"\"). Fix: give a value")
         : opt->get_required()
             ? "is empty. Fix: give a value"
             : "is empty. Fix: give a value, or leave out " + name + " for its default";

@@ -1,6 +1,7 @@
 #include "distinct_files.hpp"
 
 #include <fcntl.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -25,22 +26,31 @@ bool same_file(const std::string& a, const std::string& b) {
   return !ec && ca == cb;
 }
 
-// Why `path` cannot be written, or "": tried by opening it, since access() answers root yes
-// where the write then fails (a read-only filesystem, /sys, /proc). A regular file is opened
-// for appending, which changes nothing; a new one is made and removed at once. Other kinds
-// (a pipe, a device) are left to the write: opening a pipe waits for its reader.
+// Why `path` cannot be written, or "": tried, since access() answers root yes where the
+// write then fails (a read-only filesystem, /sys, /proc). An existing regular file is opened
+// for appending, which changes nothing. For a new one, a file of our own making is made in
+// its folder and removed (mkstemp): the name itself is left alone, so another program
+// making it meanwhile loses nothing. Other kinds (a pipe, a device, a link to nothing) are
+// left to the write: opening a pipe waits for its reader.
 std::string cannot_write(const std::string& path) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (is_device(path)) return {};
   const fs::file_status status = fs::status(path, ec);
-  if (fs::exists(status) && !fs::is_regular_file(status)) return {};
-  const bool made = !fs::exists(status);
-  const int fd = made ? ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666)
-                      : ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+  if (fs::exists(status)) {
+    if (!fs::is_regular_file(status)) return {};
+    const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd < 0) return std::strerror(errno);
+    ::close(fd);
+    return {};
+  }
+  if (fs::is_symlink(fs::symlink_status(path, ec))) return {};
+  const fs::path where = fs::path(path).has_parent_path() ? fs::path(path).parent_path() : ".";
+  std::string probe = (where / ".fabrik-write-test-XXXXXX").string();
+  const int fd = ::mkostemp(probe.data(), O_CLOEXEC);
   if (fd < 0) return std::strerror(errno);
   ::close(fd);
-  if (made) ::unlink(path.c_str());
+  ::unlink(probe.c_str());
   return {};
 }
 
@@ -78,6 +88,11 @@ void require_output_folders(const std::vector<NamedFile>& files) {
       throw std::invalid_argument(f.option + ": '" + f.path + "' cannot be written (" + why +
                                   "). Fix: write elsewhere");
   }
+}
+
+void require_usable_outputs(const std::vector<NamedFile>& files) {
+  require_output_folders(files);
+  require_distinct_files(files);
 }
 
 }  // namespace fabrik::tools

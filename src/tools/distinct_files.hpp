@@ -21,8 +21,13 @@ struct NamedFile {
 void require_distinct_files(const std::vector<NamedFile>& files);
 
 // Throws std::invalid_argument naming the option when an output's path is a folder, its
-// folder does not exist or is not one, or the file cannot be written there (tried by opening
-// it; a file made by the try is removed): found at once, not after a solve of minutes.
+// folder does not exist or is not one, or the file cannot be written there (an existing file
+// opened to append, a new one's folder by making and removing a file of its own): found at
+// once, not after a solve of minutes.
 void require_output_folders(const std::vector<NamedFile>& files);
+
+// Both, folders first: `sub/../x` with no `sub` is named for its missing folder, not as the
+// same file as `x` (the system could not open it).
+void require_usable_outputs(const std::vector<NamedFile>& files);
 
 }  // namespace fabrik::tools

@@ -279,12 +279,11 @@ void add_synth_command(CLI::App& app) {
         files.push_back({"--output's FILE.truth.mot", stem_path + ".truth.mot"});
         files.push_back({"--output's FILE.injected.csv", stem_path + ".injected.csv"});
       }
-      require_distinct_files(files);
-      require_output_folders(files);
       // What the name says is what a reader expects: a TRC named .csv was written as TRC.
       if (!has_suffix_ci(a->output, ".trc"))
         throw std::invalid_argument("--output: '" + a->output +
                                     "': synth writes a TRC file: name it .trc");
+      require_usable_outputs(files);
       if (a->keypoints) {
         a->k.seed = a->o.seed;
         const KeypointTrial t = make_keypoint_trial(load_synth_setup(a->config), a->o, a->k);

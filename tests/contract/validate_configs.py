@@ -68,8 +68,9 @@ def bad_configs(good):
         ("unicast address as a NatNet multicast group",
          edit(put(["input"], {"source": "natnet://127.0.0.1",
                               "source_options": {"multicast_group": "10.0.0.5"}}))),
-        # Python's `$` also matches before a last newline (ECMA-262's does not): the patterns
-        # end in `$(?!\n)`, as the loader refuses these.
+        # Python's `$` also matches before a last newline (ECMA-262's does not): a pattern
+        # goes with "not": {"pattern": "\\n"} (a lookahead is outside the interoperable
+        # subset: RE2-based validators refuse it), axes are an enum.
         ("NatNet multicast group with a trailing newline",
          edit(put(["input"], {"source": "natnet://127.0.0.1",
                               "source_options": {"multicast_group": "239.255.42.99\n"}}))),
