@@ -1252,17 +1252,27 @@ TEST_CASE("The check that an output can be written leaves the names alone") {
                       trial.path(), "--seconds", "0.05"})
               .first == 0);
   fs::create_symlink("target.json", folder / "link.json");
+  fs::create_symlink("no-folder/x.json", folder / "nowhere.json");
+  // A link into a folder that does not exist is followed, and refused before the solve.
+  const auto [nowhere_code, nowhere_err] =
+      run_fabrik({"solve", "--input", trial.path(), "--output", joints.path(), "--report",
+                  (folder / "nowhere.json").string(), "--quiet"});
+  CHECK(nowhere_code == 2);
+  CHECK_THAT(nowhere_err, Catch::Contains("nowhere.json' cannot be written (No such file"));
+  CHECK_FALSE(fs::exists(joints.path()));
   const auto [code, err] = run_fabrik({"solve", "--input", trial.path(), "--output", joints.path(),
-                                       "--report", (folder / "link.json").string(), "--quiet"});
+                                       "--report", (folder / "link.json").string(), "--markers",
+                                       (folder / "m.trc").string(), "--quiet"});
   CAPTURE(err);
   CHECK(code == 0);
   CHECK(json::parse(slurp((folder / "target.json").string()), nullptr, false).is_object());
-  // Nothing of the check's own is left behind.
+  // Nothing of the check's own is left behind (new outputs in this folder were tried).
   std::vector<std::string> names;
   for (const fs::directory_entry& e : fs::directory_iterator(folder))
     names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
-  CHECK(names == std::vector<std::string>{"link.json", "target.json"});
+  CHECK(names == std::vector<std::string>{"link.json", "m.trc", "m.trc.filled.csv", "nowhere.json",
+                                          "target.json"});
   fs::remove_all(folder);
 }
 
@@ -1468,6 +1478,14 @@ TEST_CASE("An output that names an input or another output is refused before any
        "--json and --csv name the same file"},
       {{"eval", "synthetic", "--json", "/proc/self/e.json"},
        "--json: '/proc/self/e.json' cannot be written ("},
+      {{"eval", "imu", "--walk", trial.path(), "--json", trial.path()},
+       "--walk and --json name the same file"},
+      {{"eval", "markerless", "--trial", trial.path(), "--json",
+        trial.path().substr(0, trial.path().size() - 4) + ".truth.mot"},
+       "--trial's FILE.truth.mot and --json name the same file"},
+      // A typo of a device makes no regular file in /dev.
+      {{"eval", "synthetic", "--json", "/dev/fabrik-no-such-device"},
+       "--json: '/dev/fabrik-no-such-device' cannot be written (no such device in /dev)"},
       // A folder where no file can be made (procfs, even for root, whom access() answers yes):
       // tried before the solve.
       {{"solve", "--input", trial.path(), "--output", joints.path(), "--report",
@@ -1488,6 +1506,7 @@ TEST_CASE("An output that names an input or another output is refused before any
   CHECK(slurp(config.path()) == config_text);
   CHECK_FALSE(std::filesystem::exists(joints.path()));
   CHECK_FALSE(std::filesystem::exists(joints.path() + ".csv"));
+  CHECK_FALSE(std::filesystem::exists("/dev/fabrik-no-such-device"));
   // A config's sensors recalibrated in place is not a collision (this one has none to calibrate).
   const auto [in_place_code, in_place_err] =
       run_fabrik({"calibrate", "--config", config.path(), "--static-orientations", "s.sto",

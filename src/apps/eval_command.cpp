@@ -15,6 +15,7 @@
 #include "tools/cli_checks.hpp"
 #include "tools/distinct_files.hpp"
 #include "tools/run_command.hpp"
+#include "tools/synth.hpp"
 
 namespace fabrik::apps {
 
@@ -74,18 +75,24 @@ void write_json(const std::string& path, const nlohmann::json& j) {
 }
 
 void run(const std::string& which, const EvalArgs& a) {
-  // Before the evaluation (minutes on a walk): an output that would replace an input or the
-  // other output, or that cannot be written. Inputs a command does not read are named too:
-  // harmless, and one list for every command.
-  tools::require_usable_outputs({{"--config", a.config_path, false},
-                                 {"--walk", a.walk_path, false},
-                                 {"--template", a.template_path, false},
-                                 {"--static", a.static_path, false},
-                                 {"--reference", a.reference_path, false},
-                                 {"--placement", a.placement_path, false},
-                                 {"--json", a.json_path},
-                                 {"--csv", a.csv_path},
-                                 {"--angles", a.angles_path}});
+  // Before the evaluation (minutes on a walk): an output that would replace an input this
+  // command reads or the other output, or that cannot be written.
+  std::vector<tools::NamedFile> files = {{"--config", a.config_path, false}};
+  if (which == "imu") {
+    files.insert(files.end(), {{"--template", a.template_path, false},
+                               {"--static", a.static_path, false},
+                               {"--placement", a.placement_path, false},
+                               {"--walk", a.imu_walk_path, false},
+                               {"--angles", a.angles_path}});
+  } else if (which != "synthetic") {
+    files.push_back({"--walk", a.walk_path, false});
+    if (a.config_path.empty())
+      files.insert(files.end(),
+                   {{"--template", a.template_path, false}, {"--static", a.static_path, false}});
+    if (which == "angles") files.push_back({"--reference", a.reference_path, false});
+  }
+  files.insert(files.end(), {{"--json", a.json_path}, {"--csv", a.csv_path}});
+  tools::require_usable_outputs(files);
   if (which == "synthetic") {
     const DaemonConfig config =
         a.config_path.empty() ? default_daemon_config() : load_daemon_config_file(a.config_path);
@@ -228,9 +235,20 @@ void add_markerless(CLI::App* eval) {
   c->add_option("--json", a->json_path, "Also write the results as JSON");
   c->callback([a] {
     tools::run_command("eval markerless", [&] {
-      tools::require_usable_outputs({{"--template", a->o.template_path, false},
-                                     {"--trial", a->o.trial_path, false},
-                                     {"--json", a->json_path}});
+      std::vector<tools::NamedFile> files = {{"--template", a->o.template_path, false}};
+      if (!a->o.trial_path.empty()) {  // and what synth wrote beside it, read too
+        const std::string joints = tools::joints_sidecar_path(a->o.trial_path);
+        const std::string stem =
+            joints.substr(0, joints.size() - std::string(".joints.trc").size());
+        files.insert(files.end(), {{"--trial", a->o.trial_path, false},
+                                   {"--trial's FILE.joints.trc", joints, false},
+                                   {"--trial's FILE.truth.mot", stem + ".truth.mot", false},
+                                   {"--trial's FILE.injected.csv", stem + ".injected.csv", false}});
+      }
+      if (!a->overrides.empty() && a->overrides[0] == '@')
+        files.push_back({"--config-overrides", a->overrides.substr(1), false});
+      files.push_back({"--json", a->json_path});
+      tools::require_usable_outputs(files);
       require_file(a->o.template_path, "--template");
       if (!a->o.trial_path.empty()) require_file(a->o.trial_path, "--trial");
       if (!a->overrides.empty()) {

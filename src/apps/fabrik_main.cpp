@@ -283,7 +283,9 @@ int main(int argc, char** argv) {
   // (The reason, errno, is gone by now: the failed write was an earlier one.)
   std::cout.flush();
   if (!std::cout || std::fflush(stdout) != 0 || std::ferror(stdout)) {
-    std::fputs("fabrik: writing the standard output failed (disk full?)\n", stderr);
+    std::fputs(
+        "fabrik: writing the standard output failed (a full disk, or a reader that closed?)\n",
+        stderr);
     return 2;
   }
   return 0;

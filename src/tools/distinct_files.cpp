@@ -30,9 +30,10 @@ bool same_file(const std::string& a, const std::string& b) {
 // write then fails (a read-only filesystem, /sys, /proc). An existing regular file is opened
 // for appending, which changes nothing. For a new one, a file of our own making is made in
 // its folder and removed (mkstemp): the name itself is left alone, so another program
-// making it meanwhile loses nothing. Other kinds (a pipe, a device, a link to nothing) are
-// left to the write: opening a pipe waits for its reader.
-std::string cannot_write(const std::string& path) {
+// making it meanwhile loses nothing. A link to nothing is followed to where the write would
+// make its file. Other kinds (a pipe, a device) are left to the write: opening a pipe waits
+// for its reader.
+std::string cannot_write(const std::string& path, int links_left = 8) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (is_device(path)) return {};
@@ -44,8 +45,16 @@ std::string cannot_write(const std::string& path) {
     ::close(fd);
     return {};
   }
-  if (fs::is_symlink(fs::symlink_status(path, ec))) return {};
   const fs::path where = fs::path(path).has_parent_path() ? fs::path(path).parent_path() : ".";
+  if (fs::is_symlink(fs::symlink_status(path, ec))) {
+    if (links_left == 0) return "too many levels of symbolic links";
+    const fs::path target = fs::read_symlink(path, ec);
+    if (ec) return ec.message();
+    return cannot_write((target.is_absolute() ? target : where / target).string(), links_left - 1);
+  }
+  // A name in /dev that is no device is a typo of one (/dev/nul): the write would make a
+  // regular file there.
+  if (fs::weakly_canonical(fs::absolute(where, ec), ec) == "/dev") return "no such device in /dev";
   std::string probe = (where / ".fabrik-write-test-XXXXXX").string();
   const int fd = ::mkostemp(probe.data(), O_CLOEXEC);
   if (fd < 0) return std::strerror(errno);

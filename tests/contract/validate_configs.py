@@ -77,6 +77,9 @@ def bad_configs(good):
         ("source axes with a trailing newline",
          edit(put(["input"], {"source": "qtm://127.0.0.1",
                               "source_options": {"axes": {"up": "+z\n"}}}))),
+        ("subject name with a trailing newline",
+         edit(lambda c: (c.clear(), c.update({"format": "fabrikd-config/1", "subjects": [
+             {"name": "alice\n", "config": "alice.json"}]})))),
         ("NatNet multicast group with leading zeros",
          edit(put(["input"], {"source": "natnet://127.0.0.1",
                               "source_options": {"multicast_group": "239.001.1.1"}}))),
@@ -147,6 +150,17 @@ def main():
                        "source_options": {"multicast_group": "239.255.42.99"}}
     for e in validator.iter_errors(natnet):
         failures.append(f"Motive's default multicast group rejected by the schema: {e.message}")
+    subjects = {"format": "fabrikd-config/1",
+                "subjects": [{"name": "alice", "config": "alice.json"}]}
+    for e in validator.iter_errors(subjects):
+        failures.append(f"a multi-subject config rejected by the schema: {e.message}")
+    # Every axis the loader takes (signed or not, lower case) passes the enums.
+    for up, forward in (("+z", "-y"), ("z", "x"), ("-x", "+y")):
+        axes = copy.deepcopy(default)
+        axes["input"] = {"source": "qtm://127.0.0.1",
+                         "source_options": {"axes": {"up": up, "forward": forward}}}
+        for e in validator.iter_errors(axes):
+            failures.append(f"source axes up {up}, forward {forward} rejected: {e.message}")
 
     # What users run: a config `fabrik calibrate` writes (it once wrote a solver key the
     # schema did not have, subtree_carry).
