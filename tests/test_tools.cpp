@@ -154,6 +154,8 @@ TEST_CASE("synth writes a readable TRC with the requested gaps and a joints side
   for (const auto& p : joints.positions_m) CHECK(p.allFinite());
   CHECK(joints_sidecar_path("a/walk.TRC") == "a/walk.joints.trc");
   CHECK(joints_sidecar_path("walk") == "walk.joints.trc");
+  CHECK(sidecar_stem("a/walk.TRC") == "a/walk");  // .truth.mot and .injected.csv beside it
+  CHECK(sidecar_stem("walk") == "walk");
 }
 
 TEST_CASE("synth refuses gaps that cannot fit") {

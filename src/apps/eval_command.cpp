@@ -237,11 +237,9 @@ void add_markerless(CLI::App* eval) {
     tools::run_command("eval markerless", [&] {
       std::vector<tools::NamedFile> files = {{"--template", a->o.template_path, false}};
       if (!a->o.trial_path.empty()) {  // and what synth wrote beside it, read too
-        const std::string joints = tools::joints_sidecar_path(a->o.trial_path);
-        const std::string stem =
-            joints.substr(0, joints.size() - std::string(".joints.trc").size());
+        const std::string stem = tools::sidecar_stem(a->o.trial_path);
         files.insert(files.end(), {{"--trial", a->o.trial_path, false},
-                                   {"--trial's FILE.joints.trc", joints, false},
+                                   {"--trial's FILE.joints.trc", stem + ".joints.trc", false},
                                    {"--trial's FILE.truth.mot", stem + ".truth.mot", false},
                                    {"--trial's FILE.injected.csv", stem + ".injected.csv", false}});
       }

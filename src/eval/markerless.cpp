@@ -156,7 +156,7 @@ tools::KeypointTrial read_keypoint_trial(const std::string& path) {
   tools::KeypointTrial t;
   t.keypoints = io::read_trial(path);
   const std::string joints = tools::joints_sidecar_path(path);
-  const std::string stem = joints.substr(0, joints.size() - std::string(".joints.trc").size());
+  const std::string stem = tools::sidecar_stem(path);
   t.truth.joints = io::read_trial(joints);
   if (t.truth.joints.frames() != t.keypoints.frames())
     throw std::runtime_error(joints + ": " + std::to_string(t.truth.joints.frames()) +

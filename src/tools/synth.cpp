@@ -141,13 +141,15 @@ void write_truth_mot(const std::string& path, const SynthTrial& t) {
   io::write_opensim_table(path, table);
 }
 
-std::string joints_sidecar_path(const std::string& trc_path) {
+std::string sidecar_stem(const std::string& trc_path) {
   const std::size_t n = trc_path.size();
-  if (n >= 4) {
-    if (iequals(std::string_view(trc_path).substr(n - 4), ".trc"))
-      return trc_path.substr(0, n - 4) + ".joints.trc";
-  }
-  return trc_path + ".joints.trc";
+  if (n >= 4 && iequals(std::string_view(trc_path).substr(n - 4), ".trc"))
+    return trc_path.substr(0, n - 4);
+  return trc_path;
+}
+
+std::string joints_sidecar_path(const std::string& trc_path) {
+  return sidecar_stem(trc_path) + ".joints.trc";
 }
 
 }  // namespace fabrik::tools

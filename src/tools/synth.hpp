@@ -68,6 +68,9 @@ void write_injected_csv(const std::string& path, const KeypointTrial& trial);
 // The true coordinates as an OpenSim Coordinates table (.mot, degrees).
 void write_truth_mot(const std::string& path, const SynthTrial& trial);
 
+// "walk.trc" -> "walk": the name the files synth writes beside a trial share (any other
+// name is its own stem).
+std::string sidecar_stem(const std::string& trc_path);
 // "walk.trc" -> "walk.joints.trc" (any other name gets ".joints.trc" appended).
 std::string joints_sidecar_path(const std::string& trc_path);
 

@@ -270,8 +270,7 @@ void add_synth_command(CLI::App& app) {
   cmd->callback([a] {
     run_command("synth", [&] {
       const std::string joints_path = joints_sidecar_path(a->output);
-      const std::string stem_path =
-          joints_path.substr(0, joints_path.size() - std::string(".joints.trc").size());
+      const std::string stem_path = sidecar_stem(a->output);
       std::vector<NamedFile> files = {{"--config", a->config, false},
                                       {"--output", a->output},
                                       {"--output's FILE.joints.trc", joints_path}};
