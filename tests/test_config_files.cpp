@@ -294,6 +294,12 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
       // Bound and connected: a connect to this machine meets a bind of any address.
       {{"tcp://*:5556", B}, {"tcp://127.0.0.1:5556", C}, true},
       {{"tcp://[::1]:5556", C}, {"tcp://[::]:5556", B}, true},
+      // IPv6 addresses however they are written (were told apart by their text).
+      {{"tcp://[0:0:0:0:0:0:0:0]:5556", B}, {"tcp://192.0.2.7:5556", B}, true},
+      {{"tcp://[0::1]:5556", C}, {"tcp://[::0]:5556", B}, true},
+      {{"tcp://[0:0:0:0:0:0:0:1]:5556", C}, {"tcp://[::1]:5556", C}, true},
+      {{"tcp://[2001:DB8::7]:5556", C}, {"tcp://[2001:db8:0::7]:5556", C}, true},
+      {{"tcp://[2001:db8::7]:5556", C}, {"tcp://[2001:db8::8]:5556", C}, false},
       {{"tcp://*:5556", B}, {"tcp://192.0.2.7:5556", C}, false},  // another machine's port
       {{"tcp://127.0.0.2:5556", C}, {"tcp://127.0.0.1:5556", B}, false},
       // Both connected to one peer's port.
@@ -308,6 +314,17 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
     CAPTURE(c.a.address, c.b.address);
     CHECK(endpoints_clash(c.a, c.b) == c.clash);
     CHECK(endpoints_clash(c.b, c.a) == c.clash);
+  }
+  // A wildcard bind, however it is written: the taken-port advice asks for the host's address.
+  for (const char* any : {"tcp://*:5556", "tcp://0.0.0.0:5556", "tcp://[::]:5556",
+                          "tcp://[0:0:0:0:0:0:0:0]:5556", "tcp://[::0]:5556", "tcp://[0::]:*"}) {
+    CAPTURE(any);
+    CHECK(binds_any_address(any));
+  }
+  for (const char* one : {"tcp://127.0.0.1:5556", "tcp://[::1]:5556", "tcp://[0::1]:5556",
+                          "tcp://eth0:5556", "ipc:///tmp/x", "tcp://192.0.2.7:*"}) {
+    CAPTURE(one);
+    CHECK_FALSE(binds_any_address(one));
   }
   // The config names both spellings.
   const json j = {{"format", "fabrikd-config/1"},

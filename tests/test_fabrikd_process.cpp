@@ -82,11 +82,23 @@ struct Running {
 
 }  // namespace
 
-TEST_CASE("fabrikd --version and --help exit 0", "[fabrikd]") {
+TEST_CASE("fabrikd --version and --help exit 0, or 2 when they could not be written", "[fabrikd]") {
   Process v({kFabrikd, "--version"});
   CHECK(v.wait(5s) == 0);
   Process h({kFabrikd, "--help"});
   CHECK(h.wait(5s) == 0);
+  // On a full disk they are an error: they exited 0 with nothing written.
+  if (!std::filesystem::exists("/dev/full")) {
+    WARN("skipped: no /dev/full on this machine");
+    return;
+  }
+  for (const char* flag : {"--version", "--help"}) {
+    CAPTURE(flag);
+    Process full(
+        {"/bin/sh", "-c", "exec '" + std::string(kFabrikd) + "' " + flag + " > /dev/full"});
+    CHECK(full.wait(5s) == 2);
+    CHECK_THAT(full.stderr_text(), Catch::Contains("fabrikd: writing the standard output failed"));
+  }
 }
 
 // CLI11 gives each kind of command-line error its own code (105 an unexpected argument, 109 a

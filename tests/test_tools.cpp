@@ -1234,7 +1234,11 @@ TEST_CASE("A write that fails is an error, not a truncated file and exit 0") {
   // Results on standard output (`info --json > FILE` on a full disk): exit 0 before.
   for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{
            {"info", trial.path(), "--json"},
-           {"solve", "--input", trial.path(), "--output", joints.path()}}) {
+           {"solve", "--input", trial.path(), "--output", joints.path()},
+           // Help and version returned before the check: exit 0, nothing written.
+           {"--help"},
+           {"--version"},
+           {"solve", "--help"}}) {
     CAPTURE(args);
     const auto [code, err] = run_fabrik(args, "/dev/full", std::chrono::seconds(60));
     CHECK(code == 2);

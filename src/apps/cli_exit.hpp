@@ -15,15 +15,28 @@
 
 namespace fabrik::apps {
 
+// False, with a message on stderr, when what a program wrote to standard output was lost (a
+// full disk, a reader that closed): an error, as for a file. std::cout shares stdout's buffer
+// (synced with stdio). The reason, errno, is gone by now: the failed write was an earlier one.
+inline bool standard_output_written(const char* program) {
+  std::cout.flush();
+  if (std::cout && std::fflush(stdout) == 0 && !std::ferror(stdout)) return true;
+  std::fprintf(stderr,
+               "%s: writing the standard output failed (a full disk, or a reader that closed?)\n",
+               program);
+  return false;
+}
+
 // app.exit(e): help and version on stdout as CLI11 writes them, its error text made safe.
-// The exit code: 0 for help and version; 2 for a command line CLI11 refused, as for every
-// other wrong input (CLI11 numbers each kind from 100 up, which no user of ours expects);
-// a command's own CLI::RuntimeError keeps its code.
-inline int exit_safely(CLI::App& app, const CLI::Error& e) {
+// The exit code: 0 for help and version (2 if they could not be written); 2 for a command
+// line CLI11 refused, as for every other wrong input (CLI11 numbers each kind from 100 up,
+// which no user of ours expects); a command's own CLI::RuntimeError keeps its code.
+inline int exit_safely(CLI::App& app, const CLI::Error& e, const char* program) {
   std::ostringstream err;
   const int code = app.exit(e, std::cout, err);
   const std::string text = err.str();
   if (!text.empty()) std::fputs(safe_lines(text).c_str(), stderr);
+  if (code == 0 && !standard_output_written(program)) return 2;
   // (CLI11's RuntimeError is a ParseError too: it is told apart first.)
   if (code != 0 && dynamic_cast<const CLI::RuntimeError*>(&e) == nullptr &&
       dynamic_cast<const CLI::ParseError*>(&e) != nullptr)

@@ -273,20 +273,12 @@ int main(int argc, char** argv) {
       }
     }
   } catch (const CLI::Error& e) {  // parse errors, and RuntimeError(code) from commands
-    return fabrik::apps::exit_safely(app, e);
+    return fabrik::apps::exit_safely(app, e, "fabrik");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "fabrik: %s\n", fabrik::safe_lines(e.what()).c_str());
     return 2;
   }
-  // A command's results on standard output (a table, `--json`) lost to a full disk: an
-  // error, as for a file. std::cout shares stdout's buffer (synced with stdio).
-  // (The reason, errno, is gone by now: the failed write was an earlier one.)
-  std::cout.flush();
-  if (!std::cout || std::fflush(stdout) != 0 || std::ferror(stdout)) {
-    std::fputs(
-        "fabrik: writing the standard output failed (a full disk, or a reader that closed?)\n",
-        stderr);
-    return 2;
-  }
+  // A command's results on standard output (a table, `--json`) lost to a full disk.
+  if (!fabrik::apps::standard_output_written("fabrik")) return 2;
   return 0;
 }

@@ -133,7 +133,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return fabrik::apps::exit_safely(app, e);
+    return fabrik::apps::exit_safely(app, e, "fabrikd");
   }
   const std::tuple<const CLI::Option*, const std::string*, const char*> empty_checks[] = {
       {config_opt, &o.config_path,

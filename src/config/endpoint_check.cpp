@@ -1,5 +1,7 @@
 #include "endpoint_check.hpp"
 
+#include <arpa/inet.h>
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -46,6 +48,12 @@ std::optional<TcpAddress> tcp_address(std::string_view address) {
     host = host.substr(1, host.size() - 2);
   for (char c : host) t.host += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
   if (t.host == "localhost") t.host = "127.0.0.1";
+  // One spelling per IPv6 address (0:0:0:0:0:0:0:0 and ::0 are ::, 0::1 is ::1).
+  in6_addr v6{};
+  char canonical[INET6_ADDRSTRLEN] = {};
+  if (inet_pton(AF_INET6, t.host.c_str(), &v6) == 1 &&
+      inet_ntop(AF_INET6, &v6, canonical, sizeof canonical) != nullptr)
+    t.host = canonical;
   return t;
 }
 
@@ -74,6 +82,11 @@ Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_vie
   }
   require_usable_endpoint(out.address, out.mode, option);
   return out;
+}
+
+bool binds_any_address(std::string_view address) {
+  const auto t = tcp_address(address);
+  return t && any_address(t->host);
 }
 
 bool ipv6_literal(std::string_view address) {

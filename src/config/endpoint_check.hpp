@@ -34,6 +34,10 @@ void require_usable_endpoint(std::string_view address, SocketMode mode, std::str
 Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_view option,
                          std::string_view mode_option = {});
 
+// Whether a tcp `address` names any address of its host (*, 0.0.0.0, or :: however it is
+// written): bound there, the socket is reached at one of the host's own addresses.
+bool binds_any_address(std::string_view address);
+
 // Whether `address` names an IPv6 literal host (tcp://[::1]:5555, a source's or destination's):
 // ZeroMQ resolves one only on a socket with ZMQ_IPV6 set ("No such device" otherwise).
 bool ipv6_literal(std::string_view address);

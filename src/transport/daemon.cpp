@@ -73,10 +73,8 @@ void open_endpoint(zmq::socket_t& s, zmq::socket_type type, const DaemonConfig& 
       e.option.empty() ? "use \"mode\": \"connect\"" : "write connect: before it";
   // A taken port is most often a second fabrikd; where the holder is the program to reach (a
   // source or recorder that binds), connecting is the fix: to an address, not a wildcard.
-  const bool any_address = e.address.find("://*") != std::string::npos ||
-                           e.address.find("://0.0.0.0") != std::string::npos ||
-                           e.address.find("://[::]") != std::string::npos;
-  const std::string wildcard = any_address ? ", with its host's address for the wildcard" : "";
+  const std::string wildcard =
+      binds_any_address(e.address) ? ", with its host's address for the wildcard" : "";
   const OpenAdvice advice{"the " + role + " socket", "here or with --" + role, connect,
                           std::string(input ? "if the program that sends the markers binds it"
                                             : "if the program that takes the poses binds it") +

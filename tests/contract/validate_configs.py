@@ -83,6 +83,20 @@ def bad_configs(good):
         ("NatNet multicast group with leading zeros",
          edit(put(["input"], {"source": "natnet://127.0.0.1",
                               "source_options": {"multicast_group": "239.001.1.1"}}))),
+        # Ports as fabrikd's own check reads them (endpoint_check.cpp): were any text.
+        *[(f"output endpoint {e!r}", edit(put(["output", "endpoint"], e))) for e in (
+            "tcp://127.0.0.1:0", "tcp://127.0.0.1:65536", "tcp://127.0.0.1:000065536",
+            "tcp://127.0.0.1", "tcp://[::1]", "tcp://127.0.0.1:55a", "tcp://127.0.0.1:",
+            "tcp://127.0.0.1:5556\n", "udp://127.0.0.1:99999", "ws://127.0.0.1:70000/poses",
+            "ws://127.0.0.1/poses")],
+        # The sensors' world: axes as the loader reads them (were any string, any object).
+        ("sensor world up not an axis", edit(put(["sensors", "world", "up"], "w"))),
+        ("sensor heading axis not an axis",
+         edit(put(["sensors", "world", "heading_from"], {"sensor": "torso_imu", "axis": "q"}))),
+        ("sensor heading without its sensor",
+         edit(put(["sensors", "world", "heading_from"], {"axis": "z"}))),
+        ("sensor heading with an unknown key",
+         edit(put(["sensors", "world", "heading_from"], {"sensor": "torso_imu", "axes": "z"}))),
         ("confidence beside subjects",
          {"format": "fabrikd-config/1", "subjects": [{"name": "A", "config": "a.json"}],
           "confidence": {"threshold": 0.5}}),
@@ -154,6 +168,23 @@ def main():
                 "subjects": [{"name": "alice", "config": "alice.json"}]}
     for e in validator.iter_errors(subjects):
         failures.append(f"a multi-subject config rejected by the schema: {e.message}")
+    for endpoint in ("tcp://127.0.0.1:5556", "tcp://127.0.0.1:05556", "tcp://*:*",
+                     "tcp://[::1]:65535", "tcp://127.0.0.1:6000;127.0.0.1:5556",
+                     "tcp://127.0.0.1:000022607", "ws://127.0.0.1:8080/poses", "ws://host:1",
+                     "ipc:///tmp/fabrikd-poses", "inproc://poses"):
+        ported = copy.deepcopy(default)
+        ported["output"]["endpoint"] = endpoint
+        for e in validator.iter_errors(ported):
+            failures.append(f"endpoint {endpoint!r} fabrikd takes rejected by the schema: {e.message}")
+    sensors = copy.deepcopy(default)
+    sensors["sensors"] = {"world": {"rotation_deg": [-90, 0, 0], "up": "y",
+                                    "heading_from": {"sensor": "torso_imu", "axis": "-z"}},
+                          "orientations": {"torso_imu": {"segment": "torso"}}}
+    for e in validator.iter_errors(sensors):
+        failures.append(f"a sensors section the loader takes rejected by the schema: {e.message}")
+    sensors["sensors"]["world"]["heading_from"] = None
+    for e in validator.iter_errors(sensors):
+        failures.append(f"a null heading_from rejected by the schema: {e.message}")
     # Every axis the loader takes (signed or not, lower case) passes the enums.
     for up, forward in (("+z", "-y"), ("z", "x"), ("-x", "+y")):
         axes = copy.deepcopy(default)
