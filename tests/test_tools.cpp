@@ -702,6 +702,23 @@ TEST_CASE("fabrik view --pose takes bind: and connect: before its endpoint, and 
                       Catch::Contains("Fix: "));
 }
 
+TEST_CASE("fabrik view names a wildcard bind as every address of the host, not as 0.0.0.0") {
+  // ZeroMQ names the bound endpoint tcp://0.0.0.0:PORT, which no sender can connect to.
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"bind:tcp://*:*", ", bound on every address of this host: a sender connects to one of them"},
+      {"bind:tcp://127.0.0.1:*", ", bound; page from"}};
+  for (const auto& [pose, said] : cases) {
+    CAPTURE(pose);
+    fabrik::test::Process view({"/bin/sh", "-c",
+                                "exec '" + std::string(FABRIK_PATH) + "' view --pose '" + pose +
+                                    "' --listen 127.0.0.1:0 1>&2"});
+    REQUIRE(view.wait_for_output("page from", std::chrono::seconds(20)));
+    CHECK_THAT(view.stderr_text(), Catch::Contains(said));
+    view.signal(SIGTERM);
+    CHECK(view.wait(std::chrono::seconds(10)) == 0);
+  }
+}
+
 TEST_CASE("fabrik view refuses a --pose that is its own --listen address, exit 2 at once") {
   // Before: the view subscribed to its own web server, ZeroMQ's handshake met HTTP, and the page
   // stayed empty without a word. A view that starts runs until the limit: the test then fails.

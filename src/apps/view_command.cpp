@@ -82,12 +82,16 @@ void run(const ViewArgs& a) {
   view::ViewServer server(context, o);
   tools::catch_stop_signals();
   server.start();
-  std::printf(
-      "fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
-      o.trial_message
-          ? o.trial_note.c_str()
-          : ("poses from " + server.pose_endpoint() + (o.pose_bind ? ", bound" : "")).c_str(),
-      safe_lines(o.web_root).c_str());
+  // ZeroMQ names a wildcard bind 0.0.0.0, an address no sender can connect to.
+  const std::string bound = !o.pose_bind ? ""
+                            : binds_any_address(server.pose_endpoint())
+                                ? ", bound on every address of this host: "
+                                  "a sender connects to one of them"
+                                : ", bound";
+  std::printf("fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
+              o.trial_message ? o.trial_note.c_str()
+                              : ("poses from " + server.pose_endpoint() + bound).c_str(),
+              safe_lines(o.web_root).c_str());
   std::fflush(stdout);
   if (!server.loopback_only())
     std::fprintf(stderr, "fabrik view: warning: listening on %s: other machines can connect\n",

@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,12 @@ py::array_t<T> owned_array(std::vector<T>&& values, std::vector<py::ssize_t> sha
 // FileNotFoundError naming the path when it does not exist (the C++ readers would say
 // "cannot read" as a ValueError, which hides the usual mistake).
 void require_file(const std::string& path, const std::string& what);
+
+// A file that could not be written (a missing folder, a full disk): Python's OSError, as for
+// its own open() and write().
+struct OutputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
 
 // The names of a list of markers, joints, segments...: names_of(model.joints, &Joint::name).
 template <class T>

@@ -10,6 +10,8 @@
 #include "config/json_reader.hpp"
 #include "config/lab_axes_json.hpp"
 #include "config/resources.hpp"
+#include "io/marker_trial.hpp"
+#include "io/output_file.hpp"
 
 namespace fabrik::python {
 
@@ -92,10 +94,13 @@ Config calibrate(const std::string& template_path, const std::string& static_pat
     out.config = std::make_shared<const DaemonConfig>(
         load_daemon_config(out.json, output ? *output : "<calibrated " + static_path + ">"));
     if (output) {
-      std::ofstream file(*output, std::ios::binary);
-      file << out.json;
-      file.close();
-      if (!file) throw std::runtime_error(*output + ": cannot write the config");
+      try {
+        std::ofstream file = io::open_output_file(*output);
+        file << out.json;
+        io::finish_output_file(file, *output);
+      } catch (const io::FormatError& e) {  // the file's, not the data's
+        throw OutputError(e.what());
+      }
     }
   }
   return out;
@@ -165,8 +170,8 @@ void bind_config(py::module_& m) {
         "(.trc/.c3d), the same code as `fabrik calibrate`; written to `output` when given. "
         "first_frame (the file's frame number) and frames choose the averaging window, "
         "auto_window the stillest window of that many frames. Releases the GIL. Raises "
-        "FileNotFoundError, ConfigError, FormatError (ValueErrors) or CalibrationError "
-        "(a RuntimeError).");
+        "FileNotFoundError, ConfigError, FormatError (ValueErrors), CalibrationError "
+        "(a RuntimeError), or OSError when `output` cannot be written.");
 }
 
 }  // namespace fabrik::python

@@ -1,7 +1,8 @@
 // The C++ library's setup errors as Python exceptions carrying the C++ message: a bad config
 // or template is a ValueError (fabrik.ConfigError), a bad recording a ValueError
 // (fabrik.FormatError), a calibration the data cannot support a RuntimeError
-// (fabrik.CalibrationError). Convergence outcomes are never exceptions (Pose.status).
+// (fabrik.CalibrationError), a file that could not be written an OSError. Convergence
+// outcomes are never exceptions (Pose.status).
 #include <filesystem>
 
 #include "bindings.hpp"
@@ -34,6 +35,8 @@ void bind_errors(py::module_& m) {
       format_error(e.what());
     } catch (const calib::CalibrationError& e) {
       calibration_error(e.what());
+    } catch (const OutputError& e) {
+      PyErr_SetString(PyExc_OSError, e.what());
     }
   });
 }

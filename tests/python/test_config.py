@@ -1,6 +1,7 @@
 """Configs: the embedded default, files, bare models, errors; calibration gives the same config
 as `fabrik calibrate`."""
 import json
+import pathlib
 
 import numpy as np
 import pytest
@@ -69,6 +70,14 @@ def test_calibrate_writes_what_fabrik_calibrate_writes(tmp_path):
     for bad in ({"frames": 0}, {"frames": -5}, {"auto_window": 0}):  # once: the default, or
         with pytest.raises(ValueError, match="must be 1 or more"):  # the CLI's words
             fabrik.calibrate(template, static, **bad)
+    # A config that cannot be written is Python's OSError (was a RuntimeError, and a full disk
+    # was found only by the writer's own check); the file's name is said.
+    for where, said in ((tmp_path / "no-folder" / "c.json", "cannot open the file"),
+                        ("/dev/full", "writing failed")):
+        if str(where) == "/dev/full" and not pathlib.Path(where).exists():
+            continue
+        with pytest.raises(OSError, match=f"{where}.*{said}"):
+            fabrik.calibrate(template, static, where)
     # usable at once: the static trial tracks to a small residual
     trial = fabrik.read_markers(static)
     tracker = fabrik.Tracker(config)
