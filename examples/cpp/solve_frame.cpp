@@ -29,6 +29,13 @@ int main(int argc, char** argv) {
   // One target per model marker, all on priority level 0.
   std::vector<fabrik::Target> targets;
   for (int point : model->marker_points()) targets.push_back({point, 0, 1.0});
+  if (targets.empty()) {  // nothing to solve for: said, not a solve of nothing that "converged"
+    std::fprintf(stderr,
+                 "%s: the model has no markers. Fix: give a model whose segments carry "
+                 "markers (e.g. share/fabrik/config/models/fullbody.json)\n",
+                 argv[1]);
+    return 2;
+  }
   fabrik::SolverOptions options;
   options.root = fabrik::RootMode::free;
   options.segment_fit = fabrik::SegmentFit::rigid;  // markers of a segment fitted together
