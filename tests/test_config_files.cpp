@@ -241,6 +241,9 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       {"tcp://127.0.0.1:6000;192.0.2.1:65536", "connect", "port '65536'"},
       {"ws://127.0.0.1:8080/markers", "bind", ""},
       {"ws://127.0.0.1:80800/markers", "bind", "port '80800'"},
+      // A ws path's own ';' and ':' are not a source;destination or a port (was "has no port").
+      {"ws://127.0.0.1:8080/a;b", "bind", ""},
+      {"ws://127.0.0.1:80800/a;b:99", "bind", "port '80800'"},
       {"127.0.0.1:5555", "bind", "'127.0.0.1:5555' is not a ZeroMQ endpoint"},
       {"ipc:///tmp/fabrik:99999", "bind", ""},  // a path: ZeroMQ's business
       {"inproc://markers:-1", "connect", ""},
@@ -300,7 +303,8 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
       {{"tcp://[0:0:0:0:0:0:0:1]:5556", C}, {"tcp://[::1]:5556", C}, true},
       {{"tcp://[2001:DB8::7]:5556", C}, {"tcp://[2001:db8:0::7]:5556", C}, true},
       {{"tcp://[2001:db8::7]:5556", C}, {"tcp://[2001:db8::8]:5556", C}, false},
-      {{"tcp://*:5556", B}, {"tcp://192.0.2.7:5556", C}, false},  // another machine's port
+      {{"tcp://[::ffff:127.0.0.1]:5556", C}, {"tcp://*:5556", B}, true},  // IPv4-mapped loopback
+      {{"tcp://*:5556", B}, {"tcp://192.0.2.7:5556", C}, false},          // another machine's port
       {{"tcp://127.0.0.2:5556", C}, {"tcp://127.0.0.1:5556", B}, false},
       // Both connected to one peer's port.
       {{"tcp://localhost:5556", C}, {"tcp://127.0.0.1:5556", C}, true},
@@ -317,12 +321,14 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
   }
   // A wildcard bind, however it is written: the taken-port advice asks for the host's address.
   for (const char* any : {"tcp://*:5556", "tcp://0.0.0.0:5556", "tcp://[::]:5556",
-                          "tcp://[0:0:0:0:0:0:0:0]:5556", "tcp://[::0]:5556", "tcp://[0::]:*"}) {
+                          "tcp://[0:0:0:0:0:0:0:0]:5556", "tcp://[::0]:5556", "tcp://[0::]:*",
+                          "ws://*:8080/poses", "wss://0.0.0.0:8443", "udp://*:5556"}) {
     CAPTURE(any);
     CHECK(binds_any_address(any));
   }
-  for (const char* one : {"tcp://127.0.0.1:5556", "tcp://[::1]:5556", "tcp://[0::1]:5556",
-                          "tcp://eth0:5556", "ipc:///tmp/x", "tcp://192.0.2.7:*"}) {
+  for (const char* one :
+       {"tcp://127.0.0.1:5556", "tcp://[::1]:5556", "tcp://[0::1]:5556", "tcp://eth0:5556",
+        "ipc:///tmp/x", "tcp://192.0.2.7:*", "ws://127.0.0.1:8080/*", "inproc://*"}) {
     CAPTURE(one);
     CHECK_FALSE(binds_any_address(one));
   }

@@ -1004,6 +1004,8 @@ TEST_CASE("A taken port names the fix of a second fabrikd and of a program to co
        "binds it, connect to it: write connect: before it"},
       {{kFabrikd, "--input", "tcp://*:" + std::to_string(ntohs(a.sin_port))},
        "connect to it: write connect: before it, with its host's address for the wildcard"},
+      {{kFabrikd, "--output", "ws://*:" + std::to_string(ntohs(a.sin_port)) + "/poses"},
+       "connect to it: write connect: before it, with its host's address for the wildcard"},
       {{kFabrikd, "--config", config_path},
        "choose another port here or with --output, or if the program that takes the poses "
        "binds it, connect to it: use \"mode\": \"connect\""}};

@@ -17,9 +17,10 @@
 #include "config/daemon_config.hpp"
 #include "daemon_thread.hpp"
 #include "socket_client.hpp"
+#include "subjects_fixture.hpp"
+#include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
 #include "transport/source_frames.hpp"
-#include "synth/synthetic_motion.hpp"
 
 using namespace fabrik;
 using namespace std::chrono_literals;
@@ -271,4 +272,61 @@ TEST_CASE(
   CHECK((*after)["frames_out"] == 60);
   CHECK((*after)["unknown_markers"] == 60);
   CHECK((*after)["decode_errors"] == 0);
+}
+
+TEST_CASE(
+    "A server's Subject:Marker names the config takes whole stay whole: several subjects "
+    "behind a source at its default subject_prefix get their poses",
+    "[source][daemon][subjects]") {
+  // With "*" every name lost its subject: Alice:LASI and Bob:LASI both came in as LASI,
+  // which no subject of a multi-subject config takes (routing is by NAME:), so no
+  // subject got a pose; a config calibrated from Daphnee:ASISl names matched nothing.
+  wire::SourceFrames frames(source_of(R"({"source": "natnet://127.0.0.1"})"), LabAxes{},
+                            {"Alice:LASI", "Bob:LASI", "Daphnee:ASISl", "LASI"});
+  const std::vector<std::string> server = {"Alice:LASI", "Bob:LASI", "Carol:RASI", "Daphnee:ASISl",
+                                           "Subject:RASI"};
+  frames.labels(server);
+  // Carol's RASI and Subject:RASI strip to the same: the first keeps the stripped name.
+  CHECK(frames.names() == std::vector<std::string>{"Alice:LASI", "Bob:LASI", "RASI",
+                                                   "Daphnee:ASISl", "Subject:RASI"});
+
+  zmq::context_t context;
+  spdlog::set_level(spdlog::level::err);
+  test::SubjectsDir dir;
+  DaemonConfig c = load_daemon_config_file(
+      dir.write({"Alice", "Bob"}, json{{"input", {{"source", "natnet://127.0.0.1"}}}}));
+  REQUIRE(c.source.subject_prefix == "*");  // the default
+  REQUIRE(c.subjects.size() == 2);
+  c.input = {"inproc://subjects-source-markers", SocketMode::bind};
+  c.output = {"inproc://subjects-source-poses", SocketMode::bind};
+  c.stats_interval_s = 0.05;
+  const LabAxes lab = c.subjects[0].tracker.model->lab_axes;
+  c.source.axes = lab;  // the server's axes are the lab's: positions pass unrotated
+  ScriptedServer script;
+  const std::vector<std::string> names = {"Alice", "Bob"};
+  SyntheticMotion motion(*c.subjects[0].tracker.model, MotionSettings{});
+  for (int i = 0; i < 5; ++i) {
+    json markers = json::object();
+    for (int k = 0; k < 2; ++k)
+      markers = test::subject_markers(c.subjects[k].tracker, motion, i * 0.01,
+                                      test::subject_offset_m(k), names[k] + ":", markers);
+    std::vector<Eigen::Vector3d> frame_mm;
+    for (const auto& [name, p] : markers.items()) {
+      if (i == 0) script.labels.push_back(name);
+      frame_mm.emplace_back(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+    }
+    script.frames_mm.push_back(frame_mm);
+  }
+  test::DaemonThread d(context, c, [&](const SourceConfig&) { return script.client(); });
+  test::SocketClient client(context, "inproc://subjects-source-markers",
+                            "inproc://subjects-source-poses");
+  REQUIRE(client.receive("stats"));  // subscribed: no pose from now on is lost
+  script.allow(script.frames_mm.size());
+  std::set<std::string> posed;
+  const auto until = std::chrono::steady_clock::now() + 5s;
+  while (posed.size() < 2 && std::chrono::steady_clock::now() < until)
+    if (const auto m = client.receive_any(500ms); m && m->first.starts_with("pose/"))
+      posed.insert(m->first);
+  CHECK(posed == std::set<std::string>{"pose/Alice", "pose/Bob"});
+  CHECK(d.daemon.counters().unknown_markers == 0);
 }

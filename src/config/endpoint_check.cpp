@@ -62,7 +62,7 @@ bool any_address(const std::string& host) {
 }
 
 bool this_machine(const std::string& host) {
-  return host.starts_with("127.") || host == "::1";
+  return host.starts_with("127.") || host == "::1" || host.starts_with("::ffff:127.");
 }
 
 }  // namespace
@@ -85,7 +85,15 @@ Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_vie
 }
 
 bool binds_any_address(std::string_view address) {
-  const auto t = tcp_address(address);
+  const auto scheme_end = address.find("://");
+  if (scheme_end == std::string_view::npos) return false;
+  const std::string_view scheme = address.substr(0, scheme_end);
+  std::string_view rest = address.substr(scheme_end + 3);
+  if (scheme == "ws" || scheme == "wss")
+    rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
+  else if (scheme != "tcp" && scheme != "udp")
+    return false;
+  const auto t = tcp_address("tcp://" + std::string(rest));
   return t && any_address(t->host);
 }
 
@@ -126,10 +134,11 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
   if (!ws && scheme != "tcp" && scheme != "udp" && scheme != "pgm" && scheme != "epgm")
     return std::nullopt;
   std::string_view rest = address.substr(scheme_end + 3);
-  // tcp source;destination and pgm interface;group: the port is the destination's.
+  // tcp source;destination and pgm interface;group: the port is the destination's. A ws
+  // path may hold ';' and ':' of its own: it goes first.
+  if (ws) rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
   if (const auto semicolon = rest.rfind(';'); semicolon != std::string_view::npos)
     rest.remove_prefix(semicolon + 1);
-  if (ws) rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
   const auto colon = rest.rfind(':');
   // A colon inside [IPv6] brackets is not the port's.
   if (colon == std::string_view::npos ||

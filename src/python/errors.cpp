@@ -36,6 +36,8 @@ void bind_errors(py::module_& m) {
     } catch (const calib::CalibrationError& e) {
       calibration_error(e.what());
     } catch (const OutputError& e) {
+      // The message alone, which starts with the file (an OSError with .filename set but no
+      // errno prints "[Errno None] None: FILE"; the errno is gone by now).
       PyErr_SetString(PyExc_OSError, e.what());
     }
   });

@@ -300,6 +300,7 @@ struct Daemon::State {
   SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
   RevivalRule input_revival;  // fed by `monitor` when the input connects
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
+  std::vector<std::string> marker_names;  // the names `decoder` takes (a source keeps them whole)
   // Multi-subject configs: one per subject (empty: tracker, encoder and
   // model_out above serve the one subject).
   std::vector<SubjectState> subjects;
@@ -396,6 +397,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
     subject.sensor_count = sensor_names.size() - subject.sensor_first;
     subject.model_out = encode_model(c.tracker, safe_text(c.file), config.output_units, encoding);
   }
+  s->marker_names = names;
   s->decoder = std::make_unique<MarkerDecoder>(names, config.input_m_per_unit,
                                                config.max_payload_bytes, plausible, sensor_names);
   s->frame = s->decoder->make_frame();
@@ -449,16 +451,16 @@ void Daemon::attach_sockets(State& next, State* old) {
         [&](std::string_view prefix) { return subscribes_to_our_topics(prefix, next.extra_topics); });
   }
   count_subscribers(next);
-  // A source keeps its connection while neither it nor the lab's axes changed.
+  // A source keeps its connection while neither it, the lab's axes nor the names taken changed.
   const SourceConfig& source = next.config.source;
   const LabAxes& lab = next.config.tracker.model->lab_axes;
   if (old && old->source && old->source->config() == source &&
-      old->config.tracker.model->lab_axes == lab) {
+      old->config.tracker.model->lab_axes == lab && old->source->taken() == next.marker_names) {
     next.source = std::move(old->source);
   } else if (source.kind != SourceKind::none) {
-    next.source = std::make_unique<SourceInput>(context_, source, lab,
-                                                source_client_ ? source_client_(source)
-                                                               : make_source_client(source));
+    next.source = std::make_unique<SourceInput>(
+        context_, source, lab, next.marker_names,
+        source_client_ ? source_client_(source) : make_source_client(source));
     spdlog::info("source {}: connecting", safe_text(source.url, 128));
   }
 }

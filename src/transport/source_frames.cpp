@@ -1,6 +1,7 @@
 #include "source_frames.hpp"
 
 #include <cmath>
+#include <iterator>
 #include <unordered_set>
 
 #include "marker_codec.hpp"
@@ -26,14 +27,17 @@ LabAxes server_axes(const SourceConfig& source, const LabAxes& lab) {
 
 }  // namespace
 
-SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab)
-    : prefix_(source.subject_prefix), r_lab_server_(lab.r_from(server_axes(source, lab))) {}
+SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab,
+                           std::vector<std::string> taken)
+    : prefix_(source.subject_prefix),
+      taken_(std::make_move_iterator(taken.begin()), std::make_move_iterator(taken.end())),
+      r_lab_server_(lab.r_from(server_axes(source, lab))) {}
 
 void SourceFrames::labels(std::span<const std::string> server_names) {
   names_.clear();
   std::unordered_set<std::string> seen;
   for (const std::string& name : server_names) {
-    std::string stripped = strip_subject_prefix(name, prefix_);
+    std::string stripped = taken_.contains(name) ? name : strip_subject_prefix(name, prefix_);
     names_.push_back(seen.insert(stripped).second ? std::move(stripped) : name);
   }
   p_lab_m_.assign(names_.size(), Eigen::Vector3d::Zero());

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "config/source_config.hpp"
@@ -24,10 +25,13 @@ std::string strip_subject_prefix(const std::string& name, const std::string& pre
 
 class SourceFrames {
  public:
-  SourceFrames(const SourceConfig& source, const LabAxes& lab);
+  // `taken`: the names the daemon's decoder takes (a subject's NAME:Marker among them).
+  SourceFrames(const SourceConfig& source, const LabAxes& lab, std::vector<std::string> taken);
 
-  // The server's names for the positions of the frames that follow. Two
-  // names that strip to the same keep the first; the others stay whole.
+  // The server's names for the positions of the frames that follow. A name the daemon
+  // takes as it is stays whole (Alice:LASI of a subject Alice, Daphnee:ASISl of a config
+  // calibrated from such names); the others lose the subject prefix. Two names that strip
+  // to the same keep the first; the others stay whole.
   void labels(std::span<const std::string> server_names);
   // Encodes one frame (MessagePack, units m: converted once, here, as the
   // decoder converts a ZeroMQ frame's mm) into `payload`. Positions
@@ -38,6 +42,7 @@ class SourceFrames {
 
  private:
   std::string prefix_;
+  std::unordered_set<std::string> taken_;
   Eigen::Matrix3d r_lab_server_;
   std::vector<std::string> names_;
   std::vector<Eigen::Vector3d> p_lab_m_;

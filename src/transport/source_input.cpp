@@ -51,8 +51,11 @@ std::string fresh_endpoint() {
 }  // namespace
 
 SourceInput::SourceInput(zmq::context_t& context, const SourceConfig& source, const LabAxes& lab,
-                         SourceClient client)
-    : config_(source), lab_(lab), endpoint_(fresh_endpoint()),
+                         std::vector<std::string> taken, SourceClient client)
+    : config_(source),
+      lab_(lab),
+      taken_(std::move(taken)),
+      endpoint_(fresh_endpoint()),
       pull_(context, zmq::socket_type::pull) {
   pull_.set(zmq::sockopt::linger, 0);
   pull_.set(zmq::sockopt::rcvhwm, kSourceQueueMessages);
@@ -73,7 +76,7 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
     push.set(zmq::sockopt::linger, 0);
     push.set(zmq::sockopt::sndhwm, kSourceQueueMessages);
     push.connect(endpoint_);
-    SourceFrames frames(config_, lab_);
+    SourceFrames frames(config_, lab_, taken_);
     PushSink sink(push, frames, status_, frames_dropped_);
     client(sink, status_, stop);
   } catch (const std::exception& e) {  // the context went away, or no memory for the socket

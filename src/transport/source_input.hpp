@@ -10,6 +10,7 @@
 #include <stop_token>
 #include <string>
 #include <thread>
+#include <vector>
 #include <zmq.hpp>
 
 #include "bridges/source.hpp"
@@ -34,8 +35,9 @@ class SourceInput {
  public:
   // Binds a PULL socket at a fresh inproc address (the loop polls socket())
   // and starts the client's thread.
+  // `taken`: the names the daemon takes as they are (SourceFrames).
   SourceInput(zmq::context_t& context, const SourceConfig& source, const LabAxes& lab,
-              SourceClient client);
+              std::vector<std::string> taken, SourceClient client);
   // Asks the client to stop and joins its thread.
   ~SourceInput();
   SourceInput(const SourceInput&) = delete;
@@ -43,6 +45,7 @@ class SourceInput {
 
   zmq::socket_t& socket() { return pull_; }
   const SourceConfig& config() const { return config_; }
+  const std::vector<std::string>& taken() const { return taken_; }
 
   struct Status {
     bridges::SourceStatus::Snapshot connection;
@@ -58,6 +61,7 @@ class SourceInput {
 
   SourceConfig config_;
   LabAxes lab_;
+  std::vector<std::string> taken_;
   std::string endpoint_;
   zmq::socket_t pull_;
   bridges::SourceStatus status_;
