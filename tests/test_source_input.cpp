@@ -88,6 +88,12 @@ TEST_CASE("Subject prefixes come off marker names as configured", "[source]") {
   CHECK(wire::strip_subject_prefix("Subject:LASI", "") == "Subject:LASI");
   CHECK(wire::strip_subject_prefix("Subject01_LASI", "Subject01_") == "LASI");
   CHECK(wire::strip_subject_prefix("Other:LASI", "Subject:") == "Other:LASI");
+  // A subject's name without its colon: the colon goes too (was ":LASI", matching nothing),
+  // and a longer name that starts with it is another subject's.
+  CHECK(wire::strip_subject_prefix("Subject:LASI", "Subject") == "LASI");
+  CHECK(wire::strip_subject_prefix("Subject01:LASI", "Subject") == "Subject01:LASI");
+  CHECK(wire::strip_subject_prefix("Subject", "Subject") == "Subject");
+  CHECK(wire::strip_subject_prefix("s1-LASI", "s1-") == "LASI");
 }
 
 TEST_CASE("A server's axes rotate into the lab's: Motive's Y up into a Z-up lab", "[source]") {

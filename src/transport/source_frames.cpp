@@ -1,5 +1,6 @@
 #include "source_frames.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <iterator>
 #include <unordered_set>
@@ -13,7 +14,13 @@ std::string strip_subject_prefix(const std::string& name, const std::string& pre
     const std::size_t colon = name.rfind(':');
     return colon == std::string::npos ? name : name.substr(colon + 1);
   }
-  if (!prefix.empty() && name.starts_with(prefix)) return name.substr(prefix.size());
+  if (prefix.empty() || !name.starts_with(prefix)) return name;
+  // A prefix ending in a letter or digit is a subject's name: it ends at a colon ("Daphnee"
+  // strips "Daphnee:", not "Daphnee" of "Daphnee:ASISl", and "Subject" not "Subject01:").
+  const unsigned char last = static_cast<unsigned char>(prefix.back());
+  if (std::isalnum(last) == 0) return name.substr(prefix.size());
+  if (name.size() > prefix.size() && name[prefix.size()] == ':')
+    return name.substr(prefix.size() + 1);
   return name;
 }
 

@@ -18,9 +18,10 @@
 
 namespace fabrik::wire {
 
-// "Subject:LASI" with "*" -> "LASI"; with "Subject:" -> "LASI"; with "" unchanged.
-// A name without the given prefix is kept whole (it then matches no marker
-// of the model unless the model names it so).
+// "Subject:LASI" with "*" -> "LASI"; with "Subject:" or "Subject" -> "LASI"; with "" unchanged.
+// A prefix ending in a letter or digit ends at a colon ("Subject" leaves "Subject01:LASI"
+// whole). A name without the given prefix is kept whole (it then matches no marker of the
+// model unless the model names it so).
 std::string strip_subject_prefix(const std::string& name, const std::string& prefix);
 
 class SourceFrames {
