@@ -304,7 +304,9 @@ TEST_CASE("Input and output endpoints that meet at one address clash, written al
       {{"tcp://[2001:DB8::7]:5556", C}, {"tcp://[2001:db8:0::7]:5556", C}, true},
       {{"tcp://[2001:db8::7]:5556", C}, {"tcp://[2001:db8::8]:5556", C}, false},
       {{"tcp://[::ffff:127.0.0.1]:5556", C}, {"tcp://*:5556", B}, true},  // IPv4-mapped loopback
-      {{"tcp://*:5556", B}, {"tcp://192.0.2.7:5556", C}, false},          // another machine's port
+      {{"tcp://[::FFFF:7f00:1]:5556", C}, {"tcp://127.0.0.1:5556", B}, true},
+      {{"tcp://[::ffff:192.0.2.7]:5556", C}, {"tcp://192.0.2.7:5556", C}, true},
+      {{"tcp://*:5556", B}, {"tcp://192.0.2.7:5556", C}, false},  // another machine's port
       {{"tcp://127.0.0.2:5556", C}, {"tcp://127.0.0.1:5556", B}, false},
       // Both connected to one peer's port.
       {{"tcp://localhost:5556", C}, {"tcp://127.0.0.1:5556", C}, true},

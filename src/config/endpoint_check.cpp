@@ -54,6 +54,9 @@ std::optional<TcpAddress> tcp_address(std::string_view address) {
   if (inet_pton(AF_INET6, t.host.c_str(), &v6) == 1 &&
       inet_ntop(AF_INET6, &v6, canonical, sizeof canonical) != nullptr)
     t.host = canonical;
+  // An IPv4-mapped address is that IPv4 address (ZeroMQ's IPv6 socket reaches it so).
+  if (t.host.starts_with("::ffff:") && t.host.find('.') != std::string::npos)
+    t.host = t.host.substr(7);
   return t;
 }
 
@@ -62,7 +65,7 @@ bool any_address(const std::string& host) {
 }
 
 bool this_machine(const std::string& host) {
-  return host.starts_with("127.") || host == "::1" || host.starts_with("::ffff:127.");
+  return host.starts_with("127.") || host == "::1";
 }
 
 }  // namespace

@@ -300,7 +300,8 @@ struct Daemon::State {
   SocketMonitor monitor;  // sub's disconnect and accept-failure events (declared after sub: stops first)
   RevivalRule input_revival;  // fed by `monitor` when the input connects
   std::unique_ptr<SourceInput> source;  // a QTM or NatNet server, when the config names one
-  std::vector<std::string> marker_names;  // the names `decoder` takes (a source keeps them whole)
+  // The names `decoder` takes, sorted (a source keeps them whole; only the set matters).
+  std::vector<std::string> marker_names;
   // Multi-subject configs: one per subject (empty: tracker, encoder and
   // model_out above serve the one subject).
   std::vector<SubjectState> subjects;
@@ -398,6 +399,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
     subject.model_out = encode_model(c.tracker, safe_text(c.file), config.output_units, encoding);
   }
   s->marker_names = names;
+  std::sort(s->marker_names.begin(), s->marker_names.end());
   s->decoder = std::make_unique<MarkerDecoder>(names, config.input_m_per_unit,
                                                config.max_payload_bytes, plausible, sensor_names);
   s->frame = s->decoder->make_frame();

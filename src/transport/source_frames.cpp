@@ -17,8 +17,10 @@ std::string strip_subject_prefix(const std::string& name, const std::string& pre
   if (prefix.empty() || !name.starts_with(prefix)) return name;
   // A prefix ending in a letter or digit is a subject's name: it ends at a colon ("Daphnee"
   // strips "Daphnee:", not "Daphnee" of "Daphnee:ASISl", and "Subject" not "Subject01:").
+  // ASCII punctuation ends a prefix; any byte of UTF-8 beyond ASCII is a letter ("Daphné").
   const unsigned char last = static_cast<unsigned char>(prefix.back());
-  if (std::isalnum(last) == 0) return name.substr(prefix.size());
+  const bool ascii_punctuation = last < 0x80 && std::ispunct(last) != 0;
+  if (ascii_punctuation) return name.substr(prefix.size());
   if (name.size() > prefix.size() && name[prefix.size()] == ':')
     return name.substr(prefix.size() + 1);
   return name;
@@ -42,10 +44,20 @@ SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab,
 
 void SourceFrames::labels(std::span<const std::string> server_names) {
   names_.clear();
-  std::unordered_set<std::string> seen;
+  // A name is stripped only into one the daemon takes: another process's subject
+  // (Carol:LASI beside Alice and Bob) stays whole, so the daemon sees it as another
+  // subject's and not as a marker its config lacks. The server's own taken names come first.
+  std::unordered_set<std::string> used;
+  for (const std::string& name : server_names)
+    if (taken_.contains(name)) used.insert(name);
   for (const std::string& name : server_names) {
-    std::string stripped = taken_.contains(name) ? name : strip_subject_prefix(name, prefix_);
-    names_.push_back(seen.insert(stripped).second ? std::move(stripped) : name);
+    if (taken_.contains(name)) {
+      names_.push_back(name);
+      continue;
+    }
+    std::string stripped = strip_subject_prefix(name, prefix_);
+    const bool take = taken_.contains(stripped) && used.insert(stripped).second;
+    names_.push_back(take ? std::move(stripped) : name);
   }
   p_lab_m_.assign(names_.size(), Eigen::Vector3d::Zero());
   visible_.assign(names_.size(), 0);

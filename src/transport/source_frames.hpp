@@ -19,9 +19,9 @@
 namespace fabrik::wire {
 
 // "Subject:LASI" with "*" -> "LASI"; with "Subject:" or "Subject" -> "LASI"; with "" unchanged.
-// A prefix ending in a letter or digit ends at a colon ("Subject" leaves "Subject01:LASI"
-// whole). A name without the given prefix is kept whole (it then matches no marker of the
-// model unless the model names it so).
+// A prefix that does not end in ASCII punctuation is a subject's name and ends at a colon
+// ("Subject" leaves "Subject01:LASI" whole). A name without the given prefix is kept whole (it then
+// matches no marker of the model unless the model names it so).
 std::string strip_subject_prefix(const std::string& name, const std::string& prefix);
 
 class SourceFrames {
@@ -31,8 +31,9 @@ class SourceFrames {
 
   // The server's names for the positions of the frames that follow. A name the daemon
   // takes as it is stays whole (Alice:LASI of a subject Alice, Daphnee:ASISl of a config
-  // calibrated from such names); the others lose the subject prefix. Two names that strip
-  // to the same keep the first; the others stay whole.
+  // calibrated from such names). Another loses its subject prefix when that leaves a name
+  // the daemon takes, not yet given; else it stays whole (Carol:LASI of a subject another
+  // process tracks, a marker the config lacks).
   void labels(std::span<const std::string> server_names);
   // Encodes one frame (MessagePack, units m: converted once, here, as the
   // decoder converts a ZeroMQ frame's mm) into `payload`. Positions
