@@ -281,6 +281,33 @@ TEST_CASE(
   CHECK((*after)["decode_errors"] == 0);
 }
 
+namespace {
+
+// Alice and Bob (the built-in model each) behind a NatNet source at its default options, whose
+// axes are the lab's (positions pass unrotated), on inproc endpoints named after `tag`.
+DaemonConfig alice_and_bob_behind_a_source(test::SubjectsDir& dir, const std::string& tag) {
+  DaemonConfig c = load_daemon_config_file(
+      dir.write({"Alice", "Bob"}, json{{"input", {{"source", "natnet://127.0.0.1"}}}}));
+  c.input = {"inproc://" + tag + "-markers", SocketMode::bind};
+  c.output = {"inproc://" + tag + "-poses", SocketMode::bind};
+  c.stats_interval_s = 0.05;
+  c.source.axes = c.subjects.at(0).tracker.model->lab_axes;
+  return c;
+}
+
+// One more frame of `markers` (name -> [x, y, z] mm) for the script; the first frame's names
+// are its labels.
+void add_frame(ScriptedServer& script, const json& markers) {
+  std::vector<Eigen::Vector3d> frame_mm;
+  for (const auto& [name, p] : markers.items()) {
+    if (script.frames_mm.empty()) script.labels.push_back(name);
+    frame_mm.emplace_back(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+  }
+  script.frames_mm.push_back(frame_mm);
+}
+
+}  // namespace
+
 TEST_CASE(
     "A server's Subject:Marker names the config takes whole stay whole: several subjects "
     "behind a source at its default subject_prefix get their poses",
@@ -307,15 +334,9 @@ TEST_CASE(
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
   test::SubjectsDir dir;
-  DaemonConfig c = load_daemon_config_file(
-      dir.write({"Alice", "Bob"}, json{{"input", {{"source", "natnet://127.0.0.1"}}}}));
+  const DaemonConfig c = alice_and_bob_behind_a_source(dir, "subjects-source");
   REQUIRE(c.source.subject_prefix == "*");  // the default
   REQUIRE(c.subjects.size() == 2);
-  c.input = {"inproc://subjects-source-markers", SocketMode::bind};
-  c.output = {"inproc://subjects-source-poses", SocketMode::bind};
-  c.stats_interval_s = 0.05;
-  const LabAxes lab = c.subjects[0].tracker.model->lab_axes;
-  c.source.axes = lab;  // the server's axes are the lab's: positions pass unrotated
   ScriptedServer script;
   const std::vector<std::string> names = {"Alice", "Bob"};
   SyntheticMotion motion(*c.subjects[0].tracker.model, MotionSettings{});
@@ -324,16 +345,10 @@ TEST_CASE(
     for (int k = 0; k < 2; ++k)
       markers = test::subject_markers(c.subjects[k].tracker, motion, i * 0.01,
                                       test::subject_offset_m(k), names[k] + ":", markers);
-    std::vector<Eigen::Vector3d> frame_mm;
-    for (const auto& [name, p] : markers.items()) {
-      if (i == 0) script.labels.push_back(name);
-      frame_mm.emplace_back(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
-    }
-    script.frames_mm.push_back(frame_mm);
+    add_frame(script, markers);
   }
   test::DaemonThread d(context, c, [&](const SourceConfig&) { return script.client(); });
-  test::SocketClient client(context, "inproc://subjects-source-markers",
-                            "inproc://subjects-source-poses");
+  test::SocketClient client(context, c.input.address, c.output.address);
   REQUIRE(client.receive("stats"));  // subscribed: no pose from now on is lost
   script.allow(script.frames_mm.size());
   std::set<std::string> posed;
@@ -355,27 +370,14 @@ TEST_CASE("Behind a source, another process's subject is another subject's, not 
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
   test::SubjectsDir dir;
-  DaemonConfig c = load_daemon_config_file(
-      dir.write({"Alice", "Bob"}, json{{"input", {{"source", "natnet://127.0.0.1"}}}}));
-  c.input = {"inproc://split-source-markers", SocketMode::bind};
-  c.output = {"inproc://split-source-poses", SocketMode::bind};
-  c.stats_interval_s = 0.05;
-  c.source.axes = c.subjects[0].tracker.model->lab_axes;
+  const DaemonConfig c = alice_and_bob_behind_a_source(dir, "split-source");
   ScriptedServer script;
   SyntheticMotion motion(*c.subjects[0].tracker.model, MotionSettings{});
-  for (int i = 0; i < 5; ++i) {
-    const json markers = test::subject_markers(c.subjects[0].tracker, motion, i * 0.01,
-                                               test::subject_offset_m(2), "Carol:");
-    std::vector<Eigen::Vector3d> frame_mm;
-    for (const auto& [name, p] : markers.items()) {
-      if (i == 0) script.labels.push_back(name);
-      frame_mm.emplace_back(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
-    }
-    script.frames_mm.push_back(frame_mm);
-  }
+  for (int i = 0; i < 5; ++i)
+    add_frame(script, test::subject_markers(c.subjects[0].tracker, motion, i * 0.01,
+                                            test::subject_offset_m(2), "Carol:"));
   test::DaemonThread d(context, c, [&](const SourceConfig&) { return script.client(); });
-  test::SocketClient client(context, "inproc://split-source-markers",
-                            "inproc://split-source-poses");
+  test::SocketClient client(context, c.input.address, c.output.address);
   REQUIRE(client.receive("stats"));
   script.allow(script.frames_mm.size());
   const auto stats = client.stats_until([](const json& s) { return s["frames_in"] == 5; });
