@@ -245,6 +245,12 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       {"ws://127.0.0.1:8080/a;b", "bind", ""},
       {"ws://127.0.0.1:80800/a;b:99", "bind", "port '80800'"},
       {"127.0.0.1:5555", "bind", "'127.0.0.1:5555' is not a ZeroMQ endpoint"},
+      // ZeroMQ's transports are lower case: a bind to TCP:// fails ("Protocol not supported").
+      {"TCP://127.0.0.1:5555", "bind", "transport 'TCP' of 'TCP://127.0.0.1:5555' is not one"},
+      {"Ipc:///tmp/f.sock", "connect", "Fix: write ipc://"},
+      {"tcp2://127.0.0.1:5555", "bind", "transport 'tcp2'"},
+      {"tcp2://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},
+      {"connect:tcp://127.0.0.1:5555", "bind", "Fix: give the mode apart: \"mode\" in a config"},
       {"ipc:///tmp/fabrik:99999", "bind", ""},  // a path: ZeroMQ's business
       {"inproc://markers:-1", "connect", ""},
   };

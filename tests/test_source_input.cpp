@@ -5,16 +5,20 @@
 #include <catch2/catch.hpp>
 #include <spdlog/spdlog.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <fstream>
+#include <functional>
 #include <future>
-#include <set>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include "config/daemon_config.hpp"
+#include "config/model_loader.hpp"
+#include "config/resources.hpp"
 #include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "subjects_fixture.hpp"
@@ -384,4 +388,74 @@ TEST_CASE("Behind a source, another process's subject is another subject's, not 
   REQUIRE(stats);
   CHECK((*stats)["unmatched_frames"] == 0);
   CHECK((*stats)["unknown_markers"].get<int>() > 0);  // Carol's, counted as before
+}
+
+TEST_CASE(
+    "A reload keeps a source whose options, lab axes and names taken are unchanged, and "
+    "replaces it otherwise",
+    "[source][daemon][reload]") {
+  // Kept, the connection (and the server's frames) carry on across a reload of, say, the
+  // solver's options; replaced, the old client is stopped and a new one reads the names anew.
+  zmq::context_t context;
+  spdlog::set_level(spdlog::level::err);
+  DaemonConfig base = default_daemon_config();
+  base.input = {"inproc://reload-source-markers", SocketMode::bind};
+  base.output = {"inproc://reload-source-poses", SocketMode::bind};
+  base.stats_interval_s = 0.05;
+  base.source = source_of(R"({"source": "natnet://127.0.0.1"})");
+  base.log_level = "error";  // applied at a reload
+  std::mutex next_mutex;
+  DaemonConfig next = base;
+  const auto load = [&]() -> DaemonConfig {
+    std::lock_guard lock(next_mutex);
+    return next;
+  };
+  std::atomic<int> clients{0};
+  ScriptedServer idle;  // never allowed: each client waits until it is stopped
+  DaemonThread d(
+      context, base,
+      [&](const SourceConfig&) {
+        ++clients;
+        return idle.client();
+      },
+      load);
+  test::SocketClient client(context, base.input.address, base.output.address);
+  REQUIRE(client.receive("stats"));
+  REQUIRE(clients == 1);
+  std::uint64_t reloads = 0;
+  const auto reload_with = [&](const std::function<void(DaemonConfig&)>& change) {
+    {
+      std::lock_guard lock(next_mutex);
+      next = base;
+      change(next);
+    }
+    d.control.reload = true;
+    ++reloads;
+    const auto stats = client.stats_until([&](const json& s) { return s["reloads"] == reloads; });
+    REQUIRE(stats);
+    CHECK((*stats)["reload_errors"] == 0);
+  };
+  SECTION("kept: the solver's options changed, or nothing") {
+    reload_with([](DaemonConfig& c) { c.tracker.solver.max_iterations += 1; });
+    reload_with([](DaemonConfig&) {});
+    CHECK(clients == 1);
+  }
+  SECTION("replaced: the source's options changed") {
+    reload_with([](DaemonConfig& c) { c.source.subject_prefix = ""; });
+    CHECK(clients == 2);
+  }
+  SECTION("replaced: a name the daemon takes changed") {
+    reload_with([](DaemonConfig& c) { c.tracker.markers.front().marker += "_renamed"; });
+    CHECK(clients == 2);
+  }
+  SECTION("replaced: the lab's axes changed (the server's frames are rotated into them)") {
+    const std::optional<std::string_view> text = embedded_config("models/fullbody.json");
+    REQUIRE(text);
+    json doc = json::parse(*text);
+    doc["lab_axes"] = {{"up", "+z"}, {"forward", "+y"}};
+    const auto z_up = std::make_shared<const Model>(load_model(doc, "fullbody.json"));
+    REQUIRE_FALSE(z_up->lab_axes == base.tracker.model->lab_axes);
+    reload_with([&](DaemonConfig& c) { c.tracker.model = z_up; });
+    CHECK(clients == 2);
+  }
 }

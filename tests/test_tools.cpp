@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -1247,6 +1249,7 @@ TEST_CASE("A write that fails is an error, not a truncated file and exit 0") {
     const auto [code, err] = run_fabrik(args, "/dev/null", std::chrono::seconds(60));
     CHECK(code == 2);
     CHECK_THAT(err, Catch::Contains("/dev/full: writing failed"));
+    CHECK_THAT(err, Catch::Contains(std::string("(") + std::strerror(ENOSPC) + ")"));  // why
   }
   // Results on standard output (`info --json > FILE` on a full disk): exit 0 before.
   for (const std::vector<std::string>& args : std::vector<std::vector<std::string>>{

@@ -26,37 +26,80 @@ std::optional<unsigned long> port_number(std::string_view port) {
   return digits.size() > 5 ? 100000 : std::stoul("0" + std::string(digits));
 }
 
+// An endpoint taken apart for its port: the transport, and the host:port the port is read from
+// (after a tcp source;destination or pgm interface;group, the destination's; a ws path cut
+// first, since it may hold ';' and ':' of its own). `host_port` is empty for a transport without
+// a port (ipc, inproc, ...), left to ZeroMQ.
+struct EndpointParts {
+  std::string_view scheme, host_port;
+};
+
+bool transport_has_port(std::string_view scheme) {
+  return scheme == "tcp" || scheme == "udp" || scheme == "ws" || scheme == "wss" ||
+         scheme == "pgm" || scheme == "epgm";
+}
+
+// nullopt when `address` is not transport://address.
+std::optional<EndpointParts> endpoint_parts(std::string_view address) {
+  const auto scheme_end = address.find("://");
+  if (scheme_end == std::string_view::npos || scheme_end == 0) return std::nullopt;
+  EndpointParts parts{address.substr(0, scheme_end), {}};
+  if (!transport_has_port(parts.scheme)) return parts;
+  std::string_view rest = address.substr(scheme_end + 3);
+  if (parts.scheme == "ws" || parts.scheme == "wss")
+    rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
+  if (const auto semicolon = rest.rfind(';'); semicolon != std::string_view::npos)
+    rest.remove_prefix(semicolon + 1);
+  parts.host_port = rest;
+  return parts;
+}
+
+struct HostAndPort {
+  std::string_view host, port;
+};
+
+// Split at the last colon outside [IPv6] brackets; nullopt without one.
+std::optional<HostAndPort> split_port(std::string_view host_port) {
+  const auto colon = host_port.rfind(':');
+  if (colon == std::string_view::npos ||
+      (host_port.find(']') != std::string_view::npos && colon < host_port.rfind(']')))
+    return std::nullopt;
+  return HostAndPort{host_port.substr(0, colon), host_port.substr(colon + 1)};
+}
+
+// One spelling per host: lower case, without [ ], "localhost" as 127.0.0.1, an IPv6 address
+// as inet_ntop writes it (0:0:0:0:0:0:0:0 and ::0 are ::, 0::1 is ::1), and an IPv4-mapped
+// address as its IPv4 address (ZeroMQ's IPv6 socket reaches it so).
+std::string canonical_host(std::string_view host) {
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
+    host = host.substr(1, host.size() - 2);
+  std::string out;
+  for (char c : host) out += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  if (out == "localhost") return "127.0.0.1";
+  in6_addr v6{};
+  char canonical[INET6_ADDRSTRLEN] = {};
+  if (inet_pton(AF_INET6, out.c_str(), &v6) == 1 &&
+      inet_ntop(AF_INET6, &v6, canonical, sizeof canonical) != nullptr)
+    out = canonical;
+  if (out.starts_with("::ffff:") && out.find('.') != std::string::npos) out = out.substr(7);
+  return out;
+}
+
 struct TcpAddress {
-  std::string host;        // lower case, without [ ]; "localhost" as 127.0.0.1
+  std::string host;        // canonical_host
   unsigned long port = 0;  // 0: * or unreadable
   bool any_port = false;   // *: a bind chooses a free one
 };
 
 std::optional<TcpAddress> tcp_address(std::string_view address) {
-  if (!address.starts_with("tcp://")) return std::nullopt;
-  std::string_view rest = address.substr(6);
-  if (const auto semicolon = rest.rfind(';'); semicolon != std::string_view::npos)
-    rest.remove_prefix(semicolon + 1);
-  const auto colon = rest.rfind(':');
-  if (colon == std::string_view::npos) return std::nullopt;
-  const std::string_view port = rest.substr(colon + 1);
+  const auto parts = endpoint_parts(address);
+  if (!parts || parts->scheme != "tcp") return std::nullopt;
+  const auto split = split_port(parts->host_port);
+  if (!split) return std::nullopt;
   TcpAddress t;
-  t.any_port = port == "*";
-  if (const auto value = port_number(port); value && *value <= 65535) t.port = *value;
-  std::string_view host = rest.substr(0, colon);
-  if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
-    host = host.substr(1, host.size() - 2);
-  for (char c : host) t.host += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
-  if (t.host == "localhost") t.host = "127.0.0.1";
-  // One spelling per IPv6 address (0:0:0:0:0:0:0:0 and ::0 are ::, 0::1 is ::1).
-  in6_addr v6{};
-  char canonical[INET6_ADDRSTRLEN] = {};
-  if (inet_pton(AF_INET6, t.host.c_str(), &v6) == 1 &&
-      inet_ntop(AF_INET6, &v6, canonical, sizeof canonical) != nullptr)
-    t.host = canonical;
-  // An IPv4-mapped address is that IPv4 address (ZeroMQ's IPv6 socket reaches it so).
-  if (t.host.starts_with("::ffff:") && t.host.find('.') != std::string::npos)
-    t.host = t.host.substr(7);
+  t.any_port = split->port == "*";
+  if (const auto value = port_number(split->port); value && *value <= 65535) t.port = *value;
+  t.host = canonical_host(split->host);
   return t;
 }
 
@@ -88,16 +131,12 @@ Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_vie
 }
 
 bool binds_any_address(std::string_view address) {
-  const auto scheme_end = address.find("://");
-  if (scheme_end == std::string_view::npos) return false;
-  const std::string_view scheme = address.substr(0, scheme_end);
-  std::string_view rest = address.substr(scheme_end + 3);
-  if (scheme == "ws" || scheme == "wss")
-    rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
-  else if (scheme != "tcp" && scheme != "udp")
+  const auto parts = endpoint_parts(address);
+  if (!parts || (parts->scheme != "tcp" && parts->scheme != "udp" && parts->scheme != "ws" &&
+                 parts->scheme != "wss"))
     return false;
-  const auto t = tcp_address("tcp://" + std::string(rest));
-  return t && any_address(t->host);
+  const auto split = split_port(parts->host_port);
+  return split && any_address(canonical_host(split->host));
 }
 
 bool ipv6_literal(std::string_view address) {
@@ -127,27 +166,36 @@ std::string clash_spelling(const Endpoint& a, const Endpoint& b) {
 
 std::optional<EndpointProblem> endpoint_problem(std::string_view address, SocketMode mode) {
   const std::string quoted = "'" + std::string(address) + "'";
-  const auto scheme_end = address.find("://");
-  if (scheme_end == std::string_view::npos || scheme_end == 0)
+  const auto parts = endpoint_parts(address);
+  if (!parts)
     return EndpointProblem{quoted + " is not a ZeroMQ endpoint",
                            "write transport://address, e.g. \"tcp://127.0.0.1:5555\", "
                            "\"ipc:///tmp/fabrikd.sock\" or \"inproc://markers\""};
-  const std::string_view scheme = address.substr(0, scheme_end);
-  const bool ws = scheme == "ws" || scheme == "wss";
-  if (!ws && scheme != "tcp" && scheme != "udp" && scheme != "pgm" && scheme != "epgm")
-    return std::nullopt;
-  std::string_view rest = address.substr(scheme_end + 3);
-  // tcp source;destination and pgm interface;group: the port is the destination's. A ws
-  // path may hold ';' and ':' of its own: it goes first.
-  if (ws) rest = rest.substr(0, rest.find('/'));  // ws://host:port/path
-  if (const auto semicolon = rest.rfind(';'); semicolon != std::string_view::npos)
-    rest.remove_prefix(semicolon + 1);
-  const auto colon = rest.rfind(':');
-  // A colon inside [IPv6] brackets is not the port's.
-  if (colon == std::string_view::npos ||
-      (rest.find(']') != std::string_view::npos && colon < rest.rfind(']')))
-    return EndpointProblem{quoted + " has no port", "add one: " + std::string(kPortFix)};
-  const std::string_view port = rest.substr(colon + 1);
+  // ZeroMQ's transports are lower-case words: TCP:// would fail at the bind with "Protocol not
+  // supported" (and the config schema refuses it).
+  const auto lower_case_word = [](std::string_view word) {
+    return !word.empty() &&
+           std::all_of(word.begin(), word.end(), [](char c) { return c >= 'a' && c <= 'z'; });
+  };
+  if (!lower_case_word(parts->scheme)) {
+    std::string lower;
+    for (char c : parts->scheme)
+      lower += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+    std::string fix = "write tcp://, ipc:// or inproc://, e.g. \"tcp://127.0.0.1:5555\"";
+    if (lower.starts_with("bind:") || lower.starts_with("connect:"))
+      fix =
+          "give the mode apart: \"mode\" in a config, one bind: or connect: before the "
+          "endpoint on a command line";
+    else if (lower_case_word(lower))
+      fix = "write " + lower + "://..., e.g. \"tcp://127.0.0.1:5555\"";
+    return EndpointProblem{"transport '" + std::string(parts->scheme) + "' of " + quoted +
+                               " is not one ZeroMQ knows (they are lower-case words)",
+                           fix};
+  }
+  if (!transport_has_port(parts->scheme)) return std::nullopt;
+  const auto split = split_port(parts->host_port);
+  if (!split) return EndpointProblem{quoted + " has no port", "add one: " + std::string(kPortFix)};
+  const std::string_view port = split->port;
   const std::string quoted_port = "'" + std::string(port) + "'";
   if (port == "*") {
     if (mode == SocketMode::bind) return std::nullopt;

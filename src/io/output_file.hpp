@@ -5,12 +5,27 @@
 #include <fstream>
 #include <string>
 
+#include "io/marker_trial.hpp"
+
 namespace fabrik::io {
 
-// Opens `path` for binary writing (truncating); FormatError if that fails.
+// A file that could not be written. what() is "PATH: PROBLEM (the system's reason)", the
+// reason left out when the system gave none; error_number() is that errno (0: none), kept for
+// callers that report it in their own terms (Python's OSError and its subclasses).
+class OutputFileError : public FormatError {
+ public:
+  OutputFileError(const std::string& path, const std::string& problem, int error_number);
+  int error_number() const { return error_number_; }
+  std::string problem() const;  // what() without the path
+
+ private:
+  int error_number_;
+};
+
+// Opens `path` for binary writing (truncating); OutputFileError if that fails.
 std::ofstream open_output_file(const std::string& path);
 
-// Closes `out` and throws FormatError if any write to it, or the close, failed. A buffered
+// Closes `out` and throws OutputFileError if any write to it, or the close, failed. A buffered
 // stream writes its last bytes at the close: a check before it misses a full disk.
 void finish_output_file(std::ofstream& out, const std::string& path);
 

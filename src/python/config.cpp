@@ -98,8 +98,8 @@ Config calibrate(const std::string& template_path, const std::string& static_pat
         std::ofstream file = io::open_output_file(*output);
         file << out.json;
         io::finish_output_file(file, *output);
-      } catch (const io::FormatError& e) {  // the file's, not the data's
-        throw OutputError(e.what());
+      } catch (const io::OutputFileError& e) {
+        throw OutputError(e.what(), e.path(), e.problem(), e.error_number());
       }
     }
   }

@@ -36,9 +36,19 @@ void bind_errors(py::module_& m) {
     } catch (const calib::CalibrationError& e) {
       calibration_error(e.what());
     } catch (const OutputError& e) {
-      // The message alone, which starts with the file (an OSError with .filename set but no
-      // errno prints "[Errno None] None: FILE"; the errno is gone by now).
-      PyErr_SetString(PyExc_OSError, e.what());
+      // OSError(errno, strerror, filename) is the subclass for the errno, printed as Python's
+      // own: "[Errno 2] cannot open ... (No such file or directory): 'x/c.json'". Without an
+      // errno the message alone, which starts with the file ("[Errno None]" would say nothing).
+      // The file's name decoded as Python's own open() does (a name that is not UTF-8 too).
+      py::object filename = py::reinterpret_steal<py::object>(
+          PyUnicode_DecodeFSDefaultAndSize(e.path.data(), static_cast<Py_ssize_t>(e.path.size())));
+      if (e.error_number == 0 || !filename) {
+        PyErr_Clear();
+        PyErr_SetString(PyExc_OSError, e.what());
+      } else {
+        py::object args = py::make_tuple(e.error_number, e.problem, filename);
+        PyErr_SetObject(PyExc_OSError, args.ptr());
+      }
     }
   });
 }

@@ -21,6 +21,10 @@ std::string fix_for(int error, const OpenAdvice& a) {
                                    : ", or " + a.to_connect + " to reach another machine");
     case EACCES:
       return "use a port above 1023, or a path you may write for ipc://";
+    case EPROTONOSUPPORT:
+      return "use a transport this ZeroMQ knows: tcp://, ipc:// or inproc:// (udp://, ws:// and "
+             "pgm:// only where libzmq was built with them)" +
+             change;
     default:
       return "check the endpoint (transport://address:port)" + change;
   }

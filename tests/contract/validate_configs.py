@@ -88,7 +88,12 @@ def bad_configs(good):
             "tcp://127.0.0.1:0", "tcp://127.0.0.1:65536", "tcp://127.0.0.1:000065536",
             "tcp://127.0.0.1", "tcp://[::1]", "tcp://127.0.0.1:55a", "tcp://127.0.0.1:",
             "tcp://127.0.0.1:5556\n", "udp://127.0.0.1:99999", "ws://127.0.0.1:70000/poses",
-            "ws://127.0.0.1/poses")],
+            "ws://127.0.0.1/poses", "TCP://127.0.0.1:5556")],
+        # Port * is a bind's to choose (was left to fabrikd: the mode is a sibling key).
+        ("input port * to connect",
+         edit(put(["input"], {"endpoint": "tcp://127.0.0.1:*", "mode": "connect"}))),
+        ("output ws port * to connect",
+         edit(put(["output"], {"endpoint": "ws://127.0.0.1:*/poses", "mode": "connect"}))),
         # The sensors' world: axes as the loader reads them (were any string, any object).
         ("sensor world up not an axis", edit(put(["sensors", "world", "up"], "w"))),
         ("sensor heading axis not an axis",
@@ -176,6 +181,14 @@ def main():
         ported["output"]["endpoint"] = endpoint
         for e in validator.iter_errors(ported):
             failures.append(f"endpoint {endpoint!r} fabrikd takes rejected by the schema: {e.message}")
+    for side, endpoint, mode in (("input", "tcp://127.0.0.1:*", "bind"),
+                                 ("output", "tcp://*:*", None),
+                                 ("input", "tcp://127.0.0.1:5555", "connect"),
+                                 ("output", "ipc:///tmp/fabrikd:*", "connect")):
+        moded = copy.deepcopy(default)
+        moded[side] = {"endpoint": endpoint, **({"mode": mode} if mode else {})}
+        for e in validator.iter_errors(moded):
+            failures.append(f"{side} {endpoint!r} ({mode}) fabrikd takes rejected: {e.message}")
     sensors = copy.deepcopy(default)
     sensors["sensors"] = {"world": {"rotation_deg": [-90, 0, 0], "up": "y",
                                     "heading_from": {"sensor": "torso_imu", "axis": "-z"}},

@@ -1,6 +1,8 @@
 """Configs: the embedded default, files, bare models, errors; calibration gives the same config
 as `fabrik calibrate`."""
+import errno
 import json
+import os
 import pathlib
 import re
 
@@ -71,14 +73,20 @@ def test_calibrate_writes_what_fabrik_calibrate_writes(tmp_path):
     for bad in ({"frames": 0}, {"frames": -5}, {"auto_window": 0}):  # once: the default, or
         with pytest.raises(ValueError, match="must be 1 or more"):  # the CLI's words
             fabrik.calibrate(template, static, **bad)
-    # A config that cannot be written is Python's OSError (was a RuntimeError, and a full disk
-    # was found only by the writer's own check); the file's name is said.
-    for where, said in ((tmp_path / "no-folder" / "c.json", "cannot open the file"),
-                        ("/dev/full", "writing failed")):
+    # A config that cannot be written is Python's OSError as open() raises it: the subclass
+    # for the errno, with .errno, .strerror and .filename (was a RuntimeError, then a bare
+    # OSError whose .filename was None).
+    for where, said, errno_, kind in (
+            (tmp_path / "no-folder" / "c.json", "cannot open the file", errno.ENOENT,
+             FileNotFoundError),
+            ("/dev/full", "writing failed", errno.ENOSPC, OSError)):
         if str(where) == "/dev/full" and not pathlib.Path(where).exists():
             continue
-        with pytest.raises(OSError, match=re.escape(str(where)) + ".*" + re.escape(said)):
+        with pytest.raises(kind, match=re.escape(said) + ".*" + re.escape(str(where))) as raised:
             fabrik.calibrate(template, static, where)
+        assert raised.value.filename == str(where)
+        assert raised.value.errno == errno_, raised.value
+        assert said in raised.value.strerror and os.strerror(errno_) in raised.value.strerror
     # usable at once: the static trial tracks to a small residual
     trial = fabrik.read_markers(static)
     tracker = fabrik.Tracker(config)
