@@ -4,11 +4,13 @@
 // by subscription. Over real (inproc) ZeroMQ sockets; every wait is bounded.
 #include <catch2/catch.hpp>
 #include <chrono>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <set>
 
 #include "config/config_error.hpp"
+#include "config/resources.hpp"
 #include "daemon_thread.hpp"
 #include "socket_client.hpp"
 #include "subjects_fixture.hpp"
@@ -127,6 +129,37 @@ TEST_CASE("A daemon config lists subjects, each from its own calibrated config",
     CAPTURE(bad.dump());
     CHECK_THROWS_AS(load_daemon_config_file(dir.write({"Alice"}, bad)), ConfigError);
   }
+}
+
+TEST_CASE("Behind a vendor source, every subject is in one lab's axes", "[subjects][lab_axes]") {
+  // The source's frames are turned into the first subject's lab axes: a subject calibrated
+  // with Z up beside one with Y up got positions in a frame it does not use, without a word.
+  test::SubjectsDir dir;
+  json z_up = json::parse(*embedded_config("models/fullbody.json"));
+  z_up["lab_axes"] = {{"up", "+z"}, {"forward", "+x"}};
+  const std::string daemon = dir.write({"Alice", "Bob"});  // both Y up, the model's own
+  dir.write_file("Bob.json", {{"format", "fabrikd-config/1"}, {"model", z_up}});
+  const json source = {{"source", "qtm://127.0.0.1"}};
+  const json config = json::parse(std::ifstream(daemon));
+  json with_source = config;
+  with_source["input"] = source;
+  const std::string error = [&] {
+    try {
+      load_daemon_config(with_source.dump(), daemon);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  }();
+  CHECK_THAT(error, Catch::Contains("at /subjects/1/config: subject Bob's lab axes "
+                                    "{\"up\":\"+z\",\"forward\":\"+x\"}") &&
+                        Catch::Contains("are not subject Alice's") &&
+                        Catch::Contains("Fix: calibrate every subject in the lab's axes"));
+  // Without a source the frames come in the lab's own axes: each subject's angles are its own.
+  CHECK(load_daemon_config(config.dump(), daemon).subjects.size() == 2);
+  // Both in Z up: one lab.
+  dir.write_file("Alice.json", {{"format", "fabrikd-config/1"}, {"model", z_up}});
+  CHECK(load_daemon_config(with_source.dump(), daemon).source.kind == SourceKind::qtm);
 }
 
 // `fabrik calibrate` of a Vicon C3D names the targets as the file does, `Subject:Marker`;

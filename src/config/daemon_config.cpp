@@ -7,6 +7,7 @@
 
 #include "endpoint_check.hpp"
 #include "json_reader.hpp"
+#include "lab_axes_json.hpp"
 #include "model_loader.hpp"
 #include "resources.hpp"
 #include "sensors_json.hpp"
@@ -292,6 +293,29 @@ void read_subjects(const JsonReader& list, const std::string& file,
   }
 }
 
+// A vendor source's frames are turned into one lab's axes (the first subject's): a subject
+// calibrated in other axes would get positions in a frame it does not use.
+void require_one_lab_behind_a_source(const JsonReader& root, const DaemonConfig& c) {
+  if (c.subjects.empty() || c.source.kind == SourceKind::none) return;
+  const SubjectConfig& first = c.subjects.front();
+  for (std::size_t k = 1; k < c.subjects.size(); ++k) {
+    const SubjectConfig& s = c.subjects[k];
+    if (s.tracker.model->lab_axes == first.tracker.model->lab_axes) continue;
+    root.at("subjects")
+        .at(k)
+        .at("config")
+        .fail("subject " + s.name + "'s lab axes " +
+                  lab_axes_json(s.tracker.model->lab_axes).dump() + " are not subject " +
+                  first.name + "'s " + lab_axes_json(first.tracker.model->lab_axes).dump() +
+                  ", and the source's frames are "
+                  "turned into one lab's axes",
+              "calibrate every subject in the lab's axes (fabrik calibrate --lab-up/--lab-forward, "
+              "or the "
+              "template's lab_axes), or send the frames to the "
+              "ZeroMQ input");
+  }
+}
+
 // A model or a template given where a config belongs is named for what it is, before its
 // fields are refused one by one as a config's unknown ones.
 void refuse_other_formats(const JsonReader& root) {
@@ -356,6 +380,7 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     read_tracking_parts(root, file, c);
   }
   read_io_parts(root, c);
+  require_one_lab_behind_a_source(root, c);
   c.stats_interval_s = root.get("stats_interval_s", c.stats_interval_s, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();
