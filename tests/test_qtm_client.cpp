@@ -231,6 +231,21 @@ TEST_CASE("qtm client: frames arrive with their numbers, times, labels and posit
   CHECK_FALSE(st.connected);  // disconnected on stop
 }
 
+TEST_CASE("qtm client: several subjects' Subject:Marker labels arrive whole", "[qtm][client]") {
+  // The daemon routes NAME:Marker to subject NAME and keeps a name it takes whole
+  // (test_source_input, "[subjects]"): the client must hand QTM's labels over as QTM names them,
+  // a subject's colon and a name's UTF-8 kept.
+  bridges::SimRecording r = recording();
+  r.names = {"Alice:LASI", "Bob:LASI", "Daphn\xc3\xa9:ASISl", "Carol:RASI"};
+  ServerThread server(r, looping());
+  ClientThread client(options_for(server.server.port_little_endian()));
+  REQUIRE(client.sink.wait([](auto& f, auto&) { return f.size() >= 5; }, 5.0));
+  client.stop();
+  const auto labels = client.sink.label_sets();
+  REQUIRE(labels.size() == 1);
+  CHECK(labels[0] == r.names);
+}
+
 TEST_CASE("qtm client: a frequency divisor gets every n-th frame", "[qtm][client]") {
   ServerThread server(recording(), looping());
   ClientThread client(options_for(server.server.port_little_endian(), 3));
