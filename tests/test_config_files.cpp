@@ -247,7 +247,7 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       {"127.0.0.1:5555", "bind", "'127.0.0.1:5555' is not a ZeroMQ endpoint"},
       // ZeroMQ's transports are lower case: a bind to TCP:// fails ("Protocol not supported").
       {"TCP://127.0.0.1:5555", "bind", "transport 'TCP' of 'TCP://127.0.0.1:5555' is not one"},
-      {"Ipc:///tmp/f.sock", "connect", "Fix: write ipc://"},
+      {"Ipc:///tmp/f.sock", "connect", "Fix: write \"ipc:///tmp/f.sock\""},
       {"tcp2://127.0.0.1:5555", "bind", "transport 'tcp2'"},
       {"tcp2://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},
       {"connect:tcp://127.0.0.1:5555", "bind", "Fix: give the mode apart: \"mode\" in a config"},

@@ -310,9 +310,8 @@ void require_one_lab_behind_a_source(const JsonReader& root, const DaemonConfig&
                   ", and the source's frames are "
                   "turned into one lab's axes",
               "calibrate every subject in the lab's axes (fabrik calibrate --lab-up/--lab-forward, "
-              "or the "
-              "template's lab_axes), or send the frames to the "
-              "ZeroMQ input");
+              "or the template's lab_axes; a subject config's own model: its lab_axes), or send "
+              "the frames to the ZeroMQ input");
   }
 }
 

@@ -187,7 +187,7 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
           "give the mode apart: \"mode\" in a config, one bind: or connect: before the "
           "endpoint on a command line";
     else if (lower_case_word(lower))
-      fix = "write " + lower + "://..., e.g. \"tcp://127.0.0.1:5555\"";
+      fix = "write \"" + lower + std::string(address.substr(parts->scheme.size())) + "\"";
     return EndpointProblem{"transport '" + std::string(parts->scheme) + "' of " + quoted +
                                " is not one ZeroMQ knows (they are lower-case words)",
                            fix};

@@ -44,7 +44,13 @@ void bind_errors(py::module_& m) {
           PyUnicode_DecodeFSDefaultAndSize(e.path.data(), static_cast<Py_ssize_t>(e.path.size())));
       if (e.error_number == 0 || !filename) {
         PyErr_Clear();
-        PyErr_SetString(PyExc_OSError, e.what());
+        py::object message = py::reinterpret_steal<py::object>(PyUnicode_DecodeFSDefault(e.what()));
+        if (message) {
+          PyErr_SetObject(PyExc_OSError, message.ptr());
+        } else {
+          PyErr_Clear();
+          PyErr_SetString(PyExc_OSError, "an output file could not be written");
+        }
       } else {
         py::object args = py::make_tuple(e.error_number, e.problem, filename);
         PyErr_SetObject(PyExc_OSError, args.ptr());
