@@ -391,6 +391,25 @@ TEST_CASE("Behind a source, another process's subject is another subject's, not 
 }
 
 TEST_CASE(
+    "A daemon built in code refuses subjects in two lab axes behind a source, as the "
+    "loader does",
+    "[source][daemon][subjects][lab_axes]") {
+  zmq::context_t context;
+  test::SubjectsDir dir;
+  DaemonConfig c = alice_and_bob_behind_a_source(dir, "two-labs");
+  json doc = json::parse(*embedded_config("models/fullbody.json"));
+  doc["lab_axes"] = {{"up", "+z"}, {"forward", "+x"}};
+  c.subjects[1].tracker.model = std::make_shared<const Model>(load_model(doc, "fullbody.json"));
+  REQUIRE(source_lab_problem(c));
+  CHECK(source_lab_problem(c)->subject == 1);
+  CHECK_THROWS_WITH(wire::Daemon(context, c),
+                    Catch::StartsWith("subject Bob's lab axes") &&
+                        Catch::Contains(". Fix: calibrate every subject"));
+  c.source = SourceConfig{};  // the ZeroMQ input: each subject's axes are its own
+  CHECK_FALSE(source_lab_problem(c));
+}
+
+TEST_CASE(
     "A reload keeps a source whose options, lab axes and names taken are unchanged, and "
     "replaces it otherwise",
     "[source][daemon][reload]") {

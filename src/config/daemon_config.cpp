@@ -293,28 +293,6 @@ void read_subjects(const JsonReader& list, const std::string& file,
   }
 }
 
-// A vendor source's frames are turned into one lab's axes (the first subject's): a subject
-// calibrated in other axes would get positions in a frame it does not use.
-void require_one_lab_behind_a_source(const JsonReader& root, const DaemonConfig& c) {
-  if (c.subjects.empty() || c.source.kind == SourceKind::none) return;
-  const SubjectConfig& first = c.subjects.front();
-  for (std::size_t k = 1; k < c.subjects.size(); ++k) {
-    const SubjectConfig& s = c.subjects[k];
-    if (s.tracker.model->lab_axes == first.tracker.model->lab_axes) continue;
-    root.at("subjects")
-        .at(k)
-        .at("config")
-        .fail("subject " + s.name + "'s lab axes " +
-                  lab_axes_json(s.tracker.model->lab_axes).dump() + " are not subject " +
-                  first.name + "'s " + lab_axes_json(first.tracker.model->lab_axes).dump() +
-                  ", and the source's frames are "
-                  "turned into one lab's axes",
-              "calibrate every subject in the lab's axes (fabrik calibrate --lab-up/--lab-forward, "
-              "or the template's lab_axes; a subject config's own model: its lab_axes), or send "
-              "the frames to the ZeroMQ input");
-  }
-}
-
 // A model or a template given where a config belongs is named for what it is, before its
 // fields are refused one by one as a config's unknown ones.
 void refuse_other_formats(const JsonReader& root) {
@@ -379,7 +357,8 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
     read_tracking_parts(root, file, c);
   }
   read_io_parts(root, c);
-  require_one_lab_behind_a_source(root, c);
+  if (const auto p = source_lab_problem(c))
+    root.at("subjects").at(p->subject).at("config").fail(p->problem, p->fix);
   c.stats_interval_s = root.get("stats_interval_s", c.stats_interval_s, 0.01, 1.0);
   if (root.has("log_level")) {
     c.log_level = root.at("log_level").as_string();
@@ -390,6 +369,24 @@ DaemonConfig load_daemon_config(const std::string& text, const std::string& file
   return c;
 }
 
+std::optional<SubjectLabProblem> source_lab_problem(const DaemonConfig& c) {
+  if (c.subjects.empty() || c.source.kind == SourceKind::none) return std::nullopt;
+  const SubjectConfig& first = c.subjects.front();
+  for (std::size_t k = 1; k < c.subjects.size(); ++k) {
+    const SubjectConfig& s = c.subjects[k];
+    if (s.tracker.model->lab_axes == first.tracker.model->lab_axes) continue;
+    return SubjectLabProblem{
+        k,
+        "subject " + s.name + "'s lab axes " + lab_axes_json(s.tracker.model->lab_axes).dump() +
+            " are not subject " + first.name + "'s " +
+            lab_axes_json(first.tracker.model->lab_axes).dump() +
+            ", and the source's frames are turned into one lab's axes",
+        "calibrate every subject in the lab's axes (fabrik calibrate --lab-up/--lab-forward, or "
+        "the template's lab_axes; a subject config's own model: its lab_axes), or send the "
+        "frames to the ZeroMQ input"};
+  }
+  return std::nullopt;
+}
 
 DaemonConfig load_daemon_config_file(const std::string& path) {
   return load_daemon_config(read_config_text(path), path);

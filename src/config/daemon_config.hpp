@@ -3,7 +3,9 @@
 // file, the JSON pointer and the fix. Lengths are converted to metres here.
 #pragma once
 
+#include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -93,5 +95,16 @@ DaemonConfig default_daemon_config();
 // (others stay). Returns a name two targets would then share ("" when none do); the
 // targets are then left as they were.
 std::string unprefix_subject_targets(TrackerSetup& tracker, std::string_view subject);
+
+// Behind a vendor source every subject must be in the first subject's lab axes: the source's
+// frames are turned into one lab's, so a subject calibrated in others would get positions in a
+// frame it does not use. The first subject that is not, with the problem and the fix; nothing
+// when all are (or there is no source, or one subject). The loader refuses such a config, and
+// the daemon one built in code.
+struct SubjectLabProblem {
+  std::size_t subject = 0;  // index into DaemonConfig::subjects
+  std::string problem, fix;
+};
+std::optional<SubjectLabProblem> source_lab_problem(const DaemonConfig& c);
 
 }  // namespace fabrik

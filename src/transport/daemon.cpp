@@ -330,6 +330,9 @@ bool Daemon::other_subject(const State& s, std::string_view name) {
 }
 
 std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
+  // The loader refuses such a config; one built in code (a library user's) is refused here.
+  if (const auto p = source_lab_problem(config))
+    throw std::invalid_argument(p->problem + ". Fix: " + p->fix);
   auto s = std::make_unique<State>();
   const PlausibleMarkers plausible{config.max_abs_coordinate_m, config.zero_is_missing,
                                    config.quaternion_tolerance};
