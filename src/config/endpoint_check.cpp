@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/ascii_case.hpp"
 #include "common/safe_text.hpp"
 
 namespace fabrik {
@@ -73,8 +74,7 @@ std::optional<HostAndPort> split_port(std::string_view host_port) {
 std::string canonical_host(std::string_view host) {
   if (host.size() >= 2 && host.front() == '[' && host.back() == ']')
     host = host.substr(1, host.size() - 2);
-  std::string out;
-  for (char c : host) out += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  std::string out = ascii_lower(host);
   if (out == "localhost") return "127.0.0.1";
   in6_addr v6{};
   char canonical[INET6_ADDRSTRLEN] = {};
@@ -178,9 +178,7 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
            std::all_of(word.begin(), word.end(), [](char c) { return c >= 'a' && c <= 'z'; });
   };
   if (!lower_case_word(parts->scheme)) {
-    std::string lower;
-    for (char c : parts->scheme)
-      lower += static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+    const std::string lower = ascii_lower(parts->scheme);
     std::string fix = "write tcp://, ipc:// or inproc://, e.g. \"tcp://127.0.0.1:5555\"";
     if (lower.starts_with("bind:") || lower.starts_with("connect:"))
       fix =

@@ -10,7 +10,6 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "config/daemon_config.hpp"
@@ -41,19 +40,6 @@ py::array_t<T> owned_array(std::vector<T>&& values, std::vector<py::ssize_t> sha
 // FileNotFoundError naming the path when it does not exist (the C++ readers would say
 // "cannot read" as a ValueError, which hides the usual mistake).
 void require_file(const std::string& path, const std::string& what);
-
-// A file that could not be written (a missing folder, a full disk): Python's OSError, as for
-// its own open() and write(): with the errno, its subclass (FileNotFoundError, ...), .errno,
-// .strerror and .filename.
-struct OutputError : std::runtime_error {
-  OutputError(const std::string& what, std::string file, std::string why, int errno_value)
-      : std::runtime_error(what),
-        path(std::move(file)),
-        problem(std::move(why)),
-        error_number(errno_value) {}
-  std::string path, problem;
-  int error_number;
-};
 
 // The names of a list of markers, joints, segments...: names_of(model.joints, &Joint::name).
 template <class T>

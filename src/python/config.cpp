@@ -93,14 +93,10 @@ Config calibrate(const std::string& template_path, const std::string& static_pat
     // The config loads as the daemon will load it before it is written (as `fabrik calibrate`).
     out.config = std::make_shared<const DaemonConfig>(
         load_daemon_config(out.json, output ? *output : "<calibrated " + static_path + ">"));
-    if (output) {
-      try {
-        std::ofstream file = io::open_output_file(*output);
-        file << out.json;
-        io::finish_output_file(file, *output);
-      } catch (const io::OutputFileError& e) {
-        throw OutputError(e.what(), e.path(), e.problem(), e.error_number());
-      }
+    if (output) {  // io::OutputFileError: Python's OSError (errors.cpp)
+      std::ofstream file = io::open_output_file(*output);
+      file << out.json;
+      io::finish_output_file(file, *output);
     }
   }
   return out;

@@ -9,6 +9,7 @@
 #include "calib/calibrate.hpp"
 #include "config/config_error.hpp"
 #include "io/marker_trial.hpp"
+#include "io/output_file.hpp"
 
 namespace fabrik::python {
 
@@ -31,18 +32,14 @@ void bind_errors(py::module_& m) {
       if (p) std::rethrow_exception(p);
     } catch (const ConfigError& e) {
       config_error(e.what());
-    } catch (const io::FormatError& e) {
-      format_error(e.what());
-    } catch (const calib::CalibrationError& e) {
-      calibration_error(e.what());
-    } catch (const OutputError& e) {
+    } catch (const io::OutputFileError& e) {  // before FormatError, of which it is one
       // OSError(errno, strerror, filename) is the subclass for the errno, printed as Python's
       // own: "[Errno 2] cannot open ... (No such file or directory): 'x/c.json'". Without an
       // errno the message alone, which starts with the file ("[Errno None]" would say nothing).
       // The file's name decoded as Python's own open() does (a name that is not UTF-8 too).
-      py::object filename = py::reinterpret_steal<py::object>(
-          PyUnicode_DecodeFSDefaultAndSize(e.path.data(), static_cast<Py_ssize_t>(e.path.size())));
-      if (e.error_number == 0 || !filename) {
+      py::object filename = py::reinterpret_steal<py::object>(PyUnicode_DecodeFSDefaultAndSize(
+          e.path().data(), static_cast<Py_ssize_t>(e.path().size())));
+      if (e.error_number() == 0 || !filename) {
         PyErr_Clear();
         py::object message = py::reinterpret_steal<py::object>(PyUnicode_DecodeFSDefault(e.what()));
         if (message) {
@@ -52,9 +49,13 @@ void bind_errors(py::module_& m) {
           PyErr_SetString(PyExc_OSError, "an output file could not be written");
         }
       } else {
-        py::object args = py::make_tuple(e.error_number, e.problem, filename);
+        py::object args = py::make_tuple(e.error_number(), e.problem(), filename);
         PyErr_SetObject(PyExc_OSError, args.ptr());
       }
+    } catch (const io::FormatError& e) {
+      format_error(e.what());
+    } catch (const calib::CalibrationError& e) {
+      calibration_error(e.what());
     }
   });
 }
