@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/edit_distance.hpp"
 #include "common/safe_text.hpp"
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
@@ -251,6 +252,15 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       {"tcp2://127.0.0.1:5555", "bind", "transport 'tcp2'"},
       {"tcp2://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},
       {"connect:tcp://127.0.0.1:5555", "bind", "Fix: give the mode apart: \"mode\" in a config"},
+      // A lower-case word no libzmq has: a typo, which failed only at the bind.
+      {"tpc://127.0.0.1:5555", "bind",
+       "transport 'tpc' of 'tpc://127.0.0.1:5555' is not one ZeroMQ has (tcp, ipc, inproc,"},
+      {"tpc://127.0.0.1:5555", "bind",
+       "Fix: write the transport meant (tcp://, ipc://, tipc://), e.g. "
+       "\"tcp://127.0.0.1:5555\""},
+      {"ipcc:///tmp/f.sock", "connect", "Fix: write \"ipc:///tmp/f.sock\""},
+      {"zmq://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},
+      {"norm://127.0.0.1:5555", "bind", ""},    // ZeroMQ's, if its build has it
       {"ipc:///tmp/fabrik:99999", "bind", ""},  // a path: ZeroMQ's business
       {"inproc://markers:-1", "connect", ""},
   };
@@ -409,5 +419,27 @@ TEST_CASE("A config tracks at most as many markers as a model may have", "[confi
   } catch (const ConfigError& e) {
     CHECK_THAT(e.what(), Catch::Contains("at /targets/markers:") &&
                              Catch::Contains(listed + " marker targets"));
+  }
+}
+
+TEST_CASE("A typo's distance counts two neighbours swapped as one edit", "[endpoint]") {
+  struct Case {
+    std::string a, b;
+    std::size_t levenshtein, typo;
+  };
+  for (const Case& c : std::vector<Case>{{"tpc", "tcp", 2, 1},
+                                         {"tcp", "tcp", 0, 0},
+                                         {"", "ipc", 3, 3},
+                                         {"ipc", "", 3, 3},
+                                         {"icp", "ipc", 2, 1},
+                                         {"ab", "ba", 2, 1},
+                                         {"abcd", "badc", 3, 2},
+                                         {"inprco", "inproc", 2, 1},
+                                         {"tpc", "tipc", 1, 1},
+                                         {"kitten", "sitting", 3, 3}}) {
+    CAPTURE(c.a, c.b);
+    CHECK(fabrik::edit_distance(c.a, c.b) == c.levenshtein);
+    CHECK(fabrik::typo_distance(c.a, c.b) == c.typo);
+    CHECK(fabrik::typo_distance(c.b, c.a) == c.typo);
   }
 }

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "io/marker_trial.hpp"
+#include "io/output_file.hpp"
 #include "io/recording_info.hpp"
 #include "temp_file.hpp"
 #include "trc_text.hpp"
@@ -1133,4 +1135,37 @@ TEST_CASE("A TRC Time column that goes back is refused at its first row, one sta
   TempFile good(".trc");
   write_text(good.path(), two_marker_trc("A", "B", {"0", "0.01", "0.02"}));
   CHECK(read_trc(good.path()).warnings.empty());
+}
+
+TEST_CASE("A failed write keeps only an errno a write gives as its reason", "[output_file]") {
+  // A stream sets no errno of its own: by the close, errno may have been set by an unrelated
+  // call since the write failed. Only a write's own reasons are named; another is left out
+  // rather than blame the wrong thing.
+  struct Case {
+    int error_number;
+    bool named;
+  };
+  for (const Case c :
+       {Case{ENOSPC, true}, Case{EDQUOT, true}, Case{EFBIG, true}, Case{EIO, true},
+        Case{EPIPE, true}, Case{ESTALE, true}, Case{ENOENT, false}, Case{EACCES, false},
+        Case{EBADF, false}, Case{EAGAIN, false}, Case{EINVAL, false}}) {
+    CAPTURE(c.error_number, std::strerror(c.error_number));
+    fabrik::test::TempFile file(".txt");
+    std::ofstream out = fabrik::io::open_output_file(file.path());
+    out << "x";
+    out.setstate(std::ios::badbit);  // as a failed write leaves it
+    errno = c.error_number;
+    try {
+      fabrik::io::finish_output_file(out, file.path());
+      FAIL("a stream that failed was finished without an error");
+    } catch (const fabrik::io::OutputFileError& e) {
+      const std::string reason = std::string("(") + std::strerror(c.error_number) + ")";
+      CHECK(e.error_number() == (c.named ? c.error_number : 0));
+      if (c.named) {
+        CHECK(e.problem() == "writing failed " + reason);
+      } else {
+        CHECK(e.problem() == "writing failed (disk full or file removed?)");
+      }
+    }
+  }
 }

@@ -37,11 +37,13 @@ struct Received {
   double time_s;
   std::vector<Eigen::Vector3d> p_mm;
   std::size_t labels_version;  // index into RecordingSink::labels
+  std::uint64_t counted;       // the status's frame count as the frame was handed over
 };
 
 // Keeps what the client delivers; tests wait on it with deadlines.
 class RecordingSink : public FrameSink {
  public:
+  explicit RecordingSink(const SourceStatus* status = nullptr) : status_(status) {}
   void labels(std::span<const std::string> names) override {
     std::lock_guard lock(mutex_);
     labels_.emplace_back(names.begin(), names.end());
@@ -49,9 +51,11 @@ class RecordingSink : public FrameSink {
   }
   void frame(std::uint64_t frame_number, double time_s,
              std::span<const Eigen::Vector3d> p_mm) override {
+    const std::uint64_t counted = status_ ? status_->snapshot().frames : 0;
     std::lock_guard lock(mutex_);
     if (frames_.size() < 100000)
-      frames_.push_back({frame_number, time_s, {p_mm.begin(), p_mm.end()}, labels_.size() - 1});
+      frames_.push_back(
+          {frame_number, time_s, {p_mm.begin(), p_mm.end()}, labels_.size() - 1, counted});
     changed_.notify_all();
   }
   // Waits until pred(frames, labels) holds or the timeout passes.
@@ -72,6 +76,7 @@ class RecordingSink : public FrameSink {
   }
 
  private:
+  const SourceStatus* status_;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::vector<Received> frames_;
@@ -182,8 +187,8 @@ TEST_CASE("NatNet client over loopback: frame numbers, times, labels and positio
   script.rate_scale = 4.0;
   script.drops.push_back({"B", 20, 25});
   NatNetSimServer server(rec, script, unicast_server(version));
-  RecordingSink sink;
   SourceStatus status;
+  RecordingSink sink(&status);
   ClientThread client(unicast_client(server.command_port()), sink, status);
   ServerThread serving(server);
 
@@ -219,6 +224,12 @@ TEST_CASE("NatNet client over loopback: frame numbers, times, labels and positio
   }
   client.stop_s();  // the status may count frames that arrived after the copy above
   CHECK(status.snapshot().frames >= frames.size());
+  // Each frame is counted before it is handed over: stats read between the two would else show
+  // fewer frames than the poses they caused.
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    INFO("frame " << i);
+    REQUIRE(frames[i].counted == i + 1);
+  }
 }
 
 TEST_CASE("NatNet simulator rotates a Z-up recording into Motive's Y-up", "[natnet][client]") {

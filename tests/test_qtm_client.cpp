@@ -65,7 +65,9 @@ class RecordingSink : public bridges::FrameSink {
     double time_s;
     std::vector<Eigen::Vector3d> p_mm;
     std::size_t label_set;  // index into label_sets
+    std::uint64_t counted;  // the status's frame count as the frame was handed over
   };
+  explicit RecordingSink(const bridges::SourceStatus* status = nullptr) : status_(status) {}
   void labels(std::span<const std::string> names) override {
     std::lock_guard lock(m_);
     label_sets_.emplace_back(names.begin(), names.end());
@@ -73,7 +75,9 @@ class RecordingSink : public bridges::FrameSink {
   }
   void frame(std::uint64_t n, double t, std::span<const Eigen::Vector3d> p) override {
     std::lock_guard lock(m_);
-    if (frames_.size() < 100000) frames_.push_back({n, t, {p.begin(), p.end()}, label_sets_.size() - 1});
+    const std::uint64_t counted = status_ ? status_->snapshot().frames : 0;
+    if (frames_.size() < 100000)
+      frames_.push_back({n, t, {p.begin(), p.end()}, label_sets_.size() - 1, counted});
     cv_.notify_all();
   }
   // Waits (bounded) until `done(frames, label_sets)` holds.
@@ -92,6 +96,7 @@ class RecordingSink : public bridges::FrameSink {
   }
 
  private:
+  const bridges::SourceStatus* status_;
   std::mutex m_;
   std::condition_variable cv_;
   std::vector<Frame> frames_;
@@ -104,7 +109,8 @@ struct ClientThread {
   bridges::SourceStatus status;
   std::jthread thread;
   explicit ClientThread(QtmClientOptions o)
-      : thread([this, o](std::stop_token st) { run_qtm_client(o, sink, status, st); }) {}
+      : sink(&status),  // only its address: read once frames come
+        thread([this, o](std::stop_token st) { run_qtm_client(o, sink, status, st); }) {}
   // Seconds from the stop request to the thread's end.
   double stop() {
     const auto t0 = Clock::now();
@@ -229,6 +235,13 @@ TEST_CASE("qtm client: frames arrive with their numbers, times, labels and posit
   CHECK(st.errors == 0);
   CHECK(st.frames == client.sink.frames().size());
   CHECK_FALSE(st.connected);  // disconnected on stop
+  // Each frame is counted before it is handed over: stats read between the two would else show
+  // fewer frames than the poses they caused.
+  const auto frames = client.sink.frames();
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    INFO("frame " << k);
+    REQUIRE(frames[k].counted == k + 1);
+  }
 }
 
 TEST_CASE("qtm client: several subjects' Subject:Marker labels arrive whole", "[qtm][client]") {

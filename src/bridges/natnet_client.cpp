@@ -259,8 +259,8 @@ class Connection {
           if (frame_.tracked_models_changed()) {
             why = "the frame says the tracked models changed";
           } else if (table_.fill(frame_, p_mm_, why)) {
+            status_.frame_delivered();  // first: stats must not show fewer frames than poses
             sink_.frame(static_cast<std::uint32_t>(frame_.frame_number), frame_.timestamp_s, p_mm_);
-            status_.frame_delivered();
             last_frame = now;
             break;
           }

@@ -97,6 +97,8 @@ class SourceStatus {
     ++s_.errors;
     s_.last_error.assign(what.substr(0, 240));
   }
+  // Called just before the frame is handed to the sink, so that a stats message read
+  // between the two never shows fewer frames than the poses they have caused.
   void frame_delivered() {
     std::lock_guard lock(mutex_);
     ++s_.frames;

@@ -3,10 +3,12 @@
 #include <arpa/inet.h>
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 #include <string>
 
 #include "common/ascii_case.hpp"
+#include "common/edit_distance.hpp"
 #include "common/safe_text.hpp"
 
 namespace fabrik {
@@ -34,6 +36,11 @@ std::optional<unsigned long> port_number(std::string_view port) {
 struct EndpointParts {
   std::string_view scheme, host_port;
 };
+
+// Every transport a libzmq may have; which of them this one has depends on its build (ws, pgm,
+// norm, ...), left to its EPROTONOSUPPORT at the bind (open_socket's fix).
+constexpr std::array<std::string_view, 11> kZmqTransports = {
+    "tcp", "ipc", "inproc", "udp", "ws", "wss", "pgm", "epgm", "norm", "tipc", "vmci"};
 
 bool transport_has_port(std::string_view scheme) {
   return scheme == "tcp" || scheme == "udp" || scheme == "ws" || scheme == "wss" ||
@@ -164,6 +171,32 @@ std::string clash_spelling(const Endpoint& a, const Endpoint& b) {
   return a.address == b.address ? "" : " ('" + b.address + "', one port of this machine)";
 }
 
+// A lower-case word no libzmq has (a typo: tpc://): would fail only at the bind, "Protocol not
+// supported". The fix names the transports one typo away, the endpoint rewritten if one is.
+EndpointProblem unknown_transport(std::string_view address, std::string_view scheme) {
+  std::string all, near;
+  std::string_view first_near;
+  int near_count = 0;
+  for (const std::string_view t : kZmqTransports) {
+    all += (all.empty() ? "" : ", ") + std::string(t);
+    if (typo_distance(scheme, t) > 1) continue;
+    near += (near.empty() ? "" : ", ") + std::string(t) + "://";
+    if (near_count++ == 0) first_near = t;
+  }
+  const std::string rest(address.substr(scheme.size()));
+  std::string fix;
+  if (near_count == 1)
+    fix = "write \"" + std::string(first_near) + rest + "\"";
+  else if (near_count > 1)
+    fix =
+        "write the transport meant (" + near + "), e.g. \"" + std::string(first_near) + rest + "\"";
+  else
+    fix = "write tcp://, ipc:// or inproc://, e.g. \"tcp://127.0.0.1:5555\"";
+  return EndpointProblem{"transport '" + std::string(scheme) + "' of '" + std::string(address) +
+                             "' is not one ZeroMQ has (" + all + ")",
+                         fix};
+}
+
 std::optional<EndpointProblem> endpoint_problem(std::string_view address, SocketMode mode) {
   const std::string quoted = "'" + std::string(address) + "'";
   const auto parts = endpoint_parts(address);
@@ -190,6 +223,9 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
                                " is not one ZeroMQ knows (they are lower-case words)",
                            fix};
   }
+  if (std::find(kZmqTransports.begin(), kZmqTransports.end(), parts->scheme) ==
+      kZmqTransports.end())
+    return unknown_transport(address, parts->scheme);
   if (!transport_has_port(parts->scheme)) return std::nullopt;
   const auto split = split_port(parts->host_port);
   if (!split) return EndpointProblem{quoted + " has no port", "add one: " + std::string(kPortFix)};

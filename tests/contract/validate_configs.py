@@ -88,7 +88,8 @@ def bad_configs(good):
             "tcp://127.0.0.1:0", "tcp://127.0.0.1:65536", "tcp://127.0.0.1:000065536",
             "tcp://127.0.0.1", "tcp://[::1]", "tcp://127.0.0.1:55a", "tcp://127.0.0.1:",
             "tcp://127.0.0.1:5556\n", "udp://127.0.0.1:99999", "ws://127.0.0.1:70000/poses",
-            "ws://127.0.0.1/poses", "TCP://127.0.0.1:5556")],
+            "ws://127.0.0.1/poses", "TCP://127.0.0.1:5556", "tpc://127.0.0.1:5556",
+            "zmq://127.0.0.1:5556")],
         # Port * is a bind's to choose (was left to fabrikd: the mode is a sibling key).
         ("input port * to connect",
          edit(put(["input"], {"endpoint": "tcp://127.0.0.1:*", "mode": "connect"}))),
@@ -176,7 +177,8 @@ def main():
     for endpoint in ("tcp://127.0.0.1:5556", "tcp://127.0.0.1:05556", "tcp://*:*",
                      "tcp://[::1]:65535", "tcp://127.0.0.1:6000;127.0.0.1:5556",
                      "tcp://127.0.0.1:000022607", "ws://127.0.0.1:8080/poses", "ws://host:1",
-                     "ipc:///tmp/fabrikd-poses", "inproc://poses"):
+                     "ipc:///tmp/fabrikd-poses", "inproc://poses", "norm://127.0.0.1:5556",
+                     "tipc://{5560,0,0}", "vmci://1:5556", "epgm://eth0;239.192.1.1:5555"):
         ported = copy.deepcopy(default)
         ported["output"]["endpoint"] = endpoint
         for e in validator.iter_errors(ported):

@@ -329,8 +329,8 @@ class Session {
     labels_fresh_ = false;
     p_server_mm_.resize(p_mm.size());
     for (std::size_t i = 0; i < p_mm.size(); ++i) p_server_mm_[i] = p_mm[i].cast<double>();
+    status_.frame_delivered();  // first: a stats message must not show fewer frames than poses
     sink_.frame(frame_.frame_number, static_cast<double>(frame_.timestamp_us) * 1e-6, p_server_mm_);
-    status_.frame_delivered();
     saw_no_more_data_ = false;
     return std::nullopt;
   }
