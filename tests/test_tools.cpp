@@ -1,5 +1,9 @@
 // The `fabrik replay|watch|synth` cores: synthetic trials with gaps, replay onto a SUB socket
 // (inproc and tcp, JSON and MessagePack), --drop parsing, and the watch decoder and tally.
+#include <fcntl.h>
+#include <sys/inotify.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
 #include <catch2/catch.hpp>
@@ -1299,6 +1303,41 @@ TEST_CASE("The check that an output can be written leaves the names alone") {
   std::sort(names.begin(), names.end());
   CHECK(names == std::vector<std::string>{"link.json", "m.trc", "m.trc.filled.csv", "nowhere.json",
                                           "target.json"});
+  fs::remove_all(folder);
+}
+
+TEST_CASE("The check that a new output can be written makes no name a watcher could see") {
+  // It made and removed `.fabrik-write-test-XXXXXX` in the output's folder: a program watching
+  // the folder (a lab's sync tool, an inotify trigger) saw a file come and go.
+  namespace fs = std::filesystem;
+  TempFile marker(".d");
+  const fs::path folder = marker.path();
+  fs::create_directories(folder);
+  const int unnamed = ::open(folder.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0600);
+  if (unnamed < 0) {
+    fs::remove_all(folder);
+    WARN("skipped: this temp folder's filesystem has no unnamed files (O_TMPFILE: "
+         << std::strerror(errno) << "); the check makes a named one there");
+    return;
+  }
+  ::close(unnamed);
+  const int watch = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+  REQUIRE(watch >= 0);
+  REQUIRE(::inotify_add_watch(watch, folder.c_str(), IN_CREATE | IN_DELETE | IN_MOVED_TO) >= 0);
+  CHECK_NOTHROW(fabrik::tools::require_output_folders(
+      {{"--report", (folder / "r.json").string()}, {"--output", (folder / "j.trc").string()}}));
+  // inotify queues an event within the call that caused it: all are readable by now.
+  std::vector<std::string> seen;
+  alignas(inotify_event) char buffer[4096];
+  for (ssize_t n; (n = ::read(watch, buffer, sizeof buffer)) > 0;)
+    for (ssize_t at = 0; at < n;) {
+      const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
+      seen.emplace_back(event->len > 0 ? event->name : "(the folder)");
+      at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
+    }
+  ::close(watch);
+  CHECK(seen.empty());
+  CHECK(fs::is_empty(folder));
   fs::remove_all(folder);
 }
 

@@ -26,10 +26,31 @@ bool same_file(const std::string& a, const std::string& b) {
   return !ec && ca == cb;
 }
 
+// Why no file can be made in `folder`, or "". An unnamed file (O_TMPFILE) is made where the
+// system can: no name appears in the folder, so a program watching it sees nothing. Where it
+// cannot (a filesystem or kernel without it), a named file of our own making, removed at once.
+std::string cannot_make_file_in(const std::filesystem::path& folder) {
+#ifdef O_TMPFILE
+  const int unnamed = ::open(folder.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0600);
+  if (unnamed >= 0) {
+    ::close(unnamed);
+    return {};
+  }
+  // EOPNOTSUPP, EISDIR (a kernel before 3.11) and EINVAL say "not here": the named file then.
+  if (errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL) return std::strerror(errno);
+#endif
+  std::string probe = (folder / ".fabrik-write-test-XXXXXX").string();
+  const int fd = ::mkostemp(probe.data(), O_CLOEXEC);
+  if (fd < 0) return std::strerror(errno);
+  ::close(fd);
+  ::unlink(probe.c_str());
+  return {};
+}
+
 // Why `path` cannot be written, or "": tried, since access() answers root yes where the
 // write then fails (a read-only filesystem, /sys, /proc). An existing regular file is opened
 // for appending, which changes nothing. For a new one, a file of our own making is made in
-// its folder and removed (mkstemp): the name itself is left alone, so another program
+// its folder and removed (cannot_make_file_in): the name itself is left alone, so another program
 // making it meanwhile loses nothing. A link to nothing is followed to where the write would
 // make its file. Other kinds (a pipe, a device) are left to the write: opening a pipe waits
 // for its reader.
@@ -55,12 +76,7 @@ std::string cannot_write(const std::string& path, int links_left = 8) {
   // A name in /dev that is no device is a typo of one (/dev/nul): the write would make a
   // regular file there.
   if (fs::weakly_canonical(fs::absolute(where, ec), ec) == "/dev") return "no such device in /dev";
-  std::string probe = (where / ".fabrik-write-test-XXXXXX").string();
-  const int fd = ::mkostemp(probe.data(), O_CLOEXEC);
-  if (fd < 0) return std::strerror(errno);
-  ::close(fd);
-  ::unlink(probe.c_str());
-  return {};
+  return cannot_make_file_in(where);
 }
 
 }  // namespace

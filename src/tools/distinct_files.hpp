@@ -22,8 +22,8 @@ void require_distinct_files(const std::vector<NamedFile>& files);
 
 // Throws std::invalid_argument naming the option when an output's path is a folder, its
 // folder does not exist or is not one, or the file cannot be written there (an existing file
-// opened to append, a new one's folder by making and removing a file of its own): found at
-// once, not after a solve of minutes.
+// opened to append, a new one's folder by making a file of its own, unnamed where the system
+// can): found at once, not after a solve of minutes.
 void require_output_folders(const std::vector<NamedFile>& files);
 
 // Both, folders first: `sub/../x` with no `sub` is named for its missing folder, not as the
