@@ -74,8 +74,8 @@ struct ScriptedServer {
       sink.labels(labels);
       for (std::size_t i = 0; i < frames_mm.size(); ++i) {
         if (!released_cv.wait(lock, stop, [&] { return allowed > i; })) return;
+        status.frame_delivered();  // as the vendor clients count: before the hand-over
         sink.frame(first_frame + i, static_cast<double>(i) / rate_hz, frames_mm[i]);
-        status.frame_delivered();  // as the vendor clients count
       }
       status.error("scripted server: end of the script");
       released_cv.wait(lock, stop, [] { return false; });
@@ -334,6 +334,9 @@ TEST_CASE(
                           {"LASI", "RASI"});
   bare.labels(std::vector<std::string>{"Subject:LASI", "Subject:RASI", "Other:LASI", "Subject:X"});
   CHECK(bare.names() == std::vector<std::string>{"LASI", "RASI", "Other:LASI", "Subject:X"});
+  // Names taken anew (a reload): the server's names read last are mapped again.
+  bare.retake({"LASI", "X"});
+  CHECK(bare.names() == std::vector<std::string>{"LASI", "Subject:RASI", "Other:LASI", "X"});
 
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
@@ -410,8 +413,8 @@ TEST_CASE(
 }
 
 TEST_CASE(
-    "A reload keeps a source whose options, lab axes and names taken are unchanged, and "
-    "replaces it otherwise",
+    "A reload keeps a source whose options and lab axes are unchanged, and replaces it "
+    "otherwise",
     "[source][daemon][reload]") {
   // Kept, the connection (and the server's frames) carry on across a reload of, say, the
   // solver's options; replaced, the old client is stopped and a new one reads the names anew.
@@ -463,9 +466,9 @@ TEST_CASE(
     reload_with([](DaemonConfig& c) { c.source.subject_prefix = ""; });
     CHECK(clients == 2);
   }
-  SECTION("replaced: a name the daemon takes changed") {
+  SECTION("kept: a name the daemon takes changed (mapped again on the client's thread)") {
     reload_with([](DaemonConfig& c) { c.tracker.markers.front().marker += "_renamed"; });
-    CHECK(clients == 2);
+    CHECK(clients == 1);
   }
   SECTION("replaced: the lab's axes changed (the server's frames are rotated into them)") {
     const std::optional<std::string_view> text = embedded_config("models/fullbody.json");
@@ -477,4 +480,70 @@ TEST_CASE(
     reload_with([&](DaemonConfig& c) { c.tracker.model = z_up; });
     CHECK(clients == 2);
   }
+}
+
+TEST_CASE("A reload that renames a marker keeps the source's connection and takes the new name",
+          "[source][daemon][reload]") {
+  // A renamed marker reconnected the source (a gap in the frames) so that the new client
+  // would map the server's names anew; the kept client now maps them again itself.
+  zmq::context_t context;
+  spdlog::set_level(spdlog::level::err);
+  DaemonConfig base = default_daemon_config();
+  base.input = {"inproc://rename-source-markers", SocketMode::bind};
+  base.output = {"inproc://rename-source-poses", SocketMode::bind};
+  base.stats_interval_s = 0.05;
+  base.source = source_of(R"({"source": "natnet://127.0.0.1"})");  // subject_prefix "*"
+  base.log_level = "error";
+  const Model& model = *base.tracker.model;
+  const std::string first = base.tracker.markers.front().marker;
+  // The server names every marker Subject7:NAME, and has one more, NEW, where the first is.
+  ScriptedServer script;
+  for (const MarkerTarget& t : base.tracker.markers)
+    script.labels.push_back("Subject7:" + t.marker);
+  script.labels.push_back("Subject7:NEW");
+  const Posture rest = Posture::rest(model);
+  for (int i = 0; i < 3; ++i) {
+    std::vector<Eigen::Vector3d> frame_mm;
+    for (const MarkerTarget& t : base.tracker.markers)
+      frame_mm.push_back(rest.point_world_m(model, t.point) * 1e3);
+    frame_mm.push_back(frame_mm.front());
+    script.frames_mm.push_back(frame_mm);
+  }
+  DaemonConfig renamed = base;
+  renamed.tracker.markers.front().marker = "NEW";
+  std::atomic<bool> use_renamed{false};
+  std::atomic<int> clients{0};
+  DaemonThread d(
+      context, base,
+      [&](const SourceConfig&) {
+        ++clients;
+        return script.client();
+      },
+      [&]() -> DaemonConfig { return use_renamed ? renamed : base; });
+  test::SocketClient client(context, base.input.address, base.output.address);
+  REQUIRE(client.receive("stats"));
+  const auto occluded = [](const json& pose) {
+    std::set<std::string> names;
+    for (const json& n : pose["occluded"]) names.insert(n.get<std::string>());
+    return names;
+  };
+  script.allow(1);
+  const auto before = client.receive("pose");
+  REQUIRE(before);
+  CHECK(occluded(*before).empty());  // NEW is no name taken: Subject7:NEW stays whole, unknown
+  use_renamed = true;
+  d.control.reload = true;
+  const auto reloaded = client.stats_until([](const json& s) { return s["reloads"] == 1; });
+  REQUIRE(reloaded);
+  CHECK((*reloaded)["reload_errors"] == 0);
+  script.allow(2);
+  const auto after = client.receive("pose");
+  REQUIRE(after);
+  CHECK((*after)["frame"] == 2);
+  // Subject7:NEW is stripped into the name now taken: NEW is seen, not occluded.
+  CHECK(occluded(*after).empty());
+  CHECK(clients == 1);
+  const auto stats = client.stats_until([](const json& s) { return s["source"]["frames"] == 2; });
+  REQUIRE(stats);
+  CHECK((*stats)["source"]["connections"] == 1);
 }

@@ -456,12 +456,14 @@ void Daemon::attach_sockets(State& next, State* old) {
         [&](std::string_view prefix) { return subscribes_to_our_topics(prefix, next.extra_topics); });
   }
   count_subscribers(next);
-  // A source keeps its connection while neither it, the lab's axes nor the names taken changed.
+  // A source keeps its connection while neither it nor the lab's axes changed; names taken
+  // that changed are mapped again on its thread, from its next frame.
   const SourceConfig& source = next.config.source;
   const LabAxes& lab = next.config.tracker.model->lab_axes;
   if (old && old->source && old->source->config() == source &&
-      old->config.tracker.model->lab_axes == lab && old->source->taken() == next.marker_names) {
+      old->config.tracker.model->lab_axes == lab) {
     next.source = std::move(old->source);
+    next.source->retake(next.marker_names);
   } else if (source.kind != SourceKind::none) {
     next.source = std::make_unique<SourceInput>(
         context_, source, lab, next.marker_names,

@@ -43,14 +43,25 @@ SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab,
       r_lab_server_(lab.r_from(server_axes(source, lab))) {}
 
 void SourceFrames::labels(std::span<const std::string> server_names) {
+  server_names_.assign(server_names.begin(), server_names.end());
+  map_names();
+}
+
+void SourceFrames::retake(std::vector<std::string> taken) {
+  taken_ = std::unordered_set<std::string>(std::make_move_iterator(taken.begin()),
+                                           std::make_move_iterator(taken.end()));
+  map_names();
+}
+
+void SourceFrames::map_names() {
   names_.clear();
   // A name is stripped only into one the daemon takes: another process's subject
   // (Carol:LASI beside Alice and Bob) stays whole, so the daemon sees it as another
   // subject's and not as a marker its config lacks. The server's own taken names come first.
   std::unordered_set<std::string> used;
-  for (const std::string& name : server_names)
+  for (const std::string& name : server_names_)
     if (taken_.contains(name)) used.insert(name);
-  for (const std::string& name : server_names) {
+  for (const std::string& name : server_names_) {
     if (taken_.contains(name)) {
       names_.push_back(name);
       continue;

@@ -35,6 +35,9 @@ class SourceFrames {
   // the daemon takes, not yet given; else it stays whole (Carol:LASI of a subject another
   // process tracks, a marker the config lacks).
   void labels(std::span<const std::string> server_names);
+  // Takes another set of names (a reload changed the config's markers): the server's names
+  // read last are mapped again, for the frames that follow.
+  void retake(std::vector<std::string> taken);
   // Encodes one frame (MessagePack, units m: converted once, here, as the
   // decoder converts a ZeroMQ frame's mm) into `payload`. Positions
   // beyond the labels are ignored; labels beyond the positions are sent as missing.
@@ -44,7 +47,10 @@ class SourceFrames {
 
  private:
   std::string prefix_;
+  void map_names();
+
   std::unordered_set<std::string> taken_;
+  std::vector<std::string> server_names_;
   Eigen::Matrix3d r_lab_server_;
   std::vector<std::string> names_;
   std::vector<Eigen::Vector3d> p_lab_m_;

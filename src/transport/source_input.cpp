@@ -13,14 +13,26 @@ namespace {
 class PushSink final : public bridges::FrameSink {
  public:
   PushSink(zmq::socket_t& push, SourceFrames& frames, bridges::SourceStatus& status,
-           std::atomic<std::uint64_t>& dropped)
-      : push_(push), frames_(frames), status_(status), dropped_(dropped) {
+           std::atomic<std::uint64_t>& dropped, std::function<void(SourceFrames&)> retake)
+      : push_(push),
+        frames_(frames),
+        status_(status),
+        dropped_(dropped),
+        retake_(std::move(retake)) {
     payload_.reserve(1 << 16);
   }
-  void labels(std::span<const std::string> names) override { frames_.labels(names); }
+  void labels(std::span<const std::string> names) override {
+    try {
+      retake_(frames_);
+      frames_.labels(names);
+    } catch (const std::exception& e) {
+      status_.error(std::string("could not take the server's names: ") + e.what());
+    }
+  }
   void frame(std::uint64_t frame_number, double time_s,
              std::span<const Eigen::Vector3d> p_server_mm) override {
     try {
+      retake_(frames_);
       frames_.encode(frame_number, time_s, p_server_mm, payload_);
       if (!push_.send(zmq::buffer(std::string_view("markers")),
                       zmq::send_flags::sndmore | zmq::send_flags::dontwait)) {
@@ -40,6 +52,7 @@ class PushSink final : public bridges::FrameSink {
   SourceFrames& frames_;
   bridges::SourceStatus& status_;
   std::atomic<std::uint64_t>& dropped_;
+  std::function<void(SourceFrames&)> retake_;
   std::string payload_;
 };
 
@@ -54,9 +67,10 @@ SourceInput::SourceInput(zmq::context_t& context, const SourceConfig& source, co
                          std::vector<std::string> taken, SourceClient client)
     : config_(source),
       lab_(lab),
-      taken_(std::move(taken)),
+      taken_(taken),
       endpoint_(fresh_endpoint()),
       pull_(context, zmq::socket_type::pull) {
+  update_.taken = std::move(taken);  // before the thread starts: it reads them first
   pull_.set(zmq::sockopt::linger, 0);
   pull_.set(zmq::sockopt::rcvhwm, kSourceQueueMessages);
   pull_.bind(endpoint_);
@@ -76,12 +90,32 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
     push.set(zmq::sockopt::linger, 0);
     push.set(zmq::sockopt::sndhwm, kSourceQueueMessages);
     push.connect(endpoint_);
-    SourceFrames frames(config_, lab_, taken_);
-    PushSink sink(push, frames, status_, frames_dropped_);
+    std::vector<std::string> taken;
+    {
+      std::lock_guard lock(update_.mutex);
+      taken = update_.taken;
+      update_.pending.store(false, std::memory_order_relaxed);
+    }
+    SourceFrames frames(config_, lab_, std::move(taken));
+    // One atomic load a frame; the lock and the new map only after a reload.
+    PushSink sink(push, frames, status_, frames_dropped_, [this](SourceFrames& f) {
+      if (!update_.pending.load(std::memory_order_acquire)) return;
+      std::lock_guard lock(update_.mutex);
+      f.retake(update_.taken);
+      update_.pending.store(false, std::memory_order_relaxed);
+    });
     client(sink, status_, stop);
   } catch (const std::exception& e) {  // the context went away, or no memory for the socket
     status_.error(std::string("source stopped: ") + e.what());
   }
+}
+
+void SourceInput::retake(std::vector<std::string> taken) {
+  if (taken == taken_) return;
+  taken_ = taken;
+  std::lock_guard lock(update_.mutex);
+  update_.taken = std::move(taken);
+  update_.pending.store(true, std::memory_order_release);
 }
 
 SourceInput::Status SourceInput::status() const {

@@ -5,8 +5,10 @@
 // validated, queued, dropped under overload and counted the same way.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
+#include <mutex>
 #include <stop_token>
 #include <string>
 #include <thread>
@@ -45,7 +47,11 @@ class SourceInput {
 
   zmq::socket_t& socket() { return pull_; }
   const SourceConfig& config() const { return config_; }
+  // The names taken, as last given (by the constructor or retake). The loop's thread only.
   const std::vector<std::string>& taken() const { return taken_; }
+  // A reload changed the names the daemon takes: the client's thread maps the server's names
+  // again before its next frame, the connection kept. The loop's thread only.
+  void retake(std::vector<std::string> taken);
 
   struct Status {
     bridges::SourceStatus::Snapshot connection;
@@ -62,6 +68,13 @@ class SourceInput {
   SourceConfig config_;
   LabAxes lab_;
   std::vector<std::string> taken_;
+  // For the client's thread: retake's names, until its next frame takes them.
+  struct TakenUpdate {
+    std::mutex mutex;
+    std::vector<std::string> taken;
+    std::atomic<bool> pending{false};
+  };
+  TakenUpdate update_;
   std::string endpoint_;
   zmq::socket_t pull_;
   bridges::SourceStatus status_;
