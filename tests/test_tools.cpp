@@ -1602,13 +1602,16 @@ TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not, i
   REQUIRE(fabrik::test::run_fabrik({"synth", "--config", kSourceDir + "/config/default.json",
                                     "--output", trial.path(), "--seconds", "0.05"})
               .first == 0);
-  const auto [code, err] =
-      fabrik::test::run_fabrik({"solve", "--input", trial.path(), "--output", "/dev/null",
-                                "--angles", "/dev/null", "--report", report.path(), "--quiet"});
+  const auto [code, err] = fabrik::test::run_fabrik(
+      {"solve", "--input", trial.path(), "--output", "/dev/null", "--angles", "/dev/null",
+       "--markers", "/dev/null", "--report", report.path(), "--quiet"});
   CAPTURE(err);
   CHECK(code == 0);
   CHECK(json::parse(slurp(report.path())).at("frames").get<int>() == 5);
   CHECK(std::filesystem::is_character_file("/dev/null"));
+  // --markers /dev/null was refused: its FILE.filled.csv would have been a file in /dev. Both
+  // are discarded now, and no such file is made.
+  CHECK_FALSE(std::filesystem::exists("/dev/null.filled.csv"));
 }
 
 TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as missing, as fabrikd") {

@@ -39,26 +39,29 @@ void progress_bar(std::size_t done, std::size_t total) {
 }
 
 void run(const SolveOptions& o) {
+  // --markers to a device (/dev/null, to discard) discards its list of filled runs too: that
+  // FILE.filled.csv would be a regular file in /dev.
+  const std::string filled_csv = o.markers_output.empty() || is_device(o.markers_output)
+                                     ? ""
+                                     : o.markers_output + ".filled.csv";
   // Before the solve, which can take minutes: what the outputs would be is known now.
-  const std::vector<tools::NamedFile> files = {
-      {"--config", o.config, false},
-      {"--input", o.input, false},
-      {"--orientations", o.orientations, false},
-      {"--output", o.output},
-      {"--markers", o.markers_output},
-      {"--markers' FILE.filled.csv",
-       o.markers_output.empty() ? "" : o.markers_output + ".filled.csv"},
-      {"--report", o.report},
-      {"--angles", o.angles}};
+  const std::vector<tools::NamedFile> files = {{"--config", o.config, false},
+                                               {"--input", o.input, false},
+                                               {"--orientations", o.orientations, false},
+                                               {"--output", o.output},
+                                               {"--markers", o.markers_output},
+                                               {"--markers' FILE.filled.csv", filled_csv},
+                                               {"--report", o.report},
+                                               {"--angles", o.angles}};
   // The extension says what is written; a device (/dev/null, to discard) has none to say.
-  // Not --markers: its FILE.filled.csv beside a device would be a file in /dev.
   const auto require_trc_or_csv = [](const char* option, const std::string& path) {
     if (!has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
       throw std::invalid_argument(std::string(option) + ": '" + path +
                                   "': unknown output format: use .trc or .csv");
   };
   if (!is_device(o.output)) require_trc_or_csv("--output", o.output);
-  if (!o.markers_output.empty()) require_trc_or_csv("--markers", o.markers_output);
+  if (!o.markers_output.empty() && !is_device(o.markers_output))
+    require_trc_or_csv("--markers", o.markers_output);
   if (!o.angles.empty() && !is_device(o.angles) && !has_suffix_ci(o.angles, ".mot") &&
       !has_suffix_ci(o.angles, ".sto"))
     throw std::invalid_argument("--angles: '" + o.angles +
@@ -133,7 +136,7 @@ void run(const SolveOptions& o) {
   write_trial_file(o.output, s.joints);
   if (!o.markers_output.empty()) {
     write_trial_file(o.markers_output, s.markers);
-    write_filled_csv(o.markers_output + ".filled.csv", s, trial);
+    if (!filled_csv.empty()) write_filled_csv(filled_csv, s, trial);
   }
   // Without coordinates there is no table to write; the run and its summary
   // still stand, and the refusal comes after them.
@@ -172,8 +175,7 @@ void run(const SolveOptions& o) {
   std::size_t filled_samples = 0;
   for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
   std::printf("gaps filled       %zu samples in %zu runs (both sides)%s\n", filled_samples,
-              s.filled.size(),
-              o.markers_output.empty() ? "" : (": " + o.markers_output + ".filled.csv").c_str());
+              s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str());
   if (!s.missing_in_trial.empty())
     std::printf("not in the trial   %zu tracked markers (%s...)\n", s.missing_in_trial.size(),
                 s.missing_in_trial.front().c_str());
