@@ -252,7 +252,7 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       {"tcp2://127.0.0.1:5555", "bind", "transport 'tcp2'"},
       {"tcp2://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},
       {"connect:tcp://127.0.0.1:5555", "bind", "Fix: give the mode apart: \"mode\" in a config"},
-      // A lower-case word no libzmq has: a typo, which failed only at the bind.
+      // A lower-case word no libzmq has (a typo) is refused here, with its fix, not at the bind.
       {"tpc://127.0.0.1:5555", "bind",
        "transport 'tpc' of 'tpc://127.0.0.1:5555' is not one ZeroMQ has (tcp, ipc, inproc,"},
       {"tpc://127.0.0.1:5555", "bind",

@@ -484,8 +484,8 @@ TEST_CASE(
 
 TEST_CASE("A reload that renames a marker keeps the source's connection and takes the new name",
           "[source][daemon][reload]") {
-  // A renamed marker reconnected the source (a gap in the frames) so that the new client
-  // would map the server's names anew; the kept client now maps them again itself.
+  // A reconnect would leave a gap in the frames: the kept client maps the server's names
+  // again itself, so a marker renamed to a server's name is seen from the next frame.
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
   DaemonConfig base = default_daemon_config();

@@ -385,8 +385,8 @@ TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is
     CHECK(after_restart >= 1);  // streaming resumed after the restart
     // The stats: two connections (one reconnect), the renamed marker unknown, no frame lost by
     // fabrikd.
-    // A client counts a frame before handing it over (the client tests check it), so any stats
-    // after the last pose count all its frames; CI once saw 286 for 287 when it counted after.
+    // A client counts a frame before handing it over (the client tests check it): stats sent
+    // after the last pose count every frame posed. The wait bounds the reconnect's stats.
     const std::size_t posed = got.poses.size();
     const auto stats = client.stats_until(
         [posed](const json& s) {

@@ -1307,8 +1307,8 @@ TEST_CASE("The check that an output can be written leaves the names alone") {
 }
 
 TEST_CASE("The check that a new output can be written makes no name a watcher could see") {
-  // It made and removed `.fabrik-write-test-XXXXXX` in the output's folder: a program watching
-  // the folder (a lab's sync tool, an inotify trigger) saw a file come and go.
+  // A program watching the output's folder (a lab's sync tool, an inotify trigger) must see
+  // no file come and go: the check's own file has no name where the system allows it.
   namespace fs = std::filesystem;
   TempFile marker(".d");
   const fs::path folder = marker.path();

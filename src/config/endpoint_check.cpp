@@ -37,8 +37,9 @@ struct EndpointParts {
   std::string_view scheme, host_port;
 };
 
-// Every transport a libzmq may have; which of them this one has depends on its build (ws, pgm,
-// norm, ...), left to its EPROTONOSUPPORT at the bind (open_socket's fix).
+// Every transport of libzmq 4.3, drafts included (a later one's vsock would need adding);
+// which of them this one has depends on its build (ws, pgm, norm, ...), left to its
+// EPROTONOSUPPORT at the bind (open_socket's fix).
 constexpr std::array<std::string_view, 11> kZmqTransports = {
     "tcp", "ipc", "inproc", "udp", "ws", "wss", "pgm", "epgm", "norm", "tipc", "vmci"};
 

@@ -26,18 +26,17 @@ bool same_file(const std::string& a, const std::string& b) {
   return !ec && ca == cb;
 }
 
-// Why no file can be made in `folder`, or "". An unnamed file (O_TMPFILE) is made where the
-// system can: no name appears in the folder, so a program watching it sees nothing. Where it
-// cannot (a filesystem or kernel without it), a named file of our own making, removed at once.
+// Why no file can be made in `folder`, or "". An unnamed file (O_TMPFILE; O_EXCL: never to be
+// linked) is made where the system can: no name appears in the folder, so a program watching
+// it sees nothing. On any failure (a filesystem or kernel without it: EOPNOTSUPP, EISDIR) a
+// named file of our own making is tried, removed at once; a real failure fails there too.
 std::string cannot_make_file_in(const std::filesystem::path& folder) {
 #ifdef O_TMPFILE
-  const int unnamed = ::open(folder.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0600);
+  const int unnamed = ::open(folder.c_str(), O_TMPFILE | O_EXCL | O_WRONLY | O_CLOEXEC, 0600);
   if (unnamed >= 0) {
     ::close(unnamed);
     return {};
   }
-  // EOPNOTSUPP, EISDIR (a kernel before 3.11) and EINVAL say "not here": the named file then.
-  if (errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL) return std::strerror(errno);
 #endif
   std::string probe = (folder / ".fabrik-write-test-XXXXXX").string();
   const int fd = ::mkostemp(probe.data(), O_CLOEXEC);

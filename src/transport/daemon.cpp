@@ -424,6 +424,8 @@ void Daemon::attach_sockets(State& next, State* old) {
   };
   const bool keep_sub = old && same(old->config.input, next.config.input);
   const bool keep_pub = old && same(old->config.output, next.config.output);
+  // Copied before anything is taken over from `old`: the copy may throw, the hand-over not.
+  std::vector<std::string> source_names = next.marker_names;
   // Each monitor watches before its socket connects. Should the bind or connect throw,
   // the State goes with its sockets, each monitor first (declared after its socket).
   if (!keep_sub) {
@@ -463,10 +465,10 @@ void Daemon::attach_sockets(State& next, State* old) {
   if (old && old->source && old->source->config() == source &&
       old->config.tracker.model->lab_axes == lab) {
     next.source = std::move(old->source);
-    next.source->retake(next.marker_names);
+    next.source->retake(std::move(source_names));
   } else if (source.kind != SourceKind::none) {
     next.source = std::make_unique<SourceInput>(
-        context_, source, lab, next.marker_names,
+        context_, source, lab, std::move(source_names),
         source_client_ ? source_client_(source) : make_source_client(source));
     spdlog::info("source {}: connecting", safe_text(source.url, 128));
   }

@@ -48,13 +48,17 @@ void SourceFrames::labels(std::span<const std::string> server_names) {
 }
 
 void SourceFrames::retake(std::vector<std::string> taken) {
-  taken_ = std::unordered_set<std::string>(std::make_move_iterator(taken.begin()),
-                                           std::make_move_iterator(taken.end()));
+  std::unordered_set<std::string> set(std::make_move_iterator(taken.begin()),
+                                      std::make_move_iterator(taken.end()));
+  taken_.swap(set);
   map_names();
 }
 
+// Built aside and swapped in: should an allocation throw, the names and the arrays encode()
+// indexes by them keep one length.
 void SourceFrames::map_names() {
-  names_.clear();
+  std::vector<std::string> names;
+  names.reserve(server_names_.size());
   // A name is stripped only into one the daemon takes: another process's subject
   // (Carol:LASI beside Alice and Bob) stays whole, so the daemon sees it as another
   // subject's and not as a marker its config lacks. The server's own taken names come first.
@@ -63,15 +67,18 @@ void SourceFrames::map_names() {
     if (taken_.contains(name)) used.insert(name);
   for (const std::string& name : server_names_) {
     if (taken_.contains(name)) {
-      names_.push_back(name);
+      names.push_back(name);
       continue;
     }
     std::string stripped = strip_subject_prefix(name, prefix_);
     const bool take = taken_.contains(stripped) && used.insert(stripped).second;
-    names_.push_back(take ? std::move(stripped) : name);
+    names.push_back(take ? std::move(stripped) : name);
   }
-  p_lab_m_.assign(names_.size(), Eigen::Vector3d::Zero());
-  visible_.assign(names_.size(), 0);
+  std::vector<Eigen::Vector3d> p_lab_m(names.size(), Eigen::Vector3d::Zero());
+  std::vector<std::uint8_t> visible(names.size(), 0);
+  names_.swap(names);
+  p_lab_m_.swap(p_lab_m);
+  visible_.swap(visible);
 }
 
 void SourceFrames::encode(std::uint64_t frame_number, double time_s,

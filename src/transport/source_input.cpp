@@ -67,7 +67,6 @@ SourceInput::SourceInput(zmq::context_t& context, const SourceConfig& source, co
                          std::vector<std::string> taken, SourceClient client)
     : config_(source),
       lab_(lab),
-      taken_(taken),
       endpoint_(fresh_endpoint()),
       pull_(context, zmq::socket_type::pull) {
   update_.taken = std::move(taken);  // before the thread starts: it reads them first
@@ -90,19 +89,19 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
     push.set(zmq::sockopt::linger, 0);
     push.set(zmq::sockopt::sndhwm, kSourceQueueMessages);
     push.connect(endpoint_);
-    std::vector<std::string> taken;
-    {
+    // The names are moved out under the lock and mapped outside it: the loop's retake waits
+    // for no more than a swap.
+    const auto take_names = [this] {
+      std::vector<std::string> taken;
       std::lock_guard lock(update_.mutex);
-      taken = update_.taken;
+      taken.swap(update_.taken);
       update_.pending.store(false, std::memory_order_relaxed);
-    }
-    SourceFrames frames(config_, lab_, std::move(taken));
+      return taken;
+    };
+    SourceFrames frames(config_, lab_, take_names());
     // One atomic load a frame; the lock and the new map only after a reload.
-    PushSink sink(push, frames, status_, frames_dropped_, [this](SourceFrames& f) {
-      if (!update_.pending.load(std::memory_order_acquire)) return;
-      std::lock_guard lock(update_.mutex);
-      f.retake(update_.taken);
-      update_.pending.store(false, std::memory_order_relaxed);
+    PushSink sink(push, frames, status_, frames_dropped_, [this, &take_names](SourceFrames& f) {
+      if (update_pending()) f.retake(take_names());
     });
     client(sink, status_, stop);
   } catch (const std::exception& e) {  // the context went away, or no memory for the socket
@@ -111,10 +110,8 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
 }
 
 void SourceInput::retake(std::vector<std::string> taken) {
-  if (taken == taken_) return;
-  taken_ = taken;
   std::lock_guard lock(update_.mutex);
-  update_.taken = std::move(taken);
+  update_.taken.swap(taken);  // the names replaced go with `taken`, after the lock
   update_.pending.store(true, std::memory_order_release);
 }
 

@@ -47,10 +47,9 @@ class SourceInput {
 
   zmq::socket_t& socket() { return pull_; }
   const SourceConfig& config() const { return config_; }
-  // The names taken, as last given (by the constructor or retake). The loop's thread only.
-  const std::vector<std::string>& taken() const { return taken_; }
-  // A reload changed the names the daemon takes: the client's thread maps the server's names
-  // again before its next frame, the connection kept. The loop's thread only.
+  // A reload may have changed the names the daemon takes: the client's thread maps the
+  // server's names again before its next frame, the connection kept. Frames already queued
+  // for the loop are read with the new names. The loop's thread only; does not allocate.
   void retake(std::vector<std::string> taken);
 
   struct Status {
@@ -64,10 +63,10 @@ class SourceInput {
 
  private:
   void run(std::stop_token stop, zmq::context_t& context, SourceClient client);
+  bool update_pending() const { return update_.pending.load(std::memory_order_acquire); }
 
   SourceConfig config_;
   LabAxes lab_;
-  std::vector<std::string> taken_;
   // For the client's thread: retake's names, until its next frame takes them.
   struct TakenUpdate {
     std::mutex mutex;
