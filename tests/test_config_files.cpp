@@ -260,7 +260,10 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
        "\"tcp://127.0.0.1:5555\""},
       {"ipcc:///tmp/f.sock", "connect", "Fix: write \"ipc:///tmp/f.sock\""},
       {"zmq://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},
-      {"norm://127.0.0.1:5555", "bind", ""},    // ZeroMQ's, if its build has it
+      {"norm://127.0.0.1:5555", "bind", ""},  // ZeroMQ's, if its build has it
+      // ZeroMQ's udp is for RADIO/DISH sockets: a PUB or SUB fails at the bind.
+      {"udp://127.0.0.1:5555", "bind", "udp:// serves RADIO and DISH sockets only"},
+      {"udp://127.0.0.1:5555", "connect", "Fix: use tcp://, or pgm:// or epgm:// for multicast"},
       {"ipc:///tmp/fabrik:99999", "bind", ""},  // a path: ZeroMQ's business
       {"inproc://markers:-1", "connect", ""},
   };

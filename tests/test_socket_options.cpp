@@ -98,6 +98,17 @@ TEST_CASE("Opening a socket: a taken port, an address not of this machine and an
   CHECK(no_transport->error == EPROTONOSUPPORT);
   CHECK_THAT(no_transport->fix, Catch::StartsWith("use a transport this ZeroMQ knows: tcp://") &&
                                     Catch::EndsWith("here or with --input"));
+  // udp:// is ZeroMQ's for RADIO and DISH sockets: a SUB's bind fails ("The protocol is not
+  // compatible with the socket type"), and the fix says what to use instead.
+  const auto udp = wire::open_socket(s, "udp://127.0.0.1:5599", SocketMode::bind, advice);
+  REQUIRE(udp);
+  if (udp->error == EPROTONOSUPPORT) {
+    WARN("SKIPPED the udp part: this libzmq was built without udp://");
+  } else {
+    CHECK(udp->error == ENOCOMPATPROTO);
+    CHECK_THAT(udp->fix, Catch::StartsWith("ZeroMQ's udp:// serves RADIO and DISH sockets only") &&
+                             Catch::EndsWith("here or with --input"));
+  }
 
   const auto elsewhere = wire::open_socket(s, "tcp://192.0.2.1:5555", SocketMode::bind, {});
   REQUIRE(elsewhere);

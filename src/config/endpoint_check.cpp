@@ -227,6 +227,13 @@ std::optional<EndpointProblem> endpoint_problem(std::string_view address, Socket
   if (std::find(kZmqTransports.begin(), kZmqTransports.end(), parts->scheme) ==
       kZmqTransports.end())
     return unknown_transport(address, parts->scheme);
+  // ZeroMQ takes udp for RADIO and DISH sockets only; every endpoint fabrikd and its tools
+  // open is PUB/SUB (the bind fails: "The protocol is not compatible with the socket type").
+  if (parts->scheme == "udp")
+    return EndpointProblem{quoted +
+                               ": ZeroMQ's udp:// serves RADIO and DISH sockets only, and "
+                               "fabrikd's are PUB and SUB",
+                           "use tcp://, or pgm:// or epgm:// for multicast"};
   if (!transport_has_port(parts->scheme)) return std::nullopt;
   const auto split = split_port(parts->host_port);
   if (!split) return EndpointProblem{quoted + " has no port", "add one: " + std::string(kPortFix)};

@@ -22,8 +22,12 @@ std::string fix_for(int error, const OpenAdvice& a) {
     case EACCES:
       return "use a port above 1023, or a path you may write for ipc://";
     case EPROTONOSUPPORT:
-      return "use a transport this ZeroMQ knows: tcp://, ipc:// or inproc:// (udp://, ws:// and "
-             "pgm:// only where libzmq was built with them)" +
+      return "use a transport this ZeroMQ knows: tcp://, ipc:// or inproc:// (ws:// and pgm:// "
+             "only where libzmq was built with them)" +
+             change;
+    case ENOCOMPATPROTO:  // udp:// on a PUB/SUB socket
+      return "ZeroMQ's udp:// serves RADIO and DISH sockets only: use tcp://, or pgm:// or "
+             "epgm:// for multicast" +
              change;
     default:
       return "check the endpoint (transport://address:port)" + change;
