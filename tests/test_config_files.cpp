@@ -264,6 +264,7 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       // ZeroMQ's udp is for RADIO/DISH sockets: a PUB or SUB fails at the bind.
       {"udp://127.0.0.1:5555", "bind", "udp:// serves RADIO and DISH sockets only"},
       {"udp://127.0.0.1:5555", "connect", "Fix: use tcp://, or pgm:// or epgm:// for multicast"},
+      {"upd://127.0.0.1:5555", "bind", "Fix: write tcp://, ipc:// or inproc://"},  // not udp
       {"ipc:///tmp/fabrik:99999", "bind", ""},  // a path: ZeroMQ's business
       {"inproc://markers:-1", "connect", ""},
   };

@@ -1609,8 +1609,8 @@ TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not, i
   CHECK(code == 0);
   CHECK(json::parse(slurp(report.path())).at("frames").get<int>() == 5);
   CHECK(std::filesystem::is_character_file("/dev/null"));
-  // --markers /dev/null was refused: its FILE.filled.csv would have been a file in /dev. Both
-  // are discarded now, and no such file is made.
+  // --markers /dev/null discards the markers and their list of filled runs: a FILE.filled.csv
+  // beside a device would be a regular file in /dev.
   CHECK_FALSE(std::filesystem::exists("/dev/null.filled.csv"));
 }
 

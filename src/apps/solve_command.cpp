@@ -215,7 +215,7 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--output", o->output, "Joint centres, .trc (mm) or .csv")->required();
   c->add_option("--markers", o->markers_output,
                 "Also write the model's markers, gaps filled from both sides, .trc or .csv "
-                "(and FILE.filled.csv: the filled samples per marker)");
+                "(and FILE.filled.csv: the filled samples per marker; /dev/null discards both)");
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_option("--angles", o->angles,
                 "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");

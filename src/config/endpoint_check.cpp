@@ -180,7 +180,7 @@ EndpointProblem unknown_transport(std::string_view address, std::string_view sch
   int near_count = 0;
   for (const std::string_view t : kZmqTransports) {
     all += (all.empty() ? "" : ", ") + std::string(t);
-    if (typo_distance(scheme, t) > 1) continue;
+    if (t == "udp" || typo_distance(scheme, t) > 1) continue;  // udp: refused below
     near += (near.empty() ? "" : ", ") + std::string(t) + "://";
     if (near_count++ == 0) first_near = t;
   }

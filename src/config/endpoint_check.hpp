@@ -18,7 +18,8 @@ struct EndpointProblem {
 };
 
 // What is wrong with `address` for a socket in `mode`, or nothing. Checked:
-// transport://address form; for tcp, udp, ws, wss, pgm and epgm the port of
+// transport://address form; a transport of libzmq 4.3 other than udp (which
+// serves RADIO/DISH sockets only); for tcp, ws, wss, pgm and epgm the port of
 // the (last) destination. Other transports (ipc, inproc, ...) are left to
 // ZeroMQ.
 std::optional<EndpointProblem> endpoint_problem(std::string_view address, SocketMode mode);

@@ -424,8 +424,12 @@ void Daemon::attach_sockets(State& next, State* old) {
   };
   const bool keep_sub = old && same(old->config.input, next.config.input);
   const bool keep_pub = old && same(old->config.output, next.config.output);
-  // Copied before anything is taken over from `old`: the copy may throw, the hand-over not.
-  std::vector<std::string> source_names = next.marker_names;
+  // A source keeps its connection while neither it nor the lab's axes changed; names taken
+  // that changed are mapped again on its thread, from its next frame.
+  const SourceConfig& source = next.config.source;
+  const LabAxes& lab = next.config.tracker.model->lab_axes;
+  const bool keep_source = old && old->source && old->source->config() == source &&
+                           old->config.tracker.model->lab_axes == lab;
   // Each monitor watches before its socket connects. Should the bind or connect throw,
   // the State goes with its sockets, each monitor first (declared after its socket).
   if (!keep_sub) {
@@ -441,6 +445,13 @@ void Daemon::attach_sockets(State& next, State* old) {
     if (next.config.output.mode == SocketMode::connect) next.revival = OutputRevival(context_, next.pub);
     open_endpoint(next.pub, zmq::socket_type::xpub, next.config);
   }
+  // What may throw (a copy, a new source's thread and bind) before anything is taken over.
+  std::vector<std::string> source_names = next.marker_names;
+  std::unique_ptr<SourceInput> new_source;
+  if (!keep_source && source.kind != SourceKind::none)
+    new_source = std::make_unique<SourceInput>(
+        context_, source, lab, std::move(source_names),
+        source_client_ ? source_client_(source) : make_source_client(source));
   if (keep_sub) {
     // New limits hold for connections made from now on; the decoder checks
     // the payload limit on every message anyway.
@@ -458,18 +469,11 @@ void Daemon::attach_sockets(State& next, State* old) {
         [&](std::string_view prefix) { return subscribes_to_our_topics(prefix, next.extra_topics); });
   }
   count_subscribers(next);
-  // A source keeps its connection while neither it nor the lab's axes changed; names taken
-  // that changed are mapped again on its thread, from its next frame.
-  const SourceConfig& source = next.config.source;
-  const LabAxes& lab = next.config.tracker.model->lab_axes;
-  if (old && old->source && old->source->config() == source &&
-      old->config.tracker.model->lab_axes == lab) {
+  if (keep_source) {
     next.source = std::move(old->source);
     next.source->retake(std::move(source_names));
-  } else if (source.kind != SourceKind::none) {
-    next.source = std::make_unique<SourceInput>(
-        context_, source, lab, std::move(source_names),
-        source_client_ ? source_client_(source) : make_source_client(source));
+  } else if (new_source) {
+    next.source = std::move(new_source);
     spdlog::info("source {}: connecting", safe_text(source.url, 128));
   }
 }

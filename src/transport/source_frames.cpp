@@ -47,11 +47,16 @@ void SourceFrames::labels(std::span<const std::string> server_names) {
   map_names();
 }
 
-void SourceFrames::retake(std::vector<std::string> taken) {
-  std::unordered_set<std::string> set(std::make_move_iterator(taken.begin()),
-                                      std::make_move_iterator(taken.end()));
+// All or nothing: should an allocation throw, the names taken and their map stay the old ones.
+void SourceFrames::retake(const std::vector<std::string>& taken) {
+  std::unordered_set<std::string> set(taken.begin(), taken.end());
   taken_.swap(set);
-  map_names();
+  try {
+    map_names();
+  } catch (...) {
+    taken_.swap(set);
+    throw;
+  }
 }
 
 // Built aside and swapped in: should an allocation throw, the names and the arrays encode()

@@ -37,7 +37,7 @@ class SourceFrames {
   void labels(std::span<const std::string> server_names);
   // Takes another set of names (a reload changed the config's markers): the server's names
   // read last are mapped again, for the frames that follow.
-  void retake(std::vector<std::string> taken);
+  void retake(const std::vector<std::string>& taken);
   // Encodes one frame (MessagePack, units m: converted once, here, as the
   // decoder converts a ZeroMQ frame's mm) into `payload`. Positions
   // beyond the labels are ignored; labels beyond the positions are sent as missing.

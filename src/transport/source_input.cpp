@@ -101,7 +101,18 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
     SourceFrames frames(config_, lab_, take_names());
     // One atomic load a frame; the lock and the new map only after a reload.
     PushSink sink(push, frames, status_, frames_dropped_, [this, &take_names](SourceFrames& f) {
-      if (update_pending()) f.retake(take_names());
+      if (!update_pending()) return;
+      std::vector<std::string> names = take_names();
+      try {
+        f.retake(names);
+      } catch (...) {  // no memory: the names wait for the next frame, unless newer ones came
+        std::lock_guard lock(update_.mutex);
+        if (!update_.pending.load(std::memory_order_relaxed)) {
+          update_.taken.swap(names);
+          update_.pending.store(true, std::memory_order_release);
+        }
+        throw;
+      }
     });
     client(sink, status_, stop);
   } catch (const std::exception& e) {  // the context went away, or no memory for the socket
