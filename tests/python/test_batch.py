@@ -180,6 +180,9 @@ def test_a_rerun_skips_what_is_done_and_redoes_what_is_not(tmp_path):
     os.remove(out / "subj02" / "walk03.angles.mot")
     os.mkdir(out / "subj01" / ".walk01.partial")
     os.replace(out / "subj01" / "walk01.report.json", out / "subj01" / ".walk01.partial" / "walk01.report.json")
+    # A trial half-written under hidden names beside its outputs (as batches wrote before the
+    # staging folder) leaves none of them once it runs again.
+    (out / "subj01" / ".walk01.joints.partial.trc").write_text("a half-written joints file\n")
     code, log = batch(root, out, "--workers", "1")
     assert code == 0 and "6 done already (skipped), 2 to run" in log
     rows = summary(out)

@@ -301,7 +301,9 @@ def _solve_trial(job, calibration, started):
     staging = os.path.join(os.path.dirname(outputs["report"]),
                            "." + os.path.basename(job["trial"]) + ".partial")
     partial = {k: os.path.join(staging, os.path.basename(outputs[k])) for k in kinds}
-    _remove(outputs.values())  # a half-written trial starts over
+    # A half-written trial starts over, hidden names beside its outputs included (where batches
+    # before the staging folder wrote them).
+    _remove(list(outputs.values()) + [_partial(p) for p in outputs.values()])
     shutil.rmtree(staging, ignore_errors=True)
     os.makedirs(staging)
     cmd = [job["fabrik"], "solve", "--config", calibration["config"], "--input", job["input"],
