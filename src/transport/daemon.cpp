@@ -446,7 +446,8 @@ void Daemon::attach_sockets(State& next, State* old) {
     open_endpoint(next.pub, zmq::socket_type::xpub, next.config);
   }
   // What may throw (a copy, a new source's thread and bind) before anything is taken over.
-  std::vector<std::string> source_names = next.marker_names;
+  std::vector<std::string> source_names;
+  if (source.kind != SourceKind::none) source_names = next.marker_names;
   std::unique_ptr<SourceInput> new_source;
   if (!keep_source && source.kind != SourceKind::none)
     new_source = std::make_unique<SourceInput>(

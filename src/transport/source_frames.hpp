@@ -46,9 +46,9 @@ class SourceFrames {
   const std::vector<std::string>& names() const { return names_; }
 
  private:
-  std::string prefix_;
   void map_names();
 
+  std::string prefix_;
   std::unordered_set<std::string> taken_;
   std::vector<std::string> server_names_;
   Eigen::Matrix3d r_lab_server_;

@@ -13,17 +13,13 @@ namespace {
 class PushSink final : public bridges::FrameSink {
  public:
   PushSink(zmq::socket_t& push, SourceFrames& frames, bridges::SourceStatus& status,
-           std::atomic<std::uint64_t>& dropped, std::function<void(SourceFrames&)> retake)
-      : push_(push),
-        frames_(frames),
-        status_(status),
-        dropped_(dropped),
-        retake_(std::move(retake)) {
+           std::atomic<std::uint64_t>& dropped, PendingNames& taken)
+      : push_(push), frames_(frames), status_(status), dropped_(dropped), taken_(taken) {
     payload_.reserve(1 << 16);
   }
   void labels(std::span<const std::string> names) override {
     try {
-      retake_(frames_);
+      taken_.apply_to(frames_);
       frames_.labels(names);
     } catch (const std::exception& e) {
       status_.error(std::string("could not take the server's names: ") + e.what());
@@ -32,7 +28,7 @@ class PushSink final : public bridges::FrameSink {
   void frame(std::uint64_t frame_number, double time_s,
              std::span<const Eigen::Vector3d> p_server_mm) override {
     try {
-      retake_(frames_);
+      taken_.apply_to(frames_);
       frames_.encode(frame_number, time_s, p_server_mm, payload_);
       if (!push_.send(zmq::buffer(std::string_view("markers")),
                       zmq::send_flags::sndmore | zmq::send_flags::dontwait)) {
@@ -52,7 +48,7 @@ class PushSink final : public bridges::FrameSink {
   SourceFrames& frames_;
   bridges::SourceStatus& status_;
   std::atomic<std::uint64_t>& dropped_;
-  std::function<void(SourceFrames&)> retake_;
+  PendingNames& taken_;
   std::string payload_;
 };
 
@@ -69,7 +65,7 @@ SourceInput::SourceInput(zmq::context_t& context, const SourceConfig& source, co
       lab_(lab),
       endpoint_(fresh_endpoint()),
       pull_(context, zmq::socket_type::pull) {
-  update_.taken = std::move(taken);  // before the thread starts: it reads them first
+  taken_.put(std::move(taken));  // before the thread starts: it takes them first
   pull_.set(zmq::sockopt::linger, 0);
   pull_.set(zmq::sockopt::rcvhwm, kSourceQueueMessages);
   pull_.bind(endpoint_);
@@ -89,31 +85,8 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
     push.set(zmq::sockopt::linger, 0);
     push.set(zmq::sockopt::sndhwm, kSourceQueueMessages);
     push.connect(endpoint_);
-    // The names are moved out under the lock and mapped outside it: the loop's retake waits
-    // for no more than a swap.
-    const auto take_names = [this] {
-      std::vector<std::string> taken;
-      std::lock_guard lock(update_.mutex);
-      taken.swap(update_.taken);
-      update_.pending.store(false, std::memory_order_relaxed);
-      return taken;
-    };
-    SourceFrames frames(config_, lab_, take_names());
-    // One atomic load a frame; the lock and the new map only after a reload.
-    PushSink sink(push, frames, status_, frames_dropped_, [this, &take_names](SourceFrames& f) {
-      if (!update_pending()) return;
-      std::vector<std::string> names = take_names();
-      try {
-        f.retake(names);
-      } catch (...) {  // no memory: the names wait for the next frame, unless newer ones came
-        std::lock_guard lock(update_.mutex);
-        if (!update_.pending.load(std::memory_order_relaxed)) {
-          update_.taken.swap(names);
-          update_.pending.store(true, std::memory_order_release);
-        }
-        throw;
-      }
-    });
+    SourceFrames frames(config_, lab_, taken_.take());
+    PushSink sink(push, frames, status_, frames_dropped_, taken_);
     client(sink, status_, stop);
   } catch (const std::exception& e) {  // the context went away, or no memory for the socket
     status_.error(std::string("source stopped: ") + e.what());
@@ -121,9 +94,37 @@ void SourceInput::run(std::stop_token stop, zmq::context_t& context, SourceClien
 }
 
 void SourceInput::retake(std::vector<std::string> taken) {
-  std::lock_guard lock(update_.mutex);
-  update_.taken.swap(taken);  // the names replaced go with `taken`, after the lock
-  update_.pending.store(true, std::memory_order_release);
+  taken_.put(std::move(taken));
+}
+
+void PendingNames::put(std::vector<std::string> names) {
+  std::lock_guard lock(mutex_);
+  names_.swap(names);  // the names replaced leave with `names`, after the lock
+  pending_.store(true, std::memory_order_release);
+}
+
+std::vector<std::string> PendingNames::take() {
+  std::vector<std::string> names;
+  std::lock_guard lock(mutex_);
+  names.swap(names_);
+  pending_.store(false, std::memory_order_relaxed);
+  return names;
+}
+
+// Mapped outside the lock: the loop's put waits for no more than a swap.
+void PendingNames::apply_to(SourceFrames& frames) {
+  if (!pending_.load(std::memory_order_acquire)) return;
+  std::vector<std::string> names = take();
+  try {
+    frames.retake(names);
+  } catch (...) {
+    std::lock_guard lock(mutex_);
+    if (!pending_.load(std::memory_order_relaxed)) {
+      names_.swap(names);
+      pending_.store(true, std::memory_order_release);
+    }
+    throw;
+  }
 }
 
 SourceInput::Status SourceInput::status() const {

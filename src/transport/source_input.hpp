@@ -33,6 +33,26 @@ SourceClient make_source_client(const SourceConfig& source);
 // queue, ZMQ_SNDHWM) are dropped at the source and counted.
 constexpr int kSourceQueueMessages = 1000;
 
+class SourceFrames;
+
+// Names a reload gives the loop's thread hands to a source's client thread, which takes them
+// before its next frame: one atomic load a frame, the lock only to swap.
+class PendingNames {
+ public:
+  // The loop's thread. Does not allocate: the names replaced leave with the argument.
+  void put(std::vector<std::string> names);
+  // The client's thread: the names, pending or not (at its start).
+  std::vector<std::string> take();
+  // The client's thread: maps `frames` to the pending names, if any. All or nothing: should
+  // an allocation throw, the names wait for the next frame (unless newer ones came).
+  void apply_to(SourceFrames& frames);
+
+ private:
+  std::mutex mutex_;
+  std::vector<std::string> names_;
+  std::atomic<bool> pending_{false};
+};
+
 class SourceInput {
  public:
   // Binds a PULL socket at a fresh inproc address (the loop polls socket())
@@ -63,17 +83,10 @@ class SourceInput {
 
  private:
   void run(std::stop_token stop, zmq::context_t& context, SourceClient client);
-  bool update_pending() const { return update_.pending.load(std::memory_order_acquire); }
 
   SourceConfig config_;
   LabAxes lab_;
-  // For the client's thread: retake's names, until its next frame takes them.
-  struct TakenUpdate {
-    std::mutex mutex;
-    std::vector<std::string> taken;
-    std::atomic<bool> pending{false};
-  };
-  TakenUpdate update_;
+  PendingNames taken_;  // for the client's thread
   std::string endpoint_;
   zmq::socket_t pull_;
   bridges::SourceStatus status_;
