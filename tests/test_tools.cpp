@@ -2,6 +2,7 @@
 // (inproc and tcp, JSON and MessagePack), --drop parsing, and the watch decoder and tally.
 #include <fcntl.h>
 #include <sys/inotify.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -1306,6 +1307,24 @@ TEST_CASE("The check that an output can be written leaves the names alone") {
   fs::remove_all(folder);
 }
 
+namespace {
+
+// The names in the events an inotify watch holds (each is queued within the call that caused
+// it: all are readable by now), "(the folder)" for its own.
+std::vector<std::string> names_seen(int watch) {
+  std::vector<std::string> seen;
+  alignas(inotify_event) char buffer[4096];
+  for (ssize_t n; (n = ::read(watch, buffer, sizeof buffer)) > 0;)
+    for (ssize_t at = 0; at < n;) {
+      const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
+      seen.emplace_back(event->len > 0 ? event->name : "(the folder)");
+      at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
+    }
+  return seen;
+}
+
+}  // namespace
+
 TEST_CASE("The check that a new output can be written makes no name a watcher could see") {
   // A program watching the output's folder (a lab's sync tool, an inotify trigger) must see
   // no file come and go: the check's own file has no name where the system allows it.
@@ -1326,18 +1345,34 @@ TEST_CASE("The check that a new output can be written makes no name a watcher co
   REQUIRE(::inotify_add_watch(watch, folder.c_str(), IN_CREATE | IN_DELETE | IN_MOVED_TO) >= 0);
   CHECK_NOTHROW(fabrik::tools::require_output_folders(
       {{"--report", (folder / "r.json").string()}, {"--output", (folder / "j.trc").string()}}));
-  // inotify queues an event within the call that caused it: all are readable by now.
-  std::vector<std::string> seen;
-  alignas(inotify_event) char buffer[4096];
-  for (ssize_t n; (n = ::read(watch, buffer, sizeof buffer)) > 0;)
-    for (ssize_t at = 0; at < n;) {
-      const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
-      seen.emplace_back(event->len > 0 ? event->name : "(the folder)");
-      at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
-    }
+  CHECK(names_seen(watch).empty());
   ::close(watch);
-  CHECK(seen.empty());
   CHECK(fs::is_empty(folder));
+  fs::remove_all(folder);
+}
+
+TEST_CASE("Without unnamed files, the write check's own file is removed at once") {
+  // The fallback for a filesystem without O_TMPFILE (NFS, older overlayfs), asked for here:
+  // its file comes and goes under a name of its own, and a folder refusing it is told.
+  namespace fs = std::filesystem;
+  using fabrik::tools::detail::cannot_make_file_in;
+  TempFile marker(".d");
+  const fs::path folder = marker.path();
+  fs::create_directories(folder);
+  const int watch = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+  REQUIRE(watch >= 0);
+  REQUIRE(::inotify_add_watch(watch, folder.c_str(), IN_CREATE | IN_DELETE) >= 0);
+  CHECK(cannot_make_file_in(folder, false).empty());
+  const std::vector<std::string> seen = names_seen(watch);
+  ::close(watch);
+  REQUIRE(seen.size() == 2);  // made, then removed
+  CHECK(seen[0].starts_with(".fabrik-write-test-"));
+  CHECK(seen[1] == seen[0]);
+  CHECK(fs::is_empty(folder));
+  CHECK_THAT(cannot_make_file_in(folder / "missing", false),
+             Catch::Contains("No such file or directory"));
+  CHECK_FALSE(cannot_make_file_in("/proc", false).empty());  // not even root makes files there
+  CHECK_FALSE(cannot_make_file_in("/proc").empty());
   fs::remove_all(folder);
 }
 
@@ -1581,7 +1616,7 @@ TEST_CASE("An output that names an input or another output is refused before any
                                !Catch::Contains("the same file"));
 }
 
-TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not, in any format") {
+TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any format") {
   using fabrik::tools::NamedFile;
   using fabrik::tools::require_distinct_files;
   TempFile file(".json");
@@ -1596,6 +1631,24 @@ TEST_CASE("Outputs to one file are refused, to a device such as /dev/null not, i
   // Discarding two outputs was refused as "the same file".
   CHECK_NOTHROW(
       require_distinct_files({{"--output", "/dev/null"}, {"--lengths-json", "/dev/null"}}));
+  // Another device (a terminal, as /dev/stdout is on one; /dev/zero stands for it here) named
+  // by two outputs would interleave them, under any of its names; an input may share it.
+  CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", "/dev/zero"}}),
+                    Catch::Contains("--json and --csv name the same device '/dev/zero'"));
+  const std::filesystem::path link = file.path() + ".zero";
+  std::filesystem::create_symlink("/dev/zero", link);
+  CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", link.string()}}),
+                    Catch::Contains("name the same device"));
+  std::filesystem::remove(link);
+  CHECK_NOTHROW(require_distinct_files({{"--input", "/dev/zero", false}, {"--csv", "/dev/zero"}}));
+  CHECK_NOTHROW(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", "/dev/null"}}));
+  // So would a pipe (/dev/stdout piped on).
+  const std::string pipe = file.path() + ".fifo";
+  REQUIRE(::mkfifo(pipe.c_str(), 0600) == 0);
+  CHECK_THROWS_WITH(require_distinct_files({{"--json", pipe}, {"--csv", pipe}}),
+                    Catch::Contains("name the same device"));
+  CHECK_NOTHROW(require_distinct_files({{"--input", pipe, false}, {"--csv", pipe}}));
+  std::filesystem::remove(pipe);
   // ... and solve's extension checks refused /dev/null ("unknown output format").
   TempFile trial(".trc"), report(".json");
   trial.also_remove(trial.path().substr(0, trial.path().size() - 4) + ".joints.trc");

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -15,27 +16,56 @@ namespace fabrik::tools {
 
 namespace {
 
-bool same_file(const std::string& a, const std::string& b) {
+// Both exist and are one file (hard links, symlinks followed), or one character device under
+// two nodes. Not std::filesystem::equivalent: libstdc++'s refuses to compare two devices or
+// pipes (not_supported).
+bool same_inode(const std::string& a, const std::string& b) {
+  struct stat sa {};
+  struct stat sb {};
+  if (::stat(a.c_str(), &sa) != 0 || ::stat(b.c_str(), &sb) != 0) return false;
+  if (S_ISCHR(sa.st_mode) && S_ISCHR(sb.st_mode)) return sa.st_rdev == sb.st_rdev;
+  return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
+}
+
+// /dev/null, under any name: what two outputs write there is lost, not mixed.
+bool discards(const std::string& path) {
+  return is_device(path) && same_inode(path, "/dev/null");
+}
+
+// A device or a pipe: written in turn, not replaced.
+bool is_stream(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
+
+// A stream other than /dev/null (a terminal, a pipe: /dev/stdout) named by two outputs would
+// interleave them; an input and an output on one terminal are its reading and its writing.
+bool same_file(const std::string& a, const std::string& b, bool both_outputs) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (is_device(a)) return false;                    // /dev/null twice replaces nothing
-  if (fs::equivalent(a, b, ec) && !ec) return true;  // both exist: hard links included
+  if (discards(a) || discards(b)) return false;
+  if (is_stream(a) && !both_outputs) return false;
+  if (same_inode(a, b)) return true;
   const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
   if (ec) return false;
   const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
   return !ec && ca == cb;
 }
 
-// Why no file can be made in `folder`, or "". An unnamed file (O_TMPFILE; O_EXCL: never to be
-// linked) is made where the system can: no name appears in the folder, so a program watching
-// it sees nothing. On any failure (a filesystem or kernel without it: EOPNOTSUPP, EISDIR) a
-// named file of our own making is tried, removed at once; a real failure fails there too.
-std::string cannot_make_file_in(const std::filesystem::path& folder) {
+}  // namespace
+
+// An unnamed file (O_TMPFILE; O_EXCL: never to be linked) is made where the system can: no
+// name appears in the folder, so a program watching it sees nothing. On any failure (a
+// filesystem or kernel without it: EOPNOTSUPP, EISDIR) a named file of our own making is
+// tried, removed at once; a real failure fails there too.
+std::string detail::cannot_make_file_in(const std::filesystem::path& folder, bool unnamed_first) {
 #ifdef O_TMPFILE
-  const int unnamed = ::open(folder.c_str(), O_TMPFILE | O_EXCL | O_WRONLY | O_CLOEXEC, 0600);
-  if (unnamed >= 0) {
-    ::close(unnamed);
-    return {};
+  if (unnamed_first) {
+    const int unnamed = ::open(folder.c_str(), O_TMPFILE | O_EXCL | O_WRONLY | O_CLOEXEC, 0600);
+    if (unnamed >= 0) {
+      ::close(unnamed);
+      return {};
+    }
   }
 #endif
   std::string probe = (folder / ".fabrik-write-test-XXXXXX").string();
@@ -46,11 +76,13 @@ std::string cannot_make_file_in(const std::filesystem::path& folder) {
   return {};
 }
 
+namespace {
+
 // Why `path` cannot be written, or "": tried, since access() answers root yes where the
 // write then fails (a read-only filesystem, /sys, /proc). An existing regular file is opened
 // for appending, which changes nothing. For a new one, a file of our own making is made in
-// its folder and removed (cannot_make_file_in): the name itself is left alone, so another program
-// making it meanwhile loses nothing. A link to nothing is followed to where the write would
+// its folder and removed (detail::cannot_make_file_in): the name itself is left alone, so another
+// program making it meanwhile loses nothing. A link to nothing is followed to where the write would
 // make its file. Other kinds (a pipe, a device) are left to the write: opening a pipe waits
 // for its reader.
 std::string cannot_write(const std::string& path, int links_left = 8) {
@@ -75,7 +107,7 @@ std::string cannot_write(const std::string& path, int links_left = 8) {
   // A name in /dev that is no device is a typo of one (/dev/nul): the write would make a
   // regular file there.
   if (fs::weakly_canonical(fs::absolute(where, ec), ec) == "/dev") return "no such device in /dev";
-  return cannot_make_file_in(where);
+  return detail::cannot_make_file_in(where);
 }
 
 }  // namespace
@@ -86,10 +118,15 @@ void require_distinct_files(const std::vector<NamedFile>& files) {
       const NamedFile& a = files[i];
       const NamedFile& b = files[j];
       if (a.path.empty() || b.path.empty() || !(a.output || b.output)) continue;
-      if (same_file(a.path, b.path))
-        throw std::invalid_argument(a.option + " and " + b.option + " name the same file '" +
-                                    b.path + "': " + (a.output && b.output ? "one" : "the output") +
-                                    " would overwrite the other. Fix: give each its own file");
+      const bool both_outputs = a.output && b.output;
+      if (!same_file(a.path, b.path, both_outputs)) continue;
+      if (is_stream(b.path))
+        throw std::invalid_argument(a.option + " and " + b.option + " name the same device '" +
+                                    b.path + "': their lines would interleave. Fix: give each " +
+                                    "its own file (/dev/null may take several)");
+      throw std::invalid_argument(a.option + " and " + b.option + " name the same file '" + b.path +
+                                  "': " + (both_outputs ? "one" : "the output") +
+                                  " would overwrite the other. Fix: give each its own file");
     }
 }
 

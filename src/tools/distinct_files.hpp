@@ -3,6 +3,7 @@
 // walk.trc` replaced the trial it read), or that names a folder that does not exist.
 #pragma once
 
+#include <filesystem>
 #include <string>
 #include <utility>
 #include <vector>
@@ -16,8 +17,8 @@ struct NamedFile {
 };
 
 // Throws std::invalid_argument naming both options when an output's path is the same file as
-// another given path (the same after symlinks, `.` and `..`; or a hard link of it). A
-// character device (/dev/null) may be named twice.
+// another given path (the same after symlinks, `.` and `..`; or a hard link of it). /dev/null
+// may be named by any number; another device (a terminal) by one output only, and by inputs.
 void require_distinct_files(const std::vector<NamedFile>& files);
 
 // Throws std::invalid_argument naming the option when an output's path is a folder, its
@@ -29,5 +30,11 @@ void require_output_folders(const std::vector<NamedFile>& files);
 // Both, folders first: `sub/../x` with no `sub` is named for its missing folder, not as the
 // same file as `x` (the system could not open it).
 void require_usable_outputs(const std::vector<NamedFile>& files);
+
+namespace detail {
+// Why no file can be made in `folder`, or "": an unnamed file where the system can make one;
+// else (or with `unnamed_first` false, as a test asks) a named one, removed at once.
+std::string cannot_make_file_in(const std::filesystem::path& folder, bool unnamed_first = true);
+}  // namespace detail
 
 }  // namespace fabrik::tools
