@@ -1632,23 +1632,47 @@ TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any f
   CHECK_NOTHROW(
       require_distinct_files({{"--output", "/dev/null"}, {"--lengths-json", "/dev/null"}}));
   // Another device (a terminal, as /dev/stdout is on one; /dev/zero stands for it here) named
-  // by two outputs would interleave them, under any of its names; an input may share it.
+  // by two outputs would take both, under any of its names; an input may share it.
   CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", "/dev/zero"}}),
-                    Catch::Contains("--json and --csv name the same device '/dev/zero'"));
+                    Catch::Contains("--json and --csv name the same device ('/dev/zero')"));
   const std::filesystem::path link = file.path() + ".zero";
   std::filesystem::create_symlink("/dev/zero", link);
   CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", link.string()}}),
-                    Catch::Contains("name the same device"));
+                    Catch::Contains("the same device ('/dev/zero' and '" + link.string() + "')"));
   std::filesystem::remove(link);
   CHECK_NOTHROW(require_distinct_files({{"--input", "/dev/zero", false}, {"--csv", "/dev/zero"}}));
+  CHECK_NOTHROW(require_distinct_files({{"--csv", "/dev/zero"}, {"--input", "/dev/zero", false}}));
   CHECK_NOTHROW(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", "/dev/null"}}));
+  // A node of its own for a device is that device (/dev/null's too is /dev/null). Making one
+  // takes root (CAP_MKNOD), as these tests have here and in CI.
+  const std::string zero_node = file.path() + ".zero-node", null_node = file.path() + ".null-node";
+  struct stat zero {};
+  REQUIRE(::stat("/dev/zero", &zero) == 0);
+  if (::mknod(zero_node.c_str(), S_IFCHR | 0600, zero.st_rdev) == 0) {
+    CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", zero_node}}),
+                      Catch::Contains("name the same device"));
+    std::filesystem::remove(zero_node);
+    struct stat null {};
+    REQUIRE(::stat("/dev/null", &null) == 0);
+    REQUIRE(::mknod(null_node.c_str(), S_IFCHR | 0600, null.st_rdev) == 0);
+    CHECK_NOTHROW(require_distinct_files({{"--json", null_node}, {"--csv", null_node}}));
+    std::filesystem::remove(null_node);
+  } else {
+    WARN("skipped: no device node can be made here (" << std::strerror(errno) << ")");
+  }
   // So would a pipe (/dev/stdout piped on).
   const std::string pipe = file.path() + ".fifo";
   REQUIRE(::mkfifo(pipe.c_str(), 0600) == 0);
   CHECK_THROWS_WITH(require_distinct_files({{"--json", pipe}, {"--csv", pipe}}),
-                    Catch::Contains("name the same device"));
+                    Catch::Contains("name the same pipe"));
   CHECK_NOTHROW(require_distinct_files({{"--input", pipe, false}, {"--csv", pipe}}));
   std::filesystem::remove(pipe);
+  // A link to nothing names the file a write would make where it points.
+  const std::string target = file.path() + ".target.json", dangling = file.path() + ".link.json";
+  std::filesystem::create_symlink(std::filesystem::path(target).filename(), dangling);
+  CHECK_THROWS_WITH(require_distinct_files({{"--json", dangling}, {"--csv", target}}),
+                    Catch::Contains("name the same file"));
+  std::filesystem::remove(dangling);
   // ... and solve's extension checks refused /dev/null ("unknown output format").
   TempFile trial(".trc"), report(".json");
   trial.also_remove(trial.path().substr(0, trial.path().size() - 4) + ".joints.trc");

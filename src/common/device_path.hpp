@@ -1,5 +1,6 @@
 // Whether a path names a device such as /dev/null: an output there is discarded or shown, never
-// replaced, so it has no format to name and may take any number of writers.
+// replaced, so it has no format to name (two outputs may share /dev/null only:
+// tools/distinct_files.hpp).
 #pragma once
 
 #include <filesystem>

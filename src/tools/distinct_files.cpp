@@ -29,26 +29,45 @@ bool same_inode(const std::string& a, const std::string& b) {
 
 // /dev/null, under any name: what two outputs write there is lost, not mixed.
 bool discards(const std::string& path) {
-  return is_device(path) && same_inode(path, "/dev/null");
+  return same_inode(path, "/dev/null");
 }
 
-// A device or a pipe: written in turn, not replaced.
-bool is_stream(const std::string& path) {
+// What a stream is called in a message, or "" for a regular file, a folder or nothing yet:
+// a device, a pipe or a socket is written in turn, not replaced.
+const char* stream_kind(const std::string& path) {
   struct stat st {};
-  return ::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+  if (::stat(path.c_str(), &st) != 0 || S_ISREG(st.st_mode) || S_ISDIR(st.st_mode)) return "";
+  if (S_ISFIFO(st.st_mode)) return "pipe";
+  if (S_ISSOCK(st.st_mode)) return "socket";
+  return "device";
+}
+
+// A path whose links to nothing (a name not made yet) are followed to where a write would
+// make its file, as the write itself does; at most 8.
+std::filesystem::path followed(std::filesystem::path path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  for (int links_left = 8; links_left > 0; --links_left) {
+    if (!fs::is_symlink(fs::symlink_status(path, ec)) || fs::exists(path, ec)) break;
+    const fs::path target = fs::read_symlink(path, ec);
+    if (ec) break;
+    path = target.is_absolute() ? target : path.parent_path() / target;
+  }
+  return path;
 }
 
 // A stream other than /dev/null (a terminal, a pipe: /dev/stdout) named by two outputs would
-// interleave them; an input and an output on one terminal are its reading and its writing.
+// take both, one after the other; an input and an output on one terminal are its reading and
+// its writing.
 bool same_file(const std::string& a, const std::string& b, bool both_outputs) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (discards(a) || discards(b)) return false;
-  if (is_stream(a) && !both_outputs) return false;
+  if (!both_outputs && (*stream_kind(a) != '\0' || *stream_kind(b) != '\0')) return false;
   if (same_inode(a, b)) return true;
-  const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+  const fs::path ca = fs::weakly_canonical(fs::absolute(followed(a), ec), ec);
   if (ec) return false;
-  const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  const fs::path cb = fs::weakly_canonical(fs::absolute(followed(b), ec), ec);
   return !ec && ca == cb;
 }
 
@@ -85,25 +104,21 @@ namespace {
 // program making it meanwhile loses nothing. A link to nothing is followed to where the write would
 // make its file. Other kinds (a pipe, a device) are left to the write: opening a pipe waits
 // for its reader.
-std::string cannot_write(const std::string& path, int links_left = 8) {
+std::string cannot_write(const std::string& named) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (is_device(path)) return {};
-  const fs::file_status status = fs::status(path, ec);
+  if (is_device(named)) return {};
+  const fs::file_status status = fs::status(named, ec);
   if (fs::exists(status)) {
     if (!fs::is_regular_file(status)) return {};
-    const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
+    const int fd = ::open(named.c_str(), O_WRONLY | O_APPEND | O_CLOEXEC);
     if (fd < 0) return std::strerror(errno);
     ::close(fd);
     return {};
   }
-  const fs::path where = fs::path(path).has_parent_path() ? fs::path(path).parent_path() : ".";
-  if (fs::is_symlink(fs::symlink_status(path, ec))) {
-    if (links_left == 0) return "too many levels of symbolic links";
-    const fs::path target = fs::read_symlink(path, ec);
-    if (ec) return ec.message();
-    return cannot_write((target.is_absolute() ? target : where / target).string(), links_left - 1);
-  }
+  const fs::path path = followed(named);
+  if (fs::is_symlink(fs::symlink_status(path, ec))) return "too many levels of symbolic links";
+  const fs::path where = path.has_parent_path() ? path.parent_path() : ".";
   // A name in /dev that is no device is a typo of one (/dev/nul): the write would make a
   // regular file there.
   if (fs::weakly_canonical(fs::absolute(where, ec), ec) == "/dev") return "no such device in /dev";
@@ -120,10 +135,12 @@ void require_distinct_files(const std::vector<NamedFile>& files) {
       if (a.path.empty() || b.path.empty() || !(a.output || b.output)) continue;
       const bool both_outputs = a.output && b.output;
       if (!same_file(a.path, b.path, both_outputs)) continue;
-      if (is_stream(b.path))
-        throw std::invalid_argument(a.option + " and " + b.option + " name the same device '" +
-                                    b.path + "': their lines would interleave. Fix: give each " +
-                                    "its own file (/dev/null may take several)");
+      if (const std::string kind = stream_kind(b.path); !kind.empty())
+        throw std::invalid_argument(
+            a.option + " and " + b.option + " name the same " + kind + " ('" + a.path + "'" +
+            (a.path == b.path ? "" : " and '" + b.path + "'") +
+            "): both would be mixed into one stream. Fix: give each its own file (/dev/null "
+            "may take several)");
       throw std::invalid_argument(a.option + " and " + b.option + " name the same file '" + b.path +
                                   "': " + (both_outputs ? "one" : "the output") +
                                   " would overwrite the other. Fix: give each its own file");
