@@ -1,8 +1,12 @@
 // The `fabrik replay|watch|synth` cores: synthetic trials with gaps, replay onto a SUB socket
 // (inproc and tcp, JSON and MessagePack), --drop parsing, and the watch decoder and tally.
 #include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdlib.h>
 #include <sys/inotify.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -1349,6 +1353,45 @@ TEST_CASE("The check that a new output can be written makes no name a watcher co
   ::close(watch);
   CHECK(fs::is_empty(folder));
   fs::remove_all(folder);
+}
+
+TEST_CASE("/dev/tty is the terminal it stands for: two outputs there are refused") {
+  // /dev/tty is a device of its own (5, 0), not the terminal's node (/dev/pts/N). A child made
+  // a session leader takes a new pseudo-terminal as its controlling one, and asks.
+  int result[2];
+  REQUIRE(::pipe2(result, O_CLOEXEC) == 0);
+  const pid_t child = ::fork();
+  REQUIRE(child >= 0);
+  if (child == 0) {
+    char verdict = 'e';  // no controlling terminal could be made
+    const int master = ::setsid() >= 0 ? ::posix_openpt(O_RDWR | O_NOCTTY) : -1;
+    const char* name = master >= 0 && ::grantpt(master) == 0 && ::unlockpt(master) == 0
+                           ? ::ptsname(master)
+                           : nullptr;
+    if (name && ::open(name, O_RDWR) >= 0) {  // without O_NOCTTY: it becomes ours
+      try {
+        fabrik::tools::require_distinct_files({{"--json", name}, {"--csv", "/dev/tty"}});
+        verdict = 'n';
+      } catch (const std::invalid_argument& e) {
+        verdict =
+            std::string(e.what()).find("name the same device") != std::string::npos ? 'y' : 'm';
+      }
+    }
+    (void)!::write(result[1], &verdict, 1);
+    ::_exit(0);
+  }
+  ::close(result[1]);
+  pollfd readable{result[0], POLLIN, 0};
+  char verdict = '?';
+  if (::poll(&readable, 1, 10000) == 1) (void)!::read(result[0], &verdict, 1);
+  ::close(result[0]);
+  ::kill(child, SIGKILL);
+  ::waitpid(child, nullptr, 0);
+  if (verdict == 'e') {
+    WARN("skipped: no pseudo-terminal can be made here");
+    return;
+  }
+  CHECK(verdict == 'y');  // 'n': accepted; 'm': refused for another reason; '?': no answer
 }
 
 TEST_CASE("Without unnamed files, the write check's own file is removed at once") {

@@ -2,7 +2,9 @@
 
 #include <fcntl.h>
 #include <stdlib.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -16,6 +18,25 @@ namespace fabrik::tools {
 
 namespace {
 
+// A character device's number; for /dev/tty and /dev/console, which stand for another
+// terminal, that terminal's (TIOCGDEV), where the system tells it (a process without a
+// controlling terminal gets none from /dev/tty).
+dev_t device_number(const std::string& path, const struct stat& st) {
+#ifdef TIOCGDEV
+  if (st.st_rdev != makedev(5, 0) && st.st_rdev != makedev(5, 1)) return st.st_rdev;
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return st.st_rdev;
+  unsigned int encoded = 0;  // the kernel's new_encode_dev
+  const bool told = ::ioctl(fd, TIOCGDEV, &encoded) == 0;
+  ::close(fd);
+  if (told)
+    return makedev((encoded & 0xfff00u) >> 8, (encoded & 0xffu) | ((encoded >> 12) & 0xfff00u));
+#else
+  (void)path;
+#endif
+  return st.st_rdev;
+}
+
 // Both exist and are one file (hard links, symlinks followed), or one character device under
 // two nodes. Not std::filesystem::equivalent: libstdc++'s refuses to compare two devices or
 // pipes (not_supported).
@@ -23,7 +44,8 @@ bool same_inode(const std::string& a, const std::string& b) {
   struct stat sa {};
   struct stat sb {};
   if (::stat(a.c_str(), &sa) != 0 || ::stat(b.c_str(), &sb) != 0) return false;
-  if (S_ISCHR(sa.st_mode) && S_ISCHR(sb.st_mode)) return sa.st_rdev == sb.st_rdev;
+  if (S_ISCHR(sa.st_mode) && S_ISCHR(sb.st_mode))
+    return device_number(a, sa) == device_number(b, sb);
   return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 

@@ -19,8 +19,8 @@ struct NamedFile {
 // Throws std::invalid_argument naming both options when an output's path is the same file as
 // another given path (the same after symlinks, links to nothing included, `.` and `..`; or a
 // hard link of it). /dev/null may be named by any number; another device (a terminal), a pipe
-// or a socket by one output only, and by inputs. Not caught: /dev/tty and the terminal it
-// stands for; two new names that differ in case only, on a case-insensitive filesystem.
+// or a socket by one output only, and by inputs (/dev/tty is the terminal it stands for). Not
+// caught: two new names that differ in case only, on a case-insensitive filesystem.
 void require_distinct_files(const std::vector<NamedFile>& files);
 
 // Throws std::invalid_argument naming the option when an output's path is a folder, its
