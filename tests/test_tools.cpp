@@ -1375,6 +1375,8 @@ TEST_CASE("/dev/tty is the terminal it stands for: two outputs there are refused
       } catch (const std::invalid_argument& e) {
         verdict =
             std::string(e.what()).find("name the same device") != std::string::npos ? 'y' : 'm';
+      } catch (...) {  // nothing may reach Catch in the child
+        verdict = 'x';
       }
     }
     (void)!::write(result[1], &verdict, 1);
@@ -1391,7 +1393,7 @@ TEST_CASE("/dev/tty is the terminal it stands for: two outputs there are refused
     WARN("skipped: no pseudo-terminal can be made here");
     return;
   }
-  CHECK(verdict == 'y');  // 'n': accepted; 'm': refused for another reason; '?': no answer
+  CHECK(verdict == 'y');  // 'n': accepted; 'm', 'x': refused otherwise, or threw; '?': no answer
 }
 
 TEST_CASE("Without unnamed files, the write check's own file is removed at once") {
@@ -1408,9 +1410,11 @@ TEST_CASE("Without unnamed files, the write check's own file is removed at once"
   CHECK(cannot_make_file_in(folder, false).empty());
   const std::vector<std::string> seen = names_seen(watch);
   ::close(watch);
-  REQUIRE(seen.size() == 2);  // made, then removed
-  CHECK(seen[0].starts_with(".fabrik-write-test-"));
-  CHECK(seen[1] == seen[0]);
+  CHECK(seen.size() == 2);  // made, then removed
+  if (seen.size() == 2) {
+    CHECK(seen[0].starts_with(".fabrik-write-test-"));
+    CHECK(seen[1] == seen[0]);
+  }
   CHECK(fs::is_empty(folder));
   CHECK_THAT(cannot_make_file_in(folder / "missing", false),
              Catch::Contains("No such file or directory"));
@@ -1679,6 +1683,7 @@ TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any f
   CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", "/dev/zero"}}),
                     Catch::Contains("--json and --csv name the same device ('/dev/zero')"));
   const std::filesystem::path link = file.path() + ".zero";
+  file.also_remove(link.string());
   std::filesystem::create_symlink("/dev/zero", link);
   CHECK_THROWS_WITH(require_distinct_files({{"--json", "/dev/zero"}, {"--csv", link.string()}}),
                     Catch::Contains("the same device ('/dev/zero' and '" + link.string() + "')"));
@@ -1689,6 +1694,8 @@ TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any f
   // A node of its own for a device is that device (/dev/null's too is /dev/null). Making one
   // takes root (CAP_MKNOD), as these tests have here and in CI.
   const std::string zero_node = file.path() + ".zero-node", null_node = file.path() + ".null-node";
+  file.also_remove(zero_node);
+  file.also_remove(null_node);
   struct stat zero {};
   REQUIRE(::stat("/dev/zero", &zero) == 0);
   if (::mknod(zero_node.c_str(), S_IFCHR | 0600, zero.st_rdev) == 0) {
@@ -1705,6 +1712,7 @@ TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any f
   }
   // So would a pipe (/dev/stdout piped on).
   const std::string pipe = file.path() + ".fifo";
+  file.also_remove(pipe);
   REQUIRE(::mkfifo(pipe.c_str(), 0600) == 0);
   CHECK_THROWS_WITH(require_distinct_files({{"--json", pipe}, {"--csv", pipe}}),
                     Catch::Contains("name the same pipe"));
@@ -1712,6 +1720,7 @@ TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any f
   std::filesystem::remove(pipe);
   // A link to nothing names the file a write would make where it points.
   const std::string target = file.path() + ".target.json", dangling = file.path() + ".link.json";
+  file.also_remove(dangling);
   std::filesystem::create_symlink(std::filesystem::path(target).filename(), dangling);
   CHECK_THROWS_WITH(require_distinct_files({{"--json", dangling}, {"--csv", target}}),
                     Catch::Contains("name the same file"));
@@ -1732,6 +1741,16 @@ TEST_CASE("Outputs to one file or device are refused, to /dev/null not, in any f
   // --markers /dev/null discards the markers and their list of filled runs: a FILE.filled.csv
   // beside a device would be a regular file in /dev.
   CHECK_FALSE(std::filesystem::exists("/dev/null.filled.csv"));
+  // A pipe takes the joints as a TRC, as a terminal does: /dev/stdout piped on was refused
+  // ("unknown output format") where a terminal was not.
+  TempFile piped(".trc");
+  fabrik::test::Process solve({"/bin/sh", "-c",
+                               "'" + std::string(FABRIK_PATH) + "' solve --input '" + trial.path() +
+                                   "' --output /dev/stdout --quiet | cat > '" + piped.path() +
+                                   "'"});
+  REQUIRE(solve.wait(std::chrono::seconds(60)).has_value());
+  CAPTURE(solve.stderr_text());
+  CHECK(slurp(piped.path()).starts_with("PathFileType"));
 }
 
 TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as missing, as fabrikd") {

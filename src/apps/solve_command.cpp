@@ -39,9 +39,9 @@ void progress_bar(std::size_t done, std::size_t total) {
 }
 
 void run(const SolveOptions& o) {
-  // --markers to a device (/dev/null, to discard) discards its list of filled runs too: that
+  // --markers to a stream (/dev/null, to discard; a pipe) has no list of filled runs: that
   // FILE.filled.csv would be a regular file in /dev.
-  const std::string filled_csv = o.markers_output.empty() || is_device(o.markers_output)
+  const std::string filled_csv = o.markers_output.empty() || is_stream(o.markers_output)
                                      ? ""
                                      : o.markers_output + ".filled.csv";
   // Before the solve, which can take minutes: what the outputs would be is known now.
@@ -53,16 +53,17 @@ void run(const SolveOptions& o) {
                                                {"--markers' FILE.filled.csv", filled_csv},
                                                {"--report", o.report},
                                                {"--angles", o.angles}};
-  // The extension says what is written; a device (/dev/null, to discard) has none to say.
+  // The extension says what is written; a stream (/dev/null, to discard; /dev/stdout, a pipe)
+  // has none to say: it takes a TRC and an OpenSim table.
   const auto require_trc_or_csv = [](const char* option, const std::string& path) {
     if (!has_suffix_ci(path, ".trc") && !has_suffix_ci(path, ".csv"))
       throw std::invalid_argument(std::string(option) + ": '" + path +
                                   "': unknown output format: use .trc or .csv");
   };
-  if (!is_device(o.output)) require_trc_or_csv("--output", o.output);
-  if (!o.markers_output.empty() && !is_device(o.markers_output))
+  if (!is_stream(o.output)) require_trc_or_csv("--output", o.output);
+  if (!o.markers_output.empty() && !is_stream(o.markers_output))
     require_trc_or_csv("--markers", o.markers_output);
-  if (!o.angles.empty() && !is_device(o.angles) && !has_suffix_ci(o.angles, ".mot") &&
+  if (!o.angles.empty() && !is_stream(o.angles) && !has_suffix_ci(o.angles, ".mot") &&
       !has_suffix_ci(o.angles, ".sto"))
     throw std::invalid_argument("--angles: '" + o.angles +
                                 "': an OpenSim Coordinates table is written: use .mot (or .sto)");

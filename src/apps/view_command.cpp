@@ -27,7 +27,8 @@ struct ViewArgs {
   int max_clients = 16;
 };
 
-// An installed fabrik's page (share/fabrik/view beside its bin/), else the source tree's.
+// An installed fabrik's page (DATADIR/fabrik/view, found from its own folder:
+// cmake/view_page_path.cmake), else the source tree's.
 std::string default_web_root() {
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);

@@ -281,7 +281,7 @@ std::size_t drop_implausible_samples(io::MarkerTrial& trial, double max_abs_coor
 }
 
 void write_trial_file(const std::string& path, const io::MarkerTrial& trial) {
-  if (has_suffix_ci(path, ".trc") || is_device(path)) return io::write_trc(path, trial, "mm");
+  if (has_suffix_ci(path, ".trc") || is_stream(path)) return io::write_trc(path, trial, "mm");
   if (!has_suffix_ci(path, ".csv"))
     throw io::FormatError(path, "unknown output format: use .trc or .csv");
   std::ofstream out = io::open_output_file(path);

@@ -18,12 +18,12 @@ namespace fabrik::tools {
 
 namespace {
 
-// A character device's number; for /dev/tty and /dev/console, which stand for another
-// terminal, that terminal's (TIOCGDEV), where the system tells it (a process without a
-// controlling terminal gets none from /dev/tty).
+// A character device's number; for /dev/tty, which stands for the process's controlling
+// terminal, that terminal's (TIOCGDEV), where there is one. Only /dev/tty is opened: it is
+// open already through the session, so this open and close hang up nothing.
 dev_t device_number(const std::string& path, const struct stat& st) {
 #ifdef TIOCGDEV
-  if (st.st_rdev != makedev(5, 0) && st.st_rdev != makedev(5, 1)) return st.st_rdev;
+  if (st.st_rdev != makedev(5, 0)) return st.st_rdev;
   const int fd = ::open(path.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) return st.st_rdev;
   unsigned int encoded = 0;  // the kernel's new_encode_dev
@@ -54,25 +54,19 @@ bool discards(const std::string& path) {
   return same_inode(path, "/dev/null");
 }
 
-// What a stream is called in a message, or "" for a regular file, a folder or nothing yet:
-// a device, a pipe or a socket is written in turn, not replaced.
-const char* stream_kind(const std::string& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0 || S_ISREG(st.st_mode) || S_ISDIR(st.st_mode)) return "";
-  if (S_ISFIFO(st.st_mode)) return "pipe";
-  if (S_ISSOCK(st.st_mode)) return "socket";
-  return "device";
-}
-
 // A path whose links to nothing (a name not made yet) are followed to where a write would
-// make its file, as the write itself does; at most 8.
-std::filesystem::path followed(std::filesystem::path path) {
+// make its file, as the write itself does (at most 40, the kernel's limit); `why` says why one
+// could not be.
+std::filesystem::path followed(std::filesystem::path path, std::string* why = nullptr) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  for (int links_left = 8; links_left > 0; --links_left) {
-    if (!fs::is_symlink(fs::symlink_status(path, ec)) || fs::exists(path, ec)) break;
+  for (int links = 0; fs::is_symlink(fs::symlink_status(path, ec)) && !fs::exists(path, ec);
+       ++links) {
     const fs::path target = fs::read_symlink(path, ec);
-    if (ec) break;
+    if (links == 40 || ec) {
+      if (why) *why = ec ? ec.message() : "too many levels of symbolic links";
+      break;
+    }
     path = target.is_absolute() ? target : path.parent_path() / target;
   }
   return path;
@@ -85,7 +79,7 @@ bool same_file(const std::string& a, const std::string& b, bool both_outputs) {
   namespace fs = std::filesystem;
   std::error_code ec;
   if (discards(a) || discards(b)) return false;
-  if (!both_outputs && (*stream_kind(a) != '\0' || *stream_kind(b) != '\0')) return false;
+  if (!both_outputs && (is_stream(a) || is_stream(b))) return false;
   if (same_inode(a, b)) return true;
   const fs::path ca = fs::weakly_canonical(fs::absolute(followed(a), ec), ec);
   if (ec) return false;
@@ -129,7 +123,7 @@ namespace {
 std::string cannot_write(const std::string& named) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (is_device(named)) return {};
+  if (is_stream(named)) return {};
   const fs::file_status status = fs::status(named, ec);
   if (fs::exists(status)) {
     if (!fs::is_regular_file(status)) return {};
@@ -138,8 +132,9 @@ std::string cannot_write(const std::string& named) {
     ::close(fd);
     return {};
   }
-  const fs::path path = followed(named);
-  if (fs::is_symlink(fs::symlink_status(path, ec))) return "too many levels of symbolic links";
+  std::string why;
+  const fs::path path = followed(named, &why);
+  if (!why.empty()) return why;
   const fs::path where = path.has_parent_path() ? path.parent_path() : ".";
   // A name in /dev that is no device is a typo of one (/dev/nul): the write would make a
   // regular file there.

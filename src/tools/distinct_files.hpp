@@ -1,6 +1,7 @@
 // Refuses, before any work, a command whose outputs cannot be written as asked: an output that
 // would overwrite one of its inputs or another output (`fabrik solve --input walk.trc --output
-// walk.trc` replaced the trial it read), or that names a folder that does not exist.
+// walk.trc` replaced the trial it read), two outputs one stream would take (a terminal, a
+// pipe), or an output that names a folder that does not exist.
 #pragma once
 
 #include <filesystem>

@@ -3,7 +3,8 @@
 include(${CMAKE_CURRENT_LIST_DIR}/../../cmake/view_page_path.cmake)
 
 function(expect bindir datadir full_bindir full_datadir want)
-  fabrik_view_page_from_bin(got "${bindir}" "${datadir}" "${full_bindir}" "${full_datadir}")
+  fabrik_view_page_from_bin(got "${bindir}" "${datadir}" "${full_bindir}"
+    "${full_datadir}/fabrik/view")
   if(NOT got STREQUAL want)
     message(FATAL_ERROR "BINDIR ${bindir}, DATADIR ${datadir}: '${got}', expected '${want}'")
   endif()
