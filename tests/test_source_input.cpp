@@ -39,6 +39,22 @@ SourceConfig source_of(const std::string& input_json) {
   return read_source_config(JsonReader(j, "test.json", "/input"));
 }
 
+// `c` on inproc endpoints named after `tag`, with stats every 50 ms.
+DaemonConfig on_inproc(DaemonConfig c, const std::string& tag) {
+  c.input = {"inproc://" + tag + "-markers", SocketMode::bind};
+  c.output = {"inproc://" + tag + "-poses", SocketMode::bind};
+  c.stats_interval_s = 0.05;
+  return c;
+}
+
+// The default config behind a NatNet source (subject_prefix "*") on inproc, quiet.
+DaemonConfig source_daemon_config(const std::string& tag) {
+  DaemonConfig c = on_inproc(default_daemon_config(), tag);
+  c.source = source_of(R"({"source": "natnet://127.0.0.1"})");
+  c.log_level = "error";  // applied at a reload
+  return c;
+}
+
 std::string config_error(const std::string& input_json) {
   try {
     (void)source_of(input_json);
@@ -185,14 +201,7 @@ TEST_CASE(
     "[source][daemon]") {
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
-  const auto config_at = [](const std::string& name) {
-    DaemonConfig c = default_daemon_config();
-    c.input = {"inproc://" + name + "-markers", SocketMode::bind};
-    c.output = {"inproc://" + name + "-poses", SocketMode::bind};
-    c.stats_interval_s = 0.05;
-    return c;
-  };
-  DaemonConfig with_source = config_at("source");
+  DaemonConfig with_source = on_inproc(default_daemon_config(), "source");
   // A Z-up server whose forward is the lab's -x: a half turn about up from the lab.
   with_source.source = source_of(
       R"({"source": "natnet://127.0.0.1", "source_options": {"axes": {"up": "+z", "forward": "-x"}}})");
@@ -233,7 +242,7 @@ TEST_CASE(
   // The reference: the same frames on the ZeroMQ input of a daemon without a source.
   std::vector<json> reference;
   {
-    DaemonThread d(context, config_at("reference"), {});
+    DaemonThread d(context, on_inproc(default_daemon_config(), "reference"), {});
     test::SocketClient client(context, "inproc://reference-markers", "inproc://reference-poses");
     REQUIRE(client.receive("stats"));  // subscribed: nothing sent from now on is lost
     for (const json& f : zmq_frames) {
@@ -290,11 +299,10 @@ namespace {
 // Alice and Bob (the built-in model each) behind a NatNet source at its default options, whose
 // axes are the lab's (positions pass unrotated), on inproc endpoints named after `tag`.
 DaemonConfig alice_and_bob_behind_a_source(test::SubjectsDir& dir, const std::string& tag) {
-  DaemonConfig c = load_daemon_config_file(
-      dir.write({"Alice", "Bob"}, json{{"input", {{"source", "natnet://127.0.0.1"}}}}));
-  c.input = {"inproc://" + tag + "-markers", SocketMode::bind};
-  c.output = {"inproc://" + tag + "-poses", SocketMode::bind};
-  c.stats_interval_s = 0.05;
+  DaemonConfig c =
+      on_inproc(load_daemon_config_file(dir.write(
+                    {"Alice", "Bob"}, json{{"input", {{"source", "natnet://127.0.0.1"}}}})),
+                tag);
   c.source.axes = c.subjects.at(0).tracker.model->lab_axes;
   return c;
 }
@@ -420,12 +428,7 @@ TEST_CASE(
   // solver's options; replaced, the old client is stopped and a new one reads the names anew.
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
-  DaemonConfig base = default_daemon_config();
-  base.input = {"inproc://reload-source-markers", SocketMode::bind};
-  base.output = {"inproc://reload-source-poses", SocketMode::bind};
-  base.stats_interval_s = 0.05;
-  base.source = source_of(R"({"source": "natnet://127.0.0.1"})");
-  base.log_level = "error";  // applied at a reload
+  const DaemonConfig base = source_daemon_config("reload-source");
   std::mutex next_mutex;
   DaemonConfig next = base;
   const auto load = [&]() -> DaemonConfig {
@@ -488,12 +491,7 @@ TEST_CASE("A reload that renames a marker keeps the source's connection and take
   // again itself, so a marker renamed to a server's name is seen from the next frame.
   zmq::context_t context;
   spdlog::set_level(spdlog::level::err);
-  DaemonConfig base = default_daemon_config();
-  base.input = {"inproc://rename-source-markers", SocketMode::bind};
-  base.output = {"inproc://rename-source-poses", SocketMode::bind};
-  base.stats_interval_s = 0.05;
-  base.source = source_of(R"({"source": "natnet://127.0.0.1"})");  // subject_prefix "*"
-  base.log_level = "error";
+  const DaemonConfig base = source_daemon_config("rename-source");
   const Model& model = *base.tracker.model;
   const std::string first = base.tracker.markers.front().marker;
   // The server names every marker Subject7:NAME, and has one more, NEW, where the first is.

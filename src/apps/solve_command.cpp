@@ -39,8 +39,8 @@ void progress_bar(std::size_t done, std::size_t total) {
 }
 
 void run(const SolveOptions& o) {
-  // --markers to a stream (/dev/null, to discard; a pipe) has no list of filled runs: that
-  // FILE.filled.csv would be a regular file in /dev.
+  // --markers to a stream (/dev/null, to discard; a pipe) has no list of filled runs: a
+  // FILE.filled.csv beside it would be a regular file (in /dev, for /dev/null or /dev/stdout).
   const std::string filled_csv = o.markers_output.empty() || is_stream(o.markers_output)
                                      ? ""
                                      : o.markers_output + ".filled.csv";
@@ -216,7 +216,8 @@ void add_solve_command(CLI::App& app) {
   c->add_option("--output", o->output, "Joint centres, .trc (mm) or .csv")->required();
   c->add_option("--markers", o->markers_output,
                 "Also write the model's markers, gaps filled from both sides, .trc or .csv "
-                "(and FILE.filled.csv: the filled samples per marker; /dev/null discards both)");
+                "(and FILE.filled.csv: the filled samples per marker; /dev/null discards both, a "
+                "terminal or pipe gets the markers as TRC, without the list)");
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_option("--angles", o->angles,
                 "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");
