@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <sys/inotify.h>
 #include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -1394,6 +1395,26 @@ TEST_CASE("/dev/tty is the terminal it stands for: two outputs there are refused
     return;
   }
   CHECK(verdict == 'y');  // 'n': accepted; 'm', 'x': refused otherwise, or threw; '?': no answer
+}
+
+TEST_CASE("A device number is read as the kernel encodes it") {
+  // new_encode_dev: minor's low 8 bits, 12 bits of major, minor's upper 12 bits.
+  using fabrik::tools::detail::device_from_kernel;
+  CHECK(major(device_from_kernel(0x8803u)) == 136);  // /dev/pts/3
+  CHECK(minor(device_from_kernel(0x8803u)) == 3);
+  CHECK(major(device_from_kernel(0x1208834u)) == 136);  // minor 0x1234: over 8 bits
+  CHECK(minor(device_from_kernel(0x1208834u)) == 0x1234);
+  CHECK(major(device_from_kernel(0xfff00u)) == 0xfff);
+  CHECK(minor(device_from_kernel(0xfff00u)) == 0);
+}
+
+TEST_CASE("An output behind a loop of links is refused with the system's words for it") {
+  namespace fs = std::filesystem;
+  TempFile a(".json"), b(".json");
+  fs::create_symlink(b.path(), a.path());
+  fs::create_symlink(a.path(), b.path());
+  CHECK_THROWS_WITH(fabrik::tools::require_output_folders({{"--report", a.path()}}),
+                    Catch::Contains("too many levels of symbolic links"));
 }
 
 TEST_CASE("Without unnamed files, the write check's own file is removed at once") {

@@ -16,6 +16,10 @@
 
 namespace fabrik::tools {
 
+dev_t detail::device_from_kernel(unsigned int encoded) {
+  return makedev((encoded & 0xfff00u) >> 8, (encoded & 0xffu) | ((encoded >> 12) & 0xfff00u));
+}
+
 namespace {
 
 // A character device's number; for /dev/tty, which stands for the process's controlling
@@ -26,11 +30,10 @@ dev_t device_number(const std::string& path, const struct stat& st) {
   if (st.st_rdev != makedev(5, 0)) return st.st_rdev;
   const int fd = ::open(path.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) return st.st_rdev;
-  unsigned int encoded = 0;  // the kernel's new_encode_dev
+  unsigned int encoded = 0;
   const bool told = ::ioctl(fd, TIOCGDEV, &encoded) == 0;
   ::close(fd);
-  if (told)
-    return makedev((encoded & 0xfff00u) >> 8, (encoded & 0xffu) | ((encoded >> 12) & 0xfff00u));
+  if (told) return detail::device_from_kernel(encoded);
 #else
   (void)path;
 #endif

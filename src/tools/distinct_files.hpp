@@ -4,6 +4,8 @@
 // pipe), or an output that names a folder that does not exist.
 #pragma once
 
+#include <sys/types.h>
+
 #include <filesystem>
 #include <string>
 #include <utility>
@@ -35,6 +37,10 @@ void require_output_folders(const std::vector<NamedFile>& files);
 void require_usable_outputs(const std::vector<NamedFile>& files);
 
 namespace detail {
+// A device number as the kernel encodes it for user space (new_encode_dev: minor's low 8 bits,
+// then 12 bits of major, then minor's upper 12), as TIOCGDEV gives it.
+dev_t device_from_kernel(unsigned int encoded);
+
 // Why no file can be made in `folder`, or "": an unnamed file where the system can make one;
 // else (or with `unnamed_first` false, as a test asks) a named one, removed at once.
 std::string cannot_make_file_in(const std::filesystem::path& folder, bool unnamed_first = true);
