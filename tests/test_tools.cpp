@@ -1408,6 +1408,78 @@ TEST_CASE("A device number is read as the kernel encodes it") {
   CHECK(minor(device_from_kernel(0xfff00u)) == 0);
 }
 
+TEST_CASE("A console's name is read as sysfs spells it") {
+  using fabrik::tools::detail::console_behind;
+  using fabrik::tools::detail::device_from_sysfs;
+  // The last of console/active is the one /dev/console writes to (the kernel's ABI notes).
+  CHECK(console_behind("tty0 ttyS0\n") == "ttyS0");
+  CHECK(console_behind("ttyS0 tty0\n") == "tty0");
+  CHECK(console_behind("hvc0") == "hvc0");
+  CHECK(console_behind(" \n").empty());
+  CHECK(console_behind("").empty());
+  REQUIRE(device_from_sysfs("4:64\n").has_value());
+  CHECK(major(*device_from_sysfs("4:64\n")) == 4);
+  CHECK(minor(*device_from_sysfs("4:64\n")) == 64);
+  CHECK(minor(*device_from_sysfs("136:1234")) == 1234);
+  CHECK_FALSE(device_from_sysfs("4").has_value());
+  CHECK_FALSE(device_from_sysfs("4:").has_value());
+  CHECK_FALSE(device_from_sysfs(":64").has_value());
+  CHECK_FALSE(device_from_sysfs("4:64x").has_value());
+  CHECK_FALSE(device_from_sysfs("").has_value());
+}
+
+TEST_CASE("/dev/console and /dev/tty0 are the terminal they stand for, /dev/ptmx a new one each") {
+  using fabrik::tools::require_distinct_files;
+  // Each open of /dev/ptmx makes a new terminal: two outputs there were refused.
+  CHECK_NOTHROW(require_distinct_files({{"--json", "/dev/ptmx"}, {"--csv", "/dev/ptmx"}}));
+  // The terminal behind each, as sysfs names it, read here apart from the code under test.
+  auto last_word = [](const std::string& path) {
+    std::ifstream in(path);
+    std::string word, last;
+    while (in >> word) last = word;
+    return last;
+  };
+  const std::string front = last_word("/sys/class/tty/tty0/active");
+  std::string console = last_word("/sys/class/tty/console/active");
+  if (console == "tty0") console = front;
+  int compared = 0;
+  for (const auto& [alias, name] :
+       {std::pair<std::string, std::string>{"/dev/tty0", front}, {"/dev/console", console}}) {
+    struct stat st {};
+    if (name.empty() || ::stat(alias.c_str(), &st) != 0 || !S_ISCHR(st.st_mode) ||
+        !std::filesystem::is_character_file("/dev/" + name))
+      continue;
+    CAPTURE(alias, name);
+    CHECK(fabrik::tools::detail::device_number(alias) ==
+          fabrik::tools::detail::device_number("/dev/" + name));
+    CHECK_THROWS_WITH(require_distinct_files({{"--json", alias}, {"--csv", "/dev/" + name}}),
+                      Catch::Contains("name the same device"));
+    ++compared;
+  }
+  if (compared == 0) WARN("skipped: no console or virtual console to compare here");
+}
+
+TEST_CASE("Two nodes of one disk are one output") {
+  using fabrik::tools::require_distinct_files;
+  TempFile base(".blk");
+  const std::string a = base.path() + ".a", b = base.path() + ".b", other = base.path() + ".c";
+  for (const std::string& p : {a, b, other}) base.also_remove(p);
+  if (::mknod(a.c_str(), S_IFBLK | 0600, makedev(7, 0)) != 0) {
+    WARN("skipped: no device node can be made here (" << std::strerror(errno) << ")");
+    return;
+  }
+  REQUIRE(::mknod(b.c_str(), S_IFBLK | 0600, makedev(7, 0)) == 0);
+  REQUIRE(::mknod(other.c_str(), S_IFBLK | 0600, makedev(7, 1)) == 0);
+  CHECK_THROWS_WITH(require_distinct_files({{"--json", a}, {"--csv", b}}),
+                    Catch::Contains("name the same device"));
+  CHECK_NOTHROW(require_distinct_files({{"--json", a}, {"--csv", other}}));
+  // A disk's number is not read as a terminal's: block (5, 1) is no console.
+  const std::string block_five = base.path() + ".d";
+  base.also_remove(block_five);
+  REQUIRE(::mknod(block_five.c_str(), S_IFBLK | 0600, makedev(5, 1)) == 0);
+  CHECK(fabrik::tools::detail::device_number(block_five) == makedev(5, 1));
+}
+
 TEST_CASE("An output behind a loop of links is refused with the system's words for it") {
   namespace fs = std::filesystem;
   TempFile a(".json"), b(".json");

@@ -7,9 +7,13 @@
 #include <sys/sysmacros.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <optional>
 #include <stdexcept>
 
 #include "common/device_path.hpp"
@@ -20,12 +24,56 @@ dev_t detail::device_from_kernel(unsigned int encoded) {
   return makedev((encoded & 0xfff00u) >> 8, (encoded & 0xffu) | ((encoded >> 12) & 0xfff00u));
 }
 
+std::string detail::console_behind(std::string_view active) {
+  const auto end = active.find_last_not_of(" \t\n");
+  if (end == std::string_view::npos) return {};
+  const auto start = active.find_last_of(" \t\n", end);
+  return std::string(active.substr(start == std::string_view::npos ? 0 : start + 1, end - start));
+}
+
+std::optional<dev_t> detail::device_from_sysfs(std::string_view text) {
+  unsigned int major_number = 0, minor_number = 0;
+  const char* const end = text.data() + text.size();
+  auto [colon, e1] = std::from_chars(text.data(), end, major_number);
+  if (e1 != std::errc() || colon == end || *colon != ':') return std::nullopt;
+  auto [rest, e2] = std::from_chars(colon + 1, end, minor_number);
+  if (e2 != std::errc() || (rest != end && *rest != '\n')) return std::nullopt;
+  return makedev(major_number, minor_number);
+}
+
 namespace {
 
-// A character device's number; for /dev/tty, which stands for the process's controlling
-// terminal, that terminal's (TIOCGDEV), where there is one. Only /dev/tty is opened: it is
-// open already through the session, so this open and close hang up nothing.
-dev_t device_number(const std::string& path, const struct stat& st) {
+std::string first_line_of(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  return line;
+}
+
+// The terminal a console name stands for: /dev/console the kernel's console (the last of
+// /sys/class/tty/console/active), /dev/tty0 the virtual console in front (tty0/active). Read
+// from sysfs, never opened: opening a serial console and closing it could hang its line up.
+std::optional<dev_t> console_device(dev_t rdev) {
+  std::string name = rdev == makedev(5, 1)
+                         ? detail::console_behind(first_line_of("/sys/class/tty/console/active"))
+                         : "tty0";
+  if (name == "tty0") name = detail::console_behind(first_line_of("/sys/class/tty/tty0/active"));
+  if (name.empty() || name == "tty0" || name.find('.') != std::string::npos) return std::nullopt;
+  std::replace(name.begin(), name.end(), '/', '!');  // sysfs's spelling of a '/' in a name
+  return detail::device_from_sysfs(first_line_of("/sys/class/tty/" + name + "/dev"));
+}
+
+}  // namespace
+
+// For /dev/tty, which stands for the process's controlling terminal, that terminal's
+// (TIOCGDEV), where there is one. Only /dev/tty is opened: it is open already through the
+// session, so this open and close hang up nothing.
+dev_t detail::device_number(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return 0;
+  if (!S_ISCHR(st.st_mode)) return st.st_rdev;  // a disk's numbers are its own
+  if (st.st_rdev == makedev(5, 1) || st.st_rdev == makedev(4, 0))
+    return console_device(st.st_rdev).value_or(st.st_rdev);
 #ifdef TIOCGDEV
   if (st.st_rdev != makedev(5, 0)) return st.st_rdev;
   const int fd = ::open(path.c_str(), O_RDONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
@@ -34,27 +82,34 @@ dev_t device_number(const std::string& path, const struct stat& st) {
   const bool told = ::ioctl(fd, TIOCGDEV, &encoded) == 0;
   ::close(fd);
   if (told) return detail::device_from_kernel(encoded);
-#else
-  (void)path;
 #endif
   return st.st_rdev;
 }
 
-// Both exist and are one file (hard links, symlinks followed), or one character device under
-// two nodes. Not std::filesystem::equivalent: libstdc++'s refuses to compare two devices or
-// pipes (not_supported).
+namespace {
+
+// Both exist and are one file (hard links, symlinks followed), or one device under two nodes
+// (a disk's too). Not std::filesystem::equivalent: libstdc++'s refuses to compare two devices
+// or pipes (not_supported).
 bool same_inode(const std::string& a, const std::string& b) {
   struct stat sa {};
   struct stat sb {};
   if (::stat(a.c_str(), &sa) != 0 || ::stat(b.c_str(), &sb) != 0) return false;
-  if (S_ISCHR(sa.st_mode) && S_ISCHR(sb.st_mode))
-    return device_number(a, sa) == device_number(b, sb);
+  if ((S_ISCHR(sa.st_mode) && S_ISCHR(sb.st_mode)) || (S_ISBLK(sa.st_mode) && S_ISBLK(sb.st_mode)))
+    return detail::device_number(a) == detail::device_number(b);
   return sa.st_dev == sb.st_dev && sa.st_ino == sb.st_ino;
 }
 
 // /dev/null, under any name: what two outputs write there is lost, not mixed.
 bool discards(const std::string& path) {
   return same_inode(path, "/dev/null");
+}
+
+// The pseudo-terminal multiplexer (/dev/ptmx, /dev/pts/ptmx) makes a new terminal at each
+// open: two outputs there share nothing.
+bool opens_anew(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISCHR(st.st_mode) && st.st_rdev == makedev(5, 2);
 }
 
 // A path whose links to nothing (a name not made yet) are followed to where a write would
@@ -81,7 +136,7 @@ std::filesystem::path followed(std::filesystem::path path, std::string* why = nu
 bool same_file(const std::string& a, const std::string& b, bool both_outputs) {
   namespace fs = std::filesystem;
   std::error_code ec;
-  if (discards(a) || discards(b)) return false;
+  if (discards(a) || discards(b) || opens_anew(a) || opens_anew(b)) return false;
   if (!both_outputs && (is_stream(a) || is_stream(b))) return false;
   if (same_inode(a, b)) return true;
   const fs::path ca = fs::weakly_canonical(fs::absolute(followed(a), ec), ec);
