@@ -14,6 +14,8 @@ function(fabrik_public target name)
   set_target_properties(${target} PROPERTIES EXPORT_NAME ${name})
   add_library(fabrik::${name} ALIAS ${target})
   target_include_directories(${target} INTERFACE $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  # The public headers use C++20 (std::span): a project linking fabrik:: gets it without asking.
+  target_compile_features(${target} PUBLIC cxx_std_20)
   file(RELATIVE_PATH folder ${PROJECT_SOURCE_DIR}/src ${CMAKE_CURRENT_SOURCE_DIR})
   install(FILES ${P_HEADERS} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/fabrik/${folder})
   install(TARGETS ${target} EXPORT fabrikTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})

@@ -1,10 +1,14 @@
 // The public solver API (solver.hpp): a plan shared read-only, a workspace per thread, and
 // every misuse answered with a status value.
 #include <catch2/catch.hpp>
+#include <cmath>
+#include <limits>
 #include <memory>
+#include <string>
 #include <thread>
 #include <vector>
 
+#include "solver/joint_angles.hpp"
 #include "solver/model_builder.hpp"
 #include "solver/solver.hpp"
 #include "test_models.hpp"
@@ -115,4 +119,94 @@ TEST_CASE("A plan with a target outside the model is refused at setup", "[api]")
   bad.push_back({static_cast<int>(pr.model->points.size()), 0, 1.0});
   CHECK_THROWS_AS(SolverPlan(pr.model, bad, free_root()), std::invalid_argument);
   CHECK_THROWS_AS(SolverPlan(nullptr, pr.targets, free_root()), std::invalid_argument);
+}
+
+TEST_CASE("A target, rotation or start that is not finite is a status, the posture kept", "[api]") {
+  const Problem pr(Eigen::Vector3d(0.01, 0, 0));
+  const SolverPlan plan(pr.model, pr.targets, free_root());
+  SolverWorkspace w(plan);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const double bad : {nan, std::numeric_limits<double>::infinity()}) {
+    CAPTURE(bad);
+    std::vector<Eigen::Vector3d> targets = pr.target_world_m;
+    targets[5].x() = bad;
+    Posture p = pr.rest;
+    const SolveResult r = solve(plan, w, targets, pr.visible, p);
+    CHECK(r.status == SolveStatus::non_finite_input);
+    CHECK(to_string(r.status) == "non_finite_input");
+    CHECK(p.segments[0].base_world_m == pr.rest.segments[0].base_world_m);
+    // The same target not visible is not looked at: the solve goes on.
+    std::vector<std::uint8_t> visible = pr.visible;
+    visible[5] = 0;
+    CHECK(solve(plan, w, targets, visible, p).status == SolveStatus::converged);
+    for (const SegmentPose& s : p.segments) CHECK(s.base_world_m.allFinite());
+    // A start posture that is not finite (one spoilt by an earlier solve) is refused too.
+    Posture spoilt = pr.rest;
+    spoilt.segments[2].base_world_m.y() = bad;
+    CHECK(solve(plan, w, pr.target_world_m, pr.visible, spoilt).status ==
+          SolveStatus::non_finite_input);
+  }
+  // An orientation target: a rotation of zero length is no rotation.
+  const SolverPlan turned(pr.model, pr.targets, free_root(), {{1, 0, 1.0}});
+  SolverWorkspace wt(turned);
+  Posture p = pr.rest;
+  const std::vector<Eigen::Quaterniond> zero{Eigen::Quaterniond(0, 0, 0, 0)};
+  const std::vector<std::uint8_t> seen{1}, unseen{0};
+  CHECK(solve(turned, wt, pr.target_world_m, pr.visible, zero, seen, p).status ==
+        SolveStatus::non_finite_input);
+  CHECK(solve(turned, wt, pr.target_world_m, pr.visible, zero, unseen, p).status ==
+        SolveStatus::converged);
+}
+
+TEST_CASE("Options that cannot run a solve are refused at setup, with the option's name", "[api]") {
+  const Problem pr(Eigen::Vector3d::Zero());
+  auto refused = [&](auto&& change) {
+    SolverOptions o = free_root();
+    change(o);
+    try {
+      SolverPlan plan(pr.model, pr.targets, o);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  CHECK_THAT(refused([&](SolverOptions& o) { o.tolerance_m = nan; }),
+             Catch::Contains("tolerance_m must be a finite number"));
+  CHECK_THAT(refused([](SolverOptions& o) { o.stall_tolerance_m = -1e-6; }),
+             Catch::Contains("stall_tolerance_m"));
+  CHECK_THAT(refused([](SolverOptions& o) { o.max_iterations = -1; }),
+             Catch::Contains("max_iterations must be at least 1"));
+  CHECK_THAT(refused([](SolverOptions& o) { o.level_passes = 0; }),
+             Catch::Contains("level_passes must be at least 1"));
+  CHECK_THAT(refused([](SolverOptions& o) { o.orientation_lever_m = 0.0; }),
+             Catch::Contains("orientation_lever_m must be positive"));
+  CHECK_THAT(refused([](SolverOptions& o) { o.subtree_carry = INFINITY; }),
+             Catch::Contains("subtree_carry"));
+  CHECK(refused([](SolverOptions& o) { o.anchor_weight = 0.0; }) == "accepted");
+  CHECK(refused([](SolverOptions&) {}) == "accepted");
+}
+
+TEST_CASE("Kinematics and coordinates refuse spans of the wrong size, writing nothing", "[api]") {
+  const Problem pr(Eigen::Vector3d::Zero());
+  const Model& m = *pr.model;
+  std::vector<double> values(m.coordinates.size() + 1, -7.0);
+  CHECK_FALSE(coordinate_values(m, pr.rest, std::span(values).first(1)));
+  CHECK(values[1] == -7.0);  // was written past the span's end
+  CHECK_FALSE(coordinate_values(m, pr.rest, values));
+  CHECK(coordinate_values(m, pr.rest, std::span(values).first(m.coordinates.size())));
+  const std::vector<double> previous(m.coordinates.size(), 0.0);
+  CHECK_FALSE(unwrap_coordinates(m, {}, std::span(values).first(m.coordinates.size())));
+  CHECK_FALSE(unwrap_coordinates(m, previous, values));
+  CHECK(unwrap_coordinates(m, previous, std::span(values).first(m.coordinates.size())));
+  Posture p = pr.rest;
+  const std::vector<Eigen::Quaterniond> q_local(m.segments.size(), Eigen::Quaterniond::Identity());
+  const Eigen::Vector3d moved(1, 2, 3);
+  CHECK_FALSE(set_from_local(m, moved, std::span(q_local).first(1), p));
+  CHECK(p.segments[0].base_world_m == pr.rest.segments[0].base_world_m);
+  Posture empty;
+  CHECK_FALSE(set_from_local(m, moved, q_local, empty));
+  CHECK_FALSE(connect_joints(m, empty));
+  CHECK(set_from_local(m, moved, q_local, p));
+  CHECK(p.segments[0].base_world_m == moved);
 }

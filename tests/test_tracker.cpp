@@ -4,6 +4,8 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <memory>
+#include <stdexcept>
+#include <string>
 
 #include "synth/synthetic_motion.hpp"
 #include "test_models.hpp"
@@ -36,16 +38,22 @@ Scene fullbody_scene(double hold_s) {
   return s;
 }
 
-}  // namespace
-
-TEST_CASE("A non-finite coordinate is occluded even when flagged visible", "[tracker]") {
-  Scene s = fullbody_scene(0.0);
-  Tracker tracker(s.setup);
+// The scene's markers at the synthetic motion's posture at 0.2 s, measured exactly.
+std::vector<Eigen::Vector3d> sampled_markers(const Scene& s) {
   SyntheticMotion motion(*s.model, {});
   Posture truth = Posture::rest(*s.model);
   motion.posture_at(0.2, truth);
   std::vector<Eigen::Vector3d> pos(s.points.size());
   motion.sample(truth, s.points, 0.0, pos);
+  return pos;
+}
+
+}  // namespace
+
+TEST_CASE("A non-finite coordinate is occluded even when flagged visible", "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  std::vector<Eigen::Vector3d> pos = sampled_markers(s);
   std::vector<std::uint8_t> visible(pos.size(), 1);
   tracker.track(0.0, pos, visible);
   pos[3].y() = std::nan("");
@@ -124,6 +132,63 @@ TEST_CASE("Inputs of the wrong size give a status, not an exception", "[tracker]
   std::vector<std::uint8_t> visible(s.points.size() - 1, 1);
   const TrackResult& r = tracker.track(0.0, pos, visible);
   CHECK(r.solve.status == SolveStatus::size_mismatch);
+}
+
+TEST_CASE("A frame refused for its sizes gives no verdict, not the last frame's", "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  std::vector<Eigen::Vector3d> pos = sampled_markers(s);
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  REQUIRE(tracker.track(0.0, pos, visible).quality == FitQuality::good);
+  const Posture before = tracker.posture();
+  const TrackResult& r = tracker.track(0.01, std::span(pos).first(pos.size() - 1),
+                                       std::span(visible).first(pos.size() - 1));
+  CHECK(r.solve.status == SolveStatus::size_mismatch);
+  CHECK(r.quality == FitQuality::none);  // was good: a loop counting good frames counted it
+  CHECK(r.residual_count == 0);
+  CHECK(r.residual_rms_m == 0.0);
+  CHECK(r.worst_marker == -1);
+  CHECK(r.occluded_count == 0);
+  CHECK(tracker.posture().segments[0].base_world_m == before.segments[0].base_world_m);
+}
+
+TEST_CASE("A moved-from tracker answers with a status, not a crash", "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker first(s.setup);
+  Tracker second(std::move(first));
+  std::vector<Eigen::Vector3d> pos(s.points.size(), Eigen::Vector3d::Zero());
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  const TrackResult& r = first.track(0.0, pos, visible);  // NOLINT(bugprone-use-after-move)
+  CHECK(r.solve.status == SolveStatus::wrong_workspace);
+  CHECK(r.joints_world_m.empty());
+  CHECK(first.marker_count() == 0);  // NOLINT(bugprone-use-after-move)
+  first.reset();                     // NOLINT(bugprone-use-after-move)
+  CHECK(second.track(0.0, pos, visible).solve.status != SolveStatus::wrong_workspace);
+}
+
+TEST_CASE("Tracker settings that cannot run are refused at setup, with their names", "[tracker]") {
+  auto refused = [](auto&& change) {
+    Scene s = fullbody_scene(0.0);
+    change(s.setup);
+    try {
+      Tracker tracker(s.setup);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  CHECK_THAT(refused([](TrackerSetup& t) { t.quality.rms_m = NAN; }),
+             Catch::Contains("quality.rms_m must be a finite number"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.occlusion.hold_s = -1.0; }),
+             Catch::Contains("occlusion.hold_s"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.solver.tolerance_m = NAN; }),
+             Catch::Contains("solver: tolerance_m"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.cold_start.max_iterations = 0; }),
+             Catch::Contains("cold_start.max_iterations must be at least 1"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.outliers.min_markers = -2; }),
+             Catch::Contains("outliers.min_markers must not be negative"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.model = nullptr; }), Catch::Contains("no model"));
+  CHECK(refused([](TrackerSetup&) {}) == "accepted");
 }
 
 TEST_CASE("reset() makes the next frame start cold from rest", "[tracker]") {

@@ -188,7 +188,9 @@ Eigen::Vector3d fit_joint_angles(const Eigen::Matrix3d& b, const JointLimits& jo
   return a;
 }
 
-void coordinate_values(const Model& model, const Posture& posture, std::span<double> out) {
+bool coordinate_values(const Model& model, const Posture& posture, std::span<double> out) {
+  if (out.size() != model.coordinates.size() || posture.segments.size() != model.segments.size())
+    return false;
   // World-relative coordinates are OpenSim's, relative to its ground: the
   // lab's axes turned onto X forward, Y up. A lab that is already so is
   // left alone: its values stay bit for bit what they were.
@@ -224,10 +226,13 @@ void coordinate_values(const Model& model, const Posture& posture, std::span<dou
     }
     out[i] = c.sign * (raw + c.offset);
   }
+  return true;
 }
 
-void unwrap_coordinates(const Model& model, std::span<const double> previous,
+bool unwrap_coordinates(const Model& model, std::span<const double> previous,
                         std::span<double> out) {
+  if (previous.size() != model.coordinates.size() || out.size() != model.coordinates.size())
+    return false;
   constexpr double kTurn = 2.0 * std::numbers::pi;
   for (std::size_t i = 0; i < model.coordinates.size(); ++i) {
     const Coordinate& c = model.coordinates[i];
@@ -236,6 +241,7 @@ void unwrap_coordinates(const Model& model, std::span<const double> previous,
     const double turn = c.sign * kTurn;
     out[i] += turn * std::round((previous[i] - out[i]) / turn);
   }
+  return true;
 }
 
 }  // namespace fabrik

@@ -65,13 +65,15 @@ Eigen::Vector3d fit_joint_angles(const Eigen::Matrix3d& b, const JointLimits& jo
 /// Every coordinate of the model (Model::coordinates) at this posture:
 /// rotations in radians, translations in metres. Those relative to the world
 /// are in the reference frame of Model::lab_axes (OpenSim's ground). Rotations
-/// are the Cardan angles' principal values; see unwrap_coordinates.
-void coordinate_values(const Model& model, const Posture& posture, std::span<double> out);
+/// are the Cardan angles' principal values; see unwrap_coordinates. False, and nothing
+/// written, when `out` has not one entry per coordinate or the posture one pose per segment.
+bool coordinate_values(const Model& model, const Posture& posture, std::span<double> out);
 
 /// Each rotation in `out` moved by whole turns to the value nearest its
-/// `previous` one (translations untouched): continuous coordinates over
-/// frames, as OpenSim's, which never wrap at +-180 deg.
-void unwrap_coordinates(const Model& model, std::span<const double> previous,
+/// `previous` one (translations untouched; a NaN previous value leaves it): continuous
+/// coordinates over frames, as OpenSim's, which never wrap at +-180 deg. False, and nothing
+/// changed, when either span has not one entry per coordinate.
+bool unwrap_coordinates(const Model& model, std::span<const double> previous,
                         std::span<double> out);
 
 }  // namespace fabrik

@@ -49,12 +49,14 @@ struct Posture {
 };
 
 /// Places every non-root segment's base on its parent's joint point, keeping
-/// rotations: used after rotations change (kinematics, baselines).
-void connect_joints(const Model& model, Posture& posture);
+/// rotations: used after rotations change (kinematics, baselines). False, and the posture
+/// unchanged, when it has not one pose per segment of the model.
+bool connect_joints(const Model& model, Posture& posture);
 
 /// Forward kinematics: world rotations from rotations relative to the parent
-/// (q_local[0] is the root's world rotation), bases connected at the joints.
-void set_from_local(const Model& model, const Eigen::Vector3d& root_base_m,
+/// (q_local[0] is the root's world rotation), bases connected at the joints. False, and the
+/// posture unchanged, when q_local or the posture has not one entry per segment.
+bool set_from_local(const Model& model, const Eigen::Vector3d& root_base_m,
                     std::span<const Eigen::Quaterniond> q_local, Posture& posture);
 
 }  // namespace fabrik

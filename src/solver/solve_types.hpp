@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <string_view>
 
 namespace fabrik {
@@ -81,14 +82,22 @@ struct SolverOptions {
   double orientation_lever_m = 0.1;
 };
 
+/// Why `options` cannot run a solve ("tolerance_m is NaN", "max_iterations must be at least
+/// 1"), or "": every length, weight and carry finite and not negative, the counts at least 1,
+/// the orientation lever positive. SolverPlan (and the Tracker) refuse such options at setup.
+std::string solver_options_problem(const SolverOptions& options);
+
 /// Why a solve stopped. Every outcome is a value here, never an exception.
 enum class SolveStatus : std::uint8_t {
-  converged,       ///< every visible target within tolerance
-  stalled,         ///< a fixed point: no target moved by stall tolerance (e.g. unreachable)
-  max_iterations,  ///< iteration budget spent while still improving
-  no_targets,      ///< nothing visible to track: posture unchanged
-  size_mismatch,   ///< the inputs do not match the solver's targets or model: posture unchanged
+  converged,        ///< every visible target within tolerance
+  stalled,          ///< a fixed point: no target moved by stall tolerance (e.g. unreachable)
+  max_iterations,   ///< iteration budget spent while still improving
+  no_targets,       ///< nothing visible to track: posture unchanged
+  size_mismatch,    ///< the inputs do not match the solver's targets or model: posture unchanged
   wrong_workspace,  ///< solve(plan, workspace, ...) with a workspace made for another plan
+  /// A visible target, a visible orientation or the start posture holds NaN or an infinity
+  /// (or a rotation of zero length): posture unchanged
+  non_finite_input,
 };
 
 /// The enumerator's name, e.g. "converged" (for logs and reports).
@@ -106,6 +115,8 @@ inline std::string_view to_string(SolveStatus s) {
       return "size_mismatch";
     case SolveStatus::wrong_workspace:
       return "wrong_workspace";
+    case SolveStatus::non_finite_input:
+      return "non_finite_input";
   }
   return "unknown";
 }

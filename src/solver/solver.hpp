@@ -2,9 +2,10 @@
 /// The solver as a library user holds it (Pinocchio's Model/Data split): a SolverPlan is the
 /// problem, fixed once (model, targets, options) and shared read-only between threads; a
 /// SolverWorkspace is one thread's scratch for solving that plan. solve() takes both and
-/// checks that they belong together and that the inputs have the plan's sizes: a mismatch is a
-/// status value (SolveStatus::wrong_workspace, SolveStatus::size_mismatch), never an exception
-/// and never undefined behaviour. A solve allocates nothing.
+/// checks that they belong together and that the inputs have the plan's sizes and are finite:
+/// a mismatch is a status value (SolveStatus::wrong_workspace, SolveStatus::size_mismatch,
+/// SolveStatus::non_finite_input), never an exception and never undefined behaviour. A solve
+/// allocates nothing.
 #pragma once
 
 #include <Eigen/Core>
@@ -28,7 +29,8 @@ struct FabrikPlan;
 class SolverPlan {
  public:
   /// Throws std::invalid_argument when a target names a point or segment the model lacks, or
-  /// has a weight that is not positive and finite.
+  /// has a weight that is not positive and finite, or when the options cannot run a solve
+  /// (solver_options_problem: NaN, a negative length, max_iterations below 1).
   SolverPlan(std::shared_ptr<const Model> model, std::vector<Target> targets,
              SolverOptions options = {}, std::vector<OrientationTarget> orientations = {});
 
@@ -83,7 +85,8 @@ class SolverWorkspace {
 /// Moves `posture` (the start: the previous frame's result, or Posture::rest) so that each
 /// visible target's point meets target_world_m[i] (metres, world frame), strongest priority
 /// level first. target_world_m and visible have one entry per plan.targets(). The posture is
-/// left unchanged when the status is size_mismatch, wrong_workspace or no_targets.
+/// left unchanged when the status is size_mismatch, wrong_workspace, non_finite_input (a
+/// visible target, or the start posture, holds NaN or an infinity) or no_targets.
 SolveResult solve(const SolverPlan& plan, SolverWorkspace& workspace,
                   std::span<const Eigen::Vector3d> target_world_m,
                   std::span<const std::uint8_t> visible, Posture& posture);

@@ -31,7 +31,7 @@ struct TrackerSetup {
   std::vector<MarkerTarget> markers;   ///< in the order track() takes the measurements
   SolverOptions solver = tracking_solver_options();  ///< options of a warm frame's solve
   OcclusionPolicy occlusion;                         ///< what occluded markers do
-  SensorSetup sensors;            ///< orientation sensors (sensor_targets.hpp); none by default
+  SensorSetup sensors;            ///< orientation sensors (tracking_settings.hpp); none by default
   OutlierSettings outliers;       ///< leaving out markers that do not fit
   QualitySettings quality;        ///< the bars of a good fit (TrackResult::quality)
   ColdStartSettings cold_start;   ///< how a frame without a previous one is solved
@@ -110,10 +110,14 @@ struct TrackResult {
 class Tracker {
  public:
   /// Sizes every buffer. Throws std::invalid_argument when the setup does not fit together
-  /// (no model, a marker without its model point, a sensor without its segment, ...).
+  /// (no model, a marker without its model point, a sensor without its segment, ...) or a
+  /// setting cannot run (NaN, a negative length or time, a count below its least).
   explicit Tracker(TrackerSetup setup);
   ~Tracker();
-  /// The result's spans point into the tracker's state, which a move carries along.
+  /// The result's spans point into the tracker's state, which a move carries along. A
+  /// moved-from Tracker's track() gives SolveStatus::wrong_workspace and empty spans,
+  /// marker_count() 0 and reset() nothing; its setup(), model() and posture() must not be
+  /// called.
   Tracker(Tracker&&) noexcept;
   /// As the move constructor: the result's spans move with the state.
   Tracker& operator=(Tracker&&) noexcept;
@@ -128,7 +132,8 @@ class Tracker {
   /// One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
   /// occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
   /// frame's time (for the hold policy). Spans of the wrong size give
-  /// SolveStatus::size_mismatch and leave the posture as it was.
+  /// SolveStatus::size_mismatch, leave the posture as it was, and a verdict of no frame
+  /// (quality none, counts and residuals 0); the result's spans keep the last frame's values.
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible);
   /// The same with orientation sensors: q_sensors_sensor[k] (sensor k's frame in

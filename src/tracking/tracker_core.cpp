@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "solver/joint_angles.hpp"
 
@@ -72,10 +74,66 @@ std::vector<std::array<int, 2>> mirror_pairs(const TrackerSetup& s) {
   return mirror_pairs_from_names(names);
 }
 
+// Why the setup's settings cannot run (a NaN bar, a negative time, a count below its least),
+// or "": every amount finite and not negative.
+std::string settings_problem(const TrackerSetup& s) {
+  if (std::string why = solver_options_problem(s.solver); !why.empty()) return "solver: " + why;
+  const OutlierSettings& o = s.outliers;
+  const PredictionSettings& p = s.prediction;
+  const std::pair<const char*, double> amounts[] = {
+      {"occlusion.hold_s", s.occlusion.hold_s},
+      {"outliers.floor_m", o.floor_m},
+      {"outliers.median_factor", o.median_factor},
+      {"outliers.moved_m", o.moved_m},
+      {"outliers.mirror_ratio", o.mirror_ratio},
+      {"outliers.mirror_floor_m", o.mirror_floor_m},
+      {"outliers.mirror_max_s", o.mirror_max_s},
+      {"confidence.threshold", s.confidence.threshold},
+      {"smoothing.min_cutoff_hz", s.smoothing.min_cutoff_hz},
+      {"smoothing.beta_per_m", s.smoothing.beta_per_m},
+      {"smoothing.d_cutoff_hz", s.smoothing.d_cutoff_hz},
+      {"quality.rms_m", s.quality.rms_m},
+      {"quality.max_m", s.quality.max_m},
+      {"cold_start.after_gap_s", s.cold_start.after_gap_s},
+      {"prediction.weight", p.weight},
+      {"prediction.velocity_decay_s", p.velocity_decay_s},
+      {"prediction.velocity_window_s", p.velocity_window_s},
+      {"prediction.return_speed_m_per_s", p.return_speed_m_per_s},
+      {"prediction.donor_min_sine", p.donor_min_sine},
+      {"prediction.donor_score_floor_m", p.donor_score_floor_m},
+      {"prediction.donor_gate", p.donor_gate}};
+  for (const auto& [name, value] : amounts)
+    if (!std::isfinite(value) || value < 0.0)
+      return std::string(name) + " must be a finite number, not negative (is " +
+             std::to_string(value) + ")";
+  const std::pair<const char*, int> counts[] = {
+      {"outliers.max_per_frame", o.max_per_frame},
+      {"outliers.min_markers", o.min_markers},
+      {"prediction.donor_candidates", p.donor_candidates},
+      {"prediction.donor_triples", p.donor_triples},
+      {"prediction.donor_choices_per_frame", p.donor_choices_per_frame},
+      {"prediction.donor_max_joints", p.donor_max_joints}};
+  for (const auto& [name, value] : counts)
+    if (value < 0)
+      return std::string(name) + " must not be negative (is " + std::to_string(value) + ")";
+  if (s.cold_start.max_iterations < 1)
+    return "cold_start.max_iterations must be at least 1 (is " +
+           std::to_string(s.cold_start.max_iterations) + ")";
+  return {};
+}
+
+// The setup, refused at once where it cannot run: no model, or settings no frame can use.
+TrackerSetup checked_setup(TrackerSetup s) {
+  if (!s.model) throw std::invalid_argument("tracker: no model");
+  if (const std::string why = settings_problem(s); !why.empty())
+    throw std::invalid_argument("tracker: " + why);
+  return s;
+}
+
 }  // namespace
 
 TrackerCore::TrackerCore(TrackerSetup setup)
-    : setup_(std::move(setup)),
+    : setup_(checked_setup(std::move(setup))),
       sensors_(setup_.sensors, *setup_.model),
       predictor_(*setup_.model, checked_marker_points(setup_), setup_.prediction),
       solver_(setup_.model, solver_targets(setup_), setup_.solver,
@@ -141,6 +199,24 @@ void TrackerCore::reset() {
   mirror_.reset();
 }
 
+void TrackerCore::clear_verdict() {
+  TrackResult& r = result_;
+  r.solve = SolveResult{};
+  r.solve_us = 0.0;
+  r.occluded_count = r.low_confidence_count = r.mirrored_count = 0;
+  r.residual_rms_m = r.residual_max_m = 0.0;
+  r.residual_count = 0;
+  r.worst_marker = -1;
+  r.sensor_occluded_count = 0;
+  r.sensor_rms_rad = r.sensor_max_rad = 0.0;
+  r.worst_sensor = -1;
+  r.root_held = false;
+  r.outlier_count = 0;
+  r.quality = FitQuality::none;
+  r.beyond_count = 0;
+  r.cold_start = false;
+}
+
 const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                                   std::span<const std::uint8_t> visible) {
   return track(time_s, measured_world_m, visible, {}, {});
@@ -154,7 +230,7 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
   if (static_cast<int>(measured_world_m.size()) != n_ || static_cast<int>(visible.size()) != n_ ||
       (!confidence.empty() && static_cast<int>(confidence.size()) != n_) ||
       !sensors_.set_measured(q_sensors_sensor, sensor_visible)) {
-    result_.solve = SolveResult{};
+    clear_verdict();
     result_.solve.status = SolveStatus::size_mismatch;
     return result_;
   }

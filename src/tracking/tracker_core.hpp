@@ -42,6 +42,10 @@ class TrackerCore {
   const Posture& posture() const { return posture_; }
 
  private:
+  // A frame refused before its solve gives no verdict: its counts, residuals and quality are
+  // those of no frame, not the previous one's (the spans keep the posture's values).
+  void clear_verdict();
+
   TrackerSetup setup_;
   SensorTargets sensors_;  // before solver_: its targets are the solver's
   GapPredictor predictor_;  // before solver_: its targets follow the sensors'
