@@ -51,7 +51,12 @@ Config load(const std::optional<std::string>& path) {
 // again on the other side. A model path in the text resolves against that file's directory,
 // so it must exist there too; calibrated configs carry their model inline.
 py::tuple config_state(const Config& c) {
-  return py::make_tuple(c.json, c.config->file, c.report);
+  // A relative path is made absolute here: the other side (a Dask worker) may run elsewhere.
+  const std::string& file = c.config->file;
+  std::error_code ec;
+  const bool on_disk = !file.empty() && std::filesystem::exists(file, ec);
+  return py::make_tuple(c.json, on_disk ? std::filesystem::absolute(file).string() : file,
+                        c.report);
 }
 
 Config config_from_state(const py::tuple& state) {

@@ -128,7 +128,19 @@ class PyTracker {
            "; Tracker.marker_names lists them). Pass ignore_unknown=True to skip such names";
   }
 
+  [[noreturn]] void refuse_type(const py::handle& markers) const {
+    throw py::type_error("markers: give a dict name -> (x, y, z) in mm, or a (" +
+                         std::to_string(layout_->markers) +
+                         ", 3) array in Tracker.marker_names order, not " +
+                         std::string(py::str(py::type::of(markers).attr("__name__"))));
+  }
+
   void read_array(const py::handle& markers) {
+    // None or a number would become a 0-d array (NumPy's forcecast) and be refused for its
+    // shape: the wrong type, said as such.
+    if (!PySequence_Check(markers.ptr()) && !PyObject_CheckBuffer(markers.ptr()) &&
+        !py::hasattr(markers, "__array__") && !py::hasattr(markers, "__array_interface__"))
+      refuse_type(markers);
     auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(markers);
     if (!a) {
       // A list or array NumPy cannot read as numbers holds a coordinate that is not one: a
@@ -142,10 +154,7 @@ class PyTracker {
             "markers: coordinates must be numbers (mm), in a (" + std::to_string(layout_->markers) +
             ", 3) array in Tracker.marker_names order; this " +
             std::string(py::str(py::type::of(markers).attr("__name__"))) + " holds something else");
-      throw py::type_error("markers: give a dict name -> (x, y, z) in mm, or a (" +
-                           std::to_string(layout_->markers) +
-                           ", 3) array in Tracker.marker_names order, not " +
-                           std::string(py::str(py::type::of(markers).attr("__name__"))));
+      refuse_type(markers);
     }
     if (a.ndim() != 2 || a.shape(0) != static_cast<py::ssize_t>(layout_->markers) ||
         a.shape(1) != 3) {

@@ -99,6 +99,33 @@ def test_calibrate_writes_what_fabrik_calibrate_writes(tmp_path):
 def test_calibrate_errors(tmp_path):
     with pytest.raises(FileNotFoundError, match="no_template.json"):
         fabrik.calibrate(tmp_path / "no_template.json", tmp_path / "s.trc")
+    # A negative first frame other than -1 was taken as not set; a float was cut (2.7 -> 2).
+    with pytest.raises(ValueError, match="first_frame must be 0 or more"):
+        fabrik.calibrate(tmp_path / "t.json", tmp_path / "s.trc", first_frame=-5)
+    for name in ("first_frame", "frames", "auto_window"):
+        with pytest.raises(TypeError, match=name + " must be a whole number"):
+            fabrik.calibrate(tmp_path / "t.json", tmp_path / "s.trc", **{name: 2.7})
+
+
+def test_a_config_from_a_relative_path_unpickles_in_another_folder(tmp_path, monkeypatch):
+    # Its relative path was pickled as given: a worker in another folder could not find it,
+    # nor the model file beside it.
+    import pickle
+    import shutil
+    folder = tmp_path / "sub"
+    folder.mkdir()
+    shutil.copy(f"{SOURCE}/config/models/fullbody.json", folder / "fullbody.json")
+    text = json.loads(open(DEFAULT_CONFIG).read())
+    text["model"] = "fullbody.json"
+    (folder / "rel.json").write_text(json.dumps(text))
+    monkeypatch.chdir(tmp_path)
+    packed = pickle.dumps(fabrik.load_config("sub/rel.json"))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    again = pickle.loads(packed)
+    assert again.file == str(folder / "rel.json")
+    assert again.marker_names == fabrik.load_config(str(folder / "rel.json")).marker_names
 
 
 def test_configs_pickle(tmp_path):

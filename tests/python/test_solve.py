@@ -1,5 +1,7 @@
 """Whole-trial solve: the same numbers as `fabrik solve`, from a file or from arrays; angles as a
 pandas DataFrame."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -90,3 +92,38 @@ def test_a_trial_sharing_no_marker_is_refused(tmp_path):
         fabrik.solve(fabrik.load_config(), data)
     with pytest.raises(FileNotFoundError, match="nothing.trc"):
         fabrik.solve(fabrik.load_config(), tmp_path / "nothing.trc")
+
+
+def test_a_slice_of_a_trial_keeps_its_frame_numbers_and_times(synth_trial):
+    # A slice's first_frame field stays the file's: its frame numbers came back from 1.
+    trial = fabrik.read_markers(synth_trial)
+    part = dataclasses.replace(trial, positions_mm=trial.positions_mm[40:60],
+                               time_s=trial.time_s[40:60], frame_numbers=trial.frame_numbers[40:60])
+    solved = fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), part)
+    np.testing.assert_array_equal(solved.frame_numbers, trial.frame_numbers[40:60])
+    np.testing.assert_allclose(solved.time_s, trial.time_s[40:60], rtol=0, atol=1e-9)
+    # Every other frame would be numbered and timed as consecutive ones: refused.
+    with pytest.raises(ValueError, match="frame_numbers must run on by one"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(
+            trial, positions_mm=trial.positions_mm[::2], time_s=trial.time_s[::2],
+            frame_numbers=trial.frame_numbers[::2]))
+    with pytest.raises(ValueError, match="time_s must step by 1/rate_hz"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(
+            trial, positions_mm=trial.positions_mm[::2], time_s=trial.time_s[::2],
+            frame_numbers=None))
+
+
+def test_keep_zeros_holds_for_arrays_as_for_files(synth_trial):
+    # An exact (0, 0, 0) is missing unless keep_zeros: it was taken as a position from arrays.
+    trial = fabrik.read_markers(synth_trial)
+    zeroed = trial.positions_mm.copy()
+    zeroed[30:40, 0] = 0.0
+    mine = dataclasses.replace(trial, positions_mm=zeroed)
+    config = fabrik.load_config(DEFAULT_CONFIG)
+    seen = int(np.sum(~np.isnan(trial.positions_mm[30, :, 0])))
+    assert not np.isnan(trial.positions_mm[30:40, 0]).any()
+    dropped = fabrik.solve(config, mine)
+    np.testing.assert_array_equal(dropped.measured[30:40], seen - 1)
+    kept = fabrik.solve(config, mine, keep_zeros=True)
+    np.testing.assert_array_equal(kept.measured[30:40], seen)
+    assert np.array_equal(mine.positions_mm, zeroed, equal_nan=True)  # the caller's, untouched

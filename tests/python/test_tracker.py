@@ -95,6 +95,10 @@ def test_wrong_input_gives_clear_errors(config, frames):
         tracker.track({"LASI": (1, "a", 2)}, 0.0)
     with pytest.raises(TypeError, match="give a dict"):
         tracker.track(object(), 0.0)
+    # None and a number became 0-d arrays and were refused for their shape (a ValueError).
+    for wrong in (None, 5, 2.5):
+        with pytest.raises(TypeError, match="give a dict"):
+            tracker.track(wrong, 0.0)
     # A coordinate that is not a number in a list or an array is a ValueError too, as in a dict
     # (before: a TypeError that said "not list", though a list of numbers is taken).
     rows = frames[0].tolist()

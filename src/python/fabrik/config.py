@@ -1,5 +1,6 @@
 """Loading a daemon config or model, and calibrating a subject (the compiled code; paths may
 be str or os.PathLike)."""
+import numbers
 import os
 
 from . import _fabrik
@@ -25,11 +26,15 @@ def calibrate(template, static, output=None, *, first_frame=-1, frames=-1, auto_
     the stillest N frames instead. lab_up/lab_forward ("+z", "+x") declare the lab's axes.
     Releases the GIL. Raises FileNotFoundError, ConfigError/FormatError (ValueErrors) or
     CalibrationError (a RuntimeError: the trial cannot support the template)."""
-    # -1 is "not set"; any other value below 1 was once taken as not set too, or refused in the
-    # command line's words ("--frames 0 ... runs past the last frame").
-    for name, value in (("frames", frames), ("auto_window", auto_window)):
-        if value != -1 and value < 1:
-            raise ValueError("%s must be 1 or more (or -1: not set), not %r" % (name, value))
+    # -1 is "not set"; any other value below the least was once taken as not set too, or
+    # refused in the command line's words ("--frames 0 ... runs past the last frame"); a float
+    # was cut to a whole number (2.7 read as frame 2).
+    for name, value, least in (("first_frame", first_frame, 0), ("frames", frames, 1),
+                               ("auto_window", auto_window, 1)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+            raise TypeError("%s must be a whole number (or -1: not set), not %r" % (name, value))
+        if value != -1 and value < least:
+            raise ValueError("%s must be %d or more (or -1: not set), not %r" % (name, least, value))
     return _fabrik.calibrate(os.fspath(template), os.fspath(static),
                              None if output is None else os.fspath(output),
                              first_frame=first_frame, frames=frames, auto_window=auto_window,

@@ -54,18 +54,53 @@ class Solution:
                             columns=self.angle_names)
 
 
+def _first_frame_and_time(markers):
+    """The first frame's number and time of a MarkerData, from its frame_numbers and time_s where
+    it has them (a slice of a trial keeps its own), checked to run on one frame at a time: the
+    solve numbers and times frames first + index."""
+    first_frame = int(markers.first_frame)
+    numbers = markers.frame_numbers
+    if numbers is not None and len(numbers):
+        numbers = np.asarray(numbers)
+        steps = np.flatnonzero(np.diff(numbers) != 1)
+        if steps.size:
+            k = int(steps[0])
+            raise ValueError("markers.frame_numbers must run on by one (the solve numbers frames "
+                             "first + index), but %d follows %d" % (numbers[k + 1], numbers[k]))
+        first_frame = int(numbers[0])
+    times = markers.time_s
+    if times is None or not len(times):
+        return first_frame, float("nan")
+    times = np.asarray(times, dtype=np.float64)
+    period_s = 1.0 / float(markers.rate_hz)
+    # Half a period: a file's Time column rounded to 3 decimals is off by far less.
+    off = np.flatnonzero(np.abs(np.diff(times) - period_s) > 0.5 * period_s)
+    if off.size:
+        k = int(off[0])
+        raise ValueError("markers.time_s must step by 1/rate_hz (%g s), but %g s follows %g s"
+                         % (period_s, times[k + 1], times[k]))
+    return first_frame, float(times[0])
+
+
 def solve(config, markers, keep_zeros=False):
     """Track a whole trial as `fabrik solve` does (the daemon's Tracker, then the two-sided
     gap fill of the model's markers). markers: a .trc/.c3d path, or MarkerData (e.g. from
-    read_markers, or made from your own (frames, markers, 3) mm array). Releases the GIL while
-    it solves. Raises FileNotFoundError/FormatError, or RuntimeError when the trial shares no
-    marker name with the config."""
+    read_markers, or made from your own (frames, markers, 3) mm array; a slice keeps its
+    frame_numbers and time_s, which must step by one frame). keep_zeros=False takes an exact
+    (0, 0, 0) as missing, for a path and a MarkerData alike. Releases the GIL while it solves.
+    Raises FileNotFoundError/FormatError, ValueError for frame numbers or times that do not
+    step by one frame, or RuntimeError when the trial shares no marker name with the config."""
     if isinstance(markers, MarkerData):
-        times = markers.time_s
-        first_time_s = float(times[0]) if times is not None and len(times) else float("nan")
-        d = _fabrik._solve_arrays(config, list(markers.names),
-                                  np.asarray(markers.positions_mm, dtype=np.float64),
-                                  float(markers.rate_hz), int(markers.first_frame), first_time_s)
+        first_frame, first_time_s = _first_frame_and_time(markers)
+        positions_mm = np.asarray(markers.positions_mm, dtype=np.float64)
+        if not keep_zeros:
+            # As read_markers does: an exact (0, 0, 0) is a system's way to say "missing".
+            zeros = np.all(positions_mm == 0.0, axis=-1)
+            if zeros.any():
+                positions_mm = positions_mm.copy()
+                positions_mm[zeros] = np.nan
+        d = _fabrik._solve_arrays(config, list(markers.names), positions_mm,
+                                  float(markers.rate_hz), first_frame, first_time_s)
     else:
         d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros)
     d["summary"] = json.loads(d.pop("summary_json"))
