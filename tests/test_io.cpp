@@ -1105,6 +1105,27 @@ TEST_CASE("A C3D label on two points is refused, naming both POINT:LABELS entrie
   CHECK(info.trial.source.repeated_labels[0].second == 3);
 }
 
+TEST_CASE("A TRC's first time is put on the frame grid within the rounding it is written with",
+          "[io][trc][opensim]") {
+  TempFile file(".trc");
+  auto first_time_s = [&](const std::string& time, const std::string& rate, int frame) {
+    write_text(file.path(), two_marker_trc("A", "B", {time}, rate, frame));
+    return read_trc(file.path()).file_time_s(0);
+  };
+  // Frame 26 of a 60 Hz trial written with 3 decimals: 0.417 is 25.02 frames, off the grid by
+  // more than a hundredth of a frame; it was kept, so every row was 0.33 ms late.
+  CHECK(first_time_s("0.417", "60", 26) == 25.0 / 60.0);
+  CHECK(first_time_s("0.433", "60", 27) == 26.0 / 60.0);    // 25.98 frames
+  CHECK(first_time_s("0.104", "240", 26) == 25.0 / 240.0);  // 24.96: 0.12 frame at 240 Hz
+  // Written more finely, the same offsets are the file's own clock: kept.
+  CHECK(first_time_s("0.4172", "60", 26) == Approx(0.4172).epsilon(1e-12));
+  CHECK(first_time_s("0.41700000", "60", 26) == Approx(0.417).epsilon(1e-12));
+  CHECK(first_time_s("4.17e-1", "60", 26) == Approx(0.417).epsilon(1e-12));
+  // On the grid already, or within a hundredth of a frame, as before.
+  CHECK(first_time_s("0.23", "100", 24) == 23.0 / 100.0);
+  CHECK(first_time_s("0.41666667", "60", 26) == 25.0 / 60.0);
+}
+
 TEST_CASE("A TRC Time column that goes back is refused at its first row, one standing still warns",
           "[io][trc][opensim]") {
   TempFile back(".trc"), still(".trc");

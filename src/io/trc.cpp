@@ -3,9 +3,10 @@
 // them: header keys and values separated by any run of whitespace (OpenSim itself writes
 // double tabs), data fields by single tabs.
 #include <algorithm>
+#include <cctype>
 #include <charconv>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <limits>
 #include <optional>
@@ -305,13 +306,32 @@ class TrcParser {
   [[noreturn]] void fail(const std::string& problem) const { throw FormatError(path_, problem); }
 
   // The first row's Time in frame periods: where the file's clock starts (frame 1 at 0 s in
-  // OpenSim's own files, frame 23 at 0.23 s in others). Rounded times within a hundredth of a
-  // frame of the grid are put on it, so every later time is exactly (n + index) / rate.
+  // OpenSim's own files, frame 23 at 0.23 s in others). A time within the rounding of the
+  // decimals it is written with (0.417 for 25 / 60 s: 0.02 frame off at 60 Hz, 0.12 at
+  // 240 Hz), or within a hundredth of a frame, is put on the frame grid, so every later time
+  // is exactly (n + index) / rate.
   static double first_time_frames(std::string_view time_field, double rate_hz) {
     const std::optional<double> t = parse_number(time_field);
     if (!t || !std::isfinite(*t)) return std::numeric_limits<double>::quiet_NaN();
     const double frames = *t * rate_hz;
-    return std::abs(frames - std::round(frames)) < 0.01 ? std::round(frames) : frames;
+    const double off_frames = std::abs(frames - std::round(frames));
+    return off_frames < std::max(0.01, written_rounding_s(time_field) * rate_hz)
+               ? std::round(frames)
+               : frames;
+  }
+
+  // Half the last decimal a number is written with (0.0005 for "0.417"), in its own unit, plus
+  // a little for the binary value; 0 for a number with an exponent or without decimals.
+  static double written_rounding_s(std::string_view field) {
+    field = trim(field);
+    const auto point = field.find('.');
+    if (point == std::string_view::npos || field.find_first_of("eE") != std::string_view::npos)
+      return 0.0;
+    std::size_t decimals = 0;
+    while (point + 1 + decimals < field.size() &&
+           std::isdigit(static_cast<unsigned char>(field[point + 1 + decimals])))
+      ++decimals;
+    return 0.5 * std::pow(10.0, -static_cast<double>(decimals)) * (1.0 + 1e-9);
   }
 
   // Counts rows whose Time is before (backwards) or equal to (standing) the previous row's, and
