@@ -1003,12 +1003,26 @@ TEST_CASE("OpenSim tables: header, columns, rows, time span and rate", "[io][inf
   REQUIRE(m.table);
   CHECK(m.table->name == "Coordinates");
   CHECK(m.table->rows == 3);  // the short row is left out, and said
-  CHECK(m.table->rate_hz == Approx(2.0 / 0.3));
+  // Its time still counts: 4 rows in 0.3 s are 10 Hz (was 3 rows, 6.7 Hz).
+  CHECK(m.table->rate_hz == Approx(10.0));
   CHECK(m.table->rate_source == "from the time column");
   CHECK(m.table->cell_kind == "numbers");
   REQUIRE(m.table->warnings.size() == 2);
-  CHECK_THAT(m.table->warnings[0], Catch::StartsWith("1 rows (the first on line 12)"));
+  CHECK_THAT(m.table->warnings[0], Catch::StartsWith("1 rows left out (the first on line 12)"));
   CHECK(m.table->warnings[1] == "nRows is 5 but the table has 3");
+
+  // A row out of time order is kept and said apart; the rate spans the earliest to the latest.
+  write_text(mot.path(),
+             "Coordinates\nversion=1\nnRows=4\nnColumns=2\ninDegrees=yes\nendheader\n"
+             "time\tknee_angle_r\n0.1\t1\n0.0\t2\n0.2\t3\n0.3\t4\n");
+  const RecordingInfo u = inspect_recording(mot.path());
+  REQUIRE(u.table);
+  CHECK(u.table->rows == 4);
+  CHECK(u.table->rate_hz == Approx(10.0));  // was 3 / 0.2 s = 15 Hz
+  REQUIRE(u.table->warnings.size() == 1);
+  CHECK(u.table->warnings[0] ==
+        "1 rows kept (the first on line 9) whose time is not after the "
+        "previous row's");
 
   write_text(mot.path(), "Coordinates\nversion=1\ntime\tx\n0\t1\n");
   CHECK_THAT(error_of([&] { inspect_recording(mot.path()); }),

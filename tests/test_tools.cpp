@@ -584,7 +584,7 @@ TEST_CASE("A trial that shares no marker name with the config is refused, with t
   }
   std::string message;
   try {
-    fabrik::require_shared_markers(config, trial, "walk.trc");
+    fabrik::require_shared_markers(config, trial, "walk.trc", "--subject");
   } catch (const std::runtime_error& e) {
     message = e.what();
   }
@@ -597,9 +597,42 @@ TEST_CASE("A trial that shares no marker name with the config is refused, with t
                                       "'Subj:'), RKNE ~ R.KNE (punctuation), "));
   CHECK_THAT(message, Catch::Contains("LKNE ~ L_KNEE (1 edit)"));
   CHECK_THAT(message, Catch::Contains("\nFix: "));
+  CHECK_THAT(message, Catch::Contains("; to track one subject of this file, give --subject Subj"));
+  try {  // a caller without such an option (Python's solve) offers none
+    fabrik::require_shared_markers(config, trial, "walk.trc");
+  } catch (const std::runtime_error& e) {
+    CHECK_THAT(e.what(), !Catch::Contains("to track one subject"));
+  }
   // One shared name is enough.
   trial.labels[0] = config.tracker.markers[0].marker;
   CHECK_NOTHROW(fabrik::require_shared_markers(config, trial, "walk.trc"));
+}
+
+TEST_CASE("A config whose names carry a subject prefix the file's labels lack is told so") {
+  // A config calibrated from one subject of a Nexus C3D names its markers `Daphnee:LASI`; that
+  // subject's own TRC export says `LASI`, another subject's `Other:LASI`: no closest was named.
+  fabrik::DaemonConfig config = fabrik::default_daemon_config();
+  for (fabrik::MarkerTarget& m : config.tracker.markers) m.marker = "Daphnee:" + m.marker;
+  MarkerTrial trial = default_model_trial();
+  auto refusal = [&] {
+    try {
+      fabrik::require_shared_markers(config, trial, "walk.trc", "--subject");
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  std::string message = refusal();
+  INFO(message);
+  CHECK_THAT(message, Catch::Contains("\n  closest: Daphnee:LASI ~ LASI (without 'Daphnee:')"));
+  CHECK_THAT(message, Catch::Contains("(the config's names carry the subject prefix 'Daphnee:': "
+                                      "remove it from its targets, or calibrate from this "
+                                      "subject's own file)"));
+  CHECK_THAT(message, !Catch::Contains("--subject"));
+  for (std::string& l : trial.labels) l = "Other:" + l;
+  message = refusal();
+  CHECK_THAT(message,
+             Catch::Contains("Daphnee:LASI ~ Other:LASI (after 'Other:', not 'Daphnee:')"));
 }
 
 TEST_CASE("fabrik solve and calibrate on a C3D without 3D points: the truth, exit 2") {

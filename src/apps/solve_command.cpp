@@ -99,7 +99,7 @@ void run(const SolveOptions& o) {
                    "fabrik solve: warning: %zu samples farther than input.max_abs_coordinate_mm "
                    "(%g mm) from the origin are taken as missing, as fabrikd takes them\n",
                    implausible, config.max_abs_coordinate_m * 1e3);
-    if (o.orientations.empty()) require_shared_markers(config, trial, o.input);
+    if (o.orientations.empty()) require_shared_markers(config, trial, o.input, "--subject");
     if (o.filter_hz > 0.0) {
       const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);
       if (!o.quiet)

@@ -48,15 +48,28 @@ std::vector<NameMatch> closest_labels(const std::vector<std::string>& config_nam
   std::vector<Scored> found;
   for (const std::string& name : config_names) {
     std::optional<Scored> best;
-    const auto offer = [&](const std::string& label, std::string how, std::size_t score) {
-      if (!best || score < best->score) best = Scored{{name, label, std::move(how)}, score};
+    const auto offer = [&](const std::string& label, std::string how, std::size_t score,
+                           std::string label_prefix = {}, std::string name_prefix = {}) {
+      if (!best || score < best->score)
+        best = Scored{
+            {name, label, std::move(how), std::move(label_prefix), std::move(name_prefix)}, score};
     };
+    // A config calibrated from one subject of a Nexus file names its markers `Subject:Marker`;
+    // its subject's own export may not.
+    const std::string bare_name = without_prefix(name);
+    const std::string name_prefix = name.substr(0, name.size() - bare_name.size());
     for (const std::string& label : trial_labels) {
       const std::string bare = without_prefix(label);
+      const std::string prefix = label.substr(0, label.size() - bare.size());
       if (iequals(label, name)) {
         offer(label, "case", 0);
       } else if (bare != label && iequals(bare, name)) {
-        offer(label, "after '" + label.substr(0, label.size() - bare.size()) + "'", 1);
+        offer(label, "after '" + prefix + "'", 1, prefix);
+      } else if (!name_prefix.empty() && iequals(bare, bare_name)) {
+        offer(label,
+              prefix.empty() ? "without '" + name_prefix + "'"
+                             : "after '" + prefix + "', not '" + name_prefix + "'",
+              1, prefix, name_prefix);
       } else {
         const std::string a = normalized(name), b = normalized(bare);
         if (a.empty() || b.empty()) continue;

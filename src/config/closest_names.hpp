@@ -12,7 +12,9 @@ namespace fabrik {
 struct NameMatch {
   std::string config_name;
   std::string trial_label;
-  std::string how;  // "case", "after 'Subject:'", "punctuation", "2 edits"
+  std::string how;  // "case", "after 'Subject:'", "without 'Subject:'", "punctuation", "2 edits"
+  // Where the two differ by a `Subject:` prefix only: the label's ("Sub:") and the name's.
+  std::string label_prefix, name_prefix;
 };
 
 // For each config name, the label closest to it, if any is close: the same name in another

@@ -177,7 +177,11 @@ OpenSimTable read_opensim_table(const std::string& path) {
 
   std::size_t width = 0;
   double previous_s = 0.0;
-  std::size_t bad_rows = 0, first_bad = 0;
+  std::size_t bad_rows = 0, first_bad = 0, unordered_rows = 0, first_unordered = 0;
+  // Every row with a time, kept or not: the rate from the time column counts the frames a
+  // row left out for a bad cell still took, and spans rows out of order.
+  std::size_t timed_rows = 0;
+  double earliest_s = INFINITY, latest_s = -INFINITY;
   std::vector<double> cells;
   const auto bad = [&] {
     if (bad_rows++ == 0) first_bad = line_number;
@@ -186,6 +190,11 @@ OpenSimTable read_opensim_table(const std::string& path) {
     if (detail::trim(line).empty()) continue;
     const std::vector<std::string_view> fields = fields_of(line);
     const std::optional<double> time_s = number(fields[0]);
+    if (time_s && std::isfinite(*time_s)) {
+      ++timed_rows;
+      earliest_s = std::min(earliest_s, *time_s);
+      latest_s = std::max(latest_s, *time_s);
+    }
     if (fields.size() != t.columns.size() || !time_s || !std::isfinite(*time_s)) {
       bad();
       continue;
@@ -201,19 +210,23 @@ OpenSimTable read_opensim_table(const std::string& path) {
       bad();
       continue;
     }
-    if (t.rows > 0 && *time_s <= previous_s) bad();  // kept, but said
+    if (t.rows > 0 && *time_s <= previous_s && unordered_rows++ == 0)  // kept, but said
+      first_unordered = line_number;
     previous_s = *time_s;
     t.cell_width = width;
     t.add_row(*time_s, cells);
   }
   if (width == 0) t.cell_width = 1;
   if (bad_rows > 0) {
-    t.warnings.push_back(std::to_string(bad_rows) + " rows (the first on line " +
-                         std::to_string(first_bad) +
-                         ") have a different number of fields than the " +
+    t.warnings.push_back(std::to_string(bad_rows) + " rows left out (the first on line " +
+                         std::to_string(first_bad) + "): a different number of fields than the " +
                          std::to_string(t.columns.size()) +
-                         " labels, no time, a cell that is not a number, or a time not after "
-                         "the previous row's");
+                         " labels, no time, or a cell that is not a number");
+  }
+  if (unordered_rows > 0) {
+    t.warnings.push_back(std::to_string(unordered_rows) + " rows kept (the first on line " +
+                         std::to_string(first_unordered) +
+                         ") whose time is not after the previous row's");
   }
   t.cell_kind = cell_kind(t.cell_width);
   for (const auto& entry : t.header) {
@@ -235,8 +248,8 @@ OpenSimTable read_opensim_table(const std::string& path) {
     check("nRows", t.rows);
     check("nColumns", t.columns.size());
   }
-  if (t.rate_hz == 0.0 && t.rows > 1 && t.last_time_s > t.first_time_s) {
-    t.rate_hz = static_cast<double>(t.rows - 1) / (t.last_time_s - t.first_time_s);
+  if (t.rate_hz == 0.0 && timed_rows > 1 && latest_s > earliest_s) {
+    t.rate_hz = static_cast<double>(timed_rows - 1) / (latest_s - earliest_s);
     t.rate_source = "from the time column";
   }
   return t;
