@@ -1,7 +1,7 @@
 /// @file
 /// Setup-time errors in JSON inputs: every message names the file, the JSON
 /// pointer of the offending value, what is wrong and how to fix it. what() is
-/// safe text (common/safe_text.hpp): a file name, a value or a parser message
+/// safe text (escaped): a file name, a value or a parser message
 /// that quotes raw input cannot put bytes that are not UTF-8 or control
 /// characters on a terminal or in a log; file() and pointer() stay as given.
 #pragma once

@@ -44,7 +44,8 @@ enum class RootMode {
 struct SolverOptions {
   double tolerance_m = 1e-3;        ///< converged when every visible target is this close
   int max_iterations = 64;          ///< per solve
-  double stall_tolerance_m = 1e-6;  ///< stalled when no target distance will change more (StopRule)
+  double stall_tolerance_m =
+      1e-6;  ///< stalled when no target distance will change more (docs/convergence.md)
   SegmentFit segment_fit = SegmentFit::paper;  ///< how each segment is turned in a pass
   RootMode root = RootMode::fixed;             ///< whether the root base may move
   bool use_priorities = true;  ///< false: all levels are solved together, in one pass
@@ -75,7 +76,7 @@ struct SolverOptions {
   /// 0: never (FABRIK's own rule throughout).
   double fallback_carry = 0.5;
   /// Jump ahead along the convergence loop's steps when they shrink along one direction
-  /// (fabrik_extrapolation.cpp): with one priority level, kept only when it lowers the
+  /// (docs/speed.md): with one priority level, kept only when it lowers the
   /// weighted squared distance of the targets. false: FABRIK's own iterations alone.
   bool extrapolate = true;
   /// The lever of orientation targets (see OrientationTarget), metres.

@@ -35,9 +35,9 @@ struct TrackerSetup {
   OutlierSettings outliers;       ///< leaving out markers that do not fit
   QualitySettings quality;        ///< the bars of a good fit (TrackResult::quality)
   ColdStartSettings cold_start;   ///< how a frame without a previous one is solved
-  PredictionSettings prediction;  ///< gap filling from the recent past (gap_predictor.hpp)
+  PredictionSettings prediction;  ///< gap filling from the recent past (docs/gap-filling.md)
   ConfidenceSettings confidence;  ///< what a marker's confidence does (track() with confidence)
-  SmoothingSettings smoothing;    ///< the causal filter of measured positions (one_euro.hpp)
+  SmoothingSettings smoothing;    ///< the causal filter of measured positions (docs/filtering.md)
   /// Left/right marker pairs (indices into `markers`) tested for mirrored swaps
   /// (OutlierSettings::relabel_mirrored); empty: found from the markers' names.
   std::vector<std::array<int, 2>> mirror_pairs;
@@ -87,7 +87,7 @@ struct TrackResult {
   /// position is unknown, so it was held where the previous frame left it.
   bool root_held = false;
   /// Per marker: measured, but the measurement under its label disagreed with the model far
-  /// beyond the others (outlier_filter.hpp): left out of the solve, unless relabelled_from
+  /// beyond the others (docs/robust-tracking.md): left out of the solve, unless relabelled_from
   /// names the marker whose measurement it was solved with instead (a label swap), else -1.
   std::span<const std::uint8_t> outliers;
   int outlier_count = 0;  ///< measured markers flagged in `outliers`
@@ -102,7 +102,7 @@ struct TrackResult {
   FitQuality quality = FitQuality::none;
   std::span<const std::uint8_t> beyond;  ///< per marker: solved with, residual beyond quality.max_m
   int beyond_count = 0;                  ///< markers flagged in `beyond`
-  bool cold_start = false;               ///< this frame started cold (cold_start.hpp)
+  bool cold_start = false;               ///< this frame started cold (docs/robust-tracking.md)
 };
 
 /// The tracking pipeline of one subject (see the file's description): made once from a
@@ -162,7 +162,7 @@ class Tracker {
                            std::span<const std::uint8_t> visible,
                            std::span<const float> confidence);
 
-  /// Forget the previous frame: the next one starts cold (cold_start.hpp).
+  /// Forget the previous frame: the next one starts cold (docs/robust-tracking.md).
   void reset();
   /// The posture of the last frame tracked (the rest posture before the first).
   const Posture& posture() const;

@@ -71,7 +71,7 @@ struct OutlierSettings {
   /// leg): before the solve, each left/right pair of markers (TrackerSetup::mirror_pairs, or
   /// pairs found from the names: R/L, Right/Left, r_/l_ as prefix or suffix) both measured is
   /// relabelled when its mirrored assignment fits the frame's predicted posture far better
-  /// (mirror_swap.hpp). Never on a cold frame (nothing to predict from).
+  /// (docs/filtering.md). Never on a cold frame (nothing to predict from).
   bool relabel_mirrored = true;
   /// The mirrored assignment is taken when its distance to the predicted points (summed over
   /// the pair) is below this fraction of the labelled one's ...

@@ -107,6 +107,17 @@ def test_calibrate_errors(tmp_path):
             fabrik.calibrate(tmp_path / "t.json", tmp_path / "s.trc", **{name: 2.7})
 
 
+def test_calibration_errors_name_the_keywords_not_the_command_line_options(tmp_path):
+    # "--auto-window picks the window itself" named an option a Python caller never gave.
+    trial = tmp_path / "static.trc"
+    fabrik_cli("synth", "--config", DEFAULT_CONFIG, "--output", trial, "--seconds", 0.5)
+    template = f"{SOURCE}/config/templates/gait2354.json"
+    with pytest.raises(fabrik.CalibrationError) as refused:
+        fabrik.calibrate(template, trial, auto_window=5, first_frame=1)
+    assert "auto_window picks the window itself" in str(refused.value)
+    assert "--" not in str(refused.value), str(refused.value)
+
+
 def test_a_config_from_a_relative_path_unpickles_in_another_folder(tmp_path, monkeypatch):
     # Its relative path was pickled as given: a worker in another folder could not find it,
     # nor the model file beside it.

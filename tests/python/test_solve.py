@@ -107,6 +107,10 @@ def test_a_slice_of_a_trial_keeps_its_frame_numbers_and_times(synth_trial):
         fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(
             trial, positions_mm=trial.positions_mm[::2], time_s=trial.time_s[::2],
             frame_numbers=trial.frame_numbers[::2]))
+    twice = list(trial.names)
+    twice[1] = twice[0]
+    with pytest.raises(ValueError, match="holds '%s' twice" % twice[0]):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(trial, names=twice))
     with pytest.raises(ValueError, match="time_s must step by 1/rate_hz"):
         fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(
             trial, positions_mm=trial.positions_mm[::2], time_s=trial.time_s[::2],

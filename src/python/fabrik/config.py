@@ -2,6 +2,7 @@
 be str or os.PathLike)."""
 import numbers
 import os
+import re
 
 from . import _fabrik
 
@@ -35,7 +36,16 @@ def calibrate(template, static, output=None, *, first_frame=-1, frames=-1, auto_
             raise TypeError("%s must be a whole number (or -1: not set), not %r" % (name, value))
         if value != -1 and value < least:
             raise ValueError("%s must be %d or more (or -1: not set), not %r" % (name, least, value))
-    return _fabrik.calibrate(os.fspath(template), os.fspath(static),
-                             None if output is None else os.fspath(output),
-                             first_frame=first_frame, frames=frames, auto_window=auto_window,
-                             lab_up=lab_up, lab_forward=lab_forward, keep_zeros=keep_zeros)
+    try:
+        return _fabrik.calibrate(os.fspath(template), os.fspath(static),
+                                 None if output is None else os.fspath(output),
+                                 first_frame=first_frame, frames=frames, auto_window=auto_window,
+                                 lab_up=lab_up, lab_forward=lab_forward, keep_zeros=keep_zeros)
+    except _fabrik.CalibrationError as e:
+        # The compiled code speaks the command line's options: a Python caller gave keywords.
+        said = str(e)
+        text = re.sub(r"--(first-frame|frames|auto-window|lab-up|lab-forward)\b",
+                      lambda m: m.group(1).replace("-", "_"), said)
+        if text == said:
+            raise
+        raise _fabrik.CalibrationError(text) from None

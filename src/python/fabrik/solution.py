@@ -91,6 +91,14 @@ def solve(config, markers, keep_zeros=False):
     Raises FileNotFoundError/FormatError, ValueError for frame numbers or times that do not
     step by one frame, or RuntimeError when the trial shares no marker name with the config."""
     if isinstance(markers, MarkerData):
+        # As the TRC reader refuses a label on two markers: which one the config means is
+        # ambiguous (the second was taken silently).
+        seen = set()
+        for name in markers.names:
+            if name in seen:
+                raise ValueError("markers.names holds %r twice: which one the config's marker "
+                                 "is, is ambiguous; rename one" % name)
+            seen.add(name)
         first_frame, first_time_s = _first_frame_and_time(markers)
         positions_mm = np.asarray(markers.positions_mm, dtype=np.float64)
         if not keep_zeros:
