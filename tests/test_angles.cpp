@@ -258,7 +258,7 @@ TEST_CASE("OpenSim tables: unusable rows are left out and said, a cell that is n
   CHECK(t.time_s[1] == 0.3);
   CHECK(t.at(1, 2) == 6.0);
   REQUIRE(t.warnings.size() == 2);
-  CHECK_THAT(t.warnings[0], Catch::StartsWith("2 rows (the first on line 9)"));
+  CHECK_THAT(t.warnings[0], Catch::StartsWith("2 rows left out (the first on line 9)"));
   CHECK(t.warnings[1] == "nRows is 4 but the table has 2");
 }
 
