@@ -633,6 +633,8 @@ TEST_CASE("A config whose names carry a subject prefix the file's labels lack is
   message = refusal();
   CHECK_THAT(message,
              Catch::Contains("Daphnee:LASI ~ Other:LASI (after 'Other:', not 'Daphnee:')"));
+  CHECK_THAT(message, Catch::Contains("remove it from its targets, then give --subject Other, or "
+                                      "calibrate"));
 }
 
 TEST_CASE("fabrik solve and calibrate on a C3D without 3D points: the truth, exit 2") {
@@ -1503,8 +1505,9 @@ TEST_CASE("Two nodes of one disk are one output") {
   }
   REQUIRE(::mknod(b.c_str(), S_IFBLK | 0600, makedev(7, 0)) == 0);
   REQUIRE(::mknod(other.c_str(), S_IFBLK | 0600, makedev(7, 1)) == 0);
-  CHECK_THROWS_WITH(require_distinct_files({{"--json", a}, {"--csv", b}}),
-                    Catch::Contains("name the same device"));
+  CHECK_THROWS_WITH(
+      require_distinct_files({{"--json", a}, {"--csv", b}}),
+      Catch::Contains("name the same file") && Catch::Contains("one would overwrite the other"));
   CHECK_NOTHROW(require_distinct_files({{"--json", a}, {"--csv", other}}));
   // A disk's number is not read as a terminal's: block (5, 1) is no console.
   const std::string block_five = base.path() + ".d";

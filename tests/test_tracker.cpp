@@ -139,7 +139,10 @@ TEST_CASE("A frame refused for its sizes gives no verdict, not the last frame's"
   Tracker tracker(s.setup);
   std::vector<Eigen::Vector3d> pos = sampled_markers(s);
   std::vector<std::uint8_t> visible(pos.size(), 1);
-  REQUIRE(tracker.track(0.0, pos, visible).quality == FitQuality::good);
+  visible[3] = 0;  // one occluded: the count the refused frame must not keep
+  const TrackResult& good = tracker.track(0.0, pos, visible);
+  REQUIRE(good.quality == FitQuality::good);
+  REQUIRE(good.occluded_count == 1);
   const Posture before = tracker.posture();
   const TrackResult& r = tracker.track(0.01, std::span(pos).first(pos.size() - 1),
                                        std::span(visible).first(pos.size() - 1));
@@ -178,15 +181,24 @@ TEST_CASE("Tracker settings that cannot run are refused at setup, with their nam
     return std::string("accepted");
   };
   CHECK_THAT(refused([](TrackerSetup& t) { t.quality.rms_m = NAN; }),
-             Catch::Contains("quality.rms_m must be a finite number"));
+             Catch::Contains("quality.rms_m must be a finite number from 0 up (is nan)"));
+  // The config reader's least, from the same owner: a cutoff of 0 froze every marker.
+  CHECK_THAT(refused([](TrackerSetup& t) { t.smoothing.min_cutoff_hz = 0.0; }),
+             Catch::Contains("smoothing.min_cutoff_hz must be a finite number from 0.001 up"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.confidence.threshold = 1.5; }),
+             Catch::Contains("confidence.threshold must be a finite number from 0 to 1 (is 1.5)"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.occlusion.hold_s = -1e-7; }),
+             Catch::Contains("(is -1e-07)"));
   CHECK_THAT(refused([](TrackerSetup& t) { t.occlusion.hold_s = -1.0; }),
              Catch::Contains("occlusion.hold_s"));
   CHECK_THAT(refused([](TrackerSetup& t) { t.solver.tolerance_m = NAN; }),
              Catch::Contains("solver: tolerance_m"));
   CHECK_THAT(refused([](TrackerSetup& t) { t.cold_start.max_iterations = 0; }),
              Catch::Contains("cold_start.max_iterations must be at least 1"));
-  CHECK_THAT(refused([](TrackerSetup& t) { t.outliers.min_markers = -2; }),
-             Catch::Contains("outliers.min_markers must not be negative"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.outliers.min_markers = 2; }),
+             Catch::Contains("outliers.min_markers must be at least 3 (is 2)"));
+  CHECK_THAT(refused([](TrackerSetup& t) { t.outliers.max_per_frame = -1; }),
+             Catch::Contains("outliers.max_per_frame must not be negative"));
   CHECK_THAT(refused([](TrackerSetup& t) { t.model = nullptr; }), Catch::Contains("no model"));
   CHECK(refused([](TrackerSetup&) {}) == "accepted");
 }

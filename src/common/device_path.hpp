@@ -1,6 +1,6 @@
 // Whether a path names a stream: a device (/dev/null, a terminal), a pipe or a socket. An output
 // there is discarded, shown or read as it comes, never replaced, so it has no format to name
-// (two outputs may share /dev/null only: tools/distinct_files.hpp).
+// (two outputs may share /dev/null or /dev/ptmx only: tools/distinct_files.hpp).
 #pragma once
 
 #include <sys/stat.h>

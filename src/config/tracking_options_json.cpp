@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "tracking/mirror_swap.hpp"
+#include "tracking/settings_bounds.hpp"
 
 namespace fabrik {
 
@@ -46,16 +47,19 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
                  "mirror_pairs"});
     OutlierSettings& s = setup.outliers;
     s.enabled = o.get("enabled", s.enabled);
-    s.floor_m = o.get("floor_mm", s.floor_m * 1e3, 1.0, 1e6) * 1e-3;
-    s.median_factor = o.get("median_factor", s.median_factor, 1.0, 1e6);
+    s.floor_m =
+        o.get("floor_mm", s.floor_m * 1e3, settings_bounds::kLeastOutlierFloorM * 1e3, 1e6) * 1e-3;
+    s.median_factor =
+        o.get("median_factor", s.median_factor, settings_bounds::kLeastMedianFactor, 1e6);
     s.moved_m = o.get("moved_mm", s.moved_m * 1e3, 0.0, 1e6) * 1e-3;
     s.max_per_frame =
         static_cast<int>(o.get("max_per_frame", static_cast<long long>(s.max_per_frame), 0LL, 64LL));
-    s.min_markers =
-        static_cast<int>(o.get("min_markers", static_cast<long long>(s.min_markers), 3LL, 10000LL));
+    s.min_markers = static_cast<int>(
+        o.get("min_markers", static_cast<long long>(s.min_markers),
+              static_cast<long long>(settings_bounds::kLeastOutlierMarkers), 10000LL));
     s.relabel_swaps = o.get("relabel_swaps", s.relabel_swaps);
     s.relabel_mirrored = o.get("relabel_mirrored", s.relabel_mirrored);
-    s.mirror_ratio = o.get("mirror_ratio", s.mirror_ratio, 0.0, 1.0);
+    s.mirror_ratio = o.get("mirror_ratio", s.mirror_ratio, 0.0, settings_bounds::kMostFraction);
     s.mirror_floor_m = o.get("mirror_floor_mm", s.mirror_floor_m * 1e3, 0.0, 1e6) * 1e-3;
     s.mirror_max_s = o.get("mirror_max_s", s.mirror_max_s, 0.0, 3600.0);
     if (o.has("mirror_pairs")) setup.mirror_pairs = read_mirror_pairs(o.at("mirror_pairs"), setup.markers);
@@ -63,7 +67,8 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
   if (root.has("confidence")) {
     const JsonReader c = root.at("confidence");
     c.only_keys({"threshold", "scale_weight"});
-    setup.confidence.threshold = c.get("threshold", setup.confidence.threshold, 0.0, 1.0);
+    setup.confidence.threshold =
+        c.get("threshold", setup.confidence.threshold, 0.0, settings_bounds::kMostFraction);
     setup.confidence.scale_weight = c.get("scale_weight", setup.confidence.scale_weight);
   }
   if (root.has("smoothing")) {
@@ -71,9 +76,9 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
     f.only_keys({"enabled", "min_cutoff_hz", "beta_per_m", "d_cutoff_hz"});
     SmoothingSettings& s = setup.smoothing;
     s.enabled = f.get("enabled", s.enabled);
-    s.min_cutoff_hz = f.get("min_cutoff_hz", s.min_cutoff_hz, 1e-3, 1e4);
+    s.min_cutoff_hz = f.get("min_cutoff_hz", s.min_cutoff_hz, settings_bounds::kLeastCutoffHz, 1e4);
     s.beta_per_m = f.get("beta_per_m", s.beta_per_m, 0.0, 1e6);
-    s.d_cutoff_hz = f.get("d_cutoff_hz", s.d_cutoff_hz, 1e-3, 1e4);
+    s.d_cutoff_hz = f.get("d_cutoff_hz", s.d_cutoff_hz, settings_bounds::kLeastCutoffHz, 1e4);
   }
   if (root.has("quality")) {
     const JsonReader q = root.at("quality");

@@ -30,7 +30,12 @@ void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& t
                file_prefix.substr(0, file_prefix.size() - 1);
   if (!config_prefix.empty())
     message += " (the config's names carry the subject prefix '" + config_prefix +
-               "': remove it from its targets, or calibrate from this subject's own file)";
+               "': remove it from its targets" +
+               (file_prefix.empty() || subject_option.empty()
+                    ? std::string()
+                    : ", then give " + subject_option + " " +
+                          file_prefix.substr(0, file_prefix.size() - 1)) +
+               ", or calibrate from this subject's own file)";
   throw std::runtime_error(message);
 }
 

@@ -27,6 +27,9 @@ struct Config {
   std::shared_ptr<const DaemonConfig> config;
   std::string json;    // the config's text as loaded (pickling sends it)
   std::string report;  // calibrate: the summary `fabrik calibrate` prints, else ""
+  // The file as an absolute path, taken when it was loaded (pickling sends it: the other side
+  // may run in another folder, and this one may have changed folder since).
+  std::string absolute_file;
 };
 
 // A vector moved into a NumPy array that owns it (a capsule frees it): no copy.

@@ -20,7 +20,10 @@ namespace {
 constexpr const char* kDefaultFile = "<embedded>/default.json";
 
 Config make_config(const std::string& text, const std::string& file) {
-  return Config{std::make_shared<const DaemonConfig>(load_daemon_config(text, file)), text, ""};
+  std::error_code ec;
+  const bool on_disk = !file.empty() && std::filesystem::exists(file, ec);
+  return Config{std::make_shared<const DaemonConfig>(load_daemon_config(text, file)), text, "",
+                on_disk ? std::filesystem::absolute(file, ec).string() : file};
 }
 
 // A fabrikd-model/1 file is tracked with the embedded default config's settings (targets,
@@ -51,12 +54,7 @@ Config load(const std::optional<std::string>& path) {
 // again on the other side. A model path in the text resolves against that file's directory,
 // so it must exist there too; calibrated configs carry their model inline.
 py::tuple config_state(const Config& c) {
-  // A relative path is made absolute here: the other side (a Dask worker) may run elsewhere.
-  const std::string& file = c.config->file;
-  std::error_code ec;
-  const bool on_disk = !file.empty() && std::filesystem::exists(file, ec);
-  return py::make_tuple(c.json, on_disk ? std::filesystem::absolute(file).string() : file,
-                        c.report);
+  return py::make_tuple(c.json, c.absolute_file, c.report);
 }
 
 Config config_from_state(const py::tuple& state) {

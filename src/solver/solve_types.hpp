@@ -83,9 +83,10 @@ struct SolverOptions {
   double orientation_lever_m = 0.1;
 };
 
-/// Why `options` cannot run a solve ("tolerance_m is NaN", "max_iterations must be at least
-/// 1"), or "": every length, weight and carry finite and not negative, the counts at least 1,
-/// the orientation lever positive. SolverPlan (and the Tracker) refuse such options at setup.
+/// Why `options` cannot run a solve ("tolerance_m must be a finite number, not negative (is
+/// nan)", "max_iterations must be at least 1 (is 0)"), or "": every length, weight and carry finite
+/// and not negative, the counts at least 1, the orientation lever positive. SolverPlan (and the
+/// Tracker) refuse such options at setup.
 std::string solver_options_problem(const SolverOptions& options);
 
 /// Why a solve stopped. Every outcome is a value here, never an exception.

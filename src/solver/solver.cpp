@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -47,9 +48,11 @@ std::string solver_options_problem(const SolverOptions& o) {
       {"anchor_weight", o.anchor_weight},   {"subtree_carry", o.subtree_carry},
       {"fallback_carry", o.fallback_carry}, {"orientation_lever_m", o.orientation_lever_m}};
   for (const auto& [name, value] : amounts)
-    if (!std::isfinite(value) || value < 0.0)
-      return std::string(name) + " must be a finite number, not negative (is " +
-             std::to_string(value) + ")";
+    if (!std::isfinite(value) || value < 0.0) {
+      char shown[32];  // -1e-07, not to_string's -0.000000
+      std::snprintf(shown, sizeof shown, "%g", value);
+      return std::string(name) + " must be a finite number, not negative (is " + shown + ")";
+    }
   if (o.orientation_lever_m == 0.0) return "orientation_lever_m must be positive (is 0)";
   if (o.max_iterations < 1)
     return "max_iterations must be at least 1 (is " + std::to_string(o.max_iterations) + ")";

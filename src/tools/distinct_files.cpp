@@ -105,6 +105,12 @@ bool discards(const std::string& path) {
   return same_inode(path, "/dev/null");
 }
 
+// A block device: what two outputs write there overwrites, as in a file.
+bool is_disk(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && S_ISBLK(st.st_mode);
+}
+
 // The pseudo-terminal multiplexer (/dev/ptmx, /dev/pts/ptmx) makes a new terminal at each
 // open: two outputs there share nothing.
 bool opens_anew(const std::string& path) {
@@ -210,12 +216,12 @@ void require_distinct_files(const std::vector<NamedFile>& files) {
       if (a.path.empty() || b.path.empty() || !(a.output || b.output)) continue;
       const bool both_outputs = a.output && b.output;
       if (!same_file(a.path, b.path, both_outputs)) continue;
-      if (const std::string kind = stream_kind(b.path); !kind.empty())
+      if (const std::string kind = stream_kind(b.path); !kind.empty() && !is_disk(b.path))
         throw std::invalid_argument(
             a.option + " and " + b.option + " name the same " + kind + " ('" + a.path + "'" +
             (a.path == b.path ? "" : " and '" + b.path + "'") +
             "): both would be mixed into one stream. Fix: give each its own file (/dev/null "
-            "may take several)");
+            "and /dev/ptmx may take several)");
       throw std::invalid_argument(a.option + " and " + b.option + " name the same file '" + b.path +
                                   "': " + (both_outputs ? "one" : "the output") +
                                   " would overwrite the other. Fix: give each its own file");

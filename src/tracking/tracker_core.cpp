@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
 #include "solver/joint_angles.hpp"
+#include "tracking/settings_bounds.hpp"
 
 namespace fabrik {
 
@@ -74,41 +76,54 @@ std::vector<std::array<int, 2>> mirror_pairs(const TrackerSetup& s) {
   return mirror_pairs_from_names(names);
 }
 
-// Why the setup's settings cannot run (a NaN bar, a negative time, a count below its least),
-// or "": every amount finite and not negative.
+// A setting's value in a message: -1e-07, not to_string's -0.000000.
+std::string number_text(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+// Why the setup's settings cannot run (a NaN bar, a negative time, a count or cutoff below its
+// least: settings_bounds.hpp, the config reader's least too), or "".
 std::string settings_problem(const TrackerSetup& s) {
+  namespace b = settings_bounds;
   if (std::string why = solver_options_problem(s.solver); !why.empty()) return "solver: " + why;
   const OutlierSettings& o = s.outliers;
   const PredictionSettings& p = s.prediction;
-  const std::pair<const char*, double> amounts[] = {
-      {"occlusion.hold_s", s.occlusion.hold_s},
-      {"outliers.floor_m", o.floor_m},
-      {"outliers.median_factor", o.median_factor},
-      {"outliers.moved_m", o.moved_m},
-      {"outliers.mirror_ratio", o.mirror_ratio},
-      {"outliers.mirror_floor_m", o.mirror_floor_m},
-      {"outliers.mirror_max_s", o.mirror_max_s},
-      {"confidence.threshold", s.confidence.threshold},
-      {"smoothing.min_cutoff_hz", s.smoothing.min_cutoff_hz},
-      {"smoothing.beta_per_m", s.smoothing.beta_per_m},
-      {"smoothing.d_cutoff_hz", s.smoothing.d_cutoff_hz},
-      {"quality.rms_m", s.quality.rms_m},
-      {"quality.max_m", s.quality.max_m},
-      {"cold_start.after_gap_s", s.cold_start.after_gap_s},
-      {"prediction.weight", p.weight},
-      {"prediction.velocity_decay_s", p.velocity_decay_s},
-      {"prediction.velocity_window_s", p.velocity_window_s},
-      {"prediction.return_speed_m_per_s", p.return_speed_m_per_s},
-      {"prediction.donor_min_sine", p.donor_min_sine},
-      {"prediction.donor_score_floor_m", p.donor_score_floor_m},
-      {"prediction.donor_gate", p.donor_gate}};
-  for (const auto& [name, value] : amounts)
-    if (!std::isfinite(value) || value < 0.0)
-      return std::string(name) + " must be a finite number, not negative (is " +
-             std::to_string(value) + ")";
+  constexpr double kAny = INFINITY;
+  struct Amount {
+    const char* name;
+    double value, least, most;
+  };
+  const Amount amounts[] = {
+      {"occlusion.hold_s", s.occlusion.hold_s, 0.0, kAny},
+      {"outliers.floor_m", o.floor_m, b::kLeastOutlierFloorM, kAny},
+      {"outliers.median_factor", o.median_factor, b::kLeastMedianFactor, kAny},
+      {"outliers.moved_m", o.moved_m, 0.0, kAny},
+      {"outliers.mirror_ratio", o.mirror_ratio, 0.0, b::kMostFraction},
+      {"outliers.mirror_floor_m", o.mirror_floor_m, 0.0, kAny},
+      {"outliers.mirror_max_s", o.mirror_max_s, 0.0, kAny},
+      {"confidence.threshold", s.confidence.threshold, 0.0, b::kMostFraction},
+      {"smoothing.min_cutoff_hz", s.smoothing.min_cutoff_hz, b::kLeastCutoffHz, kAny},
+      {"smoothing.beta_per_m", s.smoothing.beta_per_m, 0.0, kAny},
+      {"smoothing.d_cutoff_hz", s.smoothing.d_cutoff_hz, b::kLeastCutoffHz, kAny},
+      {"quality.rms_m", s.quality.rms_m, 0.0, kAny},
+      {"quality.max_m", s.quality.max_m, 0.0, kAny},
+      {"cold_start.after_gap_s", s.cold_start.after_gap_s, 0.0, kAny},
+      {"prediction.weight", p.weight, 0.0, kAny},
+      {"prediction.velocity_decay_s", p.velocity_decay_s, 0.0, kAny},
+      {"prediction.velocity_window_s", p.velocity_window_s, 0.0, kAny},
+      {"prediction.return_speed_m_per_s", p.return_speed_m_per_s, 0.0, kAny},
+      {"prediction.donor_min_sine", p.donor_min_sine, 0.0, kAny},
+      {"prediction.donor_score_floor_m", p.donor_score_floor_m, 0.0, kAny},
+      {"prediction.donor_gate", p.donor_gate, 0.0, kAny}};
+  for (const Amount& a : amounts)
+    if (!std::isfinite(a.value) || a.value < a.least || a.value > a.most)
+      return std::string(a.name) + " must be a finite number from " + number_text(a.least) +
+             (a.most == kAny ? " up" : " to " + number_text(a.most)) + " (is " +
+             number_text(a.value) + ")";
   const std::pair<const char*, int> counts[] = {
       {"outliers.max_per_frame", o.max_per_frame},
-      {"outliers.min_markers", o.min_markers},
       {"prediction.donor_candidates", p.donor_candidates},
       {"prediction.donor_triples", p.donor_triples},
       {"prediction.donor_choices_per_frame", p.donor_choices_per_frame},
@@ -116,6 +131,9 @@ std::string settings_problem(const TrackerSetup& s) {
   for (const auto& [name, value] : counts)
     if (value < 0)
       return std::string(name) + " must not be negative (is " + std::to_string(value) + ")";
+  if (o.min_markers < b::kLeastOutlierMarkers)
+    return "outliers.min_markers must be at least " + std::to_string(b::kLeastOutlierMarkers) +
+           " (is " + std::to_string(o.min_markers) + ")";
   if (s.cold_start.max_iterations < 1)
     return "cold_start.max_iterations must be at least 1 (is " +
            std::to_string(s.cold_start.max_iterations) + ")";

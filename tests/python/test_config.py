@@ -130,10 +130,12 @@ def test_a_config_from_a_relative_path_unpickles_in_another_folder(tmp_path, mon
     text["model"] = "fullbody.json"
     (folder / "rel.json").write_text(json.dumps(text))
     monkeypatch.chdir(tmp_path)
-    packed = pickle.dumps(fabrik.load_config("sub/rel.json"))
+    loaded = fabrik.load_config("sub/rel.json")
     elsewhere = tmp_path / "elsewhere"
-    elsewhere.mkdir()
+    (elsewhere / "sub").mkdir(parents=True)
+    (elsewhere / "sub" / "rel.json").write_text("{}")  # another file of that name, not it
     monkeypatch.chdir(elsewhere)
+    packed = pickle.dumps(loaded)  # pickled after a change of folder: still the loaded file
     again = pickle.loads(packed)
     assert again.file == str(folder / "rel.json")
     assert again.marker_names == fabrik.load_config(str(folder / "rel.json")).marker_names

@@ -107,6 +107,12 @@ def test_a_slice_of_a_trial_keeps_its_frame_numbers_and_times(synth_trial):
         fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(
             trial, positions_mm=trial.positions_mm[::2], time_s=trial.time_s[::2],
             frame_numbers=trial.frame_numbers[::2]))
+    # Positions sliced alone were numbered from 1 and timed from 0 s; another rate drifted.
+    with pytest.raises(ValueError, match="frame_numbers has 100 entries for 20 frames"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG),
+                     dataclasses.replace(trial, positions_mm=trial.positions_mm[40:60]))
+    with pytest.raises(ValueError, match="is rate_hz right"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(trial, rate_hz=120))
     twice = list(trial.names)
     twice[1] = twice[0]
     with pytest.raises(ValueError, match="holds '%s' twice" % twice[0]):

@@ -59,6 +59,12 @@ def _first_frame_and_time(markers):
     it has them (a slice of a trial keeps its own), checked to run on one frame at a time: the
     solve numbers and times frames first + index."""
     first_frame = int(markers.first_frame)
+    frames = np.shape(markers.positions_mm)[0] if np.ndim(markers.positions_mm) else 0
+    for name in ("frame_numbers", "time_s"):
+        given = getattr(markers, name)
+        if given is not None and len(given) and len(given) != frames:
+            raise ValueError("markers.%s has %d entries for %d frames of positions_mm: slice "
+                             "them together" % (name, len(given), frames))
     numbers = markers.frame_numbers
     if numbers is not None and len(numbers):
         numbers = np.asarray(numbers)
@@ -73,12 +79,19 @@ def _first_frame_and_time(markers):
         return first_frame, float("nan")
     times = np.asarray(times, dtype=np.float64)
     period_s = 1.0 / float(markers.rate_hz)
-    # Half a period: a file's Time column rounded to 3 decimals is off by far less.
+    # Half a period, step by step and over the whole: a file's Time column rounded to 3
+    # decimals is off by far less; another rate (100 Hz data said to be 120) drifts past it.
     off = np.flatnonzero(np.abs(np.diff(times) - period_s) > 0.5 * period_s)
     if off.size:
         k = int(off[0])
         raise ValueError("markers.time_s must step by 1/rate_hz (%g s), but %g s follows %g s"
                          % (period_s, times[k + 1], times[k]))
+    drift_s = (times[-1] - times[0]) - (len(times) - 1) * period_s
+    if abs(drift_s) > 0.5 * period_s:
+        raise ValueError("markers.time_s must step by 1/rate_hz (%g s), but spans %g s over %d "
+                         "frames (%g Hz): is rate_hz right?" % (
+                             period_s, times[-1] - times[0], len(times),
+                             (len(times) - 1) / (times[-1] - times[0])))
     return first_frame, float(times[0])
 
 
