@@ -44,8 +44,7 @@ enum class RootMode {
 struct SolverOptions {
   double tolerance_m = 1e-3;        ///< converged when every visible target is this close
   int max_iterations = 64;          ///< per solve
-  double stall_tolerance_m =
-      1e-6;  ///< stalled when no target distance will change more (docs/convergence.md)
+  double stall_tolerance_m = 1e-6;  ///< stalled when no target moves more (docs/convergence.md)
   SegmentFit segment_fit = SegmentFit::paper;  ///< how each segment is turned in a pass
   RootMode root = RootMode::fixed;             ///< whether the root base may move
   bool use_priorities = true;  ///< false: all levels are solved together, in one pass
