@@ -91,7 +91,8 @@ void read_tracking_options(const JsonReader& root, TrackerSetup& setup) {
     c.only_keys({"max_iterations", "after_gap_s", "align"});
     ColdStartSettings& s = setup.cold_start;
     s.max_iterations = static_cast<int>(
-        c.get("max_iterations", static_cast<long long>(s.max_iterations), 1LL, 100000LL));
+        c.get("max_iterations", static_cast<long long>(s.max_iterations),
+              static_cast<long long>(settings_bounds::kLeastColdIterations), 100000LL));
     s.after_gap_s = c.get("after_gap_s", s.after_gap_s, 0.0, 1e9);
     s.align = c.get("align", s.align);
   }

@@ -19,11 +19,18 @@ namespace {
 
 constexpr const char* kDefaultFile = "<embedded>/default.json";
 
-Config make_config(const std::string& text, const std::string& file) {
+// A file on disk by its absolute path, taken now (pickling sends it); a name that is no file
+// (an embedded config, "<calibrated ...>") as it is.
+std::string absolute_if_on_disk(const std::string& file) {
   std::error_code ec;
-  const bool on_disk = !file.empty() && std::filesystem::exists(file, ec);
+  if (file.empty() || !std::filesystem::exists(file, ec)) return file;
+  const std::filesystem::path absolute = std::filesystem::absolute(file, ec);
+  return ec ? file : absolute.string();
+}
+
+Config make_config(const std::string& text, const std::string& file) {
   return Config{std::make_shared<const DaemonConfig>(load_daemon_config(text, file)), text, "",
-                on_disk ? std::filesystem::absolute(file, ec).string() : file};
+                absolute_if_on_disk(file)};
 }
 
 // A fabrikd-model/1 file is tracked with the embedded default config's settings (targets,
@@ -101,6 +108,7 @@ Config calibrate(const std::string& template_path, const std::string& static_pat
       file << out.json;
       io::finish_output_file(file, *output);
     }
+    out.absolute_file = absolute_if_on_disk(out.config->file);
   }
   return out;
 }

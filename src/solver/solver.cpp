@@ -2,11 +2,11 @@
 
 #include <atomic>
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
+#include "common/format_number.hpp"
 #include "fabrik_plan.hpp"
 #include "fabrik_solver.hpp"
 
@@ -48,11 +48,9 @@ std::string solver_options_problem(const SolverOptions& o) {
       {"anchor_weight", o.anchor_weight},   {"subtree_carry", o.subtree_carry},
       {"fallback_carry", o.fallback_carry}, {"orientation_lever_m", o.orientation_lever_m}};
   for (const auto& [name, value] : amounts)
-    if (!std::isfinite(value) || value < 0.0) {
-      char shown[32];  // -1e-07, not to_string's -0.000000
-      std::snprintf(shown, sizeof shown, "%g", value);
-      return std::string(name) + " must be a finite number, not negative (is " + shown + ")";
-    }
+    if (!std::isfinite(value) || value < 0.0)  // %g: -1e-07, not to_string's -0.000000
+      return std::string(name) + " must be a finite number, not negative (is " +
+             format_number("%g", value) + ")";
   if (o.orientation_lever_m == 0.0) return "orientation_lever_m must be positive (is 0)";
   if (o.max_iterations < 1)
     return "max_iterations must be at least 1 (is " + std::to_string(o.max_iterations) + ")";

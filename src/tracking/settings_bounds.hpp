@@ -10,5 +10,6 @@ inline constexpr double kLeastOutlierFloorM = 1e-3;  // outliers.floor_m
 inline constexpr double kLeastMedianFactor = 1.0;    // outliers.median_factor
 inline constexpr int kLeastOutlierMarkers = 3;       // outliers.min_markers: a rigid fit's least
 inline constexpr double kMostFraction = 1.0;         // mirror_ratio, confidence.threshold
+inline constexpr int kLeastColdIterations = 1;       // cold_start.max_iterations
 
 }  // namespace fabrik::settings_bounds

@@ -3,11 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <utility>
 
+#include "common/format_number.hpp"
 #include "solver/joint_angles.hpp"
 #include "tracking/settings_bounds.hpp"
 
@@ -78,13 +78,11 @@ std::vector<std::array<int, 2>> mirror_pairs(const TrackerSetup& s) {
 
 // A setting's value in a message: -1e-07, not to_string's -0.000000.
 std::string number_text(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
+  return format_number("%g", v);
 }
 
 // Why the setup's settings cannot run (a NaN bar, a negative time, a count or cutoff below its
-// least: settings_bounds.hpp, the config reader's least too), or "".
+// least, a fraction above 1: settings_bounds.hpp, the config reader's bounds too), or "".
 std::string settings_problem(const TrackerSetup& s) {
   namespace b = settings_bounds;
   if (std::string why = solver_options_problem(s.solver); !why.empty()) return "solver: " + why;
@@ -134,9 +132,9 @@ std::string settings_problem(const TrackerSetup& s) {
   if (o.min_markers < b::kLeastOutlierMarkers)
     return "outliers.min_markers must be at least " + std::to_string(b::kLeastOutlierMarkers) +
            " (is " + std::to_string(o.min_markers) + ")";
-  if (s.cold_start.max_iterations < 1)
-    return "cold_start.max_iterations must be at least 1 (is " +
-           std::to_string(s.cold_start.max_iterations) + ")";
+  if (s.cold_start.max_iterations < b::kLeastColdIterations)
+    return "cold_start.max_iterations must be at least " + std::to_string(b::kLeastColdIterations) +
+           " (is " + std::to_string(s.cold_start.max_iterations) + ")";
   return {};
 }
 

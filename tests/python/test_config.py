@@ -157,6 +157,22 @@ def test_configs_pickle(tmp_path):
     assert tracker.config.json == fabrik.load_config().json
 
 
+def test_a_calibrated_config_pickles_with_its_name(tmp_path, monkeypatch):
+    # Its file came back '' once pickling sent the path taken at load: calibrate set none.
+    import pickle
+    import shutil
+    template = f"{SOURCE}/config/templates/gait2354.json"
+    shutil.copy(shared_data("subject01_static.trc"), tmp_path / "s.trc")
+    monkeypatch.chdir(tmp_path)
+    unwritten = fabrik.calibrate(template, "s.trc")
+    assert pickle.loads(pickle.dumps(unwritten)).file == unwritten.file == "<calibrated s.trc>"
+    written = fabrik.calibrate(template, "s.trc", output="c.json")
+    monkeypatch.chdir("/")
+    again = pickle.loads(pickle.dumps(written))
+    assert again.file == str(tmp_path / "c.json")
+    assert again.marker_names == written.marker_names
+
+
 # Object nodes of the schema whose contents are checked elsewhere (the inline model by the
 # model loader) or take a context this walk does not build (a source, several subjects).
 _NOT_WALKED = {("subjects",), ("subject_timeout_s",), ("input", "source_options"), ("model",),

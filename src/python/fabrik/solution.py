@@ -99,10 +99,11 @@ def solve(config, markers, keep_zeros=False):
     """Track a whole trial as `fabrik solve` does (the daemon's Tracker, then the two-sided
     gap fill of the model's markers). markers: a .trc/.c3d path, or MarkerData (e.g. from
     read_markers, or made from your own (frames, markers, 3) mm array; a slice keeps its
-    frame_numbers and time_s, which must step by one frame). keep_zeros=False takes an exact
-    (0, 0, 0) as missing, for a path and a MarkerData alike. Releases the GIL while it solves.
-    Raises FileNotFoundError/FormatError, ValueError for frame numbers or times that do not
-    step by one frame, or RuntimeError when the trial shares no marker name with the config."""
+    frame_numbers and time_s, which must be as long as positions_mm and step by one frame, of
+    1/rate_hz). keep_zeros=False takes an exact (0, 0, 0) as missing, for a path and a
+    MarkerData alike. Releases the GIL while it solves. Raises FileNotFoundError/FormatError,
+    ValueError for such frame numbers or times (or a name given twice), or RuntimeError when
+    the trial shares no marker name with the config."""
     if isinstance(markers, MarkerData):
         # As the TRC reader refuses a label on two markers: which one the config means is
         # ambiguous (the second was taken silently).
