@@ -1,5 +1,6 @@
-// A wire::Daemon running on a thread of its own for in-process tests, and a
-// comparison of two documents' numbers (poses from two daemons).
+// A wire::Daemon running on a thread of its own for in-process tests, its config on inproc
+// endpoints and a vendor source read as a config's "input" would be, and a comparison of two
+// documents' numbers (poses from two daemons).
 #pragma once
 
 #include <chrono>
@@ -11,9 +12,25 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "config/json_reader.hpp"
+#include "config/source_config.hpp"
 #include "transport/daemon.hpp"
 
 namespace fabrik::test {
+
+// `c` on inproc endpoints named after `tag`, with stats every 50 ms.
+inline DaemonConfig on_inproc(DaemonConfig c, const std::string& tag) {
+  c.input = {"inproc://" + tag + "-markers", SocketMode::bind};
+  c.output = {"inproc://" + tag + "-poses", SocketMode::bind};
+  c.stats_interval_s = 0.05;
+  return c;
+}
+
+// A source as a config's "input" object gives it (`{"source": "natnet://..."}`).
+inline SourceConfig source_of(const std::string& input_json) {
+  const nlohmann::json j = nlohmann::json::parse(input_json);
+  return read_source_config(JsonReader(j, "test.json", "/input"));
+}
 
 // Stops the daemon on destruction; a daemon that does not stop within 5 s
 // aborts the test run with a message (a wedged loop must fail, not hang).

@@ -31,21 +31,10 @@ using namespace std::chrono_literals;
 using nlohmann::json;
 using test::DaemonThread;
 using test::largest_difference;
+using test::on_inproc;
+using test::source_of;
 
 namespace {
-
-SourceConfig source_of(const std::string& input_json) {
-  const json j = json::parse(input_json);
-  return read_source_config(JsonReader(j, "test.json", "/input"));
-}
-
-// `c` on inproc endpoints named after `tag`, with stats every 50 ms.
-DaemonConfig on_inproc(DaemonConfig c, const std::string& tag) {
-  c.input = {"inproc://" + tag + "-markers", SocketMode::bind};
-  c.output = {"inproc://" + tag + "-poses", SocketMode::bind};
-  c.stats_interval_s = 0.05;
-  return c;
-}
 
 // The default config behind a NatNet source (subject_prefix "*") on inproc, quiet.
 DaemonConfig source_daemon_config(const std::string& tag) {

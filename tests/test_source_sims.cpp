@@ -31,6 +31,8 @@ using namespace std::chrono_literals;
 using nlohmann::json;
 using test::DaemonThread;
 using test::largest_difference;
+using test::on_inproc;
+using test::source_of;
 
 namespace {
 
@@ -48,18 +50,6 @@ struct ServerThread {
   Server& server;
   std::jthread thread;
 };
-
-DaemonConfig on_inproc(DaemonConfig c, const std::string& name) {
-  c.input = {"inproc://" + name + "-markers", SocketMode::bind};
-  c.output = {"inproc://" + name + "-poses", SocketMode::bind};
-  c.stats_interval_s = 0.05;
-  return c;
-}
-
-SourceConfig source_of(const std::string& input_json) {
-  const json j = json::parse(input_json);
-  return read_source_config(JsonReader(j, "test.json", "/input"));
-}
 
 // Poses and the last stats from a daemon's output until done(pose) holds for
 // a pose or `timeout` passes.
