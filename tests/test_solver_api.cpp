@@ -210,3 +210,44 @@ TEST_CASE("Kinematics and coordinates refuse spans of the wrong size, writing no
   CHECK(set_from_local(m, moved, q_local, p));
   CHECK(p.segments[0].base_world_m == moved);
 }
+
+TEST_CASE("Angles of a segment index outside the model are NaN, the posture untouched", "[api]") {
+  const Problem pr(Eigen::Vector3d::Zero());
+  const Model& m = *pr.model;
+  const int n = static_cast<int>(m.segments.size());
+  const int last = n - 1;
+  // Known answers inside: at rest every segment's frame is the world's, so a joint's rotation
+  // is its anatomical frame relative to its parent's.
+  const int parent = m.segments[last].parent;
+  REQUIRE(parent >= 0);
+  const Eigen::Matrix3d a_parent = m.segments[parent].q_anatomical.toRotationMatrix();
+  const Eigen::Matrix3d a_child = m.segments[last].q_anatomical.toRotationMatrix();
+  CHECK(anatomical_world(m, pr.rest, last).isApprox(a_child));
+  CHECK(joint_angles_rad(m, pr.rest, last).isApprox(cardan_zxy(a_parent.transpose() * a_child)));
+  for (int s : {-1, n, n + 1000}) {
+    INFO("segment " << s);
+    CHECK(joint_angles_rad(m, pr.rest, s).array().isNaN().all());
+    CHECK(anatomical_world(m, pr.rest, s).array().isNaN().all());
+    CHECK(relative_anatomical(m, pr.rest, last, s == -1 ? -2 : s).array().isNaN().all());
+    Posture p = pr.rest;
+    CHECK_FALSE(enforce_joint_limits(m, s, Eigen::Quaterniond::Identity(), p));
+  }
+  CHECK(relative_anatomical(m, pr.rest, last, -1).isApprox(anatomical_world(m, pr.rest, last)));
+  // A posture of another model (fewer poses) is refused for every index.
+  Posture short_posture = pr.rest;
+  short_posture.segments.pop_back();
+  CHECK(joint_angles_rad(m, short_posture, 0).array().isNaN().all());
+  // A limited joint turned far out of its range: turned back in a posture of the model's
+  // size, refused (untouched) in one of another size.
+  int limited = -1;
+  for (int s = 0; s < last && limited < 0; ++s)
+    if (m.segments[s].parent >= 0 && m.segments[s].joint.limited()) limited = s;
+  REQUIRE(limited >= 0);
+  const Eigen::Quaterniond turned(Eigen::AngleAxisd(3.0, Eigen::Vector3d(1, 1, 0).normalized()));
+  Posture p = pr.rest;
+  p.segments[limited].set_unit_rotation(turned);
+  short_posture.segments[limited].set_unit_rotation(turned);
+  CHECK(enforce_joint_limits(m, limited, Eigen::Quaterniond::Identity(), p));
+  CHECK_FALSE(enforce_joint_limits(m, limited, Eigen::Quaterniond::Identity(), short_posture));
+  CHECK(short_posture.segments[limited].q_world.isApprox(turned));
+}

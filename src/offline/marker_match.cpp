@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "offline/subject_markers.hpp"
+
 namespace fabrik {
 
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
@@ -25,16 +27,15 @@ void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& t
   message +=
       "\nFix: use a config made for this marker set (fabrik calibrate --template T --static S "
       "writes one), or rename the config's target markers to the file's labels";
+  const std::string give_subject = given_option(
+      subject_option, file_prefix.substr(0, file_prefix.empty() ? 0 : file_prefix.size() - 1));
   if (!file_prefix.empty() && config_prefix.empty() && !subject_option.empty())
-    message += "; to track one subject of this file, give " + subject_option + " " +
-               file_prefix.substr(0, file_prefix.size() - 1);
+    message += "; to track one subject of this file, give " + give_subject;
   if (!config_prefix.empty())
     message += " (the config's names carry the subject prefix '" + config_prefix +
                "': remove it from its targets" +
-               (file_prefix.empty() || subject_option.empty()
-                    ? std::string()
-                    : ", then give " + subject_option + " " +
-                          file_prefix.substr(0, file_prefix.size() - 1)) +
+               (file_prefix.empty() || subject_option.empty() ? std::string()
+                                                              : ", then give " + give_subject) +
                ", or calibrate from this subject's own file)";
   throw std::runtime_error(message);
 }

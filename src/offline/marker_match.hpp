@@ -15,8 +15,8 @@ namespace fabrik {
 // Throws std::runtime_error when the trial shares none of the config's marker names (exactly,
 // as the tracker matches them): the message lists the config's names beside the trial's
 // labels, the closest matches, and the fix. `subject_option`: the caller's option that takes
-// one subject of a `Subject:Marker` file (`fabrik solve --subject`), offered where the labels
-// differ by such a prefix only; empty where the caller has none.
+// one subject of a `Subject:Marker` file (`fabrik solve --subject`; see given_option), offered
+// where the labels differ by such a prefix only; empty where the caller has none.
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
                             const std::string& trial_path, const std::string& subject_option = {});
 

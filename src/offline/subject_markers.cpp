@@ -17,7 +17,12 @@ std::vector<std::string> trial_subjects(const io::MarkerTrial& trial) {
   return subjects;
 }
 
-io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& subject) {
+std::string given_option(const std::string& option, const std::string& value) {
+  return option.ends_with('=') ? option + "'" + value + "'" : option + " " + value;
+}
+
+io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& subject,
+                              const std::string& option) {
   const std::string prefix = subject + ":";
   std::vector<std::size_t> kept;
   for (std::size_t i = 0; i < trial.labels.size(); ++i)
@@ -27,10 +32,13 @@ io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& s
     const std::vector<std::string> subjects = trial_subjects(trial);
     std::string named;
     for (const std::string& s : subjects) named += (named.empty() ? "" : ", ") + s;
-    throw std::runtime_error("--subject " + subject + ": no marker of the trial is labelled " +
-                             prefix + "MARKER. Fix: " +
+    const std::string leave_out =
+        option.ends_with('=') ? option.substr(0, option.size() - 1) : option;
+    throw std::runtime_error(given_option(option, subject) +
+                             ": no marker of the trial is labelled " + prefix + "MARKER. Fix: " +
                              (subjects.empty() ? std::string("the trial names no subjects (one "
-                                                             "person per file): leave out --subject")
+                                                             "person per file): leave out ") +
+                                                     leave_out
                                                : "choose one of the trial's subjects: " + named));
   }
   io::MarkerTrial out = trial;

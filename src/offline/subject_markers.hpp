@@ -14,7 +14,12 @@ namespace fabrik {
 // The subjects a trial's labels name (the part before the first ':'), in the order first seen.
 std::vector<std::string> trial_subjects(const io::MarkerTrial& trial);
 // The trial with only `subject`'s markers, their labels without "subject:".
-// Throws std::runtime_error, naming the subjects the trial has, when it has none of them.
-io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& subject);
+// Throws std::runtime_error, naming the subjects the trial has, when it has none of them;
+// `option` is the caller's name for the choice (see given_option).
+io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& subject,
+                              const std::string& option = "--subject");
+// An option as a user types it: "--subject S" for a command line's, "subject='S'" for a
+// keyword argument's (an `option` ending in '=').
+std::string given_option(const std::string& option, const std::string& value);
 
 }  // namespace fabrik

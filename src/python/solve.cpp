@@ -7,6 +7,7 @@
 #include "bindings.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/solve_trial.hpp"
+#include "offline/subject_markers.hpp"
 #include "recordings.hpp"
 
 namespace fabrik::python {
@@ -87,13 +88,23 @@ py::dict solution_dict(TrialSolution&& s) {
   return d;
 }
 
-py::dict solve_file(const Config& config, const std::string& path, bool keep_zeros) {
+// The keyword that takes one subject of a `Subject:Marker` recording, for the hint.
+constexpr const char* kSubjectKeyword = "subject=";
+
+// `subject`'s markers, their labels without "subject:" (`fabrik solve --subject`); all of
+// them when it is empty.
+io::MarkerTrial of_subject(io::MarkerTrial&& trial, const std::string& subject) {
+  return subject.empty() ? std::move(trial) : subject_trial(trial, subject, kSubjectKeyword);
+}
+
+py::dict solve_file(const Config& config, const std::string& path, bool keep_zeros,
+                    const std::string& subject) {
   require_file(path, "recording");
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;  // a trial takes seconds
-    const io::MarkerTrial trial = read_markers_file(path, keep_zeros);
-    require_shared_markers(*config.config, trial, path);
+    const io::MarkerTrial trial = of_subject(read_markers_file(path, keep_zeros), subject);
+    require_shared_markers(*config.config, trial, path, kSubjectKeyword);
     s = solve_trial(*config.config, trial);
   }
   return solution_dict(std::move(s));
@@ -101,7 +112,8 @@ py::dict solve_file(const Config& config, const std::string& path, bool keep_zer
 
 py::dict solve_arrays(const Config& config, const std::vector<std::string>& names,
                       const py::array_t<double, py::array::c_style | py::array::forcecast>& mm,
-                      double rate_hz, int first_frame, double first_time_s) {
+                      double rate_hz, int first_frame, double first_time_s,
+                      const std::string& subject) {
   if (mm.ndim() != 3 || mm.shape(1) != ss(names.size()) || mm.shape(2) != 3)
     throw std::invalid_argument("positions_mm: expected shape (frames, " +
                                 std::to_string(names.size()) + ", 3) for " +
@@ -121,7 +133,8 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
     x = Eigen::Vector3d(p[0], p[1], p[2]) * kMPerMm;
     p += 3;
   }
-  require_shared_markers(*config.config, trial, "the markers");
+  trial = of_subject(std::move(trial), subject);
+  require_shared_markers(*config.config, trial, "the markers", kSubjectKeyword);
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;
@@ -134,10 +147,11 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
 
 void bind_solve(py::module_& m) {
   m.def("_solve_file", &solve_file, py::arg("config"), py::arg("path"),
-        py::arg("keep_zeros") = false);
+        py::arg("keep_zeros") = false, py::arg("subject") = "");
   m.def("_solve_arrays", &solve_arrays, py::arg("config"), py::arg("names"),
         py::arg("positions_mm"), py::arg("rate_hz"), py::arg("first_frame") = 1,
-        py::arg("first_time_s") = std::numeric_limits<double>::quiet_NaN());
+        py::arg("first_time_s") = std::numeric_limits<double>::quiet_NaN(),
+        py::arg("subject") = "");
 }
 
 }  // namespace fabrik::python

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace fabrik {
@@ -69,11 +70,23 @@ Eigen::Matrix3d rotation_zxy(const Eigen::Vector3d& a) {
       .toRotationMatrix();
 }
 
+Eigen::Matrix3d anatomical_world(const Model& model, const Posture& posture, int s) {
+  if (!has_segment(model, posture, s))
+    return Eigen::Matrix3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  return posture.segments[s].r_world * model.segments[s].q_anatomical.toRotationMatrix();
+}
+
 Eigen::Matrix3d relative_anatomical(const Model& model, const Posture& posture, int s,
                                     int reference) {
   const Eigen::Matrix3d child = anatomical_world(model, posture, s);
-  if (reference < 0) return child;
+  if (reference == -1) return child;
   return anatomical_world(model, posture, reference).transpose() * child;
+}
+
+Eigen::Vector3d joint_angles_rad(const Model& model, const Posture& posture, int s) {
+  if (!has_segment(model, posture, s))
+    return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  return cardan_zxy(relative_anatomical(model, posture, s, model.segments[s].parent));
 }
 
 double clamp_angle(double angle, double previous, double lo, double hi) {
@@ -99,6 +112,7 @@ bool within_limits(const JointLimits& joint, const Eigen::Vector3d& angles_rad,
 
 bool enforce_joint_limits(const Model& model, int s, const Eigen::Quaterniond& previous,
                           Posture& posture) {
+  if (!has_segment(model, posture, s)) return false;
   const Segment& seg = model.segments[s];
   const JointLimits& joint = seg.joint;
   if (!joint.limited() || seg.parent < 0) return false;

@@ -19,20 +19,24 @@ Eigen::Vector3d cardan_zxy(const Eigen::Matrix3d& r);
 /// The rotation Rz(a_z) Rx(a_x) Ry(a_y) of angles (a_z, a_x, a_y), radians: cardan_zxy's inverse.
 Eigen::Matrix3d rotation_zxy(const Eigen::Vector3d& angles_rad);
 
-/// World rotation of a segment's anatomical frame.
-inline Eigen::Matrix3d anatomical_world(const Model& model, const Posture& posture, int s) {
-  return posture.segments[s].r_world * model.segments[s].q_anatomical.toRotationMatrix();
+/// True when `s` names one of the model's segments and the posture has one pose per segment:
+/// what the functions below that take a segment index check (in release builds too).
+inline bool has_segment(const Model& model, const Posture& posture, int s) {
+  return s >= 0 && static_cast<std::size_t>(s) < model.segments.size() &&
+         posture.segments.size() == model.segments.size();
 }
 
+/// World rotation of a segment's anatomical frame; all NaN when !has_segment.
+Eigen::Matrix3d anatomical_world(const Model& model, const Posture& posture, int s);
+
 /// The rotation of segment s's anatomical frame relative to segment
-/// `reference`'s (-1: the world), and its Cardan angles.
+/// `reference`'s (-1: the world); all NaN when either index is not the model's.
 Eigen::Matrix3d relative_anatomical(const Model& model, const Posture& posture, int s,
                                     int reference);
 /// The Cardan angles (a_z, a_x, a_y), radians, of segment s's base joint: its anatomical
-/// frame relative to its parent's (the root's: relative to the world).
-inline Eigen::Vector3d joint_angles_rad(const Model& model, const Posture& posture, int s) {
-  return cardan_zxy(relative_anatomical(model, posture, s, model.segments[s].parent));
-}
+/// frame relative to its parent's (the root's: relative to the world). All NaN when
+/// !has_segment.
+Eigen::Vector3d joint_angles_rad(const Model& model, const Posture& posture, int s);
 
 /// `angle` clamped to [lo, hi] (radians, lo <= hi within [-pi, pi]). When it is
 /// outside, the bound it left through is taken: the one on the shorter arc from
@@ -48,7 +52,8 @@ bool within_limits(const JointLimits& joint, const Eigen::Vector3d& angles_rad,
 /// Turns segment s, if its base joint is out of range, to the nearest allowed
 /// orientation relative to its parent (each Cardan angle clamped; angles the
 /// joint type holds set to their rest values). `previous` is the segment's world
-/// rotation before its latest update (for clamp_angle). Returns true if it turned.
+/// rotation before its latest update (for clamp_angle). Returns true if it turned;
+/// false, the posture untouched, when !has_segment.
 bool enforce_joint_limits(const Model& model, int s, const Eigen::Quaterniond& previous,
                           Posture& posture);
 

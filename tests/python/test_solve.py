@@ -137,3 +137,40 @@ def test_keep_zeros_holds_for_arrays_as_for_files(synth_trial):
     kept = fabrik.solve(config, mine, keep_zeros=True)
     np.testing.assert_array_equal(kept.measured[30:40], seen)
     assert np.array_equal(mine.positions_mm, zeroed, equal_nan=True)  # the caller's, untouched
+
+
+def _prefixed(trial, subject, shift_mm=0.0):
+    return [subject + ":" + n for n in trial.names], trial.positions_mm + shift_mm
+
+
+def test_subject_solves_one_person_of_a_prefixed_recording(solution, synth_trial, tmp_path):
+    trial = fabrik.read_markers(synth_trial)
+    anna_names, anna_mm = _prefixed(trial, "Anna")
+    ben_names, ben_mm = _prefixed(trial, "Ben", shift_mm=1000.0)
+    both = fabrik.MarkerData(names=ben_names + anna_names,
+                             positions_mm=np.concatenate([ben_mm, anna_mm], axis=1),
+                             time_s=trial.time_s, rate_hz=trial.rate_hz,
+                             first_frame=trial.first_frame)
+    config = fabrik.load_config(DEFAULT_CONFIG)
+    anna = fabrik.solve(config, both, subject="Anna")
+    np.testing.assert_allclose(anna.joints_mm, solution.joints_mm, rtol=0, atol=1e-9)
+    assert anna.marker_names == solution.marker_names  # without the prefix
+    ben = fabrik.solve(config, both, subject="Ben")
+    np.testing.assert_allclose(ben.joints_mm, solution.joints_mm + 1000.0, rtol=0, atol=1e-6)
+    # Without a subject the config shares no name: the hint names the keyword, not a CLI option.
+    with pytest.raises(RuntimeError, match=r"give subject='(Ben|Anna)'"):
+        fabrik.solve(config, both)
+    with pytest.raises(RuntimeError, match=r"subject='Carl': .*subjects: Ben, Anna"):
+        fabrik.solve(config, both, subject="Carl")
+    for bad in ("", "Anna:LASI", 3):
+        with pytest.raises(ValueError, match="subject must be"):
+            fabrik.solve(config, both, subject=bad)
+    # A file's labels too (a TRC's label row is its fourth line).
+    lines = open(synth_trial).read().split("\n")
+    lines[3] = "\t".join(c if i < 2 or not c else "Anna:" + c for i, c in enumerate(lines[3].split("\t")))
+    prefixed = tmp_path / "anna.trc"
+    prefixed.write_text("\n".join(lines))
+    from_file = fabrik.solve(config, prefixed, subject="Anna")
+    np.testing.assert_allclose(from_file.joints_mm, solution.joints_mm, rtol=0, atol=1e-9)
+    with pytest.raises(RuntimeError, match="leave out subject"):
+        fabrik.solve(config, synth_trial, subject="Anna")

@@ -95,15 +95,22 @@ def _first_frame_and_time(markers):
     return first_frame, float(times[0])
 
 
-def solve(config, markers, keep_zeros=False):
+def solve(config, markers, keep_zeros=False, subject=None):
     """Track a whole trial as `fabrik solve` does (the daemon's Tracker, then the two-sided
     gap fill of the model's markers). markers: a .trc/.c3d path, or MarkerData (e.g. from
     read_markers, or made from your own (frames, markers, 3) mm array; a slice keeps its
     frame_numbers and time_s, which must be as long as positions_mm and step by one frame, of
     1/rate_hz). keep_zeros=False takes an exact (0, 0, 0) as missing, for a path and a
-    MarkerData alike. Releases the GIL while it solves. Raises FileNotFoundError/FormatError,
-    ValueError for such frame numbers or times (or a name given twice), or RuntimeError when
-    the trial shares no marker name with the config."""
+    MarkerData alike. subject: one subject of a recording whose markers are labelled
+    `Subject:Marker` (Vicon, QTM and Motive label several people so), as `fabrik solve
+    --subject`: only its markers are solved, under their names without the prefix. Releases
+    the GIL while it solves. Raises FileNotFoundError/FormatError, ValueError for such frame
+    numbers or times (or a name given twice), or RuntimeError when the trial shares no marker
+    name with the config or names no such subject."""
+    if subject is not None and (not isinstance(subject, str) or not subject or ":" in subject):
+        raise ValueError("subject must be a subject's name, the part of a label before ':' "
+                         "(got %r)" % (subject,))
+    subject = subject or ""
     if isinstance(markers, MarkerData):
         # As the TRC reader refuses a label on two markers: which one the config means is
         # ambiguous (the second was taken silently).
@@ -122,8 +129,8 @@ def solve(config, markers, keep_zeros=False):
                 positions_mm = positions_mm.copy()
                 positions_mm[zeros] = np.nan
         d = _fabrik._solve_arrays(config, list(markers.names), positions_mm,
-                                  float(markers.rate_hz), first_frame, first_time_s)
+                                  float(markers.rate_hz), first_frame, first_time_s, subject)
     else:
-        d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros)
+        d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros, subject)
     d["summary"] = json.loads(d.pop("summary_json"))
     return Solution(**d)
