@@ -121,6 +121,34 @@ TEST_CASE("A server's axes rotate into the lab's: Motive's Y up into a Z-up lab"
          Eigen::Vector3d(0, 1, 0)).norm() < 1e-12);
 }
 
+TEST_CASE("A server's stated up axis turns its frames where the config declares no axes",
+          "[source][lab_axes]") {
+  const std::vector<std::string> taken = {"LASI"};
+  const Eigen::Vector3d p(1, 2, 3);
+  wire::SourceFrames frames(source_of(R"({"source": "qtm://127.0.0.1"})"), LabAxes{}, taken);
+  CHECK(frames.r_lab_server().isIdentity(0.0));
+  CHECK(frames.server_up("+Y").empty());  // the lab's own: nothing to say, nothing turned
+  CHECK(frames.r_lab_server().isIdentity(0.0));
+  // QTM's Z up, forward the lab's +x: its left (+y) is the Y-up lab's -z (right is +z).
+  CHECK_THAT(frames.server_up("+Z"), Catch::Contains("turned from up +z, forward +x"));
+  CHECK((frames.r_lab_server() * p - Eigen::Vector3d(1, 3, -2)).norm() < 1e-12);
+  CHECK(frames.server_up("+z").empty());  // said again: no second notice
+  CHECK_THAT(frames.server_up("up"), Catch::Contains("not an axis"));
+  // A lab whose forward is the server's up: forward from default_forward_lab (+x).
+  wire::SourceFrames sideways(source_of(R"({"source": "qtm://127.0.0.1"})"),
+                              LabAxes{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()}, taken);
+  CHECK_THAT(sideways.server_up("-Z"), Catch::Contains("from up -z, forward +x"));
+  CHECK((sideways.r_lab_server() * Eigen::Vector3d(0, 0, -1) - Eigen::Vector3d(0, 1, 0)).norm() <
+        1e-12);
+  // Axes the config declares are kept; a server that disagrees is named.
+  wire::SourceFrames declared(
+      source_of(R"({"source": "qtm://127.0.0.1", "source_options": {"axes": {"up": "+y"}}})"),
+      LabAxes{}, taken);
+  CHECK_THAT(declared.server_up("+Z"), Catch::Contains("source_options.axes says +y"));
+  CHECK(declared.r_lab_server().isIdentity(0.0));
+  CHECK(declared.server_up("+Y").empty());
+}
+
 TEST_CASE("Source URLs and options are read, and wrong ones refused with the fix", "[source]") {
   const SourceConfig qtm = source_of(R"({"source": "qtm://10.0.0.5"})");
   CHECK(qtm.kind == SourceKind::qtm);

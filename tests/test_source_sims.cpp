@@ -150,8 +150,11 @@ struct Comparison {
 // (a loaded host may lose a frame in one pass: UDP, or a daemon behind its
 // source), then the same frames, in the same order, over ZeroMQ into a
 // second daemon; compares pose by pose.
-Comparison through_simulator(Protocol p, const DaemonConfig& config, const bridges::SimRecording& rec,
-                             bool carried_reference) {
+// `reference_rec`: the recording whose frames the reference daemon gets over ZeroMQ (by
+// default the one served).
+Comparison through_simulator(Protocol p, const DaemonConfig& config,
+                             const bridges::SimRecording& rec, bool carried_reference,
+                             const bridges::SimRecording* reference_rec = nullptr) {
   zmq::context_t context;
   bridges::SimScript script;
   script.loop = true;
@@ -206,7 +209,9 @@ Comparison through_simulator(Protocol p, const DaemonConfig& config, const bridg
   std::vector<bool> seen(rec.p_mm.size(), false);
   for (const json& pose : got.poses) {
     const auto frame = pose["frame"].get<std::uint64_t>();
-    client.send(zmq_frame(p, rec, frame, carried_time_s(p, rec, frame), carried_reference).dump());
+    client.send(zmq_frame(p, reference_rec ? *reference_rec : rec, frame,
+                          carried_time_s(p, rec, frame), carried_reference)
+                    .dump());
     const auto ref = client.receive("pose");
     REQUIRE(ref);
     REQUIRE((*ref)["frame"] == pose["frame"]);
@@ -293,6 +298,26 @@ bool occluded(const json& pose, const std::string& marker) {
 }
 
 }  // namespace
+
+TEST_CASE(
+    "QTM's stated up axis is taken where the config declares none: a Z-up QTM lab "
+    "gives a Y-up model the poses of its own axes",
+    "[source][daemon][lab_axes]") {
+  spdlog::set_level(spdlog::level::err);
+  const DaemonConfig config = default_daemon_config();
+  REQUIRE(config.tracker.model->lab_axes.up_lab == Eigen::Vector3d::UnitY());
+  const bridges::SimRecording y_up = synthetic_recording(config, 200, 100.0);
+  // The same motion as a Z-up QTM lab measures it (forward +x): lab (x, y, z) is QTM's (x, -z, y).
+  bridges::SimRecording z_up = y_up;
+  z_up.up = "+z";
+  for (std::vector<Eigen::Vector3d>& row : z_up.p_mm)
+    for (Eigen::Vector3d& p : row) p = Eigen::Vector3d(p.x(), -p.z(), p.y());
+  const Comparison c = through_simulator(Protocol::qtm, config, z_up, true, &y_up);
+  CHECK(c.covered == y_up.p_mm.size());
+  CHECK(c.joints_mm < 1e-6);  // was hundreds of mm: the frames were taken unturned
+  CHECK(c.markers_mm < 1e-6);
+  CHECK(c.same_occluded);
+}
 
 TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is occluded and unknown, "
           "the source reconnects and the frames go on",

@@ -24,6 +24,9 @@ class FrameSink {
   // names them (a subject prefix such as "Subject:" is kept). Called after
   // every (re)connection and whenever the server's labels change.
   virtual void labels(std::span<const std::string> names) = 0;
+  // The up axis the server states for its positions, as it spells it (QTM's AxisUpwards,
+  // "+Z"), just before labels(); never called by a server that states none (Motive).
+  virtual void up_axis(std::string_view /*axis*/) {}
   // One frame: p_server_mm[i] belongs to labels()[i], in the server's own
   // axes, millimetres; NaN where the server does not see the marker.
   // `time_s` is the server's timestamp (NaN when it sends none).
@@ -71,6 +74,8 @@ class SourceStatus {
     std::uint64_t bad_packets = 0;  // packets refused (malformed, truncated, oversized)
     std::string server;             // e.g. "QTM RT protocol 1.23" or "Motive 3.1.0, NatNet 4.1"
     std::string last_error;         // empty until the first failure
+    std::uint64_t notices = 0;      // notice() calls
+    std::string last_notice;
   };
 
   // After a successful handshake.
@@ -89,6 +94,13 @@ class SourceStatus {
     std::lock_guard lock(mutex_);
     ++s_.errors;
     s_.last_error.assign(what.substr(0, 240));
+  }
+  // Something the user should read that is not a failure (e.g. how the server's axes
+  // are taken): logged once each time it changes.
+  void notice(std::string_view what) {
+    std::lock_guard lock(mutex_);
+    ++s_.notices;
+    s_.last_notice.assign(what.substr(0, 400));
   }
   // A packet refused; also an error.
   void bad_packet(std::string_view what) {

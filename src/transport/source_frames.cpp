@@ -5,6 +5,7 @@
 #include <iterator>
 #include <unordered_set>
 
+#include "config/lab_axes_json.hpp"
 #include "marker_codec.hpp"
 
 namespace fabrik::wire {
@@ -39,8 +40,54 @@ LabAxes server_axes(const SourceConfig& source, const LabAxes& lab) {
 SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab,
                            std::vector<std::string> taken)
     : prefix_(source.subject_prefix),
+      lab_(lab),
+      declared_(source.axes),
       taken_(std::make_move_iterator(taken.begin()), std::make_move_iterator(taken.end())),
       r_lab_server_(lab.r_from(server_axes(source, lab))) {}
+
+std::string SourceFrames::server_up(std::string_view axis) {
+  std::string text(axis);
+  for (char& ch : text) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (text == server_up_) return {};
+  server_up_ = text;
+  if (text.size() == 1) text.insert(text.begin(), '+');
+  const bool readable =
+      text.size() == 2 && (text[0] == '+' || text[0] == '-') && text[1] >= 'x' && text[1] <= 'z';
+  if (!readable)
+    return "the server states its up axis as '" + std::string(axis) +
+           "', which is not an axis: its positions are taken in " +
+           (declared_ ? "source_options.axes" : "the model's lab axes");
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();
+  up[text[1] - 'x'] = text[0] == '+' ? 1.0 : -1.0;
+  const std::string up_name = signed_axis_name(up);
+  if (declared_) {
+    if (declared_->up_lab == up) return {};
+    return "the server states its up axis is " + up_name + ", source_options.axes says " +
+           signed_axis_name(declared_->up_lab) +
+           ": the config's axes are used. Fix: correct source_options.axes, or remove it to take "
+           "the server's";
+  }
+  LabAxes server = lab_;
+  server.up_lab = up;
+  if (std::abs(lab_.forward_lab.dot(up)) > 0.5) {  // the lab's forward is the server's up axis
+    const std::optional<Eigen::Vector3d> forward = default_forward_lab(up);
+    if (!forward) {
+      r_lab_server_.setIdentity();
+      return "the server's up axis is " + up_name +
+             ", the model's lab axes' forward: the "
+             "server's forward cannot be told, and its positions are taken as they come. Fix: "
+             "state the server's axes in source_options.axes";
+    }
+    server.forward_lab = *forward;
+  }
+  r_lab_server_ = lab_.r_from(server);
+  if (server == lab_) return {};
+  return "the server's up axis is " + up_name + ", the model's lab axes are " +
+         signed_axis_name(lab_.up_lab) + " up: positions are turned from up " + up_name +
+         ", forward " + signed_axis_name(server.forward_lab) +
+         " into the lab's axes. Set source_options.axes to state the server's forward, or the "
+         "model's lab_axes to work in the server's axes";
+}
 
 void SourceFrames::labels(std::span<const std::string> server_names) {
   server_names_.assign(server_names.begin(), server_names.end());

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <unordered_set>
@@ -38,6 +39,14 @@ class SourceFrames {
   // Takes another set of names (a reload changed the config's markers): the server's names
   // read last are mapped again, for the frames that follow.
   void retake(const std::vector<std::string>& taken);
+  // The up axis the server states ("+Z", any case; QTM's AxisUpwards). Where the config
+  // declares no axes, the server's up is taken, with the lab's forward (or, were that the
+  // server's up too, default_forward_lab's): the rotation of the frames that follow. Returns
+  // what to tell the user: empty when nothing changed, else how the axes are now taken (or
+  // that the config's declared axes disagree with the server's, or that the text is not an axis).
+  std::string server_up(std::string_view axis);
+  // Server positions to lab positions: the rotation encode() applies.
+  const Eigen::Matrix3d& r_lab_server() const { return r_lab_server_; }
   // Encodes one frame (MessagePack, units m: converted once, here, as the
   // decoder converts a ZeroMQ frame's mm) into `payload`. Positions
   // beyond the labels are ignored; labels beyond the positions are sent as missing.
@@ -49,6 +58,9 @@ class SourceFrames {
   void map_names();
 
   std::string prefix_;
+  LabAxes lab_;
+  std::optional<LabAxes> declared_;  // the config's source_options.axes
+  std::string server_up_;            // as last stated, lower case
   std::unordered_set<std::string> taken_;
   std::vector<std::string> server_names_;
   Eigen::Matrix3d r_lab_server_;

@@ -25,6 +25,13 @@ class PushSink final : public bridges::FrameSink {
       status_.error(std::string("could not take the server's names: ") + e.what());
     }
   }
+  void up_axis(std::string_view axis) override {
+    try {
+      if (std::string note = frames_.server_up(axis); !note.empty()) status_.notice(note);
+    } catch (const std::exception& e) {
+      status_.error(std::string("could not take the server's up axis: ") + e.what());
+    }
+  }
   void frame(std::uint64_t frame_number, double time_s,
              std::span<const Eigen::Vector3d> p_server_mm) override {
     try {
@@ -139,6 +146,8 @@ void SourceInput::log_changes() {
                  now.reconnects > 0 ? fmt::format(" (reconnect {})", now.reconnects) : "");
   else if (logged_.connected && !now.connected)
     spdlog::warn("source {}: connection lost: {}", url, safe_text(now.last_error, 240));
+  if (now.notices != logged_.notices && now.last_notice != logged_.last_notice)
+    spdlog::warn("source {}: {}", url, safe_text(now.last_notice, 400));
   if (now.errors != logged_.errors && !(logged_.connected && !now.connected))
     error_log_.warn("source {}: {}", url, safe_text(now.last_error, 240));
   logged_ = now;

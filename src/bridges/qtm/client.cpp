@@ -285,6 +285,7 @@ class Session {
       return fail("QTM at " + where_ + ": 3D parameters refused: " + error, true);
     if (labels_pending_ == 0) {
       labels_ = std::move(params.labels);
+      if (!params.axis_upwards.empty()) sink_.up_axis(params.axis_upwards);
       sink_.labels(labels_);
       labels_fresh_ = true;
     }
