@@ -191,8 +191,9 @@ def test_a_rerun_skips_what_is_done_and_redoes_what_is_not(tmp_path):
     after = stamps(out)
     rerun = {f for f in before if after.get(f) != before[f]}
     assert rerun == {"subj01/walk01.joints.trc", "subj01/walk01.angles.mot",
-                     "subj01/walk01.report.json", "subj02/walk03.joints.trc", "subj02/walk03.angles.mot",
-                     "subj02/walk03.report.json"}
+                     "subj01/walk01.report.json", "subj01/walk01.batch.json",
+                     "subj02/walk03.joints.trc", "subj02/walk03.angles.mot",
+                     "subj02/walk03.report.json", "subj02/walk03.batch.json"}
     assert strip(rows) == strip(first)
     assert [f for f in after if ".partial" in f] == []
 
@@ -259,3 +260,135 @@ def test_two_static_trials_are_named_as_what_was_found(tmp_path):
     error = errors.pop()
     assert "more than one static trial" in error
     assert "found 2: a_static.trc, b_STATIC.trc)" in error
+    # Both are static trials (the cause of the failure), in the summary as in the message.
+    assert {r["trial"]: r["kind"] for r in summary(out)} == {
+        "a_static": "static", "b_STATIC": "static", "walk01": "dynamic"}
+
+
+def replace_keeping_mtime(path, data):
+    """Write `data` to `path`, then give it its old mtime back (as `cp -p` of an older export, or a
+    tool that preserves times, would): only its size, ctime or content tell it changed."""
+    st = os.stat(path)
+    with open(path, "wb") as f:
+        f.write(data)
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns))
+
+
+def test_a_rerun_redoes_a_trial_whose_input_changed_and_no_other(tmp_path):
+    root, out, shorter = tmp_path / "archive", tmp_path / "out", tmp_path / "shorter"
+    synth_archive(root, 1, 2, 1.0)
+    synth_archive(shorter, 1, 1, 0.5)
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 0
+    frames = {r["trial"]: int(r["frames"]) for r in summary(out)}
+
+    # walk01 re-exported shorter (another size), walk02 edited in place (the same size): both
+    # with their old mtimes.
+    replace_keeping_mtime(root / "subj01" / "walk01.trc",
+                          (shorter / "subj01" / "walk01.trc").read_bytes())
+    text = (root / "subj01" / "walk02.trc").read_bytes()
+    last = text.rstrip().rfind(b"\t") + 1  # a digit of the last sample's last coordinate
+    replace_keeping_mtime(root / "subj01" / "walk02.trc",
+                          text[:last] + (b"8" if text[last:last + 1] == b"9" else b"9") + text[last + 1:])
+    code, log = batch(root, out, "--workers", "1")
+    assert code == 0 and "1 done already (skipped), 2 to run" in log, log
+    rows = {r["trial"]: r for r in summary(out)}
+    assert {t: r["status"] for t, r in rows.items()} == {
+        "subj01_static": "skipped", "walk01": "ok", "walk02": "ok"}
+    assert int(rows["walk01"]["frames"]) < frames["walk01"]  # was: the 1 s trial's frames, skipped
+    assert int(rows["walk02"]["frames"]) == frames["walk02"]
+
+    # The archive copied with its times (cp -p): the same content, so nothing is redone; the
+    # records take the copies' stats, so the next run does not read the trials again.
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy, copy_function=shutil.copy2)
+    before = stamps(out)
+    code, log = batch(copy, out, "--workers", "1")
+    assert code == 0 and "3 done already (skipped), 0 to run" in log, log
+    after = stamps(out)
+    assert {f for f in before if after[f] != before[f]} == {
+        "subj01/subj01_static.batch.json", "subj01/walk01.batch.json", "subj01/walk02.batch.json"}
+    code, log = batch(copy, out, "--workers", "1")
+    assert code == 0 and "3 done already (skipped), 0 to run" in log, log
+    assert stamps(out) == after
+
+
+def test_a_rerun_recalibrates_when_the_static_template_or_settings_changed(tmp_path):
+    root, out = tmp_path / "archive", tmp_path / "out"
+    synth_archive(root, 2, 1, 1.0)
+    template = tmp_path / "template.json"
+    shutil.copy(TEMPLATE, template)
+    code, _ = batch(root, out, "--workers", "1", template=str(template))
+    assert code == 0
+    config = out / "subj01" / "calibrated.json"
+
+    def rerun(expect_recalibrated):
+        before = config.read_bytes()
+        code, log = batch(root, out, "--workers", "1", template=str(template))
+        assert code == 0, log
+        status = {(r["subject"], r["trial"]): r["status"] for r in summary(out)}
+        if expect_recalibrated:
+            assert "subject subj01: %s" % expect_recalibrated in log, log
+            assert status[("subj01", "subj01_static")] == status[("subj01", "walk01")] == "ok"
+        else:
+            assert "calibrating again" not in log and config.read_bytes() == before, log
+            assert set(status.values()) == {"skipped"}
+        assert status[("subj02", "subj02_static")] == status[("subj02", "walk01")] == "skipped"
+        return before
+
+    static = root / "subj01" / "subj01_static.trc"
+    os.utime(static, ns=(0, 0))  # touched (to another clock's time), not changed: kept
+    rerun(None)
+    # Another static trial under the same name, with the old one's mtime.
+    replace_keeping_mtime(static, (root / "subj02" / "subj02_static.trc").read_bytes())
+    old = rerun("its static trial subj01_static.trc changed")
+    assert config.read_bytes() != old  # calibrated from the new static trial
+    (root / "subj01" / "subject.json").write_text('{"calibrate_args": ["--frames", "10"]}')
+    rerun("its calibrate_args changed")
+    rerun(None)
+    template.write_text(template.read_text() + "\n")  # any change to the template's file counts
+    code, log = batch(root, out, "--workers", "1", template=str(template))
+    assert code == 0 and "subject subj01: its template" in log and "subject subj02: its template" in log
+    assert {r["status"] for r in summary(out)} == {"ok"}
+
+    # A config edited by hand is kept (not calibrated over), and the trials solved with it again.
+    config.write_text(config.read_text() + "\n")
+    edited = config.read_bytes()
+    code, log = batch(root, out, "--workers", "1", template=str(template))
+    assert code == 0 and "calibrating again" not in log and config.read_bytes() == edited, log
+    assert {(r["subject"], r["status"]) for r in summary(out)} == {("subj01", "ok"), ("subj02", "skipped")}
+
+
+def test_outputs_of_trials_gone_from_root_are_kept_and_named(tmp_path):
+    root, out = tmp_path / "archive", tmp_path / "out"
+    synth_archive(root, 2, 2, 1.0)
+    code, _ = batch(root, out, "--workers", "1")
+    assert code == 0
+    os.remove(root / "subj01" / "walk02.trc")
+    shutil.rmtree(root / "subj02")
+    before = output_files(out)
+    code, log = batch(root, out, "--workers", "1")
+    assert code == 0
+    assert ("the outputs of 4 trials in %s belong to no trial of ROOT (kept, not in the summary; "
+            "delete them if unwanted): subj01/walk02, subj02/subj02_static, subj02/walk01, "
+            "subj02/walk02" % out) in log, log
+    assert output_files(out) == before  # nothing deleted
+    assert [(r["subject"], r["trial"]) for r in summary(out)] == [
+        ("subj01", "subj01_static"), ("subj01", "walk01")]
+    os.remove(out / "subj01" / "walk02.report.json")  # one output left of it: still named
+    shutil.rmtree(out / "subj02")
+    code, log = batch(root, out, "--workers", "1")
+    assert "the outputs of 1 trial in %s belong to no trial of ROOT" % out in log, log
+    assert "subj01/walk02\n" in log
+
+
+@pytest.mark.parametrize("missing", ["nowhere.json", "."])
+def test_a_missing_template_stops_the_batch(tmp_path, missing):
+    root = tmp_path / "archive"
+    synth_archive(root, 1, 1, 1.0)
+    template = str(tmp_path / missing)
+    code, err = batch(root, tmp_path / "out", "--workers", "1", template=template)
+    assert code == 2, err  # was: 1, every trial failed with "template ...: no such file"
+    assert "usage:" in err and "--template %s: %s" % (template, "no such file" if missing != "."
+                                                      else "not a file") in err
+    assert not (tmp_path / "out").exists()

@@ -12,6 +12,7 @@ worker, and a Dask worker needs the CLI but not this package's extension.
 """
 import argparse
 import csv
+import hashlib
 import json
 import os
 import shutil
@@ -25,10 +26,14 @@ STATIC_WORD = "static"
 SUBJECT_FILE = "subject.json"
 CONFIG_NAME = "calibrated.json"           # per subject, in OUT/SUBJECT
 CALIBRATION_REPORT = "calibration.txt"    # calibrate's printed fit report, beside it
+CALIBRATION_RECORD = "calibrated.record.json"  # what it was calibrated from (not a trial's suffix)
 SUMMARY_NAME = "summary.csv"
 # The outputs of one trial, by what they hold: suffixes appended to the trial's name.
-# The report is renamed into place last, so its presence marks a complete trial.
-OUTPUT_SUFFIXES = {"joints": ".joints.trc", "angles": ".angles.mot", "report": ".report.json"}
+# The report is renamed into place last, so its presence marks a complete trial. The record
+# says what the outputs were solved from (the input file, the config): a rerun redoes them when
+# either differs.
+OUTPUT_SUFFIXES = {"joints": ".joints.trc", "angles": ".angles.mot", "record": ".batch.json",
+                   "report": ".report.json"}
 
 COLUMNS = ["subject", "trial", "kind", "status", "frames", "rms_mean_mm", "rms_max_mm", "max_mm",
            "max_marker", "quality_good", "quality_poor", "outlier_samples", "outlier_frames",
@@ -86,7 +91,8 @@ def find_subjects(root, template=None):
     """The subjects of the archive at `root`, sorted by name: a list of dicts.
 
     Each: name, folder, template, calibrate_args, static (relative path or None),
-    trials (relative paths, the static among them), problem (None, or why the subject
+    trials (relative paths, the static among them), statics (the trials taken for static
+    ones: the summary's kind; several or a missing one is a problem), problem (None, or why the subject
     cannot be calibrated: its trials are then reported as failed with this text),
     calibration_problem (the problem is with the static or template alone: a calibration
     already on disk is reused instead).
@@ -97,7 +103,7 @@ def find_subjects(root, template=None):
         if name.startswith(".") or not os.path.isdir(folder):
             continue
         s = {"name": name, "folder": folder, "template": template, "calibrate_args": [],
-             "static": None, "trials": _trial_files(folder), "problem": None,
+             "static": None, "statics": [], "trials": _trial_files(folder), "problem": None,
              "calibration_problem": False}
         subjects.append(s)
         try:
@@ -114,8 +120,11 @@ def find_subjects(root, template=None):
                 s["problem"] = ('%s names the static trial "%s", which is not among its trials (%s)'
                                 % (os.path.join(folder, SUBJECT_FILE), static, _listing(s["trials"])))
             s["static"] = static
+            s["statics"] = [static] if static in s["trials"] else []
         else:
             statics = [t for t in s["trials"] if STATIC_WORD in os.path.basename(t).lower()]
+            # Static in the summary even when there are several: the user sees which were found.
+            s["statics"] = statics
             if len(statics) == 1:
                 s["static"] = statics[0]
             else:
@@ -140,10 +149,11 @@ def find_subjects(root, template=None):
 
 
 def _listing(names, most=10):
-    if not names:
-        return "found none"
-    shown = ", ".join(names[:most])
-    return "found %d: %s%s" % (len(names), shown, ", ..." if len(names) > most else "")
+    return "found %d: %s" % (len(names), _shown(names, most)) if names else "found none"
+
+
+def _shown(names, most=10):
+    return ", ".join(names[:most]) + (", ..." if len(names) > most else "")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -187,11 +197,69 @@ def _remove(paths):
             pass
 
 
+# What produced an output: files are known by their stat and their content's hash. Only equality
+# is tested, never "newer than": a clock that is off, or `cp -p` giving a new file an old mtime,
+# cannot make a changed file pass for the old one.
+
+def _stat_key(st):
+    # ctime cannot be set by a user or `cp -p`: any write, replacement or copy changes it.
+    return [st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_ino]
+
+
+def _sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def file_identity(path):
+    """{"stat": [size, mtime_ns, ctime_ns, inode], "sha256": ...} of the file at `path`."""
+    key = _stat_key(os.stat(path))  # before the hash: a write in between makes the next check hash
+    return {"stat": key, "sha256": _sha256(path)}
+
+
+def same_file(path, identity):
+    """Whether `path` holds the content `identity` describes. The same stat is taken as the same
+    file, unread (cheap for a big archive); a different size is a different file; anything else
+    (a copy, a move, a touch, a chmod) is settled by reading the file and comparing its hash.
+    Returns (same, identity now): the caller may record the new stat to skip the hash next time."""
+    try:
+        st = os.stat(path)
+        if identity["stat"] == _stat_key(st):
+            return True, identity
+        if identity["stat"][0] != st.st_size:
+            return False, None
+        now = file_identity(path)
+        return now["sha256"] == identity["sha256"], now
+    except (OSError, KeyError, TypeError, IndexError):
+        return False, None
+
+
+def _read_record(path):
+    try:
+        with open(path) as f:
+            record = json.load(f)
+        return record if isinstance(record, dict) else None
+    except (OSError, ValueError):
+        return None
+
+
+def _write_json(path, value):
+    partial = _partial(path)
+    with open(partial, "w") as f:
+        json.dump(value, f, indent=1, sort_keys=True)
+        f.write("\n")
+    os.replace(partial, path)
+
+
 def calibrate_subject(job):
-    """Calibrate one subject (once): {"config": path} or {"error": text}.
+    """Calibrate one subject (once): {"config": path, "sha256": its hash} or {"error": text}.
 
     job: fabrik, template, static (path), config (path to write), calibrate_args,
-    timeout_s. An existing config (a previous run's) is reused.
+    timeout_s, recalibrate (why the config on disk is stale, or absent). An existing config
+    (a previous run's, or put there by hand) is reused unless `recalibrate` says why not.
     """
     try:
         return _calibrate_subject(job)
@@ -201,10 +269,13 @@ def calibrate_subject(job):
 
 def _calibrate_subject(job):
     config = job["config"]
-    if os.path.isfile(config):
-        return {"config": config, "reused": True}
+    if os.path.isfile(config) and not job.get("recalibrate"):
+        return {"config": config, "sha256": _sha256(config), "reused": True}
     os.makedirs(os.path.dirname(config), exist_ok=True)
     partial = _partial(config)
+    # Taken before calibrate reads them: a file changed meanwhile is seen as changed next time.
+    record = {"static": file_identity(job["static"]), "template": file_identity(job["template"]),
+              "calibrate_args": list(job["calibrate_args"])}
     cmd = [job["fabrik"], "calibrate", "--template", job["template"], "--static", job["static"],
            "--output", partial] + list(job["calibrate_args"])
     p, error = _run_cli(cmd, job["timeout_s"])
@@ -213,8 +284,10 @@ def _calibrate_subject(job):
         return {"error": "calibration from %s failed: %s" % (job["static"], error)}
     with open(os.path.join(os.path.dirname(config), CALIBRATION_REPORT), "w") as f:
         f.write(p.stdout.replace(partial, config))
+    record["config_sha256"] = _sha256(partial)
+    _write_json(os.path.join(os.path.dirname(config), CALIBRATION_RECORD), record)
     os.replace(partial, config)
-    return {"config": config, "reused": False}
+    return {"config": config, "sha256": record["config_sha256"], "reused": False}
 
 
 def _has_coordinates(config_path):
@@ -258,16 +331,29 @@ def trial_outputs(out_dir, trial_id):
     return {k: base + suffix for k, suffix in OUTPUT_SUFFIXES.items()}
 
 
-def done_report(outputs, want_angles=True):
-    """The report of a complete trial (all its outputs present), else None."""
+def done_report(outputs, input_path, config_sha256, want_angles=True):
+    """The report of a trial done from this input and config (all its outputs present, its record
+    naming the same input content and config), else None."""
     needed = [k for k in outputs if want_angles or k != "angles"]
     if not all(os.path.isfile(outputs[k]) for k in needed):
         return None
+    record = _read_record(outputs["record"])
+    if record is None or record.get("config_sha256") != config_sha256:
+        return None
+    same, now = same_file(input_path, record.get("input"))
+    if not same:
+        return None
     try:
         with open(outputs["report"]) as f:
-            return json.load(f)
+            report = json.load(f)
     except (OSError, ValueError):
         return None
+    if now is not record.get("input"):  # the same content under a new stat (copied, moved):
+        try:                             # record it, so that the next run need not read it
+            _write_json(outputs["record"], dict(record, input=now))
+        except OSError:
+            pass
+    return report
 
 
 def solve_trial(job, calibration):
@@ -295,7 +381,7 @@ def _solve_trial(job, calibration, started):
         row.update(status="failed", error="%s: %s" % (calibration["config"], e))
         return row
     outputs = job["outputs"]
-    kinds = [k for k in ("joints", "angles", "report") if angles or k != "angles"]
+    kinds = [k for k in ("joints", "angles", "record", "report") if angles or k != "angles"]
     # Written under their own names in a hidden folder, not under hidden names: a TRC's header
     # names its file, and must name the one the user gets.
     staging = os.path.join(os.path.dirname(outputs["report"]),
@@ -306,6 +392,14 @@ def _solve_trial(job, calibration, started):
     _remove(list(outputs.values()) + [_partial(p) for p in outputs.values()])
     shutil.rmtree(staging, ignore_errors=True)
     os.makedirs(staging)
+    # Before the solve reads the input: a file changed meanwhile is seen as changed next time.
+    try:
+        record = {"input": file_identity(job["input"]),
+                  "config_sha256": calibration.get("sha256") or _sha256(calibration["config"])}
+    except OSError as e:
+        shutil.rmtree(staging, ignore_errors=True)
+        row.update(status="failed", error=str(e), wall_s=round(time.monotonic() - started, 3))
+        return row
     cmd = [job["fabrik"], "solve", "--config", calibration["config"], "--input", job["input"],
            "--output", partial["joints"], "--report", partial["report"], "--quiet"]
     if angles:
@@ -323,6 +417,7 @@ def _solve_trial(job, calibration, started):
         row.update(status="failed", error=error, wall_s=round(time.monotonic() - started, 3))
         return row
     row = row_from_report(job, report, "ok", round(time.monotonic() - started, 3))
+    _write_json(partial["record"], record)
     for k in kinds:  # the report last: it marks the trial complete
         os.replace(partial[k], outputs[k])
     shutil.rmtree(staging, ignore_errors=True)  # the trial is done: a leftover must not fail it
@@ -338,32 +433,80 @@ def check_cli(fabrik, timeout_s=60):
 # ---------------------------------------------------------------------------------------------
 # The plan: what to calibrate and solve, what is done already.
 
-def plan(root, out, template, fabrik, timeout_s):
+def stale_calibration(s, config, config_sha256):
+    """Why the subject's config on disk must be calibrated again (a text), or None: it is kept.
+
+    Only a config this batch calibrated is redone (its record holds the config's hash): one put
+    there by hand, or by a batch before the records, is kept. Only what can be calibrated from
+    now is compared: without a template, or with the static trial gone, the config is kept.
+    """
+    if s["problem"]:
+        return None
+    record = _read_record(os.path.join(os.path.dirname(config), CALIBRATION_RECORD))
+    if record is None or record.get("config_sha256") != config_sha256:
+        return None
+    static = os.path.join(s["folder"], *s["static"].split("/"))
+    if not same_file(static, record.get("static"))[0]:
+        return "its static trial %s changed" % s["static"]
+    if not same_file(s["template"], record.get("template"))[0]:
+        return "its template %s changed" % s["template"]
+    if list(s["calibrate_args"]) != record.get("calibrate_args"):
+        return "its calibrate_args changed"
+    return None
+
+
+def orphan_outputs(out, subjects):
+    """The trials (SUBJECT/TRIAL) whose outputs are in `out` but which are not in the archive."""
+    known = {(s["name"], _trial_id(rel)) for s in subjects for rel in s["trials"]}
+    found = set()
+    for name in sorted(os.listdir(out)):
+        folder = os.path.join(out, name)
+        if name.startswith(".") or not os.path.isdir(folder):
+            continue
+        for dirpath, dirnames, filenames in os.walk(folder):
+            dirnames[:] = [d for d in dirnames if not d.startswith(".")]  # staging folders
+            for f in filenames:
+                suffix = next((x for x in OUTPUT_SUFFIXES.values() if f.endswith(x)), None)
+                if suffix and not f.startswith("."):
+                    rel = os.path.relpath(os.path.join(dirpath, f[:-len(suffix)]), folder)
+                    if (name, rel.replace(os.sep, "/")) not in known:
+                        found.add(name + "/" + rel.replace(os.sep, "/"))
+    return sorted(found)
+
+
+def plan(root, out, template, fabrik, timeout_s, log=None):
     """(subjects' calibration jobs, trial jobs to run, rows of trials already done or unrunnable).
 
     A calibration job is only planned for a subject with a trial left to run.
     """
     calibrations, pending, rows = {}, [], []
-    for s in find_subjects(root, template):
+    subjects = find_subjects(root, template)
+    for s in subjects:
         out_dir = os.path.join(out, s["name"])
         config = os.path.join(out_dir, CONFIG_NAME)
-        want_angles = True
+        want_angles, config_sha256, stale = True, None, None
         if os.path.isfile(config):
             try:
                 want_angles = _has_coordinates(config)
+                config_sha256 = _sha256(config)
             except (OSError, ValueError):
                 os.remove(config)  # unreadable: calibrate again
+            else:
+                stale = stale_calibration(s, config, config_sha256)
+        if stale and log:
+            print("batch: subject %s: %s since its calibration: calibrating again and solving all "
+                  "its trials again" % (s["name"], stale), file=log)
         for rel in s["trials"]:
             trial = {"fabrik": fabrik, "subject": s["name"], "trial": _trial_id(rel),
-                     "kind": "static" if rel == s["static"] else "dynamic",
+                     "kind": "static" if rel in s["statics"] else "dynamic",
                      "input": os.path.join(s["folder"], *rel.split("/")),
                      "outputs": trial_outputs(out_dir, _trial_id(rel)), "timeout_s": timeout_s}
             # A done trial is kept, and a calibration on disk used, even where the subject
             # could not be calibrated now (a rerun without --template after one with it).
             # Other problems (trials that collide, a broken subject.json) fail every trial.
             usable = not s["problem"] or s["calibration_problem"]
-            report = (done_report(trial["outputs"], want_angles)
-                      if usable and os.path.isfile(config) else None)
+            report = (done_report(trial["outputs"], trial["input"], config_sha256, want_angles)
+                      if usable and not stale and os.path.isfile(config) else None)
             if report is not None:
                 try:
                     rows.append(row_from_report(trial, report, "skipped"))
@@ -378,7 +521,13 @@ def plan(root, out, template, fabrik, timeout_s):
                 "fabrik": fabrik, "template": s["template"], "config": config,
                 "static": (os.path.join(s["folder"], *s["static"].split("/"))
                            if s["static"] else None),  # None: the calibration on disk is used
-                "calibrate_args": s["calibrate_args"], "timeout_s": timeout_s})
+                "calibrate_args": s["calibrate_args"], "timeout_s": timeout_s, "recalibrate": stale})
+    orphans = orphan_outputs(out, subjects)
+    if orphans and log:
+        # Kept: they may be the user's to keep (a trial moved out of ROOT on purpose).
+        print("batch: the outputs of %d trial%s in %s belong to no trial of ROOT (kept, not in the "
+              "summary; delete them if unwanted): %s"
+              % (len(orphans), "s" if len(orphans) > 1 else "", out, _shown(orphans)), file=log)
     return calibrations, pending, rows
 
 
@@ -491,9 +640,11 @@ def run_batch(root, out, template=None, scheduler=None, workers=None, fabrik=Non
     fabrik = fabrik or os.environ.get("FABRIK_BIN") or "fabrik"
     root, out = os.path.abspath(root), os.path.abspath(out)
     template = os.path.abspath(template) if template else None
+    if template and not os.path.isfile(template):
+        raise SetupError("--template %s: no such file" % template)
     _check_paths(root, out)
     started = time.monotonic()
-    calibrations, pending, rows = plan(root, out, template, fabrik, timeout_s)
+    calibrations, pending, rows = plan(root, out, template, fabrik, timeout_s, log)
     skipped = sum(r["status"] == "skipped" for r in rows)
     unrunnable = len(rows) - skipped
     if not rows and not pending:
@@ -574,6 +725,10 @@ def main(argv=None):
         # NaN fails both comparisons, so it is refused too.
         if not 0 < value <= 1e9:
             p.error("%s must be a number of seconds in (0, 1e9], not %g" % (option, value))
+    if a.template and not os.path.isfile(a.template):
+        # Else every subject it calibrates would fail with it: a bad option, as above.
+        p.error("--template %s: %s" % (a.template, "not a file" if os.path.exists(a.template)
+                                       else "no such file"))
     try:
         rows = run_batch(a.root, a.output, a.template, a.scheduler, a.workers, a.fabrik,
                          a.trial_timeout, a.connect_timeout)
