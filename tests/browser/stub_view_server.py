@@ -12,6 +12,11 @@ stdin, one a line, change what it sends to every client:
     stall    no poses; stats go on; status "stalled" after 1 s
     silent   nothing at all (the page must notice by itself)
     garbage  undecodable messages instead of poses; status "garbage"
+    source-down  stats carry a vendor source (`source`, as fabrikd's with
+             input.source) that is not connected, QTM refusing: use with stall,
+             as QTM down means no poses
+    source-up    the source connected (reconnected after source-down)
+    source-none  stats without `source` again, as on plain ZeroMQ input (the start)
     quit
 With --synthetic-trial S it sends, on connect, one `trial` message of S seconds of
 poses at 50 Hz and nothing live. With --pose EP it relays a real fabrikd's
@@ -51,6 +56,11 @@ THREE_FILES = {
 TYPES = {'.html': 'text/html; charset=utf-8', '.js': 'text/javascript; charset=utf-8',
          '.css': 'text/css; charset=utf-8'}
 WS_GUID = '258EAFA5-E914-47DA-95CA-C5AB0DC85B11'
+# The vendor source of source-down/up, and fabrikd's words when QTM is not
+# running (the markup in it checks that the page shows it as text).
+SOURCE_URL = 'qtm://127.0.0.1:22223'
+SOURCE_ERROR = ('QTM at 127.0.0.1:22223: cannot connect (Connection refused); is QTM running with its '
+                'RT server on? <b>Its</b> little-endian RT port is base + 1, 22223 by default')
 MAX_CLIENT_MESSAGE = 4096
 
 # --- The synthetic subject: a 15-segment body, 45 markers, walking in x. ----
@@ -226,6 +236,37 @@ class Feed:
         self.undecodable = 0
         self.model = model(args.up)
         self.relay = Relay(args.pose) if args.pose else None
+        self.source = None   # None (no vendor source), 'down' or 'up'
+        self.source_since = time.monotonic()
+        self.source_connections = self.source_errors = 0
+
+    def _errors_now(self):
+        """A source that is down fails once a second (a refused attempt each)."""
+        down_s = time.monotonic() - self.source_since if self.source == 'down' else 0.0
+        return self.source_errors + (int(down_s) + 1 if self.source == 'down' else 0)
+
+    def set_source(self, how):
+        with self.lock:
+            self.source_errors = self._errors_now()
+            if how == 'up' and self.source != 'up':
+                self.source_connections += 1
+            self.source = None if how == 'none' else how
+            self.source_since = time.monotonic()
+
+    def source_stats(self, frames_in):
+        """stats.source as fabrikd sends it (proto/stats.schema.json), or None."""
+        with self.lock:
+            if self.source is None:
+                return None
+            errors = self._errors_now()
+            return {
+                'url': SOURCE_URL, 'connected': self.source == 'up',
+                'server': 'QTM RT protocol 1.19' if self.source_connections else None,
+                'connections': self.source_connections,
+                'reconnects': max(0, self.source_connections - 1),
+                'errors': errors, 'bad_packets': 0,
+                'frames': frames_in if self.source_connections else 0, 'frames_dropped': 0,
+                'last_error': SOURCE_ERROR if errors else None}
 
     def set_mode(self, mode):
         with self.lock:
@@ -450,13 +491,17 @@ class Handler(http.server.BaseHTTPRequestHandler):
                     feed.undecodable += 1
             if now >= next_stats and mode != 'silent':
                 next_stats += 1.0
-                send('stats', {
+                stats = {
                     'uptime_s': round(now - feed.t0, 3), 'frames_in': frames_in, 'frames_out': frames_in,
                     'frames_dropped': 0, 'decode_errors': 0, 'unknown_markers': 0,
                     'solve_us': {'p50': 24.0, 'p99': 61.0, 'max': 80.0},
                     'queue_latency_us': {'p50': 120.0, 'p99': 300.0, 'max': 410.0},
                     'interval_s': 1.0, 'pose_rate_hz': args.source_hz if mode == 'live' else 0.0,
-                    'last_error': None, 'config': feed.model['config']})
+                    'last_error': None, 'config': feed.model['config']}
+                source = feed.source_stats(frames_in)
+                if source is not None:
+                    stats['source'] = source
+                send('stats', stats)
                 stream, message = 'ok', ''
                 if mode == 'stall' and now - since >= 1.0:
                     stream, message = 'stalled', 'no pose from fabrikd for %.0f s' % (now - since)
@@ -532,6 +577,9 @@ def main():
         if cmd in ('live', 'stall', 'silent', 'garbage'):
             server.feed.set_mode(cmd)
             print('stub_view_server: mode %s' % cmd, flush=True)
+        elif cmd in ('source-down', 'source-up', 'source-none'):
+            server.feed.set_source(cmd.split('-')[1])
+            print('stub_view_server: %s' % cmd, flush=True)
     else:
         # stdin closed (e.g. started from a shell in the background): serve on.
         threading.Event().wait()

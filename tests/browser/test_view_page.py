@@ -17,8 +17,12 @@ poses it should at the server's capped rate; it draws exactly the model's
 bones and markers; the markers a pose lists as occluded are drawn occluded in
 that same frame; the angle plots hold data; pause and scrub show older poses
 while the stream goes on; the banner appears when the stream stops (and, with
-the stub, when it is garbage or silent) and goes when it is back; trial mode
-(stub) plays and scrubs; no uncaught exception in the page. Takes a
+the stub, when it is garbage or silent) and goes when it is back; with the
+stub, stats whose vendor source (stats.source) is not connected put the
+source and its error in the banner (as text) and the status line, a
+connected source takes the banner away, stats that stop leave the stream's own
+banner, and stats without a source show nothing of one; trial mode (stub)
+plays and scrubs; no uncaught exception in the page. Takes a
 screenshot into DIR (view_page.png, or view_subject01_walk1.png).
 
 Exit codes: 0 passed, 1 failed, 77 skipped (no chromium, no python3-websocket,
@@ -387,6 +391,61 @@ def check_banner(page, stop_stream, resume_stream, what, expect_words, timeout_s
     check(True, f'banner gone when the stream is back after {what}')
 
 
+def status_line(page):
+    return page.eval("document.getElementById('status').textContent")
+
+
+def check_no_source(page, rate_line):
+    """Stats without `source` (plain ZeroMQ input): nothing of a source anywhere."""
+    line = wait_for(lambda: (lambda t: t if rate_line in t and 'source ' not in t else None)(status_line(page)),
+                    10, f'stats on the status line ("{rate_line}") and no source in it')
+    s = page.state()
+    check(s['source'] is None and s['banner'] is None,
+          f'stats without a source: no source in the state or the banner, none on the status line ("{line[-60:]}")')
+
+
+def check_source(page, live):
+    """A vendor source down (QTM refusing, no poses), then back, then stats
+    that stop while it is down: the banner names the source and its error
+    while fresh stats say so, before the stalled stream it causes."""
+    down = f'fabrikd is running; its source {stub.SOURCE_URL} is not connected: {stub.SOURCE_ERROR}'
+    live.command('stall')
+    live.command('source-down')
+    s = wait_for(lambda: (lambda s: s if s['banner'] and 'not connected' in s['banner'] else None)(page.state()),
+                 10, 'the banner (source not connected)')
+    check(s['banner'] == down, f'banner when the source is down: "{s["banner"]}"')
+    check(page.eval("document.getElementById('banner').textContent") == down and
+          page.eval("document.querySelector('#banner b') === null"),
+          'the banner shows the error as text (its <b> is not markup)')
+    check(s['source'] and s['source']['connected'] is False and s['source']['url'] == stub.SOURCE_URL,
+          f'state().source: {s["source"]}')
+    check(f'source {stub.SOURCE_URL} NOT connected (0 frames' in status_line(page),
+          'the status line says the source is NOT connected')
+    time.sleep(3.0)  # past the stub's stalled status (1 s) and the page's watchdog (2 s)
+    s = page.state()
+    check(s['banner'] == down and s['stream'] == 'stalled',
+          f'the stream stalled (status {s["stream"]}), the banner still names its cause, the source')
+    live.command('source-up')
+    live.command('live')
+    s = wait_for(lambda: (lambda s: s if s['banner'] is None else None)(page.state()), 10,
+                 'the banner to go (source connected)')
+    check(s['source']['connected'] is True and s['source']['last_error'] == stub.SOURCE_ERROR,
+          'source connected again: no banner, though last_error still holds the old error')
+    check(f'source {stub.SOURCE_URL} connected (' in status_line(page),
+          'the status line says the source is connected')
+    # Stats that stop (fabrikd gone) no longer say it runs: the stream's banners speak.
+    live.command('source-down')
+    wait_for(lambda: (lambda s: s if s['banner'] == down else None)(page.state()), 10,
+             'the banner (source down again)')
+    live.command('silent')
+    s = wait_for(lambda: (lambda s: s if s['banner'] and 'stopped' in s['banner'] else None)(page.state()), 10,
+                 'the banner to say the stream stopped once the stats are stale')
+    check(True, f'stats stopped while the source was down: "{s["banner"]}"')
+    live.command('source-none')
+    live.command('live')
+    wait_for(lambda: page.state()['banner'] is None, 10, 'the banner to go (stats without a source)')
+
+
 def check_no_exceptions(page):
     if page.console:
         print('  ..  console: ' + ' | '.join(page.console[:5]))
@@ -441,6 +500,12 @@ def run_stub(out_dir):
                      'the stream is garbage', ['arbage', 'ndecodable'])
         check_banner(page, lambda: live.command('silent'), lambda: live.command('live'),
                      'the server goes silent', ['stopped'])
+        rate_line = 'fabrikd 250 poses/s'  # the stub's stats, at its default --source-hz
+        check_no_source(page, rate_line)
+        check_source(page, live)
+        check_no_source(page, rate_line)
+        check_banner(page, lambda: live.command('stall'), lambda: live.command('live'),
+                     'the stream stalls (stats without a source again)', ['stopped'])
         check(page.state()['garbage'] > 0, 'the garbage was counted, the page carried on')
         check_no_exceptions(page)
 

@@ -55,7 +55,7 @@ function onMessage(topic, data, arrivedAtMs, viewAtMs) {
       status.onPose(arrivedAtMs);
       history.push(data, arrivedAtMs, viewAtMs);
       break;
-    case 'stats': state.stats = data; status.onStats(data); break;
+    case 'stats': state.stats = data; state.statsAtMs = arrivedAtMs; status.onStats(data); break;
     case 'status': state.status = data; break;
     case 'trial':
       if (data.model) setModel(data.model);

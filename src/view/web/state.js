@@ -10,6 +10,7 @@ export const state = {
   latestAtMs: 0,         // performance.now() when it arrived
   latestViewMs: null,    // its arrival at fabrik view (view_ms, page clock), when stamped
   stats: null,           // last `stats` data
+  statsAtMs: 0,          // performance.now() when it arrived
   status: null,          // last `status` data (from fabrik view)
   received: 0,           // pose messages received (live)
   messages: 0,           // all messages received
@@ -40,6 +41,21 @@ export function notePaint(ms, viewMs) {
   if (viewMs !== null) keep(state.viewPaintMs, viewMs);
 }
 
+const SOURCE_TEXT_CHARS = 300;  // a longer url or error is cut: the banner stays one or two lines
+const count = (v) => (Number.isInteger(v) && v >= 0 ? v : 0);
+const text = (v) => (typeof v === 'string' && v !== '' ? v.slice(0, SOURCE_TEXT_CHARS) : null);
+
+// The vendor source fabrikd reads itself (stats.source, docs/vendor-sources.md;
+// QTM or Motive), checked field by field as the page trusts nothing it is sent,
+// or null: stats without it come from a daemon on plain ZeroMQ input.
+export function sourceOf(stats) {
+  const s = stats && stats.source;
+  if (s === null || typeof s !== 'object' || Array.isArray(s)) return null;
+  return {url: text(s.url) || '(source)', connected: s.connected === true, server: text(s.server),
+          frames: count(s.frames), reconnects: count(s.reconnects), errors: count(s.errors),
+          bad_packets: count(s.bad_packets), last_error: text(s.last_error)};
+}
+
 function quantile(values, q) {
   if (values.length === 0) return null;
   const s = [...values].sort((a, b) => a - b);
@@ -67,6 +83,7 @@ export function snapshot() {
     paused: state.paused,
     trial: state.trial ? {poses: state.trial.poses.length, index: state.trial.index} : null,
     history: state.history,
+    source: sourceOf(state.stats),
     stream: state.status ? state.status.stream : null,
     last_paint_ms: state.lastPaintMs,
     paint_ms: {n: state.paintMs.length, p50: quantile(state.paintMs, 0.5),

@@ -1,13 +1,39 @@
 // The status line (input rate, poses/s, latency, solve time, residual RMS,
-// fit quality, gaps open, frames dropped, config), the error banner, and the
-// lists of occluded markers and of sensors.
+// fit quality, gaps open, frames dropped, config, the vendor source), the
+// error banner, and the lists of occluded markers and of sensors.
 
-import {state} from './state.js';
+import {state, sourceOf} from './state.js';
 
 const STALL_MS = 2000;  // no pose for this long: the stream stopped
 const GARBAGE_MS = 5000;  // an undecodable message keeps the banner this long
+// fabrikd sends stats every interval_s (1 s by default). Older than 3 of
+// them (and 3 s), they no longer show that fabrikd runs: a source they say is
+// down is then not what to look at, and the stream's own banners speak.
+const STATS_STALE_INTERVALS = 3;
+const STATS_STALE_MIN_MS = 3000;
 
 const fmt = (v, digits = 0, unit = '') => (Number.isFinite(v) ? v.toFixed(digits) + unit : '-');
+
+// The source from the latest stats while they are fresh, else null.
+function liveSource(now) {
+  const interval = Number.isFinite(state.stats && state.stats.interval_s) ? state.stats.interval_s : 1;
+  const staleMs = Math.max(STATS_STALE_MIN_MS, STATS_STALE_INTERVALS * interval * 1000);
+  return state.stats && now - state.statsAtMs <= staleMs ? sourceOf(state.stats) : null;
+}
+
+// When QTM or Motive is down, fabrikd runs and the view waits for poses: the
+// banner names the source and fabrikd's own reason, so the user looks at the
+// mocap machine, not at fabrikd or the view.
+function sourceBanner(src) {
+  return `fabrikd is running; its source ${src.url} is not connected: ` +
+    (src.last_error || 'no connection yet (no error reported so far)');
+}
+
+// The status line's part for the source, as `fabrik watch` words it.
+function sourcePart(src) {
+  return `source ${src.url} ${src.connected ? 'connected' : 'NOT connected'} ` +
+    `(${src.frames} frames, ${src.reconnects} reconnects, ${src.errors} errors)`;
+}
 
 export class StatusView {
   constructor({line, banner, occludedList, sensorList}) {
@@ -47,6 +73,9 @@ export class StatusView {
     if (!state.connected) return state.messages ? 'Disconnected from fabrik view: reconnecting...' : null;
     if (state.trial) return null;
     if (st && st.stream === 'garbage') return `Garbage on the pose stream: ${st.message || 'undecodable poses'}`;
+    // Before the stalled stream and the watchdog: a source down is their cause.
+    const src = liveSource(now);
+    if (src && !src.connected) return sourceBanner(src);
     if (st && st.stream === 'stalled') return `The pose stream stopped: ${st.message || 'no pose from fabrikd'}`;
     if (state.received > 0 && now - state.latestAtMs > STALL_MS)
       return `The pose stream stopped: no pose for ${((now - state.latestAtMs) / 1000).toFixed(0)} s`;
@@ -77,6 +106,8 @@ export class StatusView {
       `config ${s.config || (state.model && state.model.config) || '-'}`,
       `stream ${st.stream || (state.connected ? 'connected' : 'connecting')}`,
     ];
+    const src = sourceOf(state.stats);
+    if (src) parts.push(sourcePart(src));
     this.line.textContent = parts.join(' | ');
 
     const occluded = (pose ? pose.occluded.join(',') : '') + '@' + Math.floor(now / 250);
