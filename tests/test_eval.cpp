@@ -1,10 +1,13 @@
 // fabrik eval: the evaluations on synthetic data with known answers, and the
 // must-show accuracy on the real subject01 recordings when ../shared/data is there.
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <filesystem>
+#include <random>
 #include <string>
 
 #include "eval/eval.hpp"
+#include "offline/solve_trial.hpp"
 #include "synth/synthetic_motion.hpp"
 
 namespace {
@@ -155,4 +158,45 @@ TEST_CASE("real data: the OpenSense walk from its 8 IMUs (skipped without ../sha
   CHECK(g.hip_flexion_min_deg >= -30.0);
   CHECK(g.hip_flexion_max_deg <= 45.0);
   CHECK(g.max_jump_deg <= 10.0);
+}
+
+TEST_CASE(
+    "solve's markers are the measurements with their gaps filled, the model's fitted "
+    "markers apart",
+    "[gaps]") {
+  const DaemonConfig config = default_daemon_config();
+  io::MarkerTrial trial = synthetic_trial(config, 2.0, 100.0);
+  const std::size_t n = trial.markers(), frames = trial.frames();
+  std::mt19937 random(7);
+  std::normal_distribution<double> noise_m(0.0, 2e-3);  // what the fit smooths out
+  for (Eigen::Vector3d& p : trial.positions_m)
+    p += Eigen::Vector3d(noise_m(random), noise_m(random), noise_m(random));
+  const std::size_t gapped = 5, never = 9, gap_first = 80, gap_end = 120;
+  for (std::size_t f = 0; f < frames; ++f) {
+    if (f >= gap_first && f < gap_end) trial.positions_m[f * n + gapped].setConstant(NAN);
+    trial.positions_m[f * n + never].setConstant(NAN);
+  }
+  const TrialSolution s = solve_trial(config, trial);
+  REQUIRE(s.markers.labels == trial.labels);
+  REQUIRE(s.model_markers.labels == trial.labels);
+  double model_off_m = 0.0;
+  for (std::size_t f = 0; f < frames; ++f)
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d& measured = trial.at(f, static_cast<int>(i));
+      CHECK(s.model_markers.at(f, static_cast<int>(i)).allFinite());
+      if (i == never) {
+        CHECK_FALSE(s.markers.at(f, static_cast<int>(i)).allFinite());  // nothing invented
+      } else if (!measured.allFinite()) {
+        CHECK(s.markers.at(f, static_cast<int>(i)).allFinite());  // filled
+      } else {
+        CHECK(s.markers.at(f, static_cast<int>(i)) == measured);  // as measured, exactly
+        model_off_m =
+            std::max(model_off_m, (s.model_markers.at(f, static_cast<int>(i)) - measured).norm());
+      }
+    }
+  CHECK(model_off_m > 1e-3);  // the model's markers are the fit's, not the measurements
+  REQUIRE(s.filled.size() == 1);
+  CHECK(s.filled[0].marker == trial.labels[gapped]);
+  CHECK(s.filled[0].first == gap_first);
+  CHECK(s.filled[0].end == gap_end);
 }

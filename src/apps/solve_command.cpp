@@ -25,7 +25,8 @@ namespace fabrik::apps {
 namespace {
 
 struct SolveOptions {
-  std::string config, input, output, markers_output, report, angles, orientations, subject;
+  std::string config, input, output, markers_output, model_markers_output, report, angles,
+      orientations, subject;
   bool quiet = false, keep_zeros = false;
   double filter_hz = 0.0;  // 0: the trial as recorded
 };
@@ -51,6 +52,7 @@ void run(const SolveOptions& o) {
                                                {"--output", o.output},
                                                {"--markers", o.markers_output},
                                                {"--markers' FILE.filled.csv", filled_csv},
+                                               {"--model-markers", o.model_markers_output},
                                                {"--report", o.report},
                                                {"--angles", o.angles}};
   // The extension says what is written; a stream (/dev/null, to discard; /dev/stdout, a pipe)
@@ -63,6 +65,8 @@ void run(const SolveOptions& o) {
   if (!is_stream(o.output)) require_trc_or_csv("--output", o.output);
   if (!o.markers_output.empty() && !is_stream(o.markers_output))
     require_trc_or_csv("--markers", o.markers_output);
+  if (!o.model_markers_output.empty() && !is_stream(o.model_markers_output))
+    require_trc_or_csv("--model-markers", o.model_markers_output);
   if (!o.angles.empty() && !is_stream(o.angles) && !has_suffix_ci(o.angles, ".mot") &&
       !has_suffix_ci(o.angles, ".sto"))
     throw std::invalid_argument("--angles: '" + o.angles +
@@ -139,6 +143,7 @@ void run(const SolveOptions& o) {
     write_trial_file(o.markers_output, s.markers);
     if (!filled_csv.empty()) write_filled_csv(filled_csv, s, trial);
   }
+  if (!o.model_markers_output.empty()) write_trial_file(o.model_markers_output, s.model_markers);
   // Without coordinates there is no table to write; the run and its summary
   // still stand, and the refusal comes after them.
   const bool angles_refused = !o.angles.empty() && config.tracker.model->coordinates.empty();
@@ -215,9 +220,13 @@ void add_solve_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   c->add_option("--output", o->output, "Joint centres, .trc (mm) or .csv")->required();
   c->add_option("--markers", o->markers_output,
-                "Also write the model's markers, gaps filled from both sides, .trc or .csv "
-                "(and FILE.filled.csv: the filled samples per marker; /dev/null discards both, a "
-                "terminal or pipe gets the markers as TRC, without the list)");
+                "Also write the tracked markers as measured, gaps filled from both sides, .trc "
+                "or .csv (a marker never measured stays empty; and FILE.filled.csv: the filled "
+                "samples per marker; /dev/null discards both, a terminal or pipe gets the markers "
+                "as TRC, without the list)");
+  c->add_option("--model-markers", o->model_markers_output,
+                "Also write the model's fitted markers at every frame (what fabrikd publishes "
+                "live: a few mm from the measurements, predicted where occluded), .trc or .csv");
   c->add_option("--report", o->report, "Write the summary as JSON");
   c->add_option("--angles", o->angles,
                 "Also write the model's coordinates as an OpenSim Coordinates file (.mot)");

@@ -60,7 +60,7 @@ WalkReport eval_walk(const DaemonConfig& config, const io::MarkerTrial& trial) {
     it_sum += s.iterations[f];
     for (std::size_t i = 0; i < markers.size(); ++i) {
       if (col[i] < 0 || !trial.at(f, col[i]).allFinite()) continue;
-      acc[i].add((s.markers.at(f, i) - trial.at(f, col[i])).norm());
+      acc[i].add((s.model_markers.at(f, i) - trial.at(f, col[i])).norm());
     }
     // The rigid-cluster bound: each segment's measured markers fitted alone.
     double worst = 0.0;

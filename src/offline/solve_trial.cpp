@@ -52,7 +52,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   // Without markers the table's rows are the frames.
   const bool table_frames = orientations && trial.labels.empty();
   const std::size_t frames = table_frames ? orientations->rows() : trial.frames();
-  for (auto* out : {&s.joints, &s.markers}) {
+  for (auto* out : {&s.joints, &s.markers, &s.model_markers}) {
     out->rate_hz = table_frames ? orientations->rate_hz : trial.rate_hz;
     out->first_frame =
         table_frames ? 1 + static_cast<int>(std::lround(orientations->time_s.front() *
@@ -66,8 +66,9 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   std::vector<std::uint8_t> sensor_visible(sensor_count, 0);
   for (const Joint& j : model.joints) s.joints.labels.push_back(j.name);
   for (const MarkerTarget& m : config.tracker.markers) s.markers.labels.push_back(m.marker);
+  s.model_markers.labels = s.markers.labels;
   s.joints.positions_m.reserve(frames * s.joints.labels.size());
-  s.markers.positions_m.reserve(frames * n);
+  s.model_markers.positions_m.reserve(frames * n);
   for (const Coordinate& c : model.coordinates) {
     s.coordinate_names.push_back(c.name);
     s.coordinate_is_rotation.push_back(c.kind == CoordinateKind::rotation ? 1 : 0);
@@ -107,8 +108,8 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
     s.sensors_measured.push_back(sensor_count - r.sensor_occluded_count);
     s.joints.positions_m.insert(s.joints.positions_m.end(), r.joints_world_m.begin(),
                                 r.joints_world_m.end());
-    s.markers.positions_m.insert(s.markers.positions_m.end(), r.markers_world_m.begin(),
-                                 r.markers_world_m.end());
+    s.model_markers.positions_m.insert(s.model_markers.positions_m.end(), r.markers_world_m.begin(),
+                                       r.markers_world_m.end());
     s.outlier.insert(s.outlier.end(), r.outliers.begin(), r.outliers.end());
     s.outlier_count.push_back(r.outlier_count);
     s.quality.push_back(r.quality);
@@ -121,8 +122,10 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
     s.coordinates.insert(s.coordinates.end(), r.coordinates.begin(), r.coordinates.end());
     if (progress && (f % 64 == 0 || f + 1 == frames)) progress(f + 1, frames);
   }
-  // Offline both sides of every gap are known: the written markers take the
-  // two-sided fill there (the joint centres keep the causal prediction).
+  // Offline both sides of every gap are known: the markers are the measured samples with
+  // their gaps filled from both sides (the joint centres keep the causal prediction). Not
+  // the model's markers where measured: the fill meets the measurement at a gap's edges, and
+  // the fitted markers beside it would step by the fit's misfit there.
   std::vector<double> times_s(frames);
   std::vector<Eigen::Vector3d> all_m(frames * n);
   std::vector<std::uint8_t> all_visible(frames * n);
@@ -134,9 +137,8 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
       all_visible[k] = all_m[k].allFinite() ? 1 : 0;
     }
   }
-  const TwoSidedFill fill = fill_two_sided(config.tracker, times_s, all_m, all_visible);
-  for (std::size_t k = 0; k < fill.filled.size(); ++k)
-    if (fill.filled[k]) s.markers.positions_m[k] = fill.markers_m[k];
+  TwoSidedFill fill = fill_two_sided(config.tracker, times_s, all_m, all_visible);
+  s.markers.positions_m = std::move(fill.markers_m);
   for (const FilledGap& g : fill.gaps)
     s.filled.push_back({config.tracker.markers[g.marker].marker, g.first, g.end, to_string(g.method)});
   for (int i = 0; i < n; ++i) {

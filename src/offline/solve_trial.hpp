@@ -33,9 +33,13 @@ struct FilledRun {
 
 struct TrialSolution {
   io::MarkerTrial joints;                     // joint centres per frame (metres)
-  // The model's markers per frame (metres); where a tracked marker is missing
-  // between or beside measured samples, the two-sided fill (two_sided_fill.hpp).
+  // The tracked markers per frame (metres): the samples as measured (after a prefilter), and
+  // where one is missing between or beside measured samples, the two-sided fill
+  // (two_sided_fill.hpp); NaN for a marker never measured.
   io::MarkerTrial markers;
+  // The model's markers per frame (metres), as the Tracker fitted them (its prediction where
+  // occluded): what fabrikd publishes live.
+  io::MarkerTrial model_markers;
   std::vector<FilledRun> filled;  // by marker, then by frame
   std::vector<double> rms_m;                  // per frame, over measured markers
   std::vector<double> max_m;                  // per frame

@@ -48,6 +48,7 @@ py::dict solution_dict(TrialSolution&& s) {
   d["marker_names"] = s.markers.labels;
   d["joints_mm"] = positions_mm(s.joints);
   d["markers_mm"] = positions_mm(s.markers);
+  d["model_markers_mm"] = positions_mm(s.model_markers);
   d["residual_rms_mm"] = owned_array(scaled(std::move(s.rms_m), kMmPerM), {ss(frames)});
   d["residual_max_mm"] = owned_array(scaled(std::move(s.max_m), kMmPerM), {ss(frames)});
   d["solve_us"] = owned_array(std::move(s.solve_us), {ss(frames)});

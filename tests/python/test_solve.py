@@ -13,7 +13,8 @@ from conftest import DEFAULT_CONFIG, fabrik_cli
 def cli_outputs(synth_trial, tmp_path_factory):
     out = tmp_path_factory.mktemp("solve")
     fabrik_cli("solve", "--config", DEFAULT_CONFIG, "--input", synth_trial, "--output",
-               out / "joints.trc", "--markers", out / "markers.trc", "--angles",
+               out / "joints.trc", "--markers", out / "markers.trc", "--model-markers",
+               out / "model_markers.trc", "--angles",
                out / "angles.mot", "--report", out / "report.json", "--quiet")
     return out
 
@@ -23,7 +24,7 @@ def solution(synth_trial):
     return fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), synth_trial)
 
 
-def test_solve_matches_the_cli(solution, cli_outputs):
+def test_solve_matches_the_cli(solution, cli_outputs, synth_trial):
     joints = fabrik.read_markers(cli_outputs / "joints.trc")
     markers = fabrik.read_markers(cli_outputs / "markers.trc")
     angles = fabrik.read_table(cli_outputs / "angles.mot")
@@ -31,6 +32,16 @@ def test_solve_matches_the_cli(solution, cli_outputs):
     np.testing.assert_allclose(solution.joints_mm, joints.positions_mm, rtol=0, atol=0.6e-6)
     # the filled model markers, NaN where the CLI wrote nothing
     np.testing.assert_allclose(solution.markers_mm, markers.positions_mm, rtol=0, atol=0.6e-6)
+    model_markers = fabrik.read_markers(cli_outputs / "model_markers.trc")
+    np.testing.assert_allclose(solution.model_markers_mm, model_markers.positions_mm, rtol=0,
+                               atol=0.6e-6)
+    # Measured samples are written as measured; the model's are the fit's.
+    trial = fabrik.read_markers(synth_trial)
+    columns = [trial.names.index(n) for n in solution.marker_names]
+    measured = trial.positions_mm[:, columns]
+    seen = np.isfinite(measured)
+    np.testing.assert_allclose(solution.markers_mm[seen], measured[seen], rtol=0, atol=1e-9)
+    assert np.nanmax(np.abs(solution.model_markers_mm[seen] - measured[seen])) > 0.1
     np.testing.assert_allclose(solution.time_s, angles.time_s, rtol=0, atol=1e-8)
     for i, name in enumerate(solution.angle_names):
         np.testing.assert_allclose(solution.angles_deg[:, i], angles.column(name), rtol=0,

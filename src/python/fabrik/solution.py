@@ -13,8 +13,10 @@ from .recordings import MarkerData
 
 @dataclass
 class Solution:
-    """Per frame f: joints_mm[f] (joints, 3) and markers_mm[f] (markers, 3, the model's markers
-    with gaps filled from both sides) in mm; angles_deg[f] (degrees, angle_names order, continuous
+    """Per frame f: joints_mm[f] (joints, 3), markers_mm[f] (markers, 3: the tracked markers as
+    measured, gaps filled from both sides, NaN for a marker never measured, as `fabrik solve
+    --markers` writes them) and model_markers_mm[f] (the model's fitted markers, as fabrikd
+    publishes them live; `--model-markers`) in mm; angles_deg[f] (degrees, angle_names order, continuous
     over frames) and translations_mm[f] (mm); residual RMS/max (mm) over the markers solved with;
     status: the solver's stop reason (a value, never an exception). time_s and frame_numbers are
     the source's own. summary: what `fabrik solve --report` writes."""
@@ -41,6 +43,7 @@ class Solution:
     missing_in_trial: List[str] = field(default_factory=list)
     ignored_in_trial: List[str] = field(default_factory=list)
     mostly_missing: List[str] = field(default_factory=list)
+    model_markers_mm: np.ndarray = None
 
     def angles_dataframe(self):
         """The angles (degrees) as a pandas DataFrame indexed by time_s, one column per angle.
