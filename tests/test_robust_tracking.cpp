@@ -509,7 +509,8 @@ const DaemonConfig& hinge_elbow_config() {
   return c;
 }
 
-// Flagged samples of the wrist markers, and their largest residual.
+// Flagged samples of the wrist markers, and their largest residual (the model's fitted
+// marker against the measurement).
 std::pair<std::size_t, double> wrist_flags(const TrialSolution& s, const MarkerTrial& trial) {
   std::size_t flagged = 0;
   double worst_m = 0.0;
@@ -520,7 +521,7 @@ std::pair<std::size_t, double> wrist_flags(const TrialSolution& s, const MarkerT
     REQUIRE(k >= 0);
     for (std::size_t f = 0; f < s.rms_m.size(); ++f) {
       flagged += s.outlier[f * n + i];
-      worst_m = std::max(worst_m, (s.markers.at(f, i) - trial.at(f, std::size_t(k))).norm());
+      worst_m = std::max(worst_m, (s.model_markers.at(f, i) - trial.at(f, std::size_t(k))).norm());
     }
   }
   return {flagged, worst_m};

@@ -608,6 +608,41 @@ TEST_CASE("A trial that shares no marker name with the config is refused, with t
   CHECK_NOTHROW(fabrik::require_shared_markers(config, trial, "walk.trc"));
 }
 
+TEST_CASE(
+    "A trial with fewer than half of the config's marker names is refused where the "
+    "caller can allow it, naming the missing, the closest and the option") {
+  const fabrik::DaemonConfig config = fabrik::default_daemon_config();
+  MarkerTrial trial = default_model_trial();
+  const std::size_t n = trial.labels.size();
+  REQUIRE(n == 45);
+  // 22 of 45 kept (fewer than half), the rest respelled as another export would.
+  for (std::size_t i = 22; i < n; ++i) trial.labels[i] = trial.labels[i] + "_";
+  auto refusal = [&](const std::string& allow_option) {
+    try {
+      fabrik::require_shared_markers(config, trial, "walk.trc", "--subject", allow_option);
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string message = refusal("--allow-missing-markers");
+  INFO(message);
+  CHECK_THAT(message, Catch::StartsWith("walk.trc: has only 22 of the 45 marker names of the "
+                                        "config <embedded>/default.json (fewer than half)"));
+  CHECK_THAT(message, Catch::Contains("\n  closest: "));
+  std::string first_missing;  // in the config's order, as the message lists them
+  for (const fabrik::MarkerTarget& m : config.tracker.markers)
+    if (first_missing.empty() && trial.find(m.marker) < 0) first_missing = m.marker;
+  CHECK_THAT(message, Catch::Contains("\n  closest: " + first_missing + " ~ " + first_missing +
+                                      "_ (punctuation)"));
+  CHECK_THAT(message, Catch::EndsWith("to track with the 22 markers it has, give "
+                                      "--allow-missing-markers"));
+  CHECK(refusal("") == "accepted");  // the caller allows it (eval, view)
+  // Half of them (23 of 45 is more) is tracked.
+  trial.labels[22] = config.tracker.markers[22].marker;
+  CHECK(refusal("--allow-missing-markers") == "accepted");
+}
+
 TEST_CASE("A config whose names carry a subject prefix the file's labels lack is told so") {
   // A config calibrated from one subject of a Nexus C3D names its markers `Daphnee:LASI`; that
   // subject's own TRC export says `LASI`, another subject's `Other:LASI`: no closest was named.

@@ -27,7 +27,7 @@ namespace {
 struct SolveOptions {
   std::string config, input, output, markers_output, model_markers_output, report, angles,
       orientations, subject;
-  bool quiet = false, keep_zeros = false;
+  bool quiet = false, keep_zeros = false, allow_missing_markers = false;
   double filter_hz = 0.0;  // 0: the trial as recorded
 };
 
@@ -103,7 +103,9 @@ void run(const SolveOptions& o) {
                    "fabrik solve: warning: %zu samples farther than input.max_abs_coordinate_mm "
                    "(%g mm) from the origin are taken as missing, as fabrikd takes them\n",
                    implausible, config.max_abs_coordinate_m * 1e3);
-    if (o.orientations.empty()) require_shared_markers(config, trial, o.input, "--subject");
+    if (o.orientations.empty())
+      require_shared_markers(config, trial, o.input, "--subject",
+                             o.allow_missing_markers ? "" : "--allow-missing-markers");
     if (o.filter_hz > 0.0) {
       const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);
       if (!o.quiet)
@@ -239,6 +241,9 @@ void add_solve_command(CLI::App& app) {
                 "Pose2Sim's default is 6 Hz. 0 (default): as recorded")
       ->check(cli::range(0.0, 1e6));
   c->add_flag("--quiet", o->quiet, "No progress bar");
+  c->add_flag("--allow-missing-markers", o->allow_missing_markers,
+              "Track a trial that has fewer than half of the config's marker names (refused by "
+              "default: most often another marker set or spelling)");
   c->add_flag("--keep-zeros", o->keep_zeros,
               "Read exact (0, 0, 0) samples as positions (default: as missing markers)");
   c->callback([o] { tools::run_command("solve", [&] { run(*o); }); });

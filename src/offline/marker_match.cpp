@@ -1,17 +1,50 @@
 #include "offline/marker_match.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "offline/subject_markers.hpp"
 
 namespace fabrik {
 
+namespace {
+
+// Fewer than half of the config's names in the trial: most likely another marker set or
+// another spelling, whose few shared markers a solve would fit closely (a judgement: a
+// lab that means it says so with the caller's option).
+void require_most_markers(const std::vector<std::string>& names, const io::MarkerTrial& trial,
+                          const std::string& trial_path, const std::string& config_file,
+                          const std::string& allow_option) {
+  std::vector<std::string> missing, unused;
+  for (const std::string& name : names)
+    if (trial.find(name) < 0) missing.push_back(name);
+  const std::size_t shared = names.size() - missing.size();
+  if (2 * shared >= names.size()) return;
+  for (const std::string& label : trial.labels)
+    if (std::find(names.begin(), names.end(), label) == names.end()) unused.push_back(label);
+  throw std::runtime_error(
+      trial_path + ": has only " + std::to_string(shared) + " of the " +
+      std::to_string(names.size()) + " marker names of the config " + config_file +
+      " (fewer than half); tracking it would fit the model to those " + std::to_string(shared) +
+      " and report a small residual for them." + names_beside(missing, "file:  ", unused) +
+      "\nFix: use a config made for this marker set (fabrik calibrate --template T --static S "
+      "writes one), or rename the config's target markers to the file's labels; to track with "
+      "the " +
+      std::to_string(shared) + " markers it has, give " + allow_option);
+}
+
+}  // namespace
+
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
-                            const std::string& trial_path, const std::string& subject_option) {
+                            const std::string& trial_path, const std::string& subject_option,
+                            const std::string& allow_option) {
   std::vector<std::string> names;
   for (const MarkerTarget& m : config.tracker.markers) names.push_back(m.marker);
   for (const std::string& name : names) {
-    if (trial.find(name) >= 0) return;
+    if (trial.find(name) < 0) continue;
+    if (!allow_option.empty())
+      require_most_markers(names, trial, trial_path, config.file, allow_option);
+    return;
   }
   std::string message = trial_path + ": shares none of the " + std::to_string(names.size()) +
                         " marker names of the config " + config.file + " (" +

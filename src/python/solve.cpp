@@ -98,14 +98,18 @@ io::MarkerTrial of_subject(io::MarkerTrial&& trial, const std::string& subject) 
   return subject.empty() ? std::move(trial) : subject_trial(trial, subject, kSubjectKeyword);
 }
 
+// The keyword that lets a trial with fewer than half of the config's names be tracked.
+constexpr const char* kAllowKeyword = "allow_missing_markers=True";
+
 py::dict solve_file(const Config& config, const std::string& path, bool keep_zeros,
-                    const std::string& subject) {
+                    const std::string& subject, bool allow_missing_markers) {
   require_file(path, "recording");
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;  // a trial takes seconds
     const io::MarkerTrial trial = of_subject(read_markers_file(path, keep_zeros), subject);
-    require_shared_markers(*config.config, trial, path, kSubjectKeyword);
+    require_shared_markers(*config.config, trial, path, kSubjectKeyword,
+                           allow_missing_markers ? "" : kAllowKeyword);
     s = solve_trial(*config.config, trial);
   }
   return solution_dict(std::move(s));
@@ -114,7 +118,7 @@ py::dict solve_file(const Config& config, const std::string& path, bool keep_zer
 py::dict solve_arrays(const Config& config, const std::vector<std::string>& names,
                       const py::array_t<double, py::array::c_style | py::array::forcecast>& mm,
                       double rate_hz, int first_frame, double first_time_s,
-                      const std::string& subject) {
+                      const std::string& subject, bool allow_missing_markers) {
   if (mm.ndim() != 3 || mm.shape(1) != ss(names.size()) || mm.shape(2) != 3)
     throw std::invalid_argument("positions_mm: expected shape (frames, " +
                                 std::to_string(names.size()) + ", 3) for " +
@@ -135,7 +139,8 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
     p += 3;
   }
   trial = of_subject(std::move(trial), subject);
-  require_shared_markers(*config.config, trial, "the markers", kSubjectKeyword);
+  require_shared_markers(*config.config, trial, "the markers", kSubjectKeyword,
+                         allow_missing_markers ? "" : kAllowKeyword);
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;
@@ -148,11 +153,12 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
 
 void bind_solve(py::module_& m) {
   m.def("_solve_file", &solve_file, py::arg("config"), py::arg("path"),
-        py::arg("keep_zeros") = false, py::arg("subject") = "");
+        py::arg("keep_zeros") = false, py::arg("subject") = "",
+        py::arg("allow_missing_markers") = false);
   m.def("_solve_arrays", &solve_arrays, py::arg("config"), py::arg("names"),
         py::arg("positions_mm"), py::arg("rate_hz"), py::arg("first_frame") = 1,
-        py::arg("first_time_s") = std::numeric_limits<double>::quiet_NaN(),
-        py::arg("subject") = "");
+        py::arg("first_time_s") = std::numeric_limits<double>::quiet_NaN(), py::arg("subject") = "",
+        py::arg("allow_missing_markers") = false);
 }
 
 }  // namespace fabrik::python

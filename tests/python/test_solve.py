@@ -185,3 +185,18 @@ def test_subject_solves_one_person_of_a_prefixed_recording(solution, synth_trial
     np.testing.assert_allclose(from_file.joints_mm, solution.joints_mm, rtol=0, atol=1e-9)
     with pytest.raises(RuntimeError, match="leave out subject"):
         fabrik.solve(config, synth_trial, subject="Anna")
+
+
+def test_a_trial_with_fewer_than_half_of_the_names_needs_allow_missing_markers(synth_trial):
+    trial = fabrik.read_markers(synth_trial)
+    keep = len(trial.names) // 2 - 1  # fewer than half
+    names = trial.names[:keep] + [n + "_" for n in trial.names[keep:]]
+    data = fabrik.MarkerData(names=names, positions_mm=trial.positions_mm, time_s=trial.time_s,
+                             rate_hz=trial.rate_hz, first_frame=trial.first_frame)
+    config = fabrik.load_config(DEFAULT_CONFIG)
+    with pytest.raises(RuntimeError, match=r"(?s)has only %d of the \d+ marker names.*"
+                       r"give allow_missing_markers=True" % keep):
+        fabrik.solve(config, data)
+    solution = fabrik.solve(config, data, allow_missing_markers=True)
+    assert solution.summary["frames"] == len(trial.time_s)
+    assert len(solution.missing_in_trial) == len(trial.names) - keep

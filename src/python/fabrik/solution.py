@@ -98,7 +98,7 @@ def _first_frame_and_time(markers):
     return first_frame, float(times[0])
 
 
-def solve(config, markers, keep_zeros=False, subject=None):
+def solve(config, markers, keep_zeros=False, subject=None, allow_missing_markers=False):
     """Track a whole trial as `fabrik solve` does (the daemon's Tracker, then the two-sided
     gap fill of the model's markers). markers: a .trc/.c3d path, or MarkerData (e.g. from
     read_markers, or made from your own (frames, markers, 3) mm array; a slice keeps its
@@ -106,7 +106,9 @@ def solve(config, markers, keep_zeros=False, subject=None):
     1/rate_hz). keep_zeros=False takes an exact (0, 0, 0) as missing, for a path and a
     MarkerData alike. subject: one subject of a recording whose markers are labelled
     `Subject:Marker` (Vicon, QTM and Motive label several people so), as `fabrik solve
-    --subject`: only its markers are solved, under their names without the prefix. Releases
+    --subject`: only its markers are solved, under their names without the prefix.
+    allow_missing_markers: track a trial that has fewer than half of the config's marker names
+    (refused by default, a RuntimeError naming them: most often another marker set). Releases
     the GIL while it solves. Raises FileNotFoundError/FormatError, ValueError for such frame
     numbers or times (or a name given twice), or RuntimeError when the trial shares no marker
     name with the config or names no such subject."""
@@ -132,8 +134,10 @@ def solve(config, markers, keep_zeros=False, subject=None):
                 positions_mm = positions_mm.copy()
                 positions_mm[zeros] = np.nan
         d = _fabrik._solve_arrays(config, list(markers.names), positions_mm,
-                                  float(markers.rate_hz), first_frame, first_time_s, subject)
+                                  float(markers.rate_hz), first_frame, first_time_s, subject,
+                                  bool(allow_missing_markers))
     else:
-        d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros, subject)
+        d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros, subject,
+                                bool(allow_missing_markers))
     d["summary"] = json.loads(d.pop("summary_json"))
     return Solution(**d)
