@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "common/format_number.hpp"
 #include "io/marker_trial.hpp"
 #include "io/output_file.hpp"
 #include "io/recording_info.hpp"
@@ -1078,6 +1079,7 @@ TEST_CASE("inspect_recording on every file of the shared data folder", "[io][inf
 
 // ---- What OpenSim refuses: a label on two markers, a Time column that goes back ----
 
+using fabrik::format_number;
 using fabrik::test::two_marker_trc;
 
 TEST_CASE("A TRC label on two markers is refused, naming both columns, and info reads it",
@@ -1170,6 +1172,38 @@ TEST_CASE("A TRC Time column that goes back is refused at its first row, one sta
   TempFile good(".trc");
   write_text(good.path(), two_marker_trc("A", "B", {"0", "0.01", "0.02"}));
   CHECK(read_trc(good.path()).warnings.empty());
+}
+
+TEST_CASE(
+    "A TRC Time column at another rate than DataRate warns; times rounded to the rate's "
+    "grid do not",
+    "[io][trc]") {
+  const auto warnings_of = [](const std::vector<std::string>& times, const std::string& rate) {
+    TempFile f(".trc");
+    write_text(f.path(), two_marker_trc("A", "B", times, rate));
+    return read_trc(f.path()).warnings;
+  };
+  // Every other row of a 60 Hz export, DataRate left at 60: the Time column runs at 30 Hz.
+  std::vector<std::string> halved;
+  for (int i = 0; i < 76; ++i) halved.push_back(format_number("%.5f", i / 30.0));
+  const std::vector<std::string> w = warnings_of(halved, "60");
+  REQUIRE(w.size() == 1);
+  CHECK_THAT(w[0], Catch::StartsWith("the Time column runs at 30 Hz (0 s at line 6 to 2.5 s at "
+                                     "line 81), DataRate says 60 Hz") &&
+                       Catch::Contains("(1.25 s for those rows, not 2.5)") &&
+                       Catch::Contains("Fix: correct DataRate"));
+  // Less than half a frame off over the file (beyond the times' rounding): nothing.
+  std::vector<std::string> rounded, drifting;
+  for (int i = 0; i < 1200; ++i) {
+    rounded.push_back(format_number("%.3f", i / 120.0));  // 3 decimals at 120 Hz
+    drifting.push_back(format_number("%.6f", i / 120.0 * (1.0 + 0.3 / 1199.0)));  // 0.3 frame
+  }
+  CHECK(warnings_of(rounded, "120").empty());
+  CHECK(warnings_of(drifting, "120").empty());
+  // 0.6 of a frame over the file is named.
+  for (int i = 0; i < 1200; ++i)
+    drifting[i] = format_number("%.6f", i / 120.0 * (1.0 + 0.6 / 1199.0));
+  CHECK(warnings_of(drifting, "120").size() == 1);
 }
 
 TEST_CASE("A failed write keeps only an errno a write gives as its reason", "[output_file]") {

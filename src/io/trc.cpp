@@ -231,6 +231,7 @@ class TrcParser {
                                " data rows: read " + std::to_string(rows));
     }
     report_time(trial);
+    if (trial.source.time_backwards.rows == 0) check_rate(trial);
     detail::warn_about_zeros(trial, options_);
     return trial;
   }
@@ -355,6 +356,31 @@ class TrcParser {
       }
     }
     previous_time_ = t;
+    const TimedRow timed{*t, row, line_number_, written_rounding_s(time_field)};
+    if (!first_timed_) first_timed_ = timed;
+    last_timed_ = timed;
+  }
+
+  // A Time column whose span disagrees with DataRate's by more than half a frame beyond the
+  // times' rounding (a rate written wrong, or every other row exported): a warning, since the
+  // rows are read 1/DataRate apart and the outputs' times follow DataRate.
+  void check_rate(MarkerTrial& trial) const {
+    if (!first_timed_ || !last_timed_ || last_timed_->row <= first_timed_->row) return;
+    const double rows = static_cast<double>(last_timed_->row - first_timed_->row);
+    const double span_s = last_timed_->time_s - first_timed_->time_s;
+    const double expected_s = rows / trial.rate_hz;
+    const double allowed_s =
+        0.5 / trial.rate_hz + first_timed_->rounding_s + last_timed_->rounding_s;
+    if (!(span_s > 0.0) || std::abs(span_s - expected_s) <= allowed_s) return;
+    trial.warnings.push_back(
+        "the Time column runs at " + format_number("%.6g", rows / span_s) + " Hz (" +
+        format_number("%.9g", first_timed_->time_s) + " s at line " +
+        std::to_string(first_timed_->line) + " to " + format_number("%.9g", last_timed_->time_s) +
+        " s at line " + std::to_string(last_timed_->line) + "), DataRate says " +
+        format_number("%.6g", trial.rate_hz) +
+        " Hz: rows are read 1/DataRate apart, so the outputs' times follow DataRate (" +
+        format_number("%.6g", expected_s) + " s for those rows, not " +
+        format_number("%.6g", span_s) + "). Fix: correct DataRate (line 3), or the Time column");
   }
 
   // Time going back is refused (or a warning, see ReadOptions::refuse_ambiguous); standing still
@@ -439,6 +465,13 @@ class TrcParser {
   ReadOptions options_;
   std::size_t line_number_ = 0;
   std::optional<double> previous_time_;
+  // The first and last rows with a Time that is a number: the Time column's own rate.
+  struct TimedRow {
+    double time_s;
+    std::size_t row, line;
+    double rounding_s;  // half its last written decimal
+  };
+  std::optional<TimedRow> first_timed_, last_timed_;
 };
 
 void append_number(std::string& out, double v, int decimals) {
