@@ -255,6 +255,7 @@ TEST_CASE("Endpoints: tcp ports 1-65535 in digits or any free port to bind, else
       // A lower-case word no libzmq has (a typo) is refused here, with its fix, not at the bind.
       {"tpc://127.0.0.1:5555", "bind",
        "transport 'tpc' of 'tpc://127.0.0.1:5555' is not one ZeroMQ has (tcp, ipc, inproc,"},
+      {"tpc://127.0.0.1:5555", "bind", "inproc, udp (not for PUB/SUB), ws,"},
       {"tpc://127.0.0.1:5555", "bind",
        "Fix: write the transport meant (tcp://, ipc://, tipc://), e.g. "
        "\"tcp://127.0.0.1:5555\""},

@@ -1163,6 +1163,11 @@ TEST_CASE(
   const auto failed =
       client.stats_until([](const json& s) { return counter(s, "reload_errors") == 1; });
   REQUIRE(failed);
+  // What failed is in stats, for a monitor that reads no log.
+  REQUIRE((*failed)["last_error"].is_string());
+  CHECK_THAT((*failed)["last_error"].get<std::string>(),
+             Catch::StartsWith("reload failed, keeping the running config: new.json") &&
+                 Catch::Contains("broken on purpose"));
   CHECK(units_of_next_pose() == "m");
 
   // 3. A reload that hangs: a stop ends run() within a second all the same.

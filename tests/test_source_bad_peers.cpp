@@ -6,9 +6,8 @@
 // then checks stats.source, the log's warning, that the ZeroMQ input is still
 // served, and that the daemon stops promptly. The clients alone:
 // test_qtm_client, test_natnet_client.
-#include <catch2/catch.hpp>
-#include <spdlog/sinks/ringbuffer_sink.h>
 #include <spdlog/spdlog.h>
+#include <catch2/catch.hpp>
 
 #include <chrono>
 #include <functional>
@@ -22,6 +21,7 @@
 #include "bridges/udp_socket.hpp"
 #include "config/daemon_config.hpp"
 #include "daemon_thread.hpp"
+#include "log_capture.hpp"
 #include "qtm_fake_peer.hpp"
 #include "socket_client.hpp"
 #include "solver/posture.hpp"
@@ -29,6 +29,7 @@
 using namespace fabrik;
 using nlohmann::json;
 using Bytes = std::vector<std::uint8_t>;
+using test::LogCapture;
 using namespace std::chrono_literals;
 
 namespace {
@@ -38,38 +39,6 @@ namespace {
 constexpr const char* kFastOptions =
     R"("connect_timeout_s": 0.2, "reply_timeout_s": 0.2, "stall_timeout_s": 0.3,
        "reconnect_min_s": 0.15, "reconnect_max_s": 0.15)";
-
-// The daemon's log for the length of a test: a ring of formatted lines as
-// the default logger (installed before the daemon starts, restored after it
-// stopped: spdlog's free functions read the default logger without a lock).
-class LogCapture {
- public:
-  LogCapture() : sink_(std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(1000)) {
-    sink_->set_pattern("%l %v");
-    auto logger = std::make_shared<spdlog::logger>("bad-peers", sink_);
-    logger->set_level(spdlog::level::info);
-    spdlog::set_default_logger(logger);
-  }
-  ~LogCapture() { spdlog::set_default_logger(previous_); }
-  LogCapture(const LogCapture&) = delete;
-  LogCapture& operator=(const LogCapture&) = delete;
-
-  // The first line that starts with `prefix` and holds `phrase`, or "".
-  std::string find(const std::string& prefix, const std::string& phrase) const {
-    for (const std::string& line : sink_->last_formatted())
-      if (line.rfind(prefix, 0) == 0 && line.find(phrase) != std::string::npos) return line;
-    return "";
-  }
-  std::string all() const {
-    std::string text;
-    for (const std::string& line : sink_->last_formatted()) text += line;
-    return text;
-  }
-
- private:
-  std::shared_ptr<spdlog::logger> previous_ = spdlog::default_logger();
-  std::shared_ptr<spdlog::sinks::ringbuffer_sink_mt> sink_;
-};
 
 // What a bad peer must make the daemon show.
 struct Expect {

@@ -12,6 +12,7 @@
 #include "config/config_error.hpp"
 #include "config/resources.hpp"
 #include "daemon_thread.hpp"
+#include "log_capture.hpp"
 #include "socket_client.hpp"
 #include "subjects_fixture.hpp"
 #include "transport/name_mismatch.hpp"
@@ -289,7 +290,9 @@ TEST_CASE("Markers named Subject:Marker reach that subject's tracker and pose/NA
 }
 
 TEST_CASE("A frame's subject field gives its bare names to that subject only", "[subjects][daemon]") {
+  const test::LogCapture log;  // before the daemon: outlives it
   AliceAndBob two("field");
+  spdlog::default_logger()->set_level(spdlog::level::warn);  // on_inproc's err hides warnings
   auto [d, c, client, motion, names] = std::tie(two.d, two.c, two.client, two.motion, two.names);
   const std::uint64_t first = two.first;
   const auto before = d.daemon.subject_counters();
@@ -308,6 +311,9 @@ TEST_CASE("A frame's subject field gives its bare names to that subject only", "
   CHECK(after[0].frames_out == before[0].frames_out);  // Alice's tracker did not see Bob
   CHECK(d.daemon.counters().other_subject_frames == 1);
   CHECK(d.daemon.counters().unknown_markers == 0);
+  // Said, as a prefix's unknown subject is (a spelling, "alice" for "Alice", is the usual cause).
+  CHECK_THAT(log.find("warning", "frames for subject 'Carol' are not answered"),
+             Catch::Contains("not one of the config's 2 subjects"));
 }
 
 // Sends 80 frames (t = 10 s + 10 ms a frame) of Alice's markers and Bob's,

@@ -179,7 +179,8 @@ EndpointProblem unknown_transport(std::string_view address, std::string_view sch
   std::string_view first_near;
   int near_count = 0;
   for (const std::string_view t : kZmqTransports) {
-    all += (all.empty() ? "" : ", ") + std::string(t);
+    // udp is ZeroMQ's, but not for fabrikd's sockets: said where it is listed.
+    all += (all.empty() ? "" : ", ") + std::string(t) + (t == "udp" ? " (not for PUB/SUB)" : "");
     if (t == "udp" || typo_distance(scheme, t) > 1) continue;  // udp: refused below
     near += (near.empty() ? "" : ", ") + std::string(t) + "://";
     if (near_count++ == 0) first_near = t;

@@ -654,6 +654,13 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
       if (subject.name == s.frame.subject) only = &subject;
     if (!only) {
       ++counters_.other_subject_frames;
+      // Most often a spelling ("alice" for "Alice"): said, as a prefix's unknown subject is.
+      char text[96];
+      const std::size_t n = safe_text(s.frame.subject, text, 64);
+      other_subject_log_.warn(
+          "frames for subject '{}' are not answered: it is not one of the config's {} subjects "
+          "(names are case-sensitive; stats: other_subject_frames)",
+          std::string_view(text, n), s.subjects.size());
       return;
     }
     if (!only->decoder->decode(payload, only->frame, decode_error_)) {
@@ -1130,6 +1137,7 @@ void Daemon::publish_stats(double interval_s) {
 }
 
 void Daemon::switch_to(std::unique_ptr<State> next) {
+  const std::string input_before = input_endpoint(), output_before = output_endpoint();
   attach_sockets(*next, state_.get());
   state_ = std::move(next);
   subject_counts_.assign(state_->subjects.size(), {});
@@ -1137,6 +1145,20 @@ void Daemon::switch_to(std::unique_ptr<State> next) {
   ++counters_.reloads;
   spdlog::set_level(spdlog::level::from_str(state_->config.log_level));
   spdlog::info("config reloaded from {}", state_->config_name);
+  // Where the poses went is what a silent subscriber needs to know.
+  if (input_endpoint() != input_before || output_endpoint() != output_before) log_endpoints();
+}
+
+void Daemon::log_endpoints() const {
+  spdlog::info("fabrikd: markers in on {} ({}), poses out on {} ({}), {} markers tracked{}",
+               safe_text(input_endpoint()),
+               state_->config.input.mode == SocketMode::bind ? "bind" : "connect",
+               safe_text(output_endpoint()),
+               state_->config.output.mode == SocketMode::bind ? "bind" : "connect",
+               state_->frame.p_world_m.size(),
+               state_->subjects.empty()
+                   ? std::string()
+                   : " for " + std::to_string(state_->subjects.size()) + " subjects");
 }
 
 void Daemon::start_reload(const std::function<DaemonConfig()>& load_config) {
@@ -1176,6 +1198,14 @@ void Daemon::finish_reload() {
     char text[512];
     const std::size_t n = safe_text(e.what(), text, sizeof text);
     spdlog::error("reload failed, keeping the running config: {}", std::string_view(text, n));
+    // In stats too, for a monitor that reads no log (last_error is the latest of any kind).
+    static constexpr std::string_view kWhat = "reload failed, keeping the running config: ";
+    char stats_text[256];
+    const std::size_t head = std::min(kWhat.size(), sizeof stats_text);
+    std::memcpy(stats_text, kWhat.data(), head);
+    const std::size_t tail = std::min(n, sizeof stats_text - head);
+    std::memcpy(stats_text + head, text, tail);
+    last_error_.assign_safe({stats_text, head + tail});
   }
   update_snapshot();
   // The subscribers' model changes with the config (after the counts: whoever
@@ -1200,15 +1230,7 @@ void Daemon::wait_for_reload_at_stop() {
 }
 
 void Daemon::run(DaemonControl& control, const std::function<DaemonConfig()>& load_config) {
-  spdlog::info("fabrikd: markers in on {} ({}), poses out on {} ({}), {} markers tracked{}",
-               safe_text(input_endpoint()),
-               state_->config.input.mode == SocketMode::bind ? "bind" : "connect",
-               safe_text(output_endpoint()),
-               state_->config.output.mode == SocketMode::bind ? "bind" : "connect",
-               state_->frame.p_world_m.size(),
-               state_->subjects.empty()
-                   ? std::string()
-                   : " for " + std::to_string(state_->subjects.size()) + " subjects");
+  log_endpoints();
   Clock::time_point last_stats = Clock::now();
   while (!control.stop.load()) {
     if (reload_ && reload_->done) finish_reload();

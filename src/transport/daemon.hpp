@@ -184,6 +184,7 @@ class Daemon {
   static std::unique_ptr<State> prepare_state(DaemonConfig config);
   void attach_sockets(State& next, State* old);
   void switch_to(std::unique_ptr<State> next);
+  void log_endpoints() const;  // where markers come in and poses go out
   void start_reload(const std::function<DaemonConfig()>& load_config);
   void finish_reload();
   void wait_for_reload_at_stop();
@@ -263,7 +264,8 @@ class Daemon {
     std::size_t operator()(std::string_view name) const { return std::hash<std::string_view>{}(name); }
   };
   std::unordered_set<std::string, NameHash, std::equal_to<>> unknown_seen_;
-  RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_, subscriber_log_;
+  RateLimitedLog bad_input_log_, send_log_, internal_log_, peer_log_, subscriber_log_,
+      other_subject_log_;
   bool overloaded_ = false;  // behind the input: answer only the newest frame
   zmq::message_t topic_, payload_, extra_, subscription_;
   std::string out_, view_out_, stats_out_, decode_error_;
