@@ -1206,6 +1206,35 @@ TEST_CASE(
   CHECK(warnings_of(drifting, "120").size() == 1);
 }
 
+TEST_CASE(
+    "A TRC cut short inside its last row is refused as truncated; a short row that ends "
+    "its line is missing markers",
+    "[io][trc]") {
+  const std::string whole = two_marker_trc("A", "B", {"0", "0.01", "0.02"});  // ends "\n"
+  TempFile f(".trc");
+  // Cut inside the last row's markers (as `head -c` or an interrupted copy leaves it).
+  const std::string cut = whole.substr(0, whole.size() - 5);  // "...\t1\t2\t3\t4"
+  write_text(f.path(), cut);
+  CHECK_THAT(error_of([&] { read_trc(f.path()); }),
+             Catch::StartsWith(f.path() + ": line 8, the last: the file ends inside this row, 2 "
+                                          "of its 8 columns missing and no line ending: it is "
+                                          "truncated") &&
+                 Catch::Contains("Fix: copy or export the trial again"));
+  // `fabrik info` describes it all the same (the rows it holds), warned.
+  const MarkerTrial described = read_trc(f.path(), {.refuse_ambiguous = false});
+  CHECK(described.frames() == 3);
+  REQUIRE(described.warnings.size() == 1);
+  CHECK_THAT(described.warnings[0], Catch::Contains("it is truncated: `fabrik solve` refuses"));
+  // The same short row with its line ending: B's last sample is missing, as documented.
+  write_text(f.path(), cut + "\n");
+  const MarkerTrial t = read_trc(f.path());
+  REQUIRE(t.frames() == 3);
+  CHECK_FALSE(t.at(2, 1).allFinite());
+  // A whole last row without a line ending is whole.
+  write_text(f.path(), whole.substr(0, whole.size() - 1));
+  CHECK(read_trc(f.path()).at(2, 1).allFinite());
+}
+
 TEST_CASE("A failed write keeps only an errno a write gives as its reason", "[output_file]") {
   // A stream sets no errno of its own: by the close, errno may have been set by an unrelated
   // call since the write failed. Only a write's own reasons are named; another is left out

@@ -21,8 +21,9 @@ double check_trial_for_writing(const MarkerTrial& trial, const std::string& unit
 std::string_view trim(std::string_view s);
 
 // Reads the next line into `line` without its line ending (LF or CRLF), storing at most
-// `max_bytes` of it: a line costs no more than that, whatever the file holds.
-enum class LineRead { line, end, too_long };
+// `max_bytes` of it: a line costs no more than that, whatever the file holds. `unterminated`:
+// the file's last line, which has no line ending (a file cut short may end so).
+enum class LineRead { line, unterminated, end, too_long };
 LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes);
 
 // Metres per file unit for "mm", "cm" or "m" in any case (and their long names); none otherwise.

@@ -101,7 +101,7 @@ LineRead read_line(std::istream& in, std::string& line, std::size_t max_bytes) {
     line.push_back(static_cast<char>(c));
   }
   if (!line.empty() && line.back() == '\r') line.pop_back();
-  return LineRead::line;
+  return c == '\n' ? LineRead::line : LineRead::unterminated;
 }
 
 std::optional<double> metres_per_unit(std::string_view units) {

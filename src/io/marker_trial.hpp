@@ -152,9 +152,10 @@ struct ReadOptions {
   /// False keeps such samples as positions at the origin.
   bool zeros_are_missing = true;
   /// A label on two markers (TRC or C3D: which column is the marker?) and a TRC Time column that
-  /// goes back (OpenSim's TimeSeriesTable refuses it) are FormatErrors naming the columns or the
-  /// first such row and the fix. False (`fabrik info`) reads such a file, records them in
-  /// `source` and says so in `warnings`. A Time column that stands still is a warning either way.
+  /// goes back (OpenSim's TimeSeriesTable refuses it), and a TRC cut short inside its last row,
+  /// are FormatErrors naming the columns or the row and the fix. False (`fabrik info`) reads such a
+  /// file, records them in `source` and says so in `warnings`. A Time column that stands still is a
+  /// warning either way.
   bool refuse_ambiguous = true;
 };
 /// The former name of ReadOptions, when they were for C3D only.

@@ -194,11 +194,14 @@ class TrcParser {
       }
       // Time: rounded in OpenSim's files, so time comes from the rate; only its order is checked.
       check_time(trial, time_field, frame_field, rows);
+      std::size_t fields_missing = 0;  // past the row's end: a short row
       for (std::size_t m = 0; m < num_markers; ++m) {
         Eigen::Vector3d p = missing;
         bool complete = true;
         for (std::size_t axis = 0; axis < 3; ++axis) {
-          const std::string_view field = fields.next().value_or("");
+          const std::optional<std::string_view> got = fields.next();
+          fields_missing += got ? 0 : 1;
+          const std::string_view field = got.value_or("");
           if (field.empty()) {
             complete = false;  // a short row or an empty field: missing marker
             continue;
@@ -215,6 +218,17 @@ class TrcParser {
           complete = !options_.zeros_are_missing;
         }
         trial.positions_m.push_back(complete && p.allFinite() ? p * *to_m : missing);
+      }
+      // A short last row without a line ending is a file cut short (a copy or export
+      // interrupted), not a row with its last markers missing.
+      if (unterminated_ && fields_missing > 0) {
+        const std::string what =
+            "line " + std::to_string(line_number_) + ", the last: the file ends inside this row, " +
+            std::to_string(fields_missing) + " of its " + std::to_string(columns) +
+            " columns missing and no line ending: it is truncated";
+        const std::string fix = "Fix: copy or export the trial again";
+        if (options_.refuse_ambiguous) fail(what + ". " + fix);
+        trial.warnings.push_back(what + ": `fabrik solve` refuses the file. " + fix);
       }
       if (!fields.rest_is_blank()) {
         fail("line " + std::to_string(line_number_) + ": values beyond the " +
@@ -437,6 +451,7 @@ class TrcParser {
     const detail::LineRead got = detail::read_line(in_, line, max_bytes);
     if (got == detail::LineRead::end) return false;
     ++line_number_;
+    unterminated_ = got == detail::LineRead::unterminated;
     if (got == detail::LineRead::too_long) {
       fail("line " + std::to_string(line_number_) + " is longer than " +
            std::to_string(max_bytes) + " bytes, more than its columns can need: not a TRC row");
@@ -464,6 +479,7 @@ class TrcParser {
   std::uint64_t file_bytes_;
   ReadOptions options_;
   std::size_t line_number_ = 0;
+  bool unterminated_ = false;  // the line read last ends the file without a line ending
   std::optional<double> previous_time_;
   // The first and last rows with a Time that is a number: the Time column's own rate.
   struct TimedRow {

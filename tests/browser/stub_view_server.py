@@ -17,6 +17,14 @@ stdin, one a line, change what it sends to every client:
              as QTM down means no poses
     source-up    the source connected (reconnected after source-down)
     source-none  stats without `source` again, as on plain ZeroMQ input (the start)
+    no-targets   poses on which no marker is measured, as fabrikd sends them when
+             QTM sends only invalid positions or names none of the config's
+             markers: all occluded, solver status no_targets, the posture
+             standing still (the one when the command came); `live` resumes
+    held     the same with every marker held (occlusion.hold_s): status
+             converged, all occluded
+    outliers every visible marker rejected as an outlier: no_targets, the
+             markers measured and not occluded
     quit
 With --synthetic-trial S it sends, on connect, one `trial` message of S seconds of
 poses at 50 Hz and nothing live. With --pose EP it relays a real fabrikd's
@@ -221,6 +229,30 @@ def pose(frame, source_hz, up='y'):
     }
 
 
+# The modes whose poses rest on no measurement (untracked_pose), and the modes that send poses.
+UNTRACKED_MODES = ('no-targets', 'held', 'outliers')
+POSE_MODES = ('live',) + UNTRACKED_MODES
+
+
+def untracked_pose(frame, still_frame, source_hz, up='y', how='no-targets'):
+    """A pose of `frame` that rests on no measurement (`how` one of
+    UNTRACKED_MODES), its posture that of still_frame, as fabrikd keeps it."""
+    p = pose(still_frame, source_hz, up)
+    names = list(p['markers'])
+    p['frame'], p['time'] = frame, round(frame / source_hz, 6)
+    if how == 'outliers':
+        p['outliers'] = sorted(p['measured'])
+    else:
+        gap = round(max(frame - still_frame, 1) / source_hz, 4)
+        p.update(occluded=names, measured={}, gap_s={m: gap for m in names},
+                 held=names if how == 'held' else [])
+    p['residual'] = {'rms': 0.0, 'max': 0.0, 'worst': None, 'count': 0, 'quality': 'none', 'beyond': []}
+    status = 'converged' if how == 'held' else 'no_targets'
+    p['solver'] = {'status': status, 'stop': status, 'iterations': 0 if status == 'no_targets' else 2,
+                   'solve_us': 4.0}
+    return p
+
+
 # --- The server. -------------------------------------------------------------
 
 class Feed:
@@ -231,6 +263,7 @@ class Feed:
         self.mode = 'live'
         self.mode_since = time.monotonic()
         self.t0 = time.monotonic()
+        self.still_frame = 1   # the posture the untracked modes keep
         self.lock = threading.Lock()
         self.clients = 0
         self.undecodable = 0
@@ -270,6 +303,8 @@ class Feed:
 
     def set_mode(self, mode):
         with self.lock:
+            if mode in UNTRACKED_MODES and self.mode not in UNTRACKED_MODES:
+                self.still_frame = self.frame_now()
             self.mode, self.mode_since = mode, time.monotonic()
 
     def frame_now(self):
@@ -479,11 +514,13 @@ class Handler(http.server.BaseHTTPRequestHandler):
         while not ws.closed.is_set():
             now = time.monotonic()
             with feed.lock:
-                mode, since = feed.mode, feed.mode_since
-            if mode in ('live', 'garbage'):
+                mode, since, still = feed.mode, feed.mode_since, feed.still_frame
+            if mode in POSE_MODES + ('garbage',):
                 frames_in = feed.frame_now()
             if mode == 'live':
                 send('pose', pose(feed.frame_now(), args.source_hz, args.up))
+            elif mode in UNTRACKED_MODES:
+                send('pose', untracked_pose(feed.frame_now(), still, args.source_hz, args.up, mode))
             elif mode == 'garbage':
                 ws.send('{"topic": "pose", "data": not json')
                 send('pose', {'frame': 'seven', 'joints': []})
@@ -496,7 +533,7 @@ class Handler(http.server.BaseHTTPRequestHandler):
                     'frames_dropped': 0, 'decode_errors': 0, 'unknown_markers': 0,
                     'solve_us': {'p50': 24.0, 'p99': 61.0, 'max': 80.0},
                     'queue_latency_us': {'p50': 120.0, 'p99': 300.0, 'max': 410.0},
-                    'interval_s': 1.0, 'pose_rate_hz': args.source_hz if mode == 'live' else 0.0,
+                    'interval_s': 1.0, 'pose_rate_hz': args.source_hz if mode in POSE_MODES else 0.0,
                     'last_error': None, 'config': feed.model['config']}
                 source = feed.source_stats(frames_in)
                 if source is not None:
@@ -508,7 +545,7 @@ class Handler(http.server.BaseHTTPRequestHandler):
                 elif mode == 'garbage':
                     stream, message = 'garbage', 'undecodable poses on tcp://127.0.0.1:5556'
                 send('status', {'stream': stream, 'message': message,
-                                'poses_per_s': args.source_hz if mode == 'live' else 0.0,
+                                'poses_per_s': args.source_hz if mode in POSE_MODES else 0.0,
                                 'undecodable': feed.undecodable, 'clients': feed.clients})
             next_send += period
             if next_send < now - period:  # far behind: newest wins, no burst
@@ -574,7 +611,7 @@ def main():
         cmd = line.strip()
         if cmd == 'quit':
             break
-        if cmd in ('live', 'stall', 'silent', 'garbage'):
+        if cmd in POSE_MODES + ('stall', 'silent', 'garbage'):
             server.feed.set_mode(cmd)
             print('stub_view_server: mode %s' % cmd, flush=True)
         elif cmd in ('source-down', 'source-up', 'source-none'):

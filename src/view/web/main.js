@@ -3,7 +3,7 @@
 // or the paused/scrubbed/trial one) once. window.fabrikView.state() is a
 // read-only snapshot for tests.
 
-import {state, snapshot, notePaint} from './state.js';
+import {state, snapshot, notePaint, untrackedOf} from './state.js';
 import {connect} from './connection.js';
 import {SkeletonScene} from './scene.js';
 import {AnglePlots, WINDOW_S} from './plots.js';
@@ -71,7 +71,8 @@ function paint(now) {
   requestAnimationFrame(paint);
   const entry = history.current(now);
   if (entry && (entry !== painted || dirty)) {
-    state.drawn = scene.draw(entry.pose);
+    // Dim per pose drawn (paused or scrubbed too); the banner speaks of the latest.
+    state.drawn = scene.draw(entry.pose, untrackedOf(entry.pose, state.model) !== null);
     state.plots = plots.draw(history.window(entry, WINDOW_S));
     scene.render();
     if (entry !== painted && entry.arrivedAtMs !== null && !history.isPaused()) {

@@ -1,6 +1,8 @@
 // The 3D scene: ground grid and the lab's up axis, model markers (occluded
 // ones drawn differently), measured markers, residual lines, bones, segment
-// frames, orbit/zoom/pan and a camera that can follow the subject.
+// frames, orbit/zoom/pan and a camera that can follow the subject. A pose
+// that rests on no measurement is drawn dim and grey, with a note on the
+// scene, so that a standing skeleton is not taken for a tracked one.
 
 import * as THREE from 'three';
 import {OrbitControls} from '/three/examples/jsm/controls/OrbitControls.js';
@@ -18,7 +20,9 @@ export function axisVector(v, fallback) {
 const finite3 = (p) => Array.isArray(p) && p.length === 3 && p.every(Number.isFinite);
 
 const COLORS = {marker: 0x3fb8ff, occluded: 0xff9a2e, measured: 0xffffff, bone: 0xd8dde3,
-                residual: 0xff4f6d, up: 0x7cff7c};
+                residual: 0xff4f6d, up: 0x7cff7c, untracked: 0x6b737c};
+const UNTRACKED_OPACITY = 0.4;
+const UNTRACKED_NOTE = 'NOT TRACKED: no measured marker in this pose';
 
 // Removes a group's children and frees their GPU buffers (a new model rebuilds them all).
 function disposeChildren(group) {
@@ -44,6 +48,12 @@ export class SkeletonScene {
     } catch (e) {
       this.webglError = String(e && e.message || e);  // the page still tracks and plots
     }
+    // On the scene, where the user looks; text only (textContent).
+    this.note = document.createElement('div');
+    this.note.className = 'scene-note';
+    this.note.hidden = true;
+    this.note.textContent = UNTRACKED_NOTE;
+    container.appendChild(this.note);
     this.controls = new OrbitControls(this.camera, this.renderer ? this.renderer.domElement : container);
     this.scene.add(new THREE.HemisphereLight(0xffffff, 0x303030, 1.0));
     this.options = {frames: true, measured: true, residuals: true, follow: false};
@@ -78,6 +88,13 @@ export class SkeletonScene {
       occluded: new THREE.MeshBasicMaterial({color: COLORS.occluded, wireframe: true}),
       measured: new THREE.MeshBasicMaterial({color: COLORS.measured}),
       bone: new THREE.MeshLambertMaterial({color: COLORS.bone}),
+      // An untracked pose: the same shapes, grey and see-through.
+      untrackedMarker: new THREE.MeshLambertMaterial({color: COLORS.untracked, transparent: true,
+                                                      opacity: UNTRACKED_OPACITY}),
+      untrackedOccluded: new THREE.MeshBasicMaterial({color: COLORS.untracked, wireframe: true,
+                                                      transparent: true, opacity: UNTRACKED_OPACITY}),
+      untrackedBone: new THREE.MeshLambertMaterial({color: COLORS.untracked, transparent: true,
+                                                    opacity: UNTRACKED_OPACITY}),
     };
     this.markers = new Map();
     this.measured = new Map();
@@ -131,17 +148,22 @@ export class SkeletonScene {
 
   vec(p) { return new THREE.Vector3(p[0] * this.k, p[1] * this.k, p[2] * this.k); }
 
-  // Draws one pose; returns what is in the scene now (counted from the
-  // scene's objects, not from the pose).
-  draw(pose) {
-    if (!this.model) return {frame: pose.frame, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0};
+  // Draws one pose, dim when it is untracked (state.js untrackedOf); returns
+  // what is in the scene now (counted from the scene's objects, not from the pose).
+  draw(pose, untracked = false) {
+    this.note.hidden = !untracked;
+    if (!this.model) return {frame: pose.frame, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0,
+                             untracked: false};
     const occluded = new Set(pose.occluded);
+    const occludedMaterial = untracked ? this.materials.untrackedOccluded : this.materials.occluded;
+    const markerMaterial = untracked ? this.materials.untrackedMarker : this.materials.marker;
+    const boneMaterial = untracked ? this.materials.untrackedBone : this.materials.bone;
     for (const [name, mesh] of this.markers) {
       const p = pose.markers[name];
       mesh.visible = finite3(p);
       if (!mesh.visible) continue;
       mesh.position.copy(this.vec(p));
-      mesh.material = occluded.has(name) ? this.materials.occluded : this.materials.marker;
+      mesh.material = occluded.has(name) ? occludedMaterial : markerMaterial;
       mesh.scale.setScalar(occluded.has(name) ? 0.022 : 0.014);
     }
     const measured = pose.measured || {};
@@ -167,6 +189,7 @@ export class SkeletonScene {
       const pa = pose.joints[bone.userData.a], pb = pose.joints[bone.userData.b];
       bone.visible = finite3(pa) && finite3(pb);
       if (!bone.visible) continue;
+      bone.material = boneMaterial;
       const a = this.vec(pa), b = this.vec(pb), d = b.clone().sub(a);
       const length = d.length();
       bone.position.copy(a).addScaledVector(d, 0.5);
@@ -189,11 +212,16 @@ export class SkeletonScene {
   inventory(frame) {
     const shown = (o) => o.visible && o.parent === this.world;
     const markers = [...this.markers.values()].filter(shown);
+    const {occluded, untrackedOccluded} = this.materials;
     return {frame, bones: this.bones.filter(shown).length, markers: markers.length,
-            occluded: markers.filter((m) => m.material === this.materials.occluded).map((m) => m.userData.name),
+            occluded: markers.filter((m) => m.material === occluded || m.material === untrackedOccluded)
+              .map((m) => m.userData.name),
             measured: [...this.measured.values()].filter(shown).length,
             residual_lines: this.residuals.geometry.drawRange.count / 2,
-            frames: [...this.frames.values()].filter(shown).length};
+            frames: [...this.frames.values()].filter(shown).length,
+            // The note on and no bone or marker drawn in a tracked pose's colours.
+            untracked: !this.note.hidden && ![...this.bones, ...markers].some((o) => shown(o) &&
+              [this.materials.bone, this.materials.marker, occluded].includes(o.material))};
   }
 
   // Frames the subject on its first pose; with follow on, keeps it centred.

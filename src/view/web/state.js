@@ -17,7 +17,8 @@ export const state = {
   garbage: 0,            // messages the page could not use
   lastGarbage: null,     // what was wrong with the last one
   painted: 0,            // frames painted with a pose not painted before
-  drawn: {frame: null, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0},
+  drawn: {frame: null, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0,
+          untracked: false},
   paintMs: [],           // recent arrival -> painted latencies (ms)
   viewPaintMs: [],       // recent arrival at fabrik view -> painted latencies (ms)
   lastPaintMs: null,
@@ -56,6 +57,27 @@ export function sourceOf(stats) {
           bad_packets: count(s.bad_packets), last_error: text(s.last_error)};
 }
 
+// Whether a pose rests on no measurement, as the pose itself says (proto/pose.schema.json):
+// solver.status `no_targets` (nothing visible to track: fabrikd left the posture
+// as it was) or every tracked marker (the keys of `markers`) in `occluded`
+// (none measured: at most held last positions or orientation sensors move
+// it). Either alone is enough: a frame whose visible markers were all
+// rejected as outliers is no_targets with markers not occluded, and held
+// markers or sensors give a status other than no_targets with all occluded.
+// Null when the pose is tracked, else what to say about it.
+export function untrackedOf(pose, model) {
+  if (pose === null || typeof pose !== 'object') return null;
+  const noTargets = !!pose.solver && pose.solver.status === 'no_targets';
+  const names = pose.markers && typeof pose.markers === 'object' ? Object.keys(pose.markers) : [];
+  const occluded = new Set(Array.isArray(pose.occluded) ? pose.occluded : []);
+  const occludedN = names.filter((n) => occluded.has(n)).length;
+  if (!noTargets && !(names.length > 0 && occludedN === names.length)) return null;
+  const listed = (v) => (Array.isArray(v) ? v.length : 0);
+  return {no_targets: noTargets, markers: names.length, occluded: occludedN,
+          held: Array.isArray(pose.held) ? pose.held.filter((n) => occluded.has(n)).length : 0,
+          outliers: listed(pose.outliers), sensors: listed(model && model.sensors)};
+}
+
 function quantile(values, q) {
   if (values.length === 0) return null;
   const s = [...values].sort((a, b) => a - b);
@@ -80,6 +102,7 @@ export function snapshot() {
     painted: state.painted,
     plots: state.plots,
     banner: state.banner,
+    untracked: untrackedOf(state.latest, m),
     paused: state.paused,
     trial: state.trial ? {poses: state.trial.poses.length, index: state.trial.index} : null,
     history: state.history,

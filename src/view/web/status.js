@@ -1,8 +1,9 @@
 // The status line (input rate, poses/s, latency, solve time, residual RMS,
 // fit quality, gaps open, frames dropped, config, the vendor source), the
-// error banner, and the lists of occluded markers and of sensors.
+// error banner (also when the latest pose rests on no measured marker), and
+// the lists of occluded markers and of sensors.
 
-import {state, sourceOf} from './state.js';
+import {state, sourceOf, untrackedOf} from './state.js';
 
 const STALL_MS = 2000;  // no pose for this long: the stream stopped
 const GARBAGE_MS = 5000;  // an undecodable message keeps the banner this long
@@ -33,6 +34,23 @@ function sourceBanner(src) {
 function sourcePart(src) {
   return `source ${src.url} ${src.connected ? 'connected' : 'NOT connected'} ` +
     `(${src.frames} frames, ${src.reconnects} reconnects, ${src.errors} errors)`;
+}
+
+// Poses that rest on no measurement still carry a full posture (the last one,
+// or the rest posture before any), which looks tracked: the banner says that
+// fabrikd itself runs and what the skeleton shown is instead.
+function untrackedBanner(u) {
+  const counted = u.markers === 0 ? `no marker in the model, none of its ${u.sensors} orientation sensors measured`
+    : u.occluded === u.markers ? `all ${u.markers} markers occluded`
+    : `${u.occluded} of ${u.markers} markers occluded` + (u.outliers ? `, ${u.outliers} rejected as outliers` : '');
+  const none = u.markers > 0 && u.occluded === u.markers;
+  const head = none ? "fabrikd receives frames but none of the model's markers is measured"
+                    : 'fabrikd receives frames but the solver has nothing measured to track (no_targets)';
+  let shown = 'the skeleton shown is not tracked';
+  if (u.no_targets) shown += ', it stands in its last posture';
+  else if (u.held > 0) shown += `, it is pulled to the last measured positions of ${u.held} held markers`;
+  else if (u.sensors > 0) shown += ' by markers, only orientation sensors turn it';
+  return `${head}: ${shown} (${counted})`;
 }
 
 export class StatusView {
@@ -79,6 +97,9 @@ export class StatusView {
     if (st && st.stream === 'stalled') return `The pose stream stopped: ${st.message || 'no pose from fabrikd'}`;
     if (state.received > 0 && now - state.latestAtMs > STALL_MS)
       return `The pose stream stopped: no pose for ${((now - state.latestAtMs) / 1000).toFixed(0)} s`;
+    // After the stream's own banners: with no new pose the latest says nothing of now.
+    const untracked = untrackedOf(state.latest, state.model);
+    if (untracked) return untrackedBanner(untracked);
     if (now - this.garbageAt < GARBAGE_MS) return `Undecodable message from fabrik view: ${state.lastGarbage}`;
     return null;
   }
