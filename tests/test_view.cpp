@@ -1,7 +1,9 @@
 // `fabrik view` (src/view/): the URL table and its security cases, the WebSocket's limits,
 // newest-pose-wins at the rate cap with a client that does not read, and the status message
 // (garbage, stalled). Real sockets on loopback (port 0), inproc ZeroMQ; every wait bounded.
+#include <netdb.h>
 #include <catch2/catch.hpp>
+
 #include <atomic>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +15,7 @@
 
 #include "config/daemon_config.hpp"
 #include "sanitized.hpp"
+#include "transport/open_socket.hpp"
 #include "view/stream_status.hpp"
 #include "view/view_server.hpp"
 #include "view/view_trial.hpp"
@@ -638,4 +641,26 @@ TEST_CASE("view listen addresses") {
   CHECK_THROWS_AS(view::parse_listen("127.0.0.1:65536"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen(":80"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen("h:8x"), std::invalid_argument);
+}
+
+TEST_CASE("view --pose: a host name the resolver says does not exist is refused at start") {
+  // RFC 6761 reserves .invalid: no resolver finds it. ZeroMQ retried it for ever, silently.
+  addrinfo* found = nullptr;
+  const int lookup = ::getaddrinfo("nohost.invalid", nullptr, nullptr, &found);
+  if (found) ::freeaddrinfo(found);
+  if (lookup != EAI_NONAME && lookup != EAI_FAIL) {
+    WARN("skipped: this machine's resolver cannot answer now (" << ::gai_strerror(lookup) << ")");
+    return;
+  }
+  const auto unknown = wire::unknown_host("tcp://nohost.invalid:5556");
+  REQUIRE(unknown);
+  CHECK_THAT(unknown->message("--pose"),
+             Catch::StartsWith("--pose: cannot connect to 'tcp://nohost.invalid:5556': no host is "
+                               "named 'nohost.invalid' (") &&
+                 Catch::Contains("Fix: check the name of the host that runs fabrikd"));
+  CHECK(wire::unknown_host("tcp://eth0;nohost.invalid:5556"));  // the peer after a source
+  // Addresses, wildcards and other transports are not looked up.
+  for (const char* fine : {"tcp://127.0.0.1:5556", "tcp://[::1]:5556", "tcp://*:5556",
+                           "ipc:///tmp/x.sock", "inproc://x", "tcp://localhost:5556"})
+    CHECK_FALSE(wire::unknown_host(fine));
 }

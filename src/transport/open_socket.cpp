@@ -1,5 +1,8 @@
 #include "open_socket.hpp"
 
+#include <netdb.h>
+#include <sys/socket.h>
+
 #include <cerrno>
 
 #include "config/endpoint_check.hpp"
@@ -51,6 +54,27 @@ std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string&
     return OpenFailure{"cannot " + how + socket_name + "to '" + address + "': " + e.what(),
                        fix_for(e.num(), advice), e.num()};
   }
+}
+
+std::optional<OpenFailure> unknown_host(const std::string& address) {
+  constexpr std::string_view kTcp = "tcp://";
+  if (!std::string_view(address).starts_with(kTcp)) return std::nullopt;
+  std::string host = address.substr(kTcp.size());
+  if (const std::size_t semicolon = host.find(';'); semicolon != std::string::npos)
+    host.erase(0, semicolon + 1);  // "tcp://source;host:port": the peer is after the ';'
+  const std::size_t colon = host.rfind(':');
+  if (colon == std::string::npos) return std::nullopt;
+  host.resize(colon);
+  if (host.empty() || host.front() == '[' || host == "*") return std::nullopt;
+  addrinfo hints{};
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* found = nullptr;
+  const int error = ::getaddrinfo(host.c_str(), nullptr, &hints, &found);
+  if (found) ::freeaddrinfo(found);
+  if (error != EAI_NONAME && error != EAI_FAIL) return std::nullopt;  // found, or ask again later
+  return OpenFailure{"cannot connect to '" + address + "': no host is named '" + host + "' (" +
+                         ::gai_strerror(error) + ")",
+                     "check the name of the host that runs fabrikd, or give its address", 0};
 }
 
 }  // namespace fabrik::wire

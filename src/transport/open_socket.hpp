@@ -40,4 +40,10 @@ struct OpenFailure {
 std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string& address,
                                        SocketMode mode, const OpenAdvice& advice);
 
+// For a tcp:// endpoint to connect to by host name: why that name cannot be resolved, if the
+// resolver says it does not exist (ZeroMQ would retry it for ever, silently). Nothing for an
+// address, another transport, or a resolver that could not answer now. Blocks on the
+// resolver: for setup only (`fabrik view --pose`), never on a frame loop.
+std::optional<OpenFailure> unknown_host(const std::string& address);
+
 }  // namespace fabrik::wire

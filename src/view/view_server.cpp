@@ -766,6 +766,9 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
   if (!s.o.trial_message) {
     require_usable_endpoint(s.o.pose_endpoint,
                             s.o.pose_bind ? SocketMode::bind : SocketMode::connect, "--pose");
+    if (!s.o.pose_bind)
+      if (const auto unknown = wire::unknown_host(s.o.pose_endpoint))
+        throw std::invalid_argument(unknown->message("--pose"));
     s.sub.emplace(context, zmq::socket_type::sub);
     s.sub->set(zmq::sockopt::linger, 0);
     s.sub->set(zmq::sockopt::rcvtimeo, 50);
