@@ -21,7 +21,11 @@ the stub, when it is garbage or silent) and goes when it is back; with the
 stub, stats whose vendor source (stats.source) is not connected put the
 source and its error in the banner (as text) and the status line, a
 connected source takes the banner away, stats that stop leave the stream's own
-banner, and stats without a source show nothing of one; trial mode (stub)
+banner, and stats without a source show nothing of one; with the stub, poses
+on which no marker is measured (solver status no_targets, every marker
+occluded, or both) put "not tracked" in the banner and draw the skeleton dim
+with a note on the scene, after the stopped stream's banner and gone with the
+first tracked pose, and a normal stream never shows either; trial mode (stub)
 plays and scrubs; no uncaught exception in the page. Takes a
 screenshot into DIR (view_page.png, or view_subject01_walk1.png).
 
@@ -319,8 +323,11 @@ def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0, segm
     if require_measured:
         check(measured_shown, 'the poses carry measured markers and the page draws them')
     for _ in range(samples):
-        d = page.state()['drawn']
+        s = page.state()
+        d = s['drawn']
         last = d
+        check_quiet(not d['untracked'] and s['untracked'] is None and not (s['banner'] or '').count('not tracked'),
+                    f'frame {d["frame"]}: a tracked stream shown as untracked ({s["untracked"]}, "{s["banner"]}")')
         check_quiet(d['bones'] == bones, f'frame {d["frame"]}: drew {d["bones"]} bones, the model has {bones}')
         check_quiet(d['markers'] == markers, f'frame {d["frame"]}: drew {d["markers"]} markers, the model has {markers}')
         expected = occluded_of(d['frame'])
@@ -346,6 +353,7 @@ def check_drawn(page, bones, markers, occluded_of, samples=40, seconds=4.0, segm
         check(True, 'a measured marker and a residual line for each visible marker')
     if segments is not None:
         check(True, f'{segments} segment frames drawn')
+    check(True, 'tracked poses: never drawn or announced as untracked')
     check(with_occlusions > 0, 'some samples had occluded markers')
     check(len(frames) > samples // 4, 'the frames moved on between samples')
     return last
@@ -446,6 +454,75 @@ def check_source(page, live):
     wait_for(lambda: page.state()['banner'] is None, 10, 'the banner to go (stats without a source)')
 
 
+def untracked_text(head, shown, counted):
+    return f'fabrikd receives frames but {head}: the skeleton shown is not tracked{shown} ({counted})'
+
+
+def scene_note(page):
+    """The note on the scene: its text while shown, else None."""
+    return page.eval("(() => { const n = document.querySelector('#scene .scene-note');"
+                     " return n && !n.hidden ? n.textContent : null; })()")
+
+
+def check_untracked(page, live, bones, markers, out_dir):
+    """Poses on which no marker is measured (the stub's no-targets, held and
+    outliers modes, each one of the two signals or both): the banner says so
+    and the skeleton is drawn dim; the stream's own banners come first; a
+    tracked pose takes both away (a pose paused on stays dim)."""
+    none = "none of the model's markers is measured"
+    cases = [
+        ('no-targets', lambda b: b == untracked_text(none, ', it stands in its last posture',
+                                                      f'all {markers} markers occluded'),
+         {'no_targets': True, 'occluded': markers}),
+        ('held', lambda b: b == untracked_text(none, f', it is pulled to the last measured positions of '
+                                                     f'{markers} held markers', f'all {markers} markers occluded'),
+         {'no_targets': False, 'occluded': markers, 'held': markers}),
+        ('outliers', lambda b: b.startswith(untracked_text('the solver has nothing measured to track (no_targets)',
+                                                            ', it stands in its last posture', '')[:-1])
+         and b.endswith(' rejected as outliers)'), {'no_targets': True, 'held': 0}),
+    ]
+    for mode, banner_ok, fields in cases:
+        live.command(mode)
+        s = wait_for(lambda: (lambda s: s if s['banner'] and 'not tracked' in s['banner'] and s['drawn']['untracked']
+                              else None)(page.state()), 10, f'the untracked banner and the dim skeleton ({mode})')
+        check(banner_ok(s['banner']), f'{mode}: banner "{s["banner"]}"')
+        check(all(s['untracked'][k] == v for k, v in fields.items()), f'{mode}: state().untracked {s["untracked"]}')
+        check(s['drawn']['bones'] == bones and s['drawn']['markers'] == markers and
+              page.eval("document.getElementById('banner').textContent") == s['banner'],
+              f'{mode}: the skeleton still drawn ({bones} bones, {markers} markers), dim; the banner shown')
+        check(scene_note(page) == 'NOT TRACKED: no measured marker in this pose', f'{mode}: the note on the scene')
+        if mode == 'no-targets':
+            print(f'  ..  screenshot {page.screenshot(os.path.join(out_dir, "view_page_untracked.png"))}')
+        time.sleep(1.0)
+        s1 = page.state()
+        check(s1['received'] > s['received'] and s1['drawn']['untracked'] and s1['banner'] == s['banner'],
+              f'{mode}: poses go on arriving ({s1["received"] - s["received"]} in 1 s), the banner and the dim skeleton stay')
+        if mode == 'no-targets':
+            # A stream that stops says so first: the last pose says nothing of now.
+            live.command('stall')
+            s = wait_for(lambda: (lambda s: s if s['banner'] and 'stopped' in s['banner'] else None)(page.state()),
+                         10, 'the stopped-stream banner over the untracked one')
+            check(True, f'the stream stops while untracked: "{s["banner"]}"')
+            live.command(mode)
+            wait_for(lambda: (lambda s: s if s['banner'] and 'not tracked' in s['banner'] else None)(page.state()),
+                     10, 'the untracked banner back once poses come again')
+            # Paused on an untracked pose: it stays dim, though the banner goes with tracked poses.
+            page.eval("document.getElementById('pause').click()")
+            wait_for(lambda: page.state()['paused'], 5, 'the page to pause')
+            live.command('live')
+            s = wait_for(lambda: (lambda s: s if s['banner'] is None else None)(page.state()), 10,
+                         'the banner to go (tracked poses, paused)')
+            check(s['untracked'] is None and s['drawn']['untracked'],
+                  'paused on an untracked pose: still dim, the banner gone as tracked poses arrive')
+            page.eval("document.getElementById('pause').click()")
+        else:
+            live.command('live')
+        s = wait_for(lambda: (lambda s: s if s['banner'] is None and not s['drawn']['untracked'] and not s['paused']
+                              else None)(page.state()), 10, f'the banner and the dim skeleton to go ({mode} over)')
+        check(s['untracked'] is None and scene_note(page) is None and s['drawn']['bones'] == bones,
+              f'{mode} over: tracked poses drawn as such, no banner, no note')
+
+
 def check_no_exceptions(page):
     if page.console:
         print('  ..  console: ' + ' | '.join(page.console[:5]))
@@ -500,6 +577,7 @@ def run_stub(out_dir):
                      'the stream is garbage', ['arbage', 'ndecodable'])
         check_banner(page, lambda: live.command('silent'), lambda: live.command('live'),
                      'the server goes silent', ['stopped'])
+        check_untracked(page, live, bones, markers, out_dir)
         rate_line = 'fabrikd 250 poses/s'  # the stub's stats, at its default --source-hz
         check_no_source(page, rate_line)
         check_source(page, live)
@@ -528,7 +606,7 @@ def run_stub(out_dir):
               'the time slider shows pose 150 (frame 151) and holds it')
         check(sorted(s3['drawn']['occluded']) == sorted(stub.occluded_at(151)),
               'trial: occluded markers drawn occluded in that frame')
-        check(s3['banner'] is None, 'no banner in trial mode')
+        check(s3['banner'] is None and not s3['drawn']['untracked'], 'no banner in trial mode, not drawn untracked')
 
         zup = Stub('--up', 'z')
         try:

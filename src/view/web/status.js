@@ -42,6 +42,7 @@ function sourcePart(src) {
 function untrackedBanner(u) {
   const counted = u.markers === 0 ? `no marker in the model, none of its ${u.sensors} orientation sensors measured`
     : u.occluded === u.markers ? `all ${u.markers} markers occluded`
+    : u.occluded === 0 ? `${u.outliers} of ${u.markers} markers rejected as outliers`
     : `${u.occluded} of ${u.markers} markers occluded` + (u.outliers ? `, ${u.outliers} rejected as outliers` : '');
   const none = u.markers > 0 && u.occluded === u.markers;
   const head = none ? "fabrikd receives frames but none of the model's markers is measured"
