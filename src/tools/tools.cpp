@@ -327,12 +327,14 @@ struct SimArgs {
 
 void add_common_sim_options(CLI::App* cmd, SimArgs& a) {
   cmd->add_option("file", a.file, "Recording (.trc or .c3d)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--bind", a.bind, "Address to serve on (0.0.0.0: every interface)");
+  cmd->add_option("--bind", a.bind, "Address to serve on (0.0.0.0: every interface)")
+      ->capture_default_str();
   cmd->add_option("--file-up", a.file_up,
                   "The recording's up axis (+x, -y, +z, ...; default +y for TRC, +z for C3D)")
       ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}));
   cmd->add_option("--rate-scale", a.rate_scale, "Serve at this multiple of the file's rate")
-      ->check(cli::range(0.01, 100.0));
+      ->check(cli::range(0.01, 100.0))
+      ->capture_default_str();
   cmd->add_flag("--loop", a.loop, "Start over at the end (frame numbers keep increasing)");
   cmd->add_option("--frames", a.frames,
                   "Stop after N frames (default: the file, or forever with --loop)")
@@ -426,7 +428,8 @@ void add_sim_command(CLI::App& app) {
   qtm_cmd
       ->add_option("--base-port", q->base_port,
                    "QTM's base port: little endian on base + 1, big endian on base + 2")
-      ->check(cli::range(0, 65533));
+      ->check(cli::range(0, 65533))
+      ->capture_default_str();
   qtm_cmd->callback([q] {
     run_command("sim qtm", [&] {
       auto [recording, script] = sim_inputs("sim qtm", *q);
@@ -449,8 +452,11 @@ void add_sim_command(CLI::App& app) {
   // Each value is checked here, before the recording is read (a long one took seconds to be
   // told its group was wrong).
   natnet_cmd->add_option("--command-port", n->command_port, "Command port")
-      ->check(cli::range(0, 65535));
-  natnet_cmd->add_option("--data-port", n->data_port, "Data port")->check(cli::range(0, 65535));
+      ->check(cli::range(0, 65535))
+      ->capture_default_str();
+  natnet_cmd->add_option("--data-port", n->data_port, "Data port")
+      ->check(cli::range(0, 65535))
+      ->capture_default_str();
   natnet_cmd->add_flag("--unicast", n->unicast, "Send frames to each connected client instead of the group");
   natnet_cmd->add_option("--multicast-group", n->multicast_group, "Multicast group of the frames")
       ->check(CLI::Validator(
@@ -458,11 +464,13 @@ void add_sim_command(CLI::App& app) {
             const std::string problem = bridges::multicast_group_problem(text);
             return problem.empty() ? problem : problem + "; Motive's default is 239.255.42.99";
           },
-          "GROUP"));
+          "GROUP"))
+      ->capture_default_str();
   natnet_cmd
       ->add_option("--up-axis", n->up_axis,
                    "Motive's streaming up axis (+y as Motive's default, or +z)")
-      ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}));
+      ->check(CLI::IsMember({"+x", "-x", "+y", "-y", "+z", "-z"}))
+      ->capture_default_str();
   natnet_cmd->add_option("--natnet-version", n->version, "NatNet version served, e.g. 3.1 or 4.1")
       ->check(CLI::Validator(
           [](std::string& text) {
@@ -472,9 +480,13 @@ void add_sim_command(CLI::App& app) {
               return "NatNet " + text + " cannot be served (3.x and 4.x can)";
             return std::string();
           },
-          "MAJOR.MINOR"));
-  natnet_cmd->add_option("--subject", n->subject,
-                         "Marker set name: markers are named SUBJECT:MARKER (default: Subject, names bare)");
+          "MAJOR.MINOR"))
+      ->capture_default_str();
+  natnet_cmd
+      ->add_option("--subject", n->subject,
+                   "Motive's marker set (asset) name: a client reads each marker as "
+                   "SUBJECT:MARKER")
+      ->default_str("Subject");
   natnet_cmd->callback([n] {
     run_command("sim natnet", [&] {
       auto [recording, script] = sim_inputs("sim natnet", *n);
