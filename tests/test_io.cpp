@@ -1158,8 +1158,9 @@ TEST_CASE("A TRC Time column that goes back is refused at its first row, one sta
   CHECK(b.source.time_standing.rows == 0);
   CHECK(b.frames() == 5);
 
-  // Times rounded to 2 decimals at a high rate repeat: read (time comes from the rate), warned.
-  write_text(still.path(), two_marker_trc("A", "B", {"0", "0.01", "0.01", "0.02", "0.02"}));
+  // Times rounded to 2 decimals at a high rate (200 Hz) repeat: read (time comes from the
+  // rate), warned.
+  write_text(still.path(), two_marker_trc("A", "B", {"0", "0.01", "0.01", "0.02", "0.02"}, "200"));
   const MarkerTrial s = read_trc(still.path());
   CHECK(s.frames() == 5);
   CHECK(s.source.time_standing.rows == 2);
@@ -1175,7 +1176,7 @@ TEST_CASE("A TRC Time column that goes back is refused at its first row, one sta
 }
 
 TEST_CASE(
-    "A TRC Time column at another rate than DataRate warns; times rounded to the rate's "
+    "A TRC Time column at another rate than DataRate warns, times rounded to the rate's "
     "grid do not",
     "[io][trc]") {
   const auto warnings_of = [](const std::vector<std::string>& times, const std::string& rate) {
@@ -1207,7 +1208,7 @@ TEST_CASE(
 }
 
 TEST_CASE(
-    "A TRC cut short inside its last row is refused as truncated; a short row that ends "
+    "A TRC cut short inside its last row is refused as truncated, a short row that ends "
     "its line is missing markers",
     "[io][trc]") {
   const std::string whole = two_marker_trc("A", "B", {"0", "0.01", "0.02"});  // ends "\n"
