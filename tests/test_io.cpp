@@ -653,10 +653,10 @@ TEST_CASE("TRC DataRate 0 or absent with CameraRate set reads at the CameraRate,
                                             "read the CameraRate, 120 Hz"));
   // No DataRate at all: the CameraRate, said (it was read silently).
   const MarkerTrial c = read_text_trc(small_trc("CameraRate\tNumFrames\tNumMarkers\tUnits",
-                                                "50\t3\t2\tmm"));
-  CHECK(c.rate_hz == 50.0);
+                                                "100\t3\t2\tmm"));  // the rows' rate
+  CHECK(c.rate_hz == 100.0);
   REQUIRE(c.warnings.size() == 1);
-  CHECK(c.warnings[0] == "header: no DataRate: read the CameraRate, 50 Hz");
+  CHECK(c.warnings[0] == "header: no DataRate: read the CameraRate, 100 Hz");
 }
 
 TEST_CASE("TRC NumFrames and NumMarkers that disagree with the data: the data win, with warnings",
