@@ -1234,6 +1234,13 @@ TEST_CASE(
   // A whole last row without a line ending is whole.
   write_text(f.path(), whole.substr(0, whole.size() - 1));
   CHECK(read_trc(f.path()).at(2, 1).allFinite());
+  // A writer that leaves out trailing empty fields: every row as short, the last without a
+  // line ending, is not cut short.
+  const std::string header = whole.substr(0, whole.find("\n1\t0\t") + 1);
+  write_text(f.path(), header + "1\t0\t1\t2\t3\n2\t0.01\t1\t2\t3\n3\t0.02\t1\t2\t3");
+  const MarkerTrial terse = read_trc(f.path());
+  CHECK(terse.frames() == 3);
+  CHECK_FALSE(terse.at(2, 1).allFinite());
 }
 
 TEST_CASE("A failed write keeps only an errno a write gives as its reason", "[output_file]") {

@@ -134,6 +134,11 @@ TEST_CASE("A server's stated up axis turns its frames where the config declares 
   CHECK((frames.r_lab_server() * p - Eigen::Vector3d(1, 3, -2)).norm() < 1e-12);
   CHECK(frames.server_up("+z").empty());  // said again: no second notice
   CHECK_THAT(frames.server_up("up"), Catch::Contains("not an axis"));
+  CHECK(frames.r_lab_server().isIdentity(0.0));  // as the config says, not +z's left over
+  frames.server_up("+Z");
+  CHECK_THAT(frames.server_up("+Y"),
+             Catch::Contains("is now +y") && Catch::Contains("taken as they come"));
+  CHECK(frames.r_lab_server().isIdentity(0.0));
   // A lab whose forward is the server's up: forward from default_forward_lab (+x).
   wire::SourceFrames sideways(source_of(R"({"source": "qtm://127.0.0.1"})"),
                               LabAxes{Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ()}, taken);

@@ -17,9 +17,10 @@
 #include "bridges/natnet_sim_server.hpp"
 #include "bridges/qtm/sim_server.hpp"
 #include "config/daemon_config.hpp"
+#include "daemon_thread.hpp"
 #include "eval/subject.hpp"
 #include "io/marker_trial.hpp"
-#include "daemon_thread.hpp"
+#include "log_capture.hpp"
 #include "socket_client.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "tools/sim.hpp"
@@ -312,7 +313,11 @@ TEST_CASE(
   z_up.up = "+z";
   for (std::vector<Eigen::Vector3d>& row : z_up.p_mm)
     for (Eigen::Vector3d& p : row) p = Eigen::Vector3d(p.x(), -p.z(), p.y());
+  const test::LogCapture log;  // before the daemon: outlives it
   const Comparison c = through_simulator(Protocol::qtm, config, z_up, true, &y_up);
+  // Said once, where the user looks: the log.
+  CHECK_THAT(log.find("warning", "the server's up axis is +z, the model's lab axes are +y up"),
+             Catch::Contains("positions are turned from up +z, forward +x"));
   CHECK(c.covered == y_up.p_mm.size());
   CHECK(c.joints_mm < 1e-6);  // was hundreds of mm: the frames were taken unturned
   CHECK(c.markers_mm < 1e-6);

@@ -617,15 +617,16 @@ TEST_CASE(
   REQUIRE(n == 45);
   // 22 of 45 kept (fewer than half), the rest respelled as another export would.
   for (std::size_t i = 22; i < n; ++i) trial.labels[i] = trial.labels[i] + "_";
-  auto refusal = [&](const std::string& allow_option) {
+  auto refusal = [&](bool allow_few) {
     try {
-      fabrik::require_shared_markers(config, trial, "walk.trc", "--subject", allow_option);
+      fabrik::require_shared_markers(config, trial, "walk.trc", "--subject", allow_few,
+                                     "--allow-missing-markers");
     } catch (const std::runtime_error& e) {
       return std::string(e.what());
     }
     return std::string("accepted");
   };
-  const std::string message = refusal("--allow-missing-markers");
+  const std::string message = refusal(false);
   INFO(message);
   CHECK_THAT(message, Catch::StartsWith("walk.trc: has only 22 of the 45 marker names of the "
                                         "config <embedded>/default.json (fewer than half)"));
@@ -637,10 +638,10 @@ TEST_CASE(
                                       "_ (punctuation)"));
   CHECK_THAT(message, Catch::EndsWith("to track with the 22 markers it has, give "
                                       "--allow-missing-markers"));
-  CHECK(refusal("") == "accepted");  // the caller allows it (eval, view)
+  CHECK(refusal(true) == "accepted");  // the caller allows it (eval, view, the option given)
   // Half of them (23 of 45 is more) is tracked.
   trial.labels[22] = config.tracker.markers[22].marker;
-  CHECK(refusal("--allow-missing-markers") == "accepted");
+  CHECK(refusal(false) == "accepted");
 }
 
 TEST_CASE("A config whose names carry a subject prefix the file's labels lack is told so") {

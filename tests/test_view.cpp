@@ -648,7 +648,7 @@ TEST_CASE("view --pose: a host name the resolver says does not exist is refused 
   addrinfo* found = nullptr;
   const int lookup = ::getaddrinfo("nohost.invalid", nullptr, nullptr, &found);
   if (found) ::freeaddrinfo(found);
-  if (lookup != EAI_NONAME && lookup != EAI_FAIL) {
+  if (lookup != EAI_NONAME) {
     WARN("skipped: this machine's resolver cannot answer now (" << ::gai_strerror(lookup) << ")");
     return;
   }

@@ -24,6 +24,8 @@ namespace fabrik::apps {
 
 namespace {
 
+constexpr const char* kAllowMissingMarkers = "--allow-missing-markers";
+
 struct SolveOptions {
   std::string config, input, output, markers_output, model_markers_output, report, angles,
       orientations, subject;
@@ -72,25 +74,8 @@ void run(const SolveOptions& o) {
     throw std::invalid_argument("--angles: '" + o.angles +
                                 "': an OpenSim Coordinates table is written: use .mot (or .sto)");
   tools::require_usable_outputs(files);  // after the names: no file is tried for a refused one
-  DaemonConfig config =
-      o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config);
-  // A multi-subject config: the tracking of the subject --subject names.
-  if (!config.subjects.empty()) {
-    auto it = std::find_if(config.subjects.begin(), config.subjects.end(),
-                           [&](const SubjectConfig& s) { return s.name == o.subject; });
-    if (it == config.subjects.end())
-      throw std::runtime_error(config.file + " lists subjects: give --subject with one of them "
-                               "(or the subject's own config)");
-    config.tracker = it->tracker;
-    config.sensors = it->sensors;
-  } else if (!o.subject.empty()) {
-    // One subject's own config, perhaps calibrated from this very file: targets `NAME:X`.
-    const std::string shared = unprefix_subject_targets(config.tracker, o.subject);
-    if (!shared.empty())
-      throw std::runtime_error(config.file + " has targets '" + o.subject + ":" + shared +
-                               "' and '" + shared + "': with --subject " + o.subject +
-                               " both would be '" + shared + "'; keep one of them");
-  }
+  const DaemonConfig config = subject_config(
+      o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config), o.subject);
   if (o.input.empty() && o.orientations.empty())
     throw std::runtime_error("give --input (markers), --orientations (sensors), or both");
   io::MarkerTrial trial;
@@ -104,8 +89,8 @@ void run(const SolveOptions& o) {
                    "(%g mm) from the origin are taken as missing, as fabrikd takes them\n",
                    implausible, config.max_abs_coordinate_m * 1e3);
     if (o.orientations.empty())
-      require_shared_markers(config, trial, o.input, "--subject",
-                             o.allow_missing_markers ? "" : "--allow-missing-markers");
+      require_shared_markers(config, trial, o.input, "--subject", o.allow_missing_markers,
+                             kAllowMissingMarkers);
     if (o.filter_hz > 0.0) {
       const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);
       if (!o.quiet)
@@ -241,7 +226,7 @@ void add_solve_command(CLI::App& app) {
                 "Pose2Sim's default is 6 Hz. 0 (default): as recorded")
       ->check(cli::range(0.0, 1e6));
   c->add_flag("--quiet", o->quiet, "No progress bar");
-  c->add_flag("--allow-missing-markers", o->allow_missing_markers,
+  c->add_flag(kAllowMissingMarkers, o->allow_missing_markers,
               "Track a trial that has fewer than half of the config's marker names (refused by "
               "default: most often another marker set or spelling)");
   c->add_flag("--keep-zeros", o->keep_zeros,

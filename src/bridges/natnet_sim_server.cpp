@@ -90,7 +90,7 @@ struct NatNetSimServer::Impl {
     rotation = Eigen::Quaterniond::FromTwoVectors(parse_axis(rec.up, "the recording's up axis"),
                                                   parse_axis(opt.up_axis, "up_axis"))
                    .toRotationMatrix();
-    set_name = script.subject_prefix.empty() ? "Subject" : script.subject_prefix;
+    set_name = script.subject_prefix.empty() ? kSimMarkerSet : script.subject_prefix;
     names = rec.names;
     pause_done.assign(script.pauses.size(), false);
     restart_done.assign(script.restarts.size(), false);

@@ -6,7 +6,7 @@
 //   - NAT_CONNECT -> NAT_SERVERINFO ("Motive", the version pair of `version`,
 //     the data port, multicast or not and the group);
 //   - NAT_REQUEST_MODELDEF -> NAT_MODELDEF: one marker set named
-//     SimScript::subject_prefix (or "Subject") with the recording's marker
+//     SimScript::subject_prefix (or kSimMarkerSet) with the recording's marker
 //     names; NatNet 3.x adds Motive 2's "all" marker set of the same markers;
 //   - NAT_REQUEST "Bitstream,M.m" switches the stream's NatNet version (3.x,
 //     4.x), "TimelineStop" / "TimelinePlay" pause and resume, both answered by
@@ -42,6 +42,9 @@
 #include "bridges/sim_recording.hpp"
 
 namespace fabrik::bridges {
+
+// The marker set's name where SimScript::subject_prefix is empty.
+inline constexpr const char* kSimMarkerSet = "Subject";
 
 class NatNetSimServer {
  public:

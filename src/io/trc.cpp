@@ -177,6 +177,7 @@ class TrcParser {
     const Eigen::Vector3d missing = Eigen::Vector3d::Constant(std::nan(""));
     std::size_t rows = 0;
     std::string line;
+    std::size_t most_fields_missing = 0;  // of the rows read so far
     while (next_line(line, max_row_bytes)) {
       if (trim(line).empty()) continue;  // blank separator and trailing lines
       if ((trial.positions_m.size() + num_markers) * sizeof(Eigen::Vector3d) > budget_bytes) {
@@ -219,9 +220,10 @@ class TrcParser {
         }
         trial.positions_m.push_back(complete && p.allFinite() ? p * *to_m : missing);
       }
-      // A short last row without a line ending is a file cut short (a copy or export
-      // interrupted), not a row with its last markers missing.
-      if (unterminated_ && fields_missing > 0) {
+      // A last row without a line ending, shorter than every row before it, is a file cut
+      // short (a copy or export interrupted), not a row with its last markers missing (a
+      // writer that leaves out trailing empty fields writes its other rows as short).
+      if (unterminated_ && fields_missing > most_fields_missing) {
         const std::string what =
             "line " + std::to_string(line_number_) + ", the last: the file ends inside this row, " +
             std::to_string(fields_missing) + " of its " + std::to_string(columns) +
@@ -235,6 +237,7 @@ class TrcParser {
              std::to_string(columns) + " columns of Frame#, Time and " +
              std::to_string(num_markers) + " markers");
       }
+      most_fields_missing = std::max(most_fields_missing, fields_missing);
       ++rows;
     }
     trial.source.frames = rows;

@@ -37,13 +37,12 @@ void require_most_markers(const std::vector<std::string>& names, const io::Marke
 
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
                             const std::string& trial_path, const std::string& subject_option,
-                            const std::string& allow_option) {
+                            bool allow_few, const std::string& allow_option) {
   std::vector<std::string> names;
   for (const MarkerTarget& m : config.tracker.markers) names.push_back(m.marker);
   for (const std::string& name : names) {
     if (trial.find(name) < 0) continue;
-    if (!allow_option.empty())
-      require_most_markers(names, trial, trial_path, config.file, allow_option);
+    if (!allow_few) require_most_markers(names, trial, trial_path, config.file, allow_option);
     return;
   }
   std::string message = trial_path + ": shares none of the " + std::to_string(names.size()) +

@@ -17,11 +17,11 @@ namespace fabrik {
 // labels, the closest matches, and the fix. `subject_option`: the caller's option that takes
 // one subject of a `Subject:Marker` file (`fabrik solve --subject`; see given_option), offered
 // where the labels differ by such a prefix only; empty where the caller has none.
-// `allow_option`: the caller's option that lets a trial with fewer than half of the config's
-// names be tracked; given (non-empty), such a trial is refused too, the message naming the
-// names missing, the closest labels and that option. Empty: the caller allows it.
+// Unless `allow_few`, a trial with fewer than half of the config's names is refused too, the
+// message naming the names missing, the closest labels and `allow_option`, the caller's option
+// that lets it be tracked.
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
                             const std::string& trial_path, const std::string& subject_option = {},
-                            const std::string& allow_option = {});
+                            bool allow_few = true, const std::string& allow_option = {});
 
 }  // namespace fabrik

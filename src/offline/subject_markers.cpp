@@ -17,6 +17,27 @@ std::vector<std::string> trial_subjects(const io::MarkerTrial& trial) {
   return subjects;
 }
 
+DaemonConfig subject_config(DaemonConfig config, const std::string& subject,
+                            const std::string& option) {
+  const std::string name = option.ends_with('=') ? option.substr(0, option.size() - 1) : option;
+  if (!config.subjects.empty()) {
+    auto it = std::find_if(config.subjects.begin(), config.subjects.end(),
+                           [&](const SubjectConfig& s) { return s.name == subject; });
+    if (it == config.subjects.end())
+      throw std::runtime_error(config.file + " lists subjects: give " + name +
+                               " with one of them (or the subject's own config)");
+    config.tracker = it->tracker;
+    config.sensors = it->sensors;
+  } else if (!subject.empty()) {
+    const std::string shared = unprefix_subject_targets(config.tracker, subject);
+    if (!shared.empty())
+      throw std::runtime_error(config.file + " has targets '" + subject + ":" + shared + "' and '" +
+                               shared + "': with " + given_option(option, subject) +
+                               " both would be '" + shared + "'; keep one of them");
+  }
+  return config;
+}
+
 std::string given_option(const std::string& option, const std::string& value) {
   return option.ends_with('=') ? option + "'" + value + "'" : option + " " + value;
 }

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "config/daemon_config.hpp"
 #include "io/marker_trial.hpp"
 
 namespace fabrik {
@@ -18,6 +19,12 @@ std::vector<std::string> trial_subjects(const io::MarkerTrial& trial);
 // `option` is the caller's name for the choice (see given_option).
 io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& subject,
                               const std::string& option = "--subject");
+// The config that tracks `subject` (`fabrik solve --subject`): a multi-subject config's
+// subject's tracking; a subject's own config with its targets' "subject:" prefix taken off
+// (calibrated from this very file). An empty `subject` keeps the config, but a multi-subject
+// config needs one. Throws std::runtime_error with the fix; `option` names the choice.
+DaemonConfig subject_config(DaemonConfig config, const std::string& subject,
+                            const std::string& option = "--subject");
 // An option as a user types it: "--subject S" for a command line's, "subject='S'" for a
 // keyword argument's (an `option` ending in '=').
 std::string given_option(const std::string& option, const std::string& value);

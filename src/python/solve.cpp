@@ -93,7 +93,7 @@ py::dict solution_dict(TrialSolution&& s) {
 constexpr const char* kSubjectKeyword = "subject=";
 
 // `subject`'s markers, their labels without "subject:" (`fabrik solve --subject`); all of
-// them when it is empty.
+// them when it is empty. The config that tracks them is subject_config's.
 io::MarkerTrial of_subject(io::MarkerTrial&& trial, const std::string& subject) {
   return subject.empty() ? std::move(trial) : subject_trial(trial, subject, kSubjectKeyword);
 }
@@ -107,10 +107,11 @@ py::dict solve_file(const Config& config, const std::string& path, bool keep_zer
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;  // a trial takes seconds
+    const DaemonConfig tracking = subject_config(*config.config, subject, kSubjectKeyword);
     const io::MarkerTrial trial = of_subject(read_markers_file(path, keep_zeros), subject);
-    require_shared_markers(*config.config, trial, path, kSubjectKeyword,
-                           allow_missing_markers ? "" : kAllowKeyword);
-    s = solve_trial(*config.config, trial);
+    require_shared_markers(tracking, trial, path, kSubjectKeyword, allow_missing_markers,
+                           kAllowKeyword);
+    s = solve_trial(tracking, trial);
   }
   return solution_dict(std::move(s));
 }
@@ -138,13 +139,14 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
     x = Eigen::Vector3d(p[0], p[1], p[2]) * kMPerMm;
     p += 3;
   }
+  const DaemonConfig tracking = subject_config(*config.config, subject, kSubjectKeyword);
   trial = of_subject(std::move(trial), subject);
-  require_shared_markers(*config.config, trial, "the markers", kSubjectKeyword,
-                         allow_missing_markers ? "" : kAllowKeyword);
+  require_shared_markers(tracking, trial, "the markers", kSubjectKeyword, allow_missing_markers,
+                         kAllowKeyword);
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;
-    s = solve_trial(*config.config, trial);
+    s = solve_trial(tracking, trial);
   }
   return solution_dict(std::move(s));
 }

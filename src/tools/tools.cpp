@@ -486,7 +486,7 @@ void add_sim_command(CLI::App& app) {
       ->add_option("--subject", n->subject,
                    "Motive's marker set (asset) name: a client reads each marker as "
                    "SUBJECT:MARKER")
-      ->default_str("Subject");
+      ->default_str(bridges::kSimMarkerSet);
   natnet_cmd->callback([n] {
     run_command("sim natnet", [&] {
       auto [recording, script] = sim_inputs("sim natnet", *n);

@@ -71,7 +71,8 @@ std::optional<OpenFailure> unknown_host(const std::string& address) {
   addrinfo* found = nullptr;
   const int error = ::getaddrinfo(host.c_str(), nullptr, &hints, &found);
   if (found) ::freeaddrinfo(found);
-  if (error != EAI_NONAME && error != EAI_FAIL) return std::nullopt;  // found, or ask again later
+  // EAI_FAIL is a resolver that failed, not a name it knows is unknown: not a refusal.
+  if (error != EAI_NONAME) return std::nullopt;  // found, or ask again later
   return OpenFailure{"cannot connect to '" + address + "': no host is named '" + host + "' (" +
                          ::gai_strerror(error) + ")",
                      "check the name of the host that runs fabrikd, or give its address", 0};

@@ -43,7 +43,8 @@ SourceFrames::SourceFrames(const SourceConfig& source, const LabAxes& lab,
       lab_(lab),
       declared_(source.axes),
       taken_(std::make_move_iterator(taken.begin()), std::make_move_iterator(taken.end())),
-      r_lab_server_(lab.r_from(server_axes(source, lab))) {}
+      r_lab_server_(lab.r_from(server_axes(source, lab))),
+      r_configured_(r_lab_server_) {}
 
 std::string SourceFrames::server_up(std::string_view axis) {
   std::string text(axis);
@@ -53,10 +54,12 @@ std::string SourceFrames::server_up(std::string_view axis) {
   if (text.size() == 1) text.insert(text.begin(), '+');
   const bool readable =
       text.size() == 2 && (text[0] == '+' || text[0] == '-') && text[1] >= 'x' && text[1] <= 'z';
-  if (!readable)
+  if (!readable) {
+    r_lab_server_ = r_configured_;
     return "the server states its up axis as '" + std::string(axis) +
            "', which is not an axis: its positions are taken in " +
            (declared_ ? "source_options.axes" : "the model's lab axes");
+  }
   Eigen::Vector3d up = Eigen::Vector3d::Zero();
   up[text[1] - 'x'] = text[0] == '+' ? 1.0 : -1.0;
   const std::string up_name = signed_axis_name(up);
@@ -80,8 +83,12 @@ std::string SourceFrames::server_up(std::string_view axis) {
     }
     server.forward_lab = *forward;
   }
+  const bool was_turned = !r_lab_server_.isIdentity(0.0);
   r_lab_server_ = lab_.r_from(server);
-  if (server == lab_) return {};
+  if (server == lab_)
+    return was_turned ? "the server's up axis is now " + up_name +
+                            ", the model's lab axes' too: positions are taken as they come"
+                      : std::string();
   return "the server's up axis is " + up_name + ", the model's lab axes are " +
          signed_axis_name(lab_.up_lab) + " up: positions are turned from up " + up_name +
          ", forward " + signed_axis_name(server.forward_lab) +

@@ -64,6 +64,7 @@ class SourceFrames {
   std::unordered_set<std::string> taken_;
   std::vector<std::string> server_names_;
   Eigen::Matrix3d r_lab_server_;
+  Eigen::Matrix3d r_configured_;  // from the config alone, before the server states an axis
   std::vector<std::string> names_;
   std::vector<Eigen::Vector3d> p_lab_m_;
   std::vector<std::uint8_t> visible_;

@@ -1,6 +1,7 @@
 """Whole-trial solve: the same numbers as `fabrik solve`, from a file or from arrays; angles as a
 pandas DataFrame."""
 import dataclasses
+import os
 
 import numpy as np
 import pytest
@@ -150,6 +151,15 @@ def test_keep_zeros_holds_for_arrays_as_for_files(synth_trial):
     assert np.array_equal(mine.positions_mm, zeroed, equal_nan=True)  # the caller's, untouched
 
 
+def _prefixed_file(path, subject, out):
+    """A copy of a TRC with its labels (its fourth line) as `subject`:MARKER."""
+    lines = open(path).read().split("\n")
+    lines[3] = "\t".join(c if i < 2 or not c else subject + ":" + c
+                         for i, c in enumerate(lines[3].split("\t")))
+    out.write_text("\n".join(lines))
+    return out
+
+
 def _prefixed(trial, subject, shift_mm=0.0):
     return [subject + ":" + n for n in trial.names], trial.positions_mm + shift_mm
 
@@ -176,11 +186,8 @@ def test_subject_solves_one_person_of_a_prefixed_recording(solution, synth_trial
     for bad in ("", "Anna:LASI", 3):
         with pytest.raises(ValueError, match="subject must be"):
             fabrik.solve(config, both, subject=bad)
-    # A file's labels too (a TRC's label row is its fourth line).
-    lines = open(synth_trial).read().split("\n")
-    lines[3] = "\t".join(c if i < 2 or not c else "Anna:" + c for i, c in enumerate(lines[3].split("\t")))
-    prefixed = tmp_path / "anna.trc"
-    prefixed.write_text("\n".join(lines))
+    # A file's labels too.
+    prefixed = _prefixed_file(synth_trial, "Anna", tmp_path / "anna.trc")
     from_file = fabrik.solve(config, prefixed, subject="Anna")
     np.testing.assert_allclose(from_file.joints_mm, solution.joints_mm, rtol=0, atol=1e-9)
     with pytest.raises(RuntimeError, match="leave out subject"):
@@ -200,3 +207,27 @@ def test_a_trial_with_fewer_than_half_of_the_names_needs_allow_missing_markers(s
     solution = fabrik.solve(config, data, allow_missing_markers=True)
     assert solution.summary["frames"] == len(trial.time_s)
     assert len(solution.missing_in_trial) == len(trial.names) - keep
+
+
+def test_subject_of_a_multi_subject_config_tracks_with_that_subjects_config(synth_trial, tmp_path):
+    import json
+    alice = json.load(open(DEFAULT_CONFIG))
+    alice["model"] = os.path.join(os.path.dirname(DEFAULT_CONFIG), alice["model"])
+    bob = json.loads(json.dumps(alice))
+    bob.setdefault("solver", {}).update(max_iterations=1, segment_fit="paper")  # tracks apart
+    for name, c in (("alice", alice), ("bob", bob)):
+        (tmp_path / (name + ".json")).write_text(json.dumps(c))
+    two = tmp_path / "two.json"
+    two.write_text(json.dumps({"format": "fabrikd-config/1", "subjects": [
+        {"name": "Alice", "config": "alice.json"}, {"name": "Bob", "config": "bob.json"}]}))
+    trial = _prefixed_file(synth_trial, "Bob", tmp_path / "bob.trc")
+    fabrik_cli("solve", "--config", two, "--input", trial, "--subject", "Bob", "--output",
+               tmp_path / "cli.trc", "--quiet")
+    cli = fabrik.read_markers(tmp_path / "cli.trc")
+    config = fabrik.load_config(two)
+    mine = fabrik.solve(config, trial, subject="Bob")
+    np.testing.assert_allclose(mine.joints_mm, cli.positions_mm, rtol=0, atol=0.6e-6)
+    as_alice = fabrik.solve(fabrik.load_config(tmp_path / "alice.json"), trial, subject="Bob")
+    assert np.nanmax(np.abs(as_alice.joints_mm - mine.joints_mm)) > 1.0  # Bob's config mattered
+    with pytest.raises(RuntimeError, match="lists subjects: give subject with one of them"):
+        fabrik.solve(config, trial)

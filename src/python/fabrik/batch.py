@@ -634,14 +634,21 @@ def _check_paths(root, out):
     os.makedirs(out, exist_ok=True)
 
 
+def _template_problem(path):
+    """Why `path` cannot be the template, or None."""
+    if os.path.isfile(path):
+        return None
+    return "not a file" if os.path.exists(path) else "no such file"
+
+
 def run_batch(root, out, template=None, scheduler=None, workers=None, fabrik=None,
               timeout_s=3600.0, connect_timeout_s=60.0, log=sys.stderr):
     """Run the batch; returns the summary rows (sorted). Raises SetupError when it cannot start."""
     fabrik = fabrik or os.environ.get("FABRIK_BIN") or "fabrik"
     root, out = os.path.abspath(root), os.path.abspath(out)
     template = os.path.abspath(template) if template else None
-    if template and not os.path.isfile(template):
-        raise SetupError("--template %s: no such file" % template)
+    if template and _template_problem(template):
+        raise SetupError("--template %s: %s" % (template, _template_problem(template)))
     _check_paths(root, out)
     started = time.monotonic()
     calibrations, pending, rows = plan(root, out, template, fabrik, timeout_s, log)
@@ -725,10 +732,9 @@ def main(argv=None):
         # NaN fails both comparisons, so it is refused too.
         if not 0 < value <= 1e9:
             p.error("%s must be a number of seconds in (0, 1e9], not %g" % (option, value))
-    if a.template and not os.path.isfile(a.template):
+    if a.template and _template_problem(a.template):
         # Else every subject it calibrates would fail with it: a bad option, as above.
-        p.error("--template %s: %s" % (a.template, "not a file" if os.path.exists(a.template)
-                                       else "no such file"))
+        p.error("--template %s: %s" % (a.template, _template_problem(a.template)))
     try:
         rows = run_batch(a.root, a.output, a.template, a.scheduler, a.workers, a.fabrik,
                          a.trial_timeout, a.connect_timeout)

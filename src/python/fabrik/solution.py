@@ -99,8 +99,8 @@ def _first_frame_and_time(markers):
 
 
 def solve(config, markers, keep_zeros=False, subject=None, allow_missing_markers=False):
-    """Track a whole trial as `fabrik solve` does (the daemon's Tracker, then the two-sided
-    gap fill of the model's markers). markers: a .trc/.c3d path, or MarkerData (e.g. from
+    """Track a whole trial as `fabrik solve` does (the daemon's Tracker; markers_mm the
+    measured markers with their gaps filled from both sides, model_markers_mm the fit's). markers: a .trc/.c3d path, or MarkerData (e.g. from
     read_markers, or made from your own (frames, markers, 3) mm array; a slice keeps its
     frame_numbers and time_s, which must be as long as positions_mm and step by one frame, of
     1/rate_hz). keep_zeros=False takes an exact (0, 0, 0) as missing, for a path and a

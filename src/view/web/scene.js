@@ -151,9 +151,12 @@ export class SkeletonScene {
   // Draws one pose, dim when it is untracked (state.js untrackedOf); returns
   // what is in the scene now (counted from the scene's objects, not from the pose).
   draw(pose, untracked = false) {
+    if (!this.model) {
+      this.note.hidden = true;  // nothing drawn: no note, as `untracked: false` says
+      return {frame: pose.frame, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0,
+              untracked: false};
+    }
     this.note.hidden = !untracked;
-    if (!this.model) return {frame: pose.frame, bones: 0, markers: 0, occluded: [], measured: 0, residual_lines: 0, frames: 0,
-                             untracked: false};
     const occluded = new Set(pose.occluded);
     const occludedMaterial = untracked ? this.materials.untrackedOccluded : this.materials.occluded;
     const markerMaterial = untracked ? this.materials.untrackedMarker : this.materials.marker;
