@@ -17,9 +17,18 @@ std::vector<std::string> trial_subjects(const io::MarkerTrial& trial) {
   return subjects;
 }
 
+namespace {
+
+// The option's name alone: "--subject", or "subject" of a keyword "subject=".
+std::string option_name(const std::string& option) {
+  return option.ends_with('=') ? option.substr(0, option.size() - 1) : option;
+}
+
+}  // namespace
+
 DaemonConfig subject_config(DaemonConfig config, const std::string& subject,
                             const std::string& option) {
-  const std::string name = option.ends_with('=') ? option.substr(0, option.size() - 1) : option;
+  const std::string name = option_name(option);
   if (!config.subjects.empty()) {
     auto it = std::find_if(config.subjects.begin(), config.subjects.end(),
                            [&](const SubjectConfig& s) { return s.name == subject; });
@@ -53,13 +62,11 @@ io::MarkerTrial subject_trial(const io::MarkerTrial& trial, const std::string& s
     const std::vector<std::string> subjects = trial_subjects(trial);
     std::string named;
     for (const std::string& s : subjects) named += (named.empty() ? "" : ", ") + s;
-    const std::string leave_out =
-        option.ends_with('=') ? option.substr(0, option.size() - 1) : option;
     throw std::runtime_error(given_option(option, subject) +
                              ": no marker of the trial is labelled " + prefix + "MARKER. Fix: " +
                              (subjects.empty() ? std::string("the trial names no subjects (one "
                                                              "person per file): leave out ") +
-                                                     leave_out
+                                                     option_name(option)
                                                : "choose one of the trial's subjects: " + named));
   }
   io::MarkerTrial out = trial;

@@ -1195,11 +1195,11 @@ void Daemon::finish_reload() {
     reloaded = true;
   } catch (const std::exception& e) {
     ++counters_.reload_errors;
+    static constexpr std::string_view kWhat = "reload failed, keeping the running config: ";
     char text[512];
     const std::size_t n = safe_text(e.what(), text, sizeof text);
-    spdlog::error("reload failed, keeping the running config: {}", std::string_view(text, n));
+    spdlog::error("{}{}", kWhat, std::string_view(text, n));
     // In stats too, for a monitor that reads no log (last_error is the latest of any kind).
-    static constexpr std::string_view kWhat = "reload failed, keeping the running config: ";
     char stats_text[256];
     const std::size_t head = std::min(kWhat.size(), sizeof stats_text);
     std::memcpy(stats_text, kWhat.data(), head);

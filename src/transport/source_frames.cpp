@@ -75,7 +75,7 @@ std::string SourceFrames::server_up(std::string_view axis) {
   if (std::abs(lab_.forward_lab.dot(up)) > 0.5) {  // the lab's forward is the server's up axis
     const std::optional<Eigen::Vector3d> forward = default_forward_lab(up);
     if (!forward) {
-      r_lab_server_.setIdentity();
+      r_lab_server_ = r_configured_;
       return "the server's up axis is " + up_name +
              ", the model's lab axes' forward: the "
              "server's forward cannot be told, and its positions are taken as they come. Fix: "
