@@ -9,6 +9,11 @@ namespace fabrik {
 
 namespace {
 
+// The fix of a trial whose names are not the config's.
+constexpr const char* kConfigFix =
+    "use a config made for this marker set (fabrik calibrate --template T --static S writes "
+    "one), or rename the config's target markers to the file's labels";
+
 // Fewer than half of the config's names in the trial: most likely another marker set or
 // another spelling, whose few shared markers a solve would fit closely (a judgement: a
 // lab that means it says so with the caller's option).
@@ -27,10 +32,8 @@ void require_most_markers(const std::vector<std::string>& names, const io::Marke
       std::to_string(names.size()) + " marker names of the config " + config_file +
       " (fewer than half); tracking it would fit the model to those " + std::to_string(shared) +
       " and report a small residual for them." + names_beside(missing, "file:  ", unused) +
-      "\nFix: use a config made for this marker set (fabrik calibrate --template T --static S "
-      "writes one), or rename the config's target markers to the file's labels; to track with "
-      "the " +
-      std::to_string(shared) + " markers it has, give " + allow_option);
+      "\nFix: " + kConfigFix + "; to track with the " + std::to_string(shared) +
+      " markers it has, give " + allow_option);
 }
 
 }  // namespace
@@ -56,9 +59,7 @@ void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& t
     if (config_prefix.empty()) config_prefix = m.name_prefix;
     if (file_prefix.empty()) file_prefix = m.label_prefix;
   }
-  message +=
-      "\nFix: use a config made for this marker set (fabrik calibrate --template T --static S "
-      "writes one), or rename the config's target markers to the file's labels";
+  message += "\nFix: " + std::string(kConfigFix);
   const std::string give_subject = given_option(
       subject_option, file_prefix.substr(0, file_prefix.empty() ? 0 : file_prefix.size() - 1));
   if (!file_prefix.empty() && config_prefix.empty() && !subject_option.empty())
