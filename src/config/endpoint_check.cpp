@@ -147,6 +147,15 @@ bool binds_any_address(std::string_view address) {
   return split && any_address(canonical_host(split->host));
 }
 
+std::optional<std::string> tcp_host_name(std::string_view address) {
+  const auto parts = endpoint_parts(address);
+  if (!parts || parts->scheme != "tcp") return std::nullopt;
+  const auto split = split_port(parts->host_port);
+  if (!split || split->host.empty() || split->host == "*" || split->host.front() == '[')
+    return std::nullopt;
+  return std::string(split->host);
+}
+
 bool ipv6_literal(std::string_view address) {
   return address.find("://[") != std::string_view::npos ||
          address.find(";[") != std::string_view::npos;

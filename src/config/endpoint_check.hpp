@@ -39,6 +39,11 @@ Endpoint endpoint_option(std::string_view spec, SocketMode mode, std::string_vie
 // written): bound there, the socket is reached at one of the host's own addresses.
 bool binds_any_address(std::string_view address);
 
+// The host name a tcp `address` connects to, for a resolver ("nohost.invalid" of
+// "tcp://nohost.invalid:5556", the destination's after a "source;"); nothing for another
+// transport, a wildcard or an IPv6 literal.
+std::optional<std::string> tcp_host_name(std::string_view address);
+
 // Whether `address` names an IPv6 literal host (tcp://[::1]:5555, a source's or destination's):
 // ZeroMQ resolves one only on a socket with ZMQ_IPV6 set ("No such device" otherwise).
 bool ipv6_literal(std::string_view address);

@@ -57,15 +57,9 @@ std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string&
 }
 
 std::optional<OpenFailure> unknown_host(const std::string& address) {
-  constexpr std::string_view kTcp = "tcp://";
-  if (!std::string_view(address).starts_with(kTcp)) return std::nullopt;
-  std::string host = address.substr(kTcp.size());
-  if (const std::size_t semicolon = host.find(';'); semicolon != std::string::npos)
-    host.erase(0, semicolon + 1);  // "tcp://source;host:port": the peer is after the ';'
-  const std::size_t colon = host.rfind(':');
-  if (colon == std::string::npos) return std::nullopt;
-  host.resize(colon);
-  if (host.empty() || host.front() == '[' || host == "*") return std::nullopt;
+  const std::optional<std::string> name = tcp_host_name(address);
+  if (!name) return std::nullopt;
+  const std::string& host = *name;
   addrinfo hints{};
   hints.ai_socktype = SOCK_STREAM;
   addrinfo* found = nullptr;

@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "config/lab_axes_json.hpp"
+#include "config/sensors_json.hpp"
 #include "marker_codec.hpp"
 
 namespace fabrik::wire {
@@ -51,17 +52,13 @@ std::string SourceFrames::server_up(std::string_view axis) {
   for (char& ch : text) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
   if (text == server_up_) return {};
   server_up_ = text;
-  if (text.size() == 1) text.insert(text.begin(), '+');
-  const bool readable =
-      text.size() == 2 && (text[0] == '+' || text[0] == '-') && text[1] >= 'x' && text[1] <= 'z';
-  if (!readable) {
+  if (!is_axis_name(text)) {
     r_lab_server_ = r_configured_;
     return "the server states its up axis as '" + std::string(axis) +
            "', which is not an axis: its positions are taken in " +
            (declared_ ? "source_options.axes" : "the model's lab axes");
   }
-  Eigen::Vector3d up = Eigen::Vector3d::Zero();
-  up[text[1] - 'x'] = text[0] == '+' ? 1.0 : -1.0;
+  const Eigen::Vector3d up = axis_vector(text);
   const std::string up_name = signed_axis_name(up);
   if (declared_) {
     if (declared_->up_lab == up) return {};
