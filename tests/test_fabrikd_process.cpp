@@ -225,6 +225,17 @@ TEST_CASE("SIGHUP reloads the config and keeps the old one when the new one is i
   REQUIRE(pose);
   CHECK((*pose)["frame"] == frame);
   CHECK((*pose)["units"] == "m");
+  // The units reload kept the endpoints: they were logged once, at the start.
+  CHECK(p.count("poses out on") == 1);
+
+  // A reload that moves the output says where the poses go now.
+  const std::string moved = "ipc://" + (temp_dir() / "hup-moved-out").string();
+  c["output"]["endpoint"] = moved;
+  write_file("hup.json", c.dump());
+  p.signal(SIGHUP);
+  REQUIRE(p.wait_for_count("config reloaded", 2, 5s));
+  REQUIRE(p.wait_for_count("poses out on", 2, 5s));
+  CHECK_THAT(p.stderr_text(), Catch::Contains("poses out on " + moved + " (bind)"));
   p.signal(SIGTERM);
   CHECK(p.wait(1s) == 0);
 }

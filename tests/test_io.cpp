@@ -1205,6 +1205,20 @@ TEST_CASE(
   for (int i = 0; i < 1200; ++i)
     drifting[i] = format_number("%.6f", i / 120.0 * (1.0 + 0.6 / 1199.0));
   CHECK(warnings_of(drifting, "120").size() == 1);
+  // Read at the CameraRate (DataRate 0): both warnings, the second naming the CameraRate.
+  TempFile f(".trc");
+  std::string text = two_marker_trc("A", "B", halved, "60");
+  const std::string rates = "\n60\t60\t";
+  REQUIRE(text.find(rates) != std::string::npos);
+  text.replace(text.find(rates), rates.size(), "\n0\t60\t");
+  write_text(f.path(), text);
+  const std::vector<std::string> camera = read_trc(f.path()).warnings;
+  REQUIRE(camera.size() == 2);
+  CHECK_THAT(camera[0], Catch::Contains("read the CameraRate, 60 Hz"));
+  CHECK_THAT(camera[1], Catch::StartsWith("the Time column runs at 30 Hz") &&
+                            Catch::Contains("CameraRate says 60 Hz") &&
+                            Catch::Contains("Fix: correct CameraRate") &&
+                            !Catch::Contains("DataRate"));
 }
 
 TEST_CASE(
@@ -1274,4 +1288,54 @@ TEST_CASE("A failed write keeps only an errno a write gives as its reason", "[ou
       }
     }
   }
+}
+
+TEST_CASE(
+    "A recording whose markers span less than 20 mm or more than 100 m is told its unit may be "
+    "wrong, TRC and C3D, a body in its right unit is not",
+    "[io][trc][c3d]") {
+  // Three markers of a standing body (pelvis and head), walking 2 m over 10 frames.
+  MarkerTrial body;
+  body.labels = {"LASI", "RASI", "HEAD"};
+  body.rate_hz = 100.0;
+  for (int f = 0; f < 10; ++f)
+    for (const Eigen::Vector3d& p_mm :
+         {Eigen::Vector3d(100, 900, 50), Eigen::Vector3d(-100, 900, 50),
+          Eigen::Vector3d(0, 1700, 0)})
+      body.positions_m.push_back((p_mm + Eigen::Vector3d(0, 0, 200.0 * f)) / 1000.0);
+  const auto scaled = [&](double factor) {
+    MarkerTrial t = body;
+    for (Eigen::Vector3d& p : t.positions_m) p *= factor;
+    return t;
+  };
+  const auto unit_warnings = [](const MarkerTrial& t) {
+    std::vector<std::string> found;
+    for (const std::string& w : t.warnings)
+      if (w.find("is the unit right?") != std::string::npos) found.push_back(w);
+    return found;
+  };
+  TempFile trc(".trc"), c3d(".c3d");
+  // Right: nothing, whatever the unit written.
+  for (const std::string units : {"mm", "m"}) {
+    write_trc(trc.path(), body, units);
+    CHECK(unit_warnings(read_trc(trc.path())).empty());
+    write_c3d(trc.path() + ".c3d", body, C3dProcessor::intel, true, units);
+    CHECK(unit_warnings(read_c3d(trc.path() + ".c3d")).empty());
+    fs::remove(trc.path() + ".c3d");
+  }
+  // Metres written under "mm": the body reads 1000 times too small.
+  write_trc(trc.path(), scaled(1e-3), "mm");
+  std::vector<std::string> w = unit_warnings(read_trc(trc.path()));
+  REQUIRE(w.size() == 1);
+  CHECK_THAT(w[0], Catch::StartsWith("the markers span 0.8261 mm in a typical frame") &&
+                       Catch::Contains("Fix: correct Units (line 3) (metres labelled mm"));
+  write_c3d(c3d.path(), scaled(1e-3), C3dProcessor::intel, true, "mm");
+  w = unit_warnings(read_c3d(c3d.path()));
+  REQUIRE(w.size() == 1);
+  CHECK_THAT(w[0], Catch::Contains("Fix: correct POINT:UNITS"));
+  // Millimetres written under "m": 1000 times too large.
+  write_trc(trc.path(), scaled(1e3), "m");
+  w = unit_warnings(read_trc(trc.path()));
+  REQUIRE(w.size() == 1);
+  CHECK_THAT(w[0], Catch::Contains("more than 100 m") && Catch::Contains("mm labelled m"));
 }

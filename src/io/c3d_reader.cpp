@@ -434,6 +434,7 @@ class C3dReader {
       }
     }
     detail::warn_about_zeros(trial, options_);
+    detail::warn_about_units(trial, "POINT:UNITS");
     return trial;
   }
 

@@ -167,5 +167,41 @@ void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options) {
            : "kept as positions at the origin (keep-zeros)"));
 }
 
+void warn_about_units(MarkerTrial& trial, const std::string& unit_field) {
+  // Bounds far outside any marker set on a person (a hand's cluster spans 50 mm, a gym 30 m),
+  // so a right file is never told its unit is wrong.
+  constexpr double kSmallest_m = 0.02, kLargest_m = 100.0;
+  constexpr std::size_t kFramesLooked = 200;  // spread over the trial: cheap on long ones
+  const std::size_t frames = trial.frames();
+  std::vector<double> spans_m;
+  for (std::size_t k = 0; k < std::min(frames, kFramesLooked); ++k) {
+    const std::size_t f = k * frames / std::min(frames, kFramesLooked);
+    Eigen::Vector3d low = Eigen::Vector3d::Constant(INFINITY), high = -low;
+    std::size_t seen = 0;
+    for (std::size_t m = 0; m < trial.markers(); ++m) {
+      const Eigen::Vector3d& p_m = trial.at(f, m);
+      if (!p_m.allFinite()) continue;
+      low = low.cwiseMin(p_m);
+      high = high.cwiseMax(p_m);
+      ++seen;
+    }
+    if (seen >= 3) spans_m.push_back((high - low).norm());
+  }
+  if (spans_m.empty()) return;
+  std::nth_element(spans_m.begin(), spans_m.begin() + spans_m.size() / 2, spans_m.end());
+  const double span_m = spans_m[spans_m.size() / 2];
+  if (span_m >= kSmallest_m && span_m <= kLargest_m) return;
+  const std::optional<double> m_per_unit = metres_per_unit(trial.source.units);
+  if (!m_per_unit) return;
+  char span[48];
+  std::snprintf(span, sizeof span, "%.4g %s", span_m / *m_per_unit, trial.source.units.c_str());
+  trial.warnings.push_back(std::string("the markers span ") + span + " in a typical frame (" +
+                           (span_m < kSmallest_m ? "less than 20 mm" : "more than 100 m") +
+                           ", where a body spans about a metre): is the unit right? Fix: correct " +
+                           unit_field +
+                           (span_m < kSmallest_m ? " (metres labelled mm read 1000 times too small)"
+                                                 : " (mm labelled m read 1000 times too large)"));
+}
+
 }  // namespace detail
 }  // namespace fabrik::io

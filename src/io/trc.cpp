@@ -250,6 +250,7 @@ class TrcParser {
     report_time(trial);
     if (trial.source.time_backwards.rows == 0) check_rate(trial);
     detail::warn_about_zeros(trial, options_);
+    detail::warn_about_units(trial, "Units (line 3)");
     return trial;
   }
 
@@ -297,7 +298,7 @@ class TrcParser {
   }
 
   // DataRate, or CameraRate when DataRate is absent or not a frame rate.
-  double rate_of(const Header& header, MarkerTrial& trial) const {
+  double rate_of(const Header& header, MarkerTrial& trial) {
     const auto frame_rate = [](std::optional<std::string_view> text) -> std::optional<double> {
       if (!text) return std::nullopt;
       const std::optional<double> v = parse_number(*text);
@@ -308,6 +309,7 @@ class TrcParser {
     const std::optional<std::string_view> camera = header.value_of("CameraRate");
     if (const auto rate = frame_rate(data)) return *rate;
     if (const auto rate = frame_rate(camera)) {
+      rate_field_ = "CameraRate";
       // Said either way: the file's times and a solve's rate rest on it.
       trial.warnings.push_back(
           "header: " +
@@ -389,15 +391,16 @@ class TrcParser {
     const double allowed_s =
         0.5 / trial.rate_hz + first_timed_->rounding_s + last_timed_->rounding_s;
     if (!(span_s > 0.0) || std::abs(span_s - expected_s) <= allowed_s) return;
-    trial.warnings.push_back(
-        "the Time column runs at " + format_number("%.6g", rows / span_s) + " Hz (" +
-        format_number("%.9g", first_timed_->time_s) + " s at line " +
-        std::to_string(first_timed_->line) + " to " + format_number("%.9g", last_timed_->time_s) +
-        " s at line " + std::to_string(last_timed_->line) + "), DataRate says " +
-        format_number("%.6g", trial.rate_hz) +
-        " Hz: rows are read 1/DataRate apart, so the outputs' times follow DataRate (" +
-        format_number("%.6g", expected_s) + " s for those rows, not " +
-        format_number("%.6g", span_s) + "). Fix: correct DataRate (line 3), or the Time column");
+    trial.warnings.push_back("the Time column runs at " + format_number("%.6g", rows / span_s) +
+                             " Hz (" + format_number("%.9g", first_timed_->time_s) + " s at line " +
+                             std::to_string(first_timed_->line) + " to " +
+                             format_number("%.9g", last_timed_->time_s) + " s at line " +
+                             std::to_string(last_timed_->line) + "), " + rate_field_ + " says " +
+                             format_number("%.6g", trial.rate_hz) + " Hz: rows are read 1/" +
+                             rate_field_ + " apart, so the outputs' times follow " + rate_field_ +
+                             " (" + format_number("%.6g", expected_s) + " s for those rows, not " +
+                             format_number("%.6g", span_s) + "). Fix: correct " + rate_field_ +
+                             " (line 3), or the Time column");
   }
 
   // Time going back is refused (or a warning, see ReadOptions::refuse_ambiguous); standing still
@@ -484,6 +487,7 @@ class TrcParser {
   std::size_t line_number_ = 0;
   bool unterminated_ = false;  // the line read last ends the file without a line ending
   std::optional<double> previous_time_;
+  std::string rate_field_ = "DataRate";  // the header field the rows' rate was read from
   // The first and last rows with a Time that is a number: the Time column's own rate.
   struct TimedRow {
     double time_s;
