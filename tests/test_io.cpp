@@ -1022,8 +1022,19 @@ TEST_CASE("OpenSim tables: header, columns, rows, time span and rate", "[io][inf
   CHECK(u.table->rate_hz == Approx(10.0));  // was 3 / 0.2 s = 15 Hz
   REQUIRE(u.table->warnings.size() == 1);
   CHECK(u.table->warnings[0] ==
-        "1 rows kept (the first on line 9) whose time is not after the "
-        "previous row's");
+        "the time column goes back in time at 1 row (the first at line 9: 0 s after 0.1 s at "
+        "line 8): rows kept in the file's order");
+  // Read to be used (not described), the same file is refused, as OpenSim refuses it.
+  CHECK_THAT(error_of([&] { read_opensim_table(mot.path()); }),
+             Catch::Contains("the time column goes back in time at 1 row") &&
+                 Catch::Contains("Fix: put the rows in time order"));
+  // A time equal to the previous row's is kept, said apart.
+  write_text(mot.path(),
+             "Coordinates\nversion=1\nnRows=3\nnColumns=2\ninDegrees=yes\nendheader\n"
+             "time\tknee_angle_r\n0.0\t1\n0.0\t2\n0.1\t3\n");
+  const OpenSimTable same = read_opensim_table(mot.path());
+  REQUIRE(same.warnings.size() == 1);
+  CHECK(same.warnings[0] == "1 rows kept (the first on line 9) whose time is the previous row's");
 
   write_text(mot.path(), "Coordinates\nversion=1\ntime\tx\n0\t1\n");
   CHECK_THAT(error_of([&] { inspect_recording(mot.path()); }),

@@ -1944,3 +1944,149 @@ TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as miss
   CHECK(r["frames_without_markers"] == 10);  // were solved to the 1e300 "markers"
   CHECK(r["residual_mm"]["rms_max"].get<double>() < 20.0);
 }
+
+// ---- Orientation tables (OpenSense .sto) in fabrik solve ----
+
+TEST_CASE(
+    "An orientation table's bad cell is missing for its sensor only; time going back is "
+    "refused") {
+  TempFile sto(".sto"), back(".sto"), numbers(".mot");
+  const std::string header = "DataRate=100\nDataType=Quaternion\nversion=3\nendheader\n";
+  // Lines 6 to 11; a_imu: empty, 3 numbers, 5 numbers; b_imu: abc, not unit.
+  std::ofstream(sto.path()) << header
+                            << "time\ta_imu\tb_imu\n"
+                               "0\t1,0,0,0\t1,0,0,0\n"
+                               "0.01\t\t1,0,0,0\n"
+                               "0.02\t1,0,0\t1,0,0,0\n"
+                               "0.03\t1,0,0,0,0\tabc\n"
+                               "0.04\t1,0,0,0\t1.05,0,0,0\n"
+                               "0.05\t1,0,0,0\t0,1,0,0\n";
+  const fabrik::io::OrientationTable t = fabrik::io::read_orientation_table(sto.path());
+  REQUIRE(t.rows() == 6);
+  CHECK(t.time_s[1] == 0.01);
+  const std::vector<bool> a_missing = {false, true, true, true, false, false};
+  const std::vector<bool> b_missing = {false, false, false, true, true, false};
+  for (std::size_t r = 0; r < 6; ++r) {
+    CAPTURE(r);
+    CHECK(!t.at(r, 0).coeffs().allFinite() == a_missing[r]);
+    CHECK(!t.at(r, 1).coeffs().allFinite() == b_missing[r]);
+  }
+  CHECK(t.at(5, 1).x() == 1.0);
+  REQUIRE(t.warnings.size() == 2);
+  CHECK(t.warnings[0] ==
+        "4 cells (the first on line 7, column a_imu) are not 4 numbers: read as missing, their "
+        "rows kept");
+  CHECK(t.warnings[1] ==
+        "1 quaternions are not finite or not of unit length (within 0.01): missing for their "
+        "sensor only");
+  // The join reaches half a sample period beyond the rows, no farther.
+  CHECK(t.covers(-0.005));
+  CHECK(t.covers(0.055));
+  CHECK_FALSE(t.covers(0.0551));
+  CHECK_FALSE(t.covers(NAN));
+
+  // Two rows swapped (lines 7 and 8), as the TRC reader refuses them.
+  std::ofstream(back.path()) << header
+                             << "time\ta_imu\n0\t1,0,0,0\n0.02\t1,0,0,0\n0.01\t1,0,0,0\n"
+                                "0.03\t1,0,0,0\n";
+  REQUIRE_THROWS_WITH(
+      fabrik::io::read_orientation_table(back.path()),
+      Catch::StartsWith(back.path() + ": the time column goes back in time at 1 row (the first "
+                                      "at line 8: 0.01 s after 0.02 s at line 7)") &&
+          Catch::Contains("Fix: put the rows in time order"));
+  // A table of numbers is still no orientation table.
+  std::ofstream(numbers.path()) << "version=3\nendheader\ntime\tknee\n0\t1\n0.01\t2\n";
+  REQUIRE_THROWS_WITH(
+      fabrik::io::read_orientation_table(numbers.path()),
+      Catch::Contains("holds numbers in 2 columns") && Catch::Contains("not quaternions"));
+}
+
+namespace {
+
+// The OpenSense placement table's one row as `rows` rows at 100 Hz from `first_s`, its
+// label line with `from` renamed `to` (when given).
+std::string placement_rows(std::size_t rows, double first_s, const std::string& from = "",
+                           const std::string& to = "") {
+  std::istringstream in(slurp(kDataDir + "/opensense_placement_orientations.sto"));
+  std::string text, line;
+  while (std::getline(in, line) && line != "endheader") text += line + "\n";
+  std::string labels, row;
+  std::getline(in, labels);
+  std::getline(in, row);
+  if (!from.empty()) labels.replace(labels.find(from), from.size(), to);
+  text += "endheader\n" + labels + "\n";
+  const std::string cells = row.substr(row.find('\t'));
+  for (std::size_t r = 0; r < rows; ++r)
+    text += std::to_string(first_s + static_cast<double>(r) / 100.0) + cells + "\n";
+  return text;
+}
+
+}  // namespace
+
+TEST_CASE(
+    "fabrik solve --orientations: says what it cannot join, refuses what would change "
+    "nothing") {
+  const std::string static_trc = kDataDir + "/subject01_static.trc";
+  if (!fs::exists(static_trc)) {
+    WARN("skipped: " << static_trc << " not found");
+    return;
+  }
+  TempFile config(".json"), walk(".sto"), renamed(".sto"), late(".sto"), joints(".trc"),
+      report(".json"), text(".txt");
+  REQUIRE(run_fabrik(
+              {"calibrate", "--template", kSourceDir + "/config/templates/opensense_gait2354.json",
+               "--static", static_trc, "--static-orientations",
+               kDataDir + "/opensense_placement_orientations.sto", "--output", config.path()})
+              .first == 0);
+  std::ofstream(walk.path()) << placement_rows(100, 0.0);  // 0 to 0.99 s
+  std::ofstream(renamed.path()) << placement_rows(100, 0.0, "calcn_l_imu", "foo_imu");
+  std::ofstream(late.path()) << placement_rows(100, 10.0);  // 10 to 10.99 s
+
+  SECTION("--filter-hz without markers is refused: it low-passes markers") {
+    const auto [code, err] =
+        run_fabrik({"solve", "--config", config.path(), "--orientations", walk.path(), "--output",
+                    joints.path(), "--filter-hz", "6", "--quiet"});
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::StartsWith("fabrik solve: --filter-hz low-passes the markers "
+                                      "(--input), and there are none") &&
+                        Catch::Contains("Fix: leave out --filter-hz"));
+    CHECK_FALSE(fs::exists(joints.path()));
+  }
+  SECTION("a configured sensor the table lacks is named in the summary and the report") {
+    const auto [code, err] =
+        run_fabrik({"solve", "--config", config.path(), "--orientations", renamed.path(),
+                    "--output", joints.path(), "--report", report.path(), "--quiet"},
+                   text.path());
+    CAPTURE(err);
+    REQUIRE(code == 0);
+    CHECK_THAT(slurp(text.path()),
+               Catch::Contains("not in the table   1 of 8 configured sensors (calcn_l_imu)") &&
+                   Catch::Contains("not tracked        1 table columns (foo_imu...)"));
+    const json r = json::parse(slurp(report.path()));
+    CHECK(r["orientations"]["sensors_missing_in_table"] == json::array({"calcn_l_imu"}));
+    CHECK(r["orientations"]["table_columns_not_used"] == json::array({"foo_imu"}));
+  }
+  SECTION("a table beside the marker trial in time is refused, one covering part is warned") {
+    const auto [code, err] =
+        run_fabrik({"solve", "--config", config.path(), "--input", static_trc, "--orientations",
+                    late.path(), "--output", joints.path(), "--quiet"});
+    CHECK(code == 2);
+    CHECK_THAT(err, Catch::StartsWith("fabrik solve: " + late.path() +
+                                      ": no marker frame falls within its time span: the "
+                                      "markers (" +
+                                      static_trc +
+                                      ") span 0 to 4.98333333 s, "
+                                      "the orientations 10 to 10.99 s. Fix: "));
+    CHECK_FALSE(fs::exists(joints.path()));
+    // 0 to 0.99 s (0.995 s with half a sample): frames 1 to 60 of 300 at 60 Hz.
+    const auto [part_code, part_err] =
+        run_fabrik({"solve", "--config", config.path(), "--input", static_trc, "--orientations",
+                    walk.path(), "--output", joints.path(), "--quiet"});
+    CAPTURE(part_err);
+    CHECK(part_code == 0);
+    CHECK_THAT(part_err, Catch::Contains("fabrik solve: warning: " + walk.path() +
+                                         ": 240 of 300 marker frames fall outside its time "
+                                         "span") &&
+                             Catch::Contains("they are tracked without orientations"));
+  }
+}

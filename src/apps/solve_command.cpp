@@ -78,6 +78,13 @@ void run(const SolveOptions& o) {
       o.config.empty() ? default_daemon_config() : load_daemon_config_file(o.config), o.subject);
   if (o.input.empty() && o.orientations.empty())
     throw std::runtime_error("give --input (markers), --orientations (sensors), or both");
+  // The filter is the markers' (orientations are tracked as recorded): without markers it
+  // would change nothing, silently.
+  if (o.input.empty() && o.filter_hz > 0.0)
+    throw std::invalid_argument(
+        "--filter-hz low-passes the markers (--input), and there are none: the orientations "
+        "are tracked as recorded. Fix: leave out --filter-hz, or give the trial's markers "
+        "with --input");
   io::MarkerTrial trial;
   if (!o.input.empty()) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
@@ -104,6 +111,7 @@ void run(const SolveOptions& o) {
   std::optional<io::OrientationTable> table;
   if (!o.orientations.empty()) {
     table = read_orientations_or_explain("solve", config, o.orientations);
+    if (!o.input.empty()) require_time_overlap("solve", trial, o.input, *table, o.orientations);
     if (!o.quiet)
       std::fprintf(stderr, "fabrik solve: %s (%zu rows at %g Hz, %zu sensors)%s\n",
                    safe_lines(o.orientations).c_str(), table->rows(), table->rate_hz,
@@ -179,6 +187,12 @@ void run(const SolveOptions& o) {
                 so["frames_with_sensors"].get<std::size_t>(),
                 so["sensor_error_deg"]["rms_mean"].get<double>(),
                 so["sensor_error_deg"]["rms_max"].get<double>());
+    if (!s.sensors_missing_in_table.empty())
+      std::printf(
+          "not in the table   %zu of %zu configured sensors (%s): no orientation for "
+          "their segments\n",
+          s.sensors_missing_in_table.size(), config.tracker.sensors.sensors.size(),
+          safe_lines(name_list(s.sensors_missing_in_table)).c_str());
     if (!s.ignored_in_table.empty())
       std::printf("not tracked        %zu table columns (%s...)\n", s.ignored_in_table.size(),
                   s.ignored_in_table.front().c_str());

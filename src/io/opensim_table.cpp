@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string_view>
@@ -133,7 +134,7 @@ OpenSimTable coordinates_table(const std::vector<std::string>& labels, bool in_d
   return t;
 }
 
-OpenSimTable read_opensim_table(const std::string& path) {
+OpenSimTable read_opensim_table(const std::string& path, const OpenSimReadOptions& options) {
   std::ifstream in = detail::open_input(path);
   OpenSimTable t;
   std::string line;
@@ -178,6 +179,10 @@ OpenSimTable read_opensim_table(const std::string& path) {
   std::size_t width = 0;
   double previous_s = 0.0;
   std::size_t bad_rows = 0, first_bad = 0, unordered_rows = 0, first_unordered = 0;
+  std::size_t back_rows = 0, first_back = 0, line_before_back = 0, previous_line = 0;
+  double back_s = 0.0, before_back_s = 0.0;
+  std::size_t bad_cells = 0, first_bad_cell = 0;
+  std::string first_bad_column;
   // Every row with a time, kept or not: the rate from the time column counts the frames a
   // row left out for a bad cell still took, and spans rows out of order.
   std::size_t timed_rows = 0;
@@ -202,17 +207,29 @@ OpenSimTable read_opensim_table(const std::string& path) {
     cells.clear();
     bool usable = true;
     for (std::size_t c = 1; c < fields.size() && usable; ++c) {
+      const std::size_t before = cells.size();
       const std::size_t n = read_cell(fields[c], cells);
       if (width == 0) width = n;
       usable = n != 0 && n == width;
+      if (!usable && options.bad_cells_missing && width != 0) {
+        cells.resize(before);
+        cells.insert(cells.end(), width, std::numeric_limits<double>::quiet_NaN());
+        if (bad_cells++ == 0) first_bad_cell = line_number, first_bad_column = t.columns[c];
+        usable = true;
+      }
     }
     if (!usable) {
       bad();
       continue;
     }
-    if (t.rows > 0 && *time_s <= previous_s && unordered_rows++ == 0)  // kept, but said
+    if (t.rows > 0 && *time_s < previous_s && back_rows++ == 0) {
+      first_back = line_number, back_s = *time_s;
+      line_before_back = previous_line, before_back_s = previous_s;
+    } else if (t.rows > 0 && *time_s == previous_s && unordered_rows++ == 0) {  // kept, but said
       first_unordered = line_number;
+    }
     previous_s = *time_s;
+    previous_line = line_number;
     t.cell_width = width;
     t.add_row(*time_s, cells);
   }
@@ -225,8 +242,25 @@ OpenSimTable read_opensim_table(const std::string& path) {
   }
   if (unordered_rows > 0) {
     t.warnings.push_back(std::to_string(unordered_rows) + " rows kept (the first on line " +
-                         std::to_string(first_unordered) +
-                         ") whose time is not after the previous row's");
+                         std::to_string(first_unordered) + ") whose time is the previous row's");
+  }
+  if (back_rows > 0) {
+    const std::string what = "the time column goes back in time at " + std::to_string(back_rows) +
+                             (back_rows == 1 ? " row" : " rows") + " (the first at line " +
+                             std::to_string(first_back) + ": " + number_text(back_s, "%.9g") +
+                             " s after " + number_text(before_back_s, "%.9g") + " s at line " +
+                             std::to_string(line_before_back) + ")";
+    if (options.refuse_time_back)
+      throw FormatError(path, what +
+                                  ". Fix: put the rows in time order, or export the table "
+                                  "again: OpenSim refuses a time column that goes back");
+    t.warnings.push_back(what + ": rows kept in the file's order");
+  }
+  if (bad_cells > 0) {
+    t.warnings.push_back(std::to_string(bad_cells) + " cells (the first on line " +
+                         std::to_string(first_bad_cell) + ", column " + first_bad_column +
+                         ") are not " + std::to_string(width) +
+                         " numbers: read as missing, their rows kept");
   }
   t.cell_kind = cell_kind(t.cell_width);
   for (const auto& entry : t.header) {

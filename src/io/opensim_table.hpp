@@ -59,12 +59,23 @@ struct OpenSimTable {
 /// with these columns after time, as OpenSim's inverse kinematics writes it.
 OpenSimTable coordinates_table(const std::vector<std::string>& labels, bool in_degrees);
 
+/// How read_opensim_table reads rows that OpenSim would not.
+struct OpenSimReadOptions {
+  /// A cell that is not numbers of the table's width is NaN, its row kept (a dropout of one
+  /// sensor in an orientation table); false: the row is left out.
+  bool bad_cells_missing = false;
+  /// A time before the previous row's is a FormatError, as OpenSim refuses it; false: a warning
+  /// (to describe the file, `fabrik info`).
+  bool refuse_time_back = true;
+};
+
 /// Throws FormatError (path first) when there is no `endheader` or no table
-/// after it. Rows that cannot be used (a different number of fields, a cell
-/// that is not a number or has another width than the first row's) are left
-/// out and said in `warnings`, as are times not after the previous row's and
-/// nRows/nColumns that disagree with the table.
-OpenSimTable read_opensim_table(const std::string& path);
+/// after it, or (see OpenSimReadOptions) a time goes back. Rows that cannot be
+/// used (a different number of fields, no time, a cell that is not a number or
+/// has another width than the first row's) are left out and said in
+/// `warnings`, as are times equal to the previous row's and nRows/nColumns
+/// that disagree with the table.
+OpenSimTable read_opensim_table(const std::string& path, const OpenSimReadOptions& options = {});
 
 /// Writes the table: the name line, the header (nRows and nColumns from the
 /// table), the comments, `endheader`, the labels, one tab-separated row per

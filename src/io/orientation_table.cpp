@@ -12,6 +12,8 @@ namespace fabrik::io {
 
 namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// Times this close are one instant: a row's own values, no interpolation.
+constexpr double kSameTime_s = 1e-6;
 }  // namespace
 
 bool is_sto_file(const std::string& path) {
@@ -24,24 +26,22 @@ int OrientationTable::find(const std::string& sensor) const {
   return it == sensors.end() ? -1 : static_cast<int>(it - sensors.begin());
 }
 
+bool OrientationTable::covers(double t_s) const {
+  if (rows() == 0 || !std::isfinite(t_s)) return false;
+  const double reach_s = std::max(rate_hz > 0.0 ? 0.5 / rate_hz : 0.0, kSameTime_s);
+  return t_s >= time_s.front() - reach_s && t_s <= time_s.back() + reach_s;
+}
+
 void OrientationTable::sample(double t_s, std::span<Eigen::Quaterniond> out) const {
   const std::size_t n = sensors.size();
   const Eigen::Quaterniond missing(kNaN, kNaN, kNaN, kNaN);
   std::fill(out.begin(), out.end(), missing);
-  if (rows() == 0 || !std::isfinite(t_s)) return;
-  const double half_period_s = rate_hz > 0.0 ? 0.5 / rate_hz : 0.0;
-  constexpr double kSameTime_s = 1e-6;
+  if (!covers(t_s)) return;
   const auto row_values = [&](std::size_t row) {
     for (std::size_t k = 0; k < n && k < out.size(); ++k) out[k] = at(row, k);
   };
-  if (t_s <= time_s.front() + kSameTime_s) {
-    if (time_s.front() - t_s <= std::max(half_period_s, kSameTime_s)) row_values(0);
-    return;
-  }
-  if (t_s >= time_s.back() - kSameTime_s) {
-    if (t_s - time_s.back() <= std::max(half_period_s, kSameTime_s)) row_values(rows() - 1);
-    return;
-  }
+  if (t_s <= time_s.front() + kSameTime_s) return row_values(0);
+  if (t_s >= time_s.back() - kSameTime_s) return row_values(rows() - 1);
   const std::size_t hi = static_cast<std::size_t>(
       std::upper_bound(time_s.begin(), time_s.end(), t_s) - time_s.begin());
   const std::size_t lo = hi - 1;
@@ -58,7 +58,8 @@ void OrientationTable::sample(double t_s, std::span<Eigen::Quaterniond> out) con
 }
 
 OrientationTable read_orientation_table(const std::string& path) {
-  const OpenSimTable src = read_opensim_table(path);
+  // A sensor's dropout is its cell's only: the row's other sensors are kept.
+  const OpenSimTable src = read_opensim_table(path, {.bad_cells_missing = true});
   const std::string data_type = src.header_value("DataType");
   if (!data_type.empty() && data_type != "Quaternion")
     throw FormatError(path, "DataType=" + data_type +
@@ -81,7 +82,9 @@ OrientationTable read_orientation_table(const std::string& path) {
   for (std::size_t r = 0; r < src.rows; ++r)
     for (std::size_t c = 1; c < src.columns.size(); ++c) {
       const Eigen::Quaterniond q = src.quaternion(r, c);
-      if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 0.01) {
+      if (q.coeffs().array().isNaN().all()) {  // "nan", or not four numbers (said above)
+        t.q.emplace_back(kNaN, kNaN, kNaN, kNaN);
+      } else if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 0.01) {
         ++not_unit;
         t.q.emplace_back(kNaN, kNaN, kNaN, kNaN);
       } else {
@@ -91,7 +94,7 @@ OrientationTable read_orientation_table(const std::string& path) {
   if (not_unit > 0)
     t.warnings.push_back(std::to_string(not_unit) +
                          " quaternions are not finite or not of unit length (within 0.01): "
-                         "tracked as missing");
+                         "missing for their sensor only");
   return t;
 }
 

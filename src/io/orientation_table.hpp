@@ -18,7 +18,8 @@ struct OrientationTable {
   std::vector<std::string> sensors;  // column labels after time
   std::vector<double> time_s;        // per row, increasing
   // Row-major, [row * sensors.size() + k], as written (w, x, y, z); all NaN
-  // where a cell is empty, "nan" or not four numbers.
+  // where a cell is not four finite numbers of unit length within 0.01 (empty,
+  // "nan", "abc", three or five numbers): missing for that sensor only.
   std::vector<Eigen::Quaterniond> q;
   double rate_hz = 0.0;     // DataRate, else from the time column
   std::string rate_source;  // "from DataRate", "from the time column", "" when unknown
@@ -35,12 +36,16 @@ struct OrientationTable {
   // within 1 us of it), NaN where either is missing; the end row's within half
   // a sample period beyond the first or last row, NaN farther out.
   void sample(double t_s, std::span<Eigen::Quaterniond> out) const;
+  // Whether sample(t_s) reaches a row: t_s within the rows' span or half a sample period
+  // (1 us at least) beyond it. False for an empty table or a t_s that is not finite.
+  bool covers(double t_s) const;
 };
 
-// Read with read_opensim_table (its refusals and warnings apply); throws
-// FormatError (path first) when the file says another DataType than
-// Quaternion or its cells are not w,x,y,z. Quaternions that are not finite or
-// not unit within 0.01 read as missing, with a warning.
+// Read with read_opensim_table (its refusals and warnings apply: a time going
+// back is refused, as OpenSim and the TRC reader do); throws FormatError (path
+// first) when the file says another DataType than Quaternion or its cells are
+// not w,x,y,z. A cell that is not four finite numbers of unit length within
+// 0.01 reads as missing for its sensor only, the row kept, with a warning.
 OrientationTable read_orientation_table(const std::string& path);
 
 // True if the file's name ends in .sto (any case): an OpenSim table rather than markers.

@@ -16,7 +16,7 @@ RecordingInfo inspect_recording(const std::string& path) {
   info.path = path;
   if (ext == ".sto" || ext == ".mot") {
     info.kind = "table";
-    info.table = read_opensim_table(path);
+    info.table = read_opensim_table(path, {.refuse_time_back = false});
     return info;
   }
   if (ext != ".trc" && ext != ".c3d") {

@@ -64,6 +64,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   std::vector<Eigen::Quaterniond> q_table(orientations ? orientations->sensors.size() : 0);
   std::vector<Eigen::Quaterniond> q_sensor(sensor_count, Eigen::Quaterniond::Identity());
   std::vector<std::uint8_t> sensor_visible(sensor_count, 0);
+  std::vector<std::uint8_t> sensor_ever_measured(sensor_count, 0);
   for (const Joint& j : model.joints) s.joints.labels.push_back(j.name);
   for (const MarkerTarget& m : config.tracker.markers) s.markers.labels.push_back(m.marker);
   s.model_markers.labels = s.markers.labels;
@@ -99,7 +100,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
       for (int k = 0; k < sensor_count; ++k) {
         const int c = sensor_column[k];
         sensor_visible[k] = c >= 0 && q_table[c].coeffs().allFinite() ? 1 : 0;
-        if (sensor_visible[k]) q_sensor[k] = q_table[c];
+        if (sensor_visible[k]) q_sensor[k] = q_table[c], sensor_ever_measured[k] = 1;
       }
     }
     const TrackResult& r = tracker.track(time_s, measured, visible, q_sensor, sensor_visible);
@@ -149,6 +150,10 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
         {config.tracker.markers[i].marker, missing_frames[i], c < zeros.size() ? zeros[c] : 0});
     if (missing_frames[i] == frames) s.missing_in_trial.push_back(config.tracker.markers[i].marker);
   }
+  // As for markers: a sensor whose column has no usable cell at any frame is missing too.
+  for (int k = 0; k < sensor_count; ++k)
+    if (orientations && sensor_column[k] >= 0 && frames > 0 && !sensor_ever_measured[k])
+      s.sensors_missing_in_table.push_back(sensors[k].sensor);
   return s;
 }
 

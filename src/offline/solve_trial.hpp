@@ -67,7 +67,8 @@ struct TrialSolution {
   // Orientation sensors: per frame, the RMS angle between the measured
   // sensors' segment rotations and the tracked ones (radians; NaN when none
   // was measured) and the sensors measured; the config's sensors the table
-  // lacks; table columns that are no sensor of the config.
+  // lacks (no column, or no usable cell at any frame, as markers never
+  // measured); table columns that are no sensor of the config.
   std::vector<double> sensor_rms_rad;
   std::vector<int> sensors_measured;
   std::vector<std::string> sensors_missing_in_table;
