@@ -4,6 +4,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <string>
 
 #include "bindings.hpp"
 #include "calib/calibrate.hpp"
@@ -71,6 +72,26 @@ Config config_from_state(const py::tuple& state) {
   return c;
 }
 
+// What `fabrik calibrate --template K --static S` says for a keypoint template, with the way
+// out from Python: there is none in the module (no movement-trial calibration bound).
+std::string keypoint_template_refusal(const std::string& template_path) {
+  return template_path +
+         " is a keypoint template: it calibrates from a movement trial or its nominal lengths, "
+         "not from a static trial, and fabrik.calibrate calibrates marker templates only (the "
+         "Python module has no keypoint calibration). Fix: fabrik calibrate --template " +
+         template_path +
+         " --trial MOVEMENT.trc --output subject.json (or --nominal instead of --trial), then "
+         "fabrik.load_config(\"subject.json\")";
+}
+
+// The template's orientation sensors are not in the config fabrik.calibrate makes (the module
+// does not calibrate sensors): said as the CLI says it, with the CLI's way to add them.
+std::string sensors_left_out_note(std::size_t sensors) {
+  return "the template's " + std::to_string(sensors) +
+         " orientation sensors are left out of the config: fabrik.calibrate does not calibrate "
+         "sensors; calibrate them with `fabrik calibrate --static-orientations`";
+}
+
 Config calibrate(const std::string& template_path, const std::string& static_path,
                  const std::optional<std::string>& output, long long first_frame, long long frames,
                  long long auto_window, const std::string& lab_up, const std::string& lab_forward,
@@ -90,14 +111,24 @@ Config calibrate(const std::string& template_path, const std::string& static_pat
     throw std::invalid_argument("lab_forward needs lab_up: give both");
   }
   Config out;
+  std::string sensors_note;  // warned once the GIL is held again
   {
     py::gil_scoped_release unlocked;  // reading, calibrating and checking take a while
     const calib::CalibTemplate tmpl = calib::load_template_file(template_path);
+    // A keypoint template has no static trial: calibrate() would ask for its keypoints in the
+    // "static" one and name a fix (a static trial with them) that cannot work.
+    if (tmpl.kind == calib::TemplateKind::keypoints)
+      throw calib::CalibrationError(keypoint_template_refusal(template_path));
     io::ReadOptions read;
     read.zeros_are_missing = !keep_zeros;
     const io::MarkerTrial trial = io::read_trial(static_path, read);
     io::require_marker_data(trial, static_path);
-    const calib::CalibrationResult r = calib::calibrate(tmpl, trial, static_path, options);
+    calib::CalibrationResult r = calib::calibrate(tmpl, trial, static_path, options);
+    if (!tmpl.sensors.entries.empty()) {
+      // In the report's notes, as `fabrik calibrate` prints it without --static-orientations.
+      sensors_note = sensors_left_out_note(tmpl.sensors.entries.size());
+      r.notes.push_back(sensors_note);
+    }
     out.json = r.config.dump(2) + "\n";
     out.report = calib::calibration_report(r);
     // The config loads as the daemon will load it before it is written (as `fabrik calibrate`).
@@ -110,6 +141,9 @@ Config calibrate(const std::string& template_path, const std::string& static_pat
     }
     out.absolute_file = absolute_if_on_disk(out.config->file);
   }
+  // stacklevel 2: the line that called fabrik.calibrate (1 is fabrik/config.py's wrapper).
+  if (!sensors_note.empty() && PyErr_WarnEx(PyExc_UserWarning, sensors_note.c_str(), 2) != 0)
+    throw py::error_already_set();  // warnings turned into errors
   return out;
 }
 
@@ -176,7 +210,10 @@ void bind_config(py::module_& m) {
         "A subject's config from a model template (fabrikd-template/1) and a static trial "
         "(.trc/.c3d), the same code as `fabrik calibrate`; written to `output` when given. "
         "first_frame (the file's frame number) and frames choose the averaging window, "
-        "auto_window the stillest window of that many frames. Releases the GIL. Raises "
+        "auto_window the stillest window of that many frames. Marker templates only: a "
+        "keypoint template is a CalibrationError (use `fabrik calibrate --trial`); a template's "
+        "orientation sensors are left out, said in calibration_report and as a UserWarning. "
+        "Releases the GIL. Raises "
         "FileNotFoundError, ConfigError, FormatError (ValueErrors), CalibrationError "
         "(a RuntimeError), or OSError when `output` cannot be written.");
 }

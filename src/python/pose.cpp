@@ -53,6 +53,7 @@ Pose::Pose(std::shared_ptr<const PoseLayout> l, double t_s, double t_us, const T
       residual_count(r.residual_count),
       worst_marker(r.worst_marker),
       occluded_count(r.occluded_count),
+      low_confidence_count(r.low_confidence_count),
       residual_rms_mm(r.residual_rms_m * kMmPerM),
       residual_max_mm(r.residual_max_m * kMmPerM),
       cold_start(r.cold_start),
@@ -146,6 +147,9 @@ void bind_pose(py::module_& m) {
           "translations_mm", [](const Pose& p) { return coordinate_dict(p, false); },
           "The model's translational coordinates (name -> mm)")
       .def_readonly("occluded_count", &Pose::occluded_count)
+      .def_readonly("low_confidence_count", &Pose::low_confidence_count,
+                    "Of occluded_count: markers measured but occluded by a confidence below "
+                    "the config's confidence.threshold (track() with a 4th value per marker)")
       .def_readonly("residual_rms_mm", &Pose::residual_rms_mm,
                     "RMS over the markers measured and solved with, mm")
       .def_readonly("residual_max_mm", &Pose::residual_max_mm)

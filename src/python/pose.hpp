@@ -32,6 +32,7 @@ struct Pose {
   double time_s = 0.0, track_us = 0.0, solve_us = 0.0;
   std::string_view status, quality;  // static strings (to_string of the enums)
   int iterations = 0, residual_count = 0, worst_marker = -1, occluded_count = 0;
+  int low_confidence_count = 0;  // of occluded_count: measured, confidence below threshold
   double residual_rms_mm = 0.0, residual_max_mm = 0.0;
   bool cold_start = false;
   // joints (mm), model markers (mm), segment rotations (w, x, y, z), segment origins (mm),

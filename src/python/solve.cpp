@@ -78,6 +78,7 @@ py::dict solution_dict(TrialSolution&& s) {
     }
   const std::size_t angles = angle_names.size(), translations = translation_names.size();
   d["angle_names"] = angle_names;
+  d["coordinate_names"] = s.coordinate_names;  // all of them, in the .mot's order
   d["translation_names"] = translation_names;
   d["angles_deg"] = owned_array(std::move(angles_deg), {ss(frames), ss(angles)});
   d["translations_mm"] = owned_array(std::move(translations_mm), {ss(frames), ss(translations)});

@@ -1,18 +1,30 @@
 // Tracker: the daemon's per-frame pipeline driven from Python. Markers come in as a dict
-// (name -> x, y, z) or a (markers, 3) array in Tracker.marker_names order, in millimetres;
-// they are converted to metres once, into buffers sized here, and tracked as fabrikd tracks a
-// frame. The GIL stays held: a frame is tens of microseconds, less than a thread switch costs.
+// (name -> x, y, z[, confidence]) or a (markers, 3) or (markers, 4) array in
+// Tracker.marker_names order, in millimetres; they are converted to metres once, into buffers
+// sized here, and tracked as fabrikd tracks a frame (a 4th value is the wire's confidence).
+// The GIL stays held: a frame is tens of microseconds, less than a thread switch costs.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <span>
 
 #include "pose.hpp"
+#include "tracking/confidence.hpp"
 
 namespace fabrik::python {
 
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// A marker's confidence as the daemon reads a wire frame's 4th value; one that is not finite
+// occludes the marker (its position NaN).
+float confidence_of(double confidence, Eigen::Vector3d& measured_m) {
+  const std::optional<float> clamped = clamped_confidence(confidence);
+  if (!clamped) measured_m.setConstant(kNaN);
+  return clamped.value_or(0.0f);
+}
 
 class PyTracker {
  public:
@@ -21,7 +33,8 @@ class PyTracker {
         tracker_(std::make_unique<Tracker>(config_.config->tracker)),
         layout_(std::make_shared<const PoseLayout>(*tracker_)),
         measured_m_(layout_->markers),
-        visible_(layout_->markers, 1) {
+        visible_(layout_->markers, 1),
+        confidence_(layout_->markers, 1.0f) {
     for (std::size_t i = 0; i < layout_->markers; ++i)
       index_[py::str(layout_->marker_names[i])] = py::int_(i);
   }
@@ -31,13 +44,17 @@ class PyTracker {
     // for the frames after it): refused here, where Python's floats come in.
     if (!std::isfinite(time_s))
       throw std::invalid_argument("time_s must be a finite number of seconds");
+    with_confidence_ = false;
     if (PyDict_Check(markers.ptr()))
       read_dict(markers, ignore_unknown);
     else
       read_array(markers);
     // Timed so that the bench (and a caller) can tell the edge's cost from the tracker's.
     const auto start = std::chrono::steady_clock::now();
-    const TrackResult& r = tracker_->track(time_s, measured_m_, visible_);
+    // Confidences only when the frame gave one (as the daemon): the others' stay 1.
+    const TrackResult& r = with_confidence_ ? tracker_->track(time_s, measured_m_, visible_,
+                                                              std::span<const float>(confidence_))
+                                            : tracker_->track(time_s, measured_m_, visible_);
     const std::chrono::duration<double, std::micro> took = std::chrono::steady_clock::now() - start;
     return Pose(layout_, time_s, took.count(), r);
   }
@@ -54,6 +71,7 @@ class PyTracker {
   // is hashed and looked up: about 0.9 us less per 45-marker frame (docs/python.md).
   void read_dict(const py::handle& markers, bool ignore_unknown) {
     for (Eigen::Vector3d& p : measured_m_) p.setConstant(kNaN);
+    std::fill(confidence_.begin(), confidence_.end(), 1.0f);
     PyObject* key = nullptr;
     PyObject* value = nullptr;
     Py_ssize_t pos = 0;
@@ -69,7 +87,14 @@ class PyTracker {
         remember(k, key, i);
       }
       if (i < 0 && !ignore_unknown) throw py::key_error(unknown_name(key));
-      if (i >= 0) read_xyz(value, key, measured_m_[static_cast<std::size_t>(i)]);
+      if (i >= 0) {
+        const auto m = static_cast<std::size_t>(i);
+        double confidence = 1.0;
+        if (read_xyz(value, key, measured_m_[m], confidence)) {
+          confidence_[m] = confidence_of(confidence, measured_m_[m]);
+          with_confidence_ = true;
+        }
+      }
       ++k;
     }
   }
@@ -84,25 +109,36 @@ class PyTracker {
     seen_index_[k] = index;
   }
 
-  static void read_xyz(PyObject* value, PyObject* key, Eigen::Vector3d& out_m) {
+  // x, y, z (mm) into out_m, and a 4th value (the wire's confidence) into confidence: true
+  // when it was given.
+  static bool read_xyz(PyObject* value, PyObject* key, Eigen::Vector3d& out_m, double& confidence) {
     // Tuples and lists read directly; anything else (a NumPy row) through the sequence protocol.
     if (PyTuple_Check(value) || PyList_Check(value)) {
-      if (PySequence_Fast_GET_SIZE(value) == 3) {
+      const Py_ssize_t n = PySequence_Fast_GET_SIZE(value);
+      if (n == 3 || n == 4) {
         PyObject** items = PySequence_Fast_ITEMS(value);
         for (int k = 0; k < 3; ++k) out_m[k] = item_double(items[k], key) * kMPerMm;
-        return;
+        if (n == 4) confidence = item_double(items[3], key);
+        return n == 4;
       }
-    } else if (PySequence_Check(value) && PySequence_Size(value) == 3) {
-      for (int k = 0; k < 3; ++k) {
-        py::object item = py::reinterpret_steal<py::object>(PySequence_GetItem(value, k));
-        if (!item) throw py::error_already_set();
-        out_m[k] = item_double(item.ptr(), key) * kMPerMm;
+    } else if (PySequence_Check(value)) {
+      const Py_ssize_t n = PySequence_Size(value);
+      if (n == 3 || n == 4) {
+        for (int k = 0; k < static_cast<int>(n); ++k) {
+          py::object item = py::reinterpret_steal<py::object>(PySequence_GetItem(value, k));
+          if (!item) throw py::error_already_set();
+          const double v = item_double(item.ptr(), key);
+          if (k < 3)
+            out_m[k] = v * kMPerMm;
+          else
+            confidence = v;
+        }
+        return n == 4;
       }
-      return;
     }
     PyErr_Clear();
     throw py::value_error("marker " + py::str(key).cast<std::string>() +
-                          ": give x, y, z (3 numbers, mm), not " +
+                          ": give x, y, z (3 numbers, mm) or x, y, z, confidence (0-1), not " +
                           py::repr(value).cast<std::string>());
   }
 
@@ -112,7 +148,7 @@ class PyTracker {
     if (v == -1.0 && PyErr_Occurred()) {
       PyErr_Clear();
       throw py::value_error("marker " + py::str(key).cast<std::string>() +
-                            ": coordinates must be numbers (mm), got " +
+                            ": coordinates must be numbers (mm), as must a confidence, got " +
                             py::repr(item).cast<std::string>());
     }
     return v;
@@ -129,9 +165,10 @@ class PyTracker {
   }
 
   [[noreturn]] void refuse_type(const py::handle& markers) const {
-    throw py::type_error("markers: give a dict name -> (x, y, z) in mm, or a (" +
+    throw py::type_error("markers: give a dict name -> (x, y, z[, confidence]) in mm, or a (" +
+                         std::to_string(layout_->markers) + ", 3) or (" +
                          std::to_string(layout_->markers) +
-                         ", 3) array in Tracker.marker_names order, not " +
+                         ", 4) array in Tracker.marker_names order, not " +
                          std::string(py::str(py::type::of(markers).attr("__name__"))));
   }
 
@@ -152,24 +189,30 @@ class PyTracker {
       if (array_like)
         throw py::value_error(
             "markers: coordinates must be numbers (mm), in a (" + std::to_string(layout_->markers) +
-            ", 3) array in Tracker.marker_names order; this " +
+            ", 3) or (" + std::to_string(layout_->markers) +
+            ", 4) array in Tracker.marker_names order; this " +
             std::string(py::str(py::type::of(markers).attr("__name__"))) + " holds something else");
       refuse_type(markers);
     }
     if (a.ndim() != 2 || a.shape(0) != static_cast<py::ssize_t>(layout_->markers) ||
-        a.shape(1) != 3) {
+        (a.shape(1) != 3 && a.shape(1) != 4)) {
       std::string shape;
       for (py::ssize_t d = 0; d < a.ndim(); ++d)
         shape += (d ? ", " : "") + std::to_string(a.shape(d));
-      throw py::value_error("markers: expected an array of shape (" +
-                            std::to_string(layout_->markers) +
-                            ", 3) (mm, in Tracker.marker_names "
-                            "order), got shape (" +
+      const std::string rows = std::to_string(layout_->markers);
+      throw py::value_error("markers: expected an array of shape (" + rows + ", 3) or (" + rows +
+                            ", 4) (mm, then a confidence, in Tracker.marker_names order), got "
+                            "shape (" +
                             shape + ")");
     }
-    const double* mm = a.data();
-    for (std::size_t i = 0; i < layout_->markers; ++i, mm += 3)
-      measured_m_[i] = Eigen::Vector3d(mm[0], mm[1], mm[2]) * kMPerMm;
+    // A 4th column is each marker's confidence (0-1), as the wire's 4th value.
+    const py::ssize_t columns = a.shape(1);
+    with_confidence_ = columns == 4;
+    const double* row = a.data();
+    for (std::size_t i = 0; i < layout_->markers; ++i, row += columns) {
+      measured_m_[i] = Eigen::Vector3d(row[0], row[1], row[2]) * kMPerMm;
+      if (with_confidence_) confidence_[i] = confidence_of(row[3], measured_m_[i]);
+    }
   }
 
   Config config_;                     // shares the loaded config
@@ -177,6 +220,8 @@ class PyTracker {
   std::shared_ptr<const PoseLayout> layout_;
   std::vector<Eigen::Vector3d> measured_m_;
   std::vector<std::uint8_t> visible_;  // all 1: occlusion is NaN (or an absent name)
+  std::vector<float> confidence_;      // per marker, 0-1 (1 where the input gave none)
+  bool with_confidence_ = false;       // this frame gave a confidence: pass them on
   py::dict index_;                     // name -> index into the markers
   // read_dict's memory of the last dict's keys by position (-1: an ignored unknown name);
   // bounded, so a stream of ever-new names cannot grow it.
@@ -198,7 +243,11 @@ void bind_tracker(py::module_& m) {
            py::arg("ignore_unknown") = false,
            "Track one frame. markers: a dict marker name -> (x, y, z) in mm (absent names "
            "are occluded), or a (markers, 3) float array in mm in marker_names order (NaN "
-           "rows are occluded). time_s: the frame's time in seconds (the hold policy and "
+           "rows are occluded). A 4th value per marker (x, y, z, confidence), or a "
+           "(markers, 4) array, is its confidence (0-1, as on the daemon's wire): below the "
+           "config's confidence.threshold the marker is occluded, above it scales its weight; "
+           "a marker without one has confidence 1. time_s: the frame's time in seconds (the hold "
+           "policy and "
            "continuity use it). Returns a Pose (a copy: it stays valid). An unknown name is a "
            "KeyError unless ignore_unknown; a wrong shape, or a coordinate that is not a number, "
            "a ValueError; anything but a dict or an array a TypeError. A solve that does not "

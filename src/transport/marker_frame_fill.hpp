@@ -13,6 +13,7 @@
 
 #include "marker_codec.hpp"
 #include "marker_name_index.hpp"
+#include "tracking/confidence.hpp"
 
 namespace fabrik::wire {
 
@@ -31,17 +32,13 @@ inline void list_unknown_name(std::vector<std::string>& list, int& listed, std::
   entry.assign(name.data(), std::min(name.size(), entry.capacity()));
 }
 
-// Marker i's 4th value, as every reader takes it: clamped to [0, 1] (detectors'
-// scores may stray a little past 1); one that is not finite says nothing about
-// the marker, so the marker is occluded.
+// Marker i's 4th value, as every reader takes it (clamped_confidence); one that is not
+// finite occludes the marker.
 inline void set_confidence(MarkerFrame& out, int i, double confidence) {
   ++out.confidence_count;
-  if (!std::isfinite(confidence)) {
-    out.visible[i] = 0;
-    out.confidence[i] = 0.0f;
-    return;
-  }
-  out.confidence[i] = static_cast<float>(std::clamp(confidence, 0.0, 1.0));
+  const std::optional<float> clamped = clamped_confidence(confidence);
+  if (!clamped) out.visible[i] = 0;
+  out.confidence[i] = clamped.value_or(0.0f);
 }
 
 // A frame's "units": metres per unit, 0 for anything but "mm" and "m".

@@ -240,3 +240,32 @@ def test_the_config_schema_bounds_every_number_where_fabrikd_does(tmp_path):
         for beyond in outside:
             with pytest.raises(fabrik.ConfigError, match="out of range|beyond"):
                 load_with(path, beyond)
+
+
+def test_a_keypoint_template_is_refused_with_the_command_line_way(tmp_path):
+    # Once: "... '~lumbar' (not in the trial). Fix: use a static trial that has these
+    # markers", a fix that cannot work (a keypoint template has no static trial).
+    template = f"{SOURCE}/config/templates/halpe26.json"
+    trial = tmp_path / "walk.trc"
+    trial.write_text("not read: the template is refused first\n")
+    with pytest.raises(fabrik.CalibrationError) as refused:
+        fabrik.calibrate(template, trial, tmp_path / "py.json")
+    said = str(refused.value)
+    assert said.startswith(template + " is a keypoint template"), said
+    assert "the Python module has no keypoint calibration" in said
+    assert f"fabrik calibrate --template {template} --trial MOVEMENT.trc" in said
+    assert "~lumbar" not in said and "static trial that has" not in said
+    assert not (tmp_path / "py.json").exists()
+
+
+def test_a_templates_sensors_left_out_are_said(tmp_path):
+    static = shared_data("subject01_static.trc")
+    template = f"{SOURCE}/config/templates/opensense_gait2354.json"
+    said = "the template's 8 orientation sensors are left out of the config"
+    with pytest.warns(UserWarning, match=re.escape(said)) as warned:
+        config = fabrik.calibrate(template, static)
+    # stacklevel: the warning points at the caller's line, not the module's wrapper
+    assert [w.filename for w in warned if said in str(w.message)] == [__file__]
+    assert "note: " + said in config.calibration_report
+    assert "fabrik calibrate --static-orientations" in config.calibration_report
+    assert '"sensors"' not in config.json

@@ -95,6 +95,24 @@ def test_angles_dataframe(solution):
     assert isinstance(df, pd.DataFrame)
     assert list(df.columns) == solution.angle_names and df.index.name == "time_s"
     assert np.array_equal(df.to_numpy(), solution.angles_deg)
+    # angles only: the pelvis translations are not angles (they are in translations_mm)
+    assert not set(solution.translation_names) & set(df.columns)
+
+
+def test_angles_dataframe_with_translations_is_the_mot(solution, cli_outputs):
+    # `fabrik solve --angles` writes every coordinate; angles_dataframe() left out the three
+    # pelvis translations. translations=True gives the .mot's columns, in its order and units.
+    pytest.importorskip("pandas")
+    mot = fabrik.read_table(cli_outputs / "angles.mot")
+    df = solution.angles_dataframe(translations=True)
+    assert solution.translation_names == ["pelvis_tx", "pelvis_ty", "pelvis_tz"]
+    assert list(df.columns) == mot.names == solution.coordinate_names
+    assert len(df.columns) == len(solution.angle_names) + 3
+    for name in mot.names:
+        np.testing.assert_allclose(df[name].to_numpy(), mot.column(name), rtol=0, atol=0.6e-8)
+    # metres, as the .mot: mm / 1000
+    np.testing.assert_array_equal(df["pelvis_ty"].to_numpy(),
+                                  solution.translations_mm[:, 1] / 1000.0)
 
 
 def test_a_trial_sharing_no_marker_is_refused(tmp_path):

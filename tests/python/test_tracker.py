@@ -163,3 +163,56 @@ def test_dicts_whose_keys_change_between_frames(config, frames):
         a = by_array.track(masked, f / 100)
         assert np.array_equal(d.occluded, a.occluded), f
         assert np.array_equal(d.joints_mm, a.joints_mm), f
+
+
+def test_a_fourth_value_is_the_markers_confidence(config, frames):
+    """As on the daemon's wire: x, y, z, confidence; below confidence.threshold (0.3 by default)
+    the marker is occluded, a confidence of 1 (or more: clamped) is a 3-value marker."""
+    names = config.marker_names
+    n = len(names)
+    three = {nm: tuple(x) for nm, x in zip(names, frames[0])}
+    plain = fabrik.Tracker(config).track(three, 0.0)
+    assert plain.low_confidence_count == 0
+    sure = fabrik.Tracker(config).track({nm: (*x, 1.5) for nm, x in three.items()}, 0.0)
+    assert np.array_equal(sure.joints_mm, plain.joints_mm) and sure.occluded_count == 0
+    # a low confidence occludes the marker as an absent name does
+    doubtful = dict(three, **{names[5]: (*three[names[5]], 0.1)})
+    low = fabrik.Tracker(config).track(doubtful, 0.0)
+    absent = fabrik.Tracker(config).track({k: v for k, v in three.items() if k != names[5]}, 0.0)
+    assert list(np.flatnonzero(low.occluded)) == [5]
+    assert low.occluded_count == 1 and low.low_confidence_count == 1
+    assert np.array_equal(low.joints_mm, absent.joints_mm)
+    # above the threshold the marker is tracked
+    kept = fabrik.Tracker(config).track(dict(three, **{names[5]: (*three[names[5]], 0.5)}), 0.0)
+    assert not kept.occluded[5] and kept.low_confidence_count == 0
+    # a confidence that is not a number's value says nothing: occluded (as the wire's)
+    nan = fabrik.Tracker(config).track(dict(three, **{names[5]: [*three[names[5]], np.nan]}), 0.0)
+    assert nan.occluded[5] and nan.occluded_count == 1
+    # the (markers, 4) array: the same
+    with_ones = np.hstack([frames[0], np.ones((n, 1))])
+    assert np.array_equal(fabrik.Tracker(config).track(with_ones, 0.0).joints_mm, plain.joints_mm)
+    with_low = with_ones.copy()
+    with_low[5, 3] = 0.1
+    by_array = fabrik.Tracker(config).track(with_low, 0.0)
+    assert list(np.flatnonzero(by_array.occluded)) == [5] and by_array.low_confidence_count == 1
+    assert np.array_equal(by_array.joints_mm, low.joints_mm)
+    # a NumPy row of 4 as a dict value
+    row4 = fabrik.Tracker(config).track({nm: with_low[i] for i, nm in enumerate(names)}, 0.0)
+    assert np.array_equal(row4.joints_mm, low.joints_mm)
+
+
+def test_confidence_input_errors(config, frames):
+    tracker = fabrik.Tracker(config)
+    n = len(config.marker_names)
+    with pytest.raises(ValueError, match=rf"shape \({n}, 3\) or \({n}, 4\).*got shape \({n}, 5\)"):
+        tracker.track(np.zeros((n, 5)), 0.0)
+    with pytest.raises(ValueError, match=r"LASI: give x, y, z \(3 numbers, mm\) or x, y, z, "
+                                         r"confidence \(0-1\)"):
+        tracker.track({"LASI": (1, 2, 3, 0.5, 9)}, 0.0)
+    with pytest.raises(ValueError, match="as must a confidence, got 'high'"):
+        tracker.track({"LASI": (1, 2, 3, "high")}, 0.0)
+    # a frame without confidences after one with them: every marker at 1 again
+    names = config.marker_names
+    three = {nm: tuple(x) for nm, x in zip(names, frames[0])}
+    tracker.track({nm: (*x, 0.0) for nm, x in three.items()}, 0.0)
+    assert tracker.track(three, 0.01).occluded_count == 0

@@ -25,6 +25,12 @@ def calibrate(template, static, output=None, *, first_frame=-1, frames=-1, auto_
 
     first_frame (the file's frame number) and frames choose the averaging window; auto_window=N
     the stillest N frames instead. lab_up/lab_forward ("+z", "+x") declare the lab's axes.
+    Marker templates only: a keypoint template ("kind": "keypoints") is a CalibrationError, as
+    the module has no keypoint calibration: run `fabrik calibrate --template T --trial
+    MOVEMENT.trc --output subject.json` and load_config("subject.json"). A template's
+    orientation sensors are left out of the config (the module does not calibrate sensors):
+    said in calibration_report's notes and as a UserWarning.
+
     Releases the GIL. Raises FileNotFoundError, ConfigError/FormatError (ValueErrors) or
     CalibrationError (a RuntimeError: the trial cannot support the template)."""
     # -1 is "not set"; any other value below the least was once taken as not set too, or

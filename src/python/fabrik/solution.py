@@ -44,17 +44,32 @@ class Solution:
     ignored_in_trial: List[str] = field(default_factory=list)
     mostly_missing: List[str] = field(default_factory=list)
     model_markers_mm: np.ndarray = None
+    # Every coordinate in the model's order (the columns of `fabrik solve --angles`).
+    coordinate_names: List[str] = field(default_factory=list)
 
-    def angles_dataframe(self):
-        """The angles (degrees) as a pandas DataFrame indexed by time_s, one column per angle.
-        Needs pandas (imported here, not at `import fabrik`)."""
+    def angles_dataframe(self, translations=False):
+        """The angles (degrees) as a pandas DataFrame indexed by time_s, one column per angle
+        (angle_names): the rotational coordinates only, so every column is in degrees. The
+        translations (pelvis_tx, ...) are in translations_mm (mm, translation_names).
+
+        translations=True: every coordinate, as the .mot of `fabrik solve --angles` has them:
+        its columns in its order (coordinate_names), angles in degrees and translations in
+        metres, as OpenSim's Coordinates files have them. Needs pandas (imported here, not at
+        `import fabrik`)."""
         try:
             import pandas as pd
         except ImportError as e:
             raise ImportError("Solution.angles_dataframe needs pandas "
                               "(Debian: python3-pandas); the arrays need nothing") from e
-        return pd.DataFrame(self.angles_deg, index=pd.Index(self.time_s, name="time_s"),
-                            columns=self.angle_names)
+        index = pd.Index(self.time_s, name="time_s")
+        if not translations:
+            return pd.DataFrame(self.angles_deg, index=index, columns=self.angle_names)
+        columns = {name: self.angles_deg[:, i] for i, name in enumerate(self.angle_names)}
+        for i, name in enumerate(self.translation_names):
+            columns[name] = self.translations_mm[:, i] / 1000.0  # mm -> m, as in the .mot
+        # The .mot's order; a Solution made without coordinate_names: angles, then translations.
+        order = self.coordinate_names or list(columns)
+        return pd.DataFrame({name: columns[name] for name in order}, index=index)
 
 
 def _first_frame_and_time(markers):
