@@ -347,6 +347,45 @@ TEST_CASE("A heading turning through +-180 deg is continuous, from the first fra
         std::numbers::pi + 1e-12);
 }
 
+TEST_CASE(
+    "Flips of about 180 deg back and forth do not walk a heading off by whole turns, and a jump "
+    "that lasts half a second is kept",
+    "[lab_axes][tracker]") {
+  const Turntable t;
+  Tracker tracker(t.setup);
+  const std::vector<std::uint8_t> visible(3, 1);
+  // A left/right swap turns the body about 180 deg for a frame: the reviewer's keypoint trial
+  // read -19, -197, -34, -213, then -28 (principal values), and -388 was written for -28.
+  const std::vector<double> seen_deg{-19, -197, -34, -213, -28, -29, -30};
+  const std::vector<bool> flipped{false, true, false, true, false, false, false};
+  double t_s = 0.0, last_unflipped_deg = NAN;
+  for (std::size_t f = 0; f < seen_deg.size(); ++f, t_s += 0.01) {
+    const double value_deg =
+        tracker.track(t_s, t.at(seen_deg[f] / kDeg), visible).coordinates[0] * kDeg;
+    INFO("frame " << f << ": seen " << seen_deg[f] << ", written " << value_deg);
+    if (!flipped[f]) {
+      CHECK(value_deg == Approx(seen_deg[f]).margin(0.1));  // the truth itself
+      last_unflipped_deg = value_deg;
+    } else {  // a whole-turn equivalent of what was seen, within half a turn of the heading
+      CHECK(std::abs(std::remainder(value_deg - seen_deg[f], 360.0)) < 0.1);
+      CHECK(std::abs(value_deg - last_unflipped_deg) <= 180.0);
+    }
+  }
+  // A jump that lasts (a turn while the markers were away): held off the branch for 0.5 s,
+  // then the branch, so the heading continues from it without a whole turn.
+  const double jumped_deg = -28 + 150;
+  double value_deg = NAN;
+  for (int f = 0; f < 80; ++f, t_s += 0.01)
+    value_deg =
+        tracker.track(t_s, t.at((jumped_deg + 0.5 * f) / kDeg), visible).coordinates[0] * kDeg;
+  CHECK(value_deg == Approx(jumped_deg + 0.5 * 79).margin(0.1));
+  for (int f = 0; f < 100; ++f, t_s += 0.01)  // on through +180: continuous, not wrapped
+    value_deg =
+        tracker.track(t_s, t.at((jumped_deg + 39.5 + 1.0 * f) / kDeg), visible).coordinates[0] *
+        kDeg;
+  CHECK(value_deg == Approx(jumped_deg + 39.5 + 99).margin(0.1));
+}
+
 TEST_CASE("unwrap_coordinates moves rotations by whole turns of their sign, never translations",
           "[lab_axes][angles]") {
   SegmentSpec body;

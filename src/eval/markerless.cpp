@@ -119,10 +119,22 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
     for (std::size_t t = 0; t < nt; ++t)
       if (trial.truth.coordinate_names[t] == s.coordinate_names[c]) matched.emplace_back(c, t);
   }
-  const auto diff_deg = [&](std::size_t f_est, std::size_t f_truth, std::size_t c,
-                              std::size_t t) {
-    return wrap_deg((s.coordinates[f_est * ne + c] - trial.truth.coordinates[f_truth * nt + t]) *
-                    kDegPerRad);
+  // The values as written, less the whole turns between the two series at their first
+  // frame: a labelling matter there, but an estimate that later walks off by whole turns is
+  // wrong in its file and counts (wrapping each frame's difference hid it).
+  std::vector<double> turns_deg(ne, 0.0);
+  for (const auto& [c, t] : matched)
+    for (std::size_t f = 0; f < row.frames; ++f)
+      if (std::isfinite(s.coordinates[f * ne + c])) {
+        const double d_deg =
+            (s.coordinates[f * ne + c] - trial.truth.coordinates[f * nt + t]) * kDegPerRad;
+        turns_deg[c] = d_deg - wrap_deg(d_deg);
+        break;
+      }
+  const auto diff_deg = [&](std::size_t f_est, std::size_t f_truth, std::size_t c, std::size_t t) {
+    return (s.coordinates[f_est * ne + c] - trial.truth.coordinates[f_truth * nt + t]) *
+               kDegPerRad -
+           turns_deg[c];
   };
   double sum_rms = 0.0;
   for (const auto& [c, t] : matched) {

@@ -162,7 +162,8 @@ TrackerCore::TrackerCore(TrackerSetup setup)
       warm_start_(*setup_.model),
       n_(static_cast<int>(setup_.markers.size())),
       mirror_(setup_.outliers, mirror_pairs(setup_)),
-      smoother_(setup_.smoothing, n_) {
+      smoother_(setup_.smoothing, n_),
+      branch_(*setup_.model) {
   const int n_targets = static_cast<int>(solver_.targets().size());
   weight_scale_.assign(n_targets, 1.0);
   input_m_.assign(n_, Eigen::Vector3d::Zero());
@@ -409,7 +410,7 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
   }
   result_.beyond_count = beyond_count;
   coordinate_values(model(), posture_, coordinates_now_);
-  if (coordinates_continue_) unwrap_coordinates(model(), coordinates_, coordinates_now_);
+  branch_.follow(time_s, coordinates_now_, coordinates_continue_);
   std::copy(coordinates_now_.begin(), coordinates_now_.end(), coordinates_.begin());
   coordinates_continue_ = true;
   for (std::size_t s = 0; s < segment_q_.size(); ++s) {

@@ -8,6 +8,7 @@
 #include "solver/posture.hpp"
 #include "solver/warm_start.hpp"
 #include "tracking/cold_start.hpp"
+#include "tracking/coordinate_branch.hpp"
 #include "tracking/fit_quality.hpp"
 #include "tracking/mirror_swap.hpp"
 #include "tracking/one_euro.hpp"
@@ -66,8 +67,8 @@ class TrackerCore {
   std::vector<double> last_seen_s_;
   std::vector<Eigen::Vector3d> joints_m_, markers_m_;
   std::vector<double> coordinates_;
-  std::vector<double> coordinates_now_;  // this frame's, before they are unwrapped
-  bool coordinates_continue_ = false;    // coordinates_ holds the previous frame's
+  std::vector<double> coordinates_now_;  // this frame's, before they are put on their branch
+  bool coordinates_continue_ = false;    // the coordinates continue the previous frame's
   std::vector<Eigen::Quaterniond> segment_q_;
   std::vector<Eigen::Vector3d> segment_origin_m_;
   std::vector<std::uint8_t> occluded_, held_, outlier_, beyond_;
@@ -80,6 +81,7 @@ class TrackerCore {
   std::vector<std::uint8_t> measured_;  // per marker, this frame (outliers included)
   MirrorSwap mirror_;
   OneEuroFilter smoother_;
+  CoordinateBranch branch_;                  // which whole turn each rotation is written on
   std::vector<double> weight_scale_;         // per solver target: the markers' confidences, then 1
   std::vector<Eigen::Vector3d> input_m_;     // [n_]: measured, mirrored swaps undone, unfiltered
   std::vector<Eigen::Vector3d> predicted_m_;  // [n_]: each marker's point in the warm start
