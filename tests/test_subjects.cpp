@@ -130,6 +130,17 @@ TEST_CASE("A daemon config lists subjects, each from its own calibrated config",
     CAPTURE(bad.dump());
     CHECK_THROWS_AS(load_daemon_config_file(dir.write({"Alice"}, bad)), ConfigError);
   }
+  // Names that start alike: a subscriber of pose/Alice would receive pose/Alice2 too.
+  for (const auto& [first, second] : {std::pair{"Alice", "Alice2"}, std::pair{"P12", "P1"}}) {
+    CAPTURE(first, second);
+    CHECK_THROWS_WITH(
+        load_daemon_config_file(dir.write({first, second})),
+        Catch::Contains(std::string("subjects '") + first + "' and '" + second +
+                        "' start alike: a subscriber of pose/" +
+                        (std::string(first).size() < std::string(second).size() ? first : second) +
+                        " would receive both subjects' poses") &&
+            Catch::Contains("not the start of another's"));
+  }
 }
 
 TEST_CASE("Behind a vendor source, every subject is in one lab's axes", "[subjects][lab_axes]") {
@@ -211,6 +222,19 @@ TEST_CASE("A subject's config calibrated from Subject:Marker names tracks that s
     FAIL("a config with Alice:PELVIS_PLATE and PELVIS_PLATE was taken");
   } catch (const ConfigError& e) {
     CHECK_THAT(e.what(), Catch::Contains("'Alice:PELVIS_PLATE' and 'PELVIS_PLATE'"));
+  }
+  // Listed as 'alice' while its targets are 'Alice:X' (a config calibrated from the stream):
+  // the stream's names would reach no subject, and are refused at load, naming the fix.
+  dir.write_file("Alice.json", prefixed_config("Alice:", ""));
+  try {
+    load_daemon_config_file(dir.write_file(
+        "lower.json", json{{"format", "fabrikd-config/1"},
+                           {"subjects", {{{"name", "alice"}, {"config", "Alice.json"}}}}}));
+    FAIL("subject 'alice' with targets 'Alice:X' was taken");
+  } catch (const ConfigError& e) {
+    CHECK_THAT(e.what(), Catch::Contains("subject 'alice' has targets named 'Alice:") &&
+                             Catch::Contains("names are case-sensitive") &&
+                             Catch::Contains("name the subject 'Alice'"));
   }
 }
 
@@ -314,6 +338,33 @@ TEST_CASE("A frame's subject field gives its bare names to that subject only", "
   // Said, as a prefix's unknown subject is (a spelling, "alice" for "Alice", is the usual cause).
   CHECK_THAT(log.find("warning", "frames for subject 'Carol' are not answered"),
              Catch::Contains("not one of the config's 2 subjects"));
+}
+
+TEST_CASE(
+    "Each unknown subject of a frame is logged, however many markers the one before has, "
+    "and a name that is a listed subject's but for case says so",
+    "[subjects][daemon]") {
+  const test::LogCapture log;  // before the daemon: outlives it
+  AliceAndBob two("unknown-subjects");
+  spdlog::default_logger()->set_level(spdlog::level::warn);  // on_inproc's err hides warnings
+  auto [d, c, client, motion, names] = std::tie(two.d, two.c, two.client, two.motion, two.names);
+  const TrackerSetup& bare = default_daemon_config().tracker;
+  // Carol's names sort first (upper case before lower), more of them than the 8 listed.
+  json markers = both_markers(c, motion, 0.0, names, {0, 1});
+  markers = test::subject_markers(bare, motion, 0.0, test::subject_offset_m(2), "Carol:", markers);
+  markers = test::subject_markers(bare, motion, 0.0, test::subject_offset_m(3), "alice:", markers);
+  REQUIRE(markers.size() > 3 * 8);
+  client.send(json{{"frame", two.first + 1}, {"markers", markers}}.dump());
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (log.find("warning", "subject 'alice'").empty() &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::yield();
+  CHECK_THAT(log.find("warning", "subject 'Carol'"),
+             Catch::Contains("is not in the config: ignored"));
+  CHECK_THAT(log.find("warning", "subject 'alice'"),
+             Catch::Contains("is not in the config: ignored (reported once; the config has "
+                             "'Alice': names are case-sensitive)"));
+  CHECK(log.find("warning", "marker 'alice:").empty());  // a subject's, not a marker's
 }
 
 // Sends 80 frames (t = 10 s + 10 ms a frame) of Alice's markers and Bob's,

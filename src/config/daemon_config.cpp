@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <map>
 
+#include "common/ascii_case.hpp"
 #include "endpoint_check.hpp"
 #include "json_reader.hpp"
 #include "lab_axes_json.hpp"
@@ -264,9 +265,18 @@ void read_subjects(const JsonReader& list, const std::string& file,
                         "use 1 to " + std::to_string(kMaxSubjectNameBytes) +
                             " letters, digits, '_', '-' or '.' (it becomes the topic pose/NAME "
                             "and the prefix NAME: of marker names)");
-    for (const SubjectConfig& other : out)
+    for (const SubjectConfig& other : out) {
       if (other.name == s.name)
         e.at("name").fail("subject '" + s.name + "' is listed twice", "give each subject its own name");
+      // ZeroMQ matches topics by prefix: a subscriber of pose/P1 would get pose/P12's poses.
+      if (other.name.starts_with(s.name) || s.name.starts_with(other.name))
+        e.at("name").fail("subjects '" + other.name + "' and '" + s.name +
+                              "' start alike: a subscriber of pose/" +
+                              (s.name.size() < other.name.size() ? s.name : other.name) +
+                              " would receive both subjects' poses (topics match by prefix)",
+                          "give each subject a name that is not the start of another's (P01 "
+                          "and P12, not P1 and P12)");
+    }
     std::filesystem::path path(e.at("config").as_string());
     if (path.is_relative() && file != kEmbeddedDefault)
       path = std::filesystem::path(file).parent_path() / path;
@@ -286,6 +296,17 @@ void read_subjects(const JsonReader& list, const std::string& file,
                               shared + "' and '" + shared + "'",
                           "keep one of them: the stream's '" + s.name + ":" + shared +
                               "' reaches subject " + s.name + " as '" + shared + "'");
+    // A config calibrated from a stream of 'Daphnee:' names listed as 'daphnee': the stream's
+    // names reach no subject, and its other subject's log line could be crowded out.
+    for (const MarkerTarget& m : one.tracker.markers) {
+      const std::size_t colon = m.marker.find(':');
+      const std::string_view prefix = std::string_view(m.marker).substr(0, colon);
+      if (colon != std::string::npos && prefix != s.name && iequals(prefix, s.name))
+        e.at("name").fail("subject '" + s.name + "' has targets named '" + m.marker +
+                              "': the stream's '" + std::string(prefix) +
+                              ":' names would reach no subject (names are case-sensitive)",
+                          "name the subject '" + std::string(prefix) + "', as the stream does");
+    }
     s.file = path.string();
     s.tracker = std::move(one.tracker);
     s.sensors = std::move(one.sensors);

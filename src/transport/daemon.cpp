@@ -19,6 +19,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include "common/ascii_case.hpp"
 #include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "config/endpoint_check.hpp"
@@ -700,10 +701,23 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
     // once per subject, not once per marker.
     for (int k = 0; k < f.unknown_listed; ++k) {
       const std::string& name = f.unknown_names[k];
-      if (other_subject(s, name))
-        report_once(std::string_view(name).substr(0, name.find(':')), "subject");
-      else
+      if (!other_subject(s, name)) {
         report_once(name, "marker");
+        continue;
+      }
+      const std::string_view subject = std::string_view(name).substr(0, name.find(':'));
+      const auto listed =
+          std::find_if(s.subjects.begin(), s.subjects.end(),
+                       [&](const SubjectState& c) { return iequals(c.name, subject); });
+      if (listed == s.subjects.end()) {
+        report_once(subject, "subject");
+      } else if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(subject)) {
+        unknown_seen_.emplace(subject);  // most often a spelling: said with the config's name
+        spdlog::warn(
+            "subject '{}' is not in the config: ignored (reported once; the config has "
+            "'{}': names are case-sensitive)",
+            safe_text(subject, 128), safe_text(listed->name, 128));
+      }
     }
     for (int k = 0; k < f.unknown_sensors_listed; ++k)
       report_once(f.unknown_sensor_names[k], "orientation sensor");

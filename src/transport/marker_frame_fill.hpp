@@ -32,6 +32,14 @@ inline void list_unknown_name(std::vector<std::string>& list, int& listed, std::
   entry.assign(name.data(), std::min(name.size(), entry.capacity()));
 }
 
+// Whether a listed name starts with `prefix` ("X:").
+inline bool listed_prefix(const std::vector<std::string>& list, int listed,
+                          std::string_view prefix) {
+  for (int k = 0; k < listed; ++k)
+    if (std::string_view(list[k]).starts_with(prefix)) return true;
+  return false;
+}
+
 // Marker i's 4th value, as every reader takes it (clamped_confidence); one that is not
 // finite occludes the marker.
 inline void set_confidence(MarkerFrame& out, int i, double confidence) {
@@ -67,8 +75,13 @@ inline int count_marker(MarkerNameIndex& names, std::size_t position, std::strin
     ++out.known_count;
   } else {
     ++out.unknown_count;
-    out.unknown_foreign += names.foreign(name) ? 1 : 0;
-    list_unknown_name(out.unknown_names, out.unknown_listed, name);
+    const bool foreign = names.foreign(name);
+    out.unknown_foreign += foreign ? 1 : 0;
+    // Another subject's names are listed once per subject, so that one subject's many markers
+    // cannot crowd out the next one's (its log line was never written).
+    if (!foreign || !names.has_prefixes() ||
+        !listed_prefix(out.unknown_names, out.unknown_listed, name.substr(0, name.find(':') + 1)))
+      list_unknown_name(out.unknown_names, out.unknown_listed, name);
   }
   return i;
 }

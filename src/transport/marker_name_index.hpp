@@ -45,6 +45,9 @@ class MarkerNameIndex {
            prefixes_.end();
   }
 
+  // Whether some name is "X:...": the index holds subjects' names.
+  bool has_prefixes() const { return !prefixes_.empty(); }
+
   // The name's index, or -1 when it is none of the names.
   int find(std::string_view name) const { return slots_[probe_for(name)]; }
 
