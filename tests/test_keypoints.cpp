@@ -70,6 +70,27 @@ TEST_CASE("exact keypoints of any movement give the template's lengths", "[keypo
   CHECK(k.result.fit_rms_mean_m < 1e-3);
 }
 
+TEST_CASE("a declared up axis far from the keypoints' vertical is noted, a right one is not",
+          "[keypoints][lab_axes]") {
+  const CalibTemplate t = load_template_file(template_path("halpe26"));
+  const tools::KeypointTrial trial = tools::make_keypoint_trial(truth_setup(t), short_trial(), {});
+  const auto up_notes = [&](const Eigen::Vector3d& up) {
+    KeypointCalibrateOptions o;
+    o.lab_axes = LabAxesSpec{up, Eigen::Vector3d::UnitX()};
+    std::vector<std::string> found;
+    for (const std::string& n : calibrate_keypoints(t, trial.keypoints, "y-up", o).result.notes)
+      if (n.find("declared lab up axis") != std::string::npos) found.push_back(n);
+    return found;
+  };
+  CHECK(up_notes(Eigen::Vector3d::UnitY()).empty());  // the trial's own: Y up
+  const std::vector<std::string> z = up_notes(Eigen::Vector3d::UnitZ());
+  REQUIRE(z.size() == 1);
+  CHECK_THAT(z[0],
+             Catch::StartsWith("the declared lab up axis +z is 9") &&
+                 Catch::Contains("deg from the movement's superior direction") &&
+                 Catch::Contains("which is nearest +y. Fix: check the lab axes you declared"));
+}
+
 TEST_CASE("a noisy keypoint's length is flagged wide and corrected for jitter", "[keypoints]") {
   const CalibTemplate t = load_template_file(template_path("halpe26"));
   // 60 s: the median of a distance whose end jitters 25 mm per axis is known to about

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <numbers>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -354,13 +355,10 @@ class Calibrator {
     if (declared) {
       up = declared->up_lab;
       how = "declared " + where;
-      if (has_frames && deg_between(superior, up) > 45.0)
-        r_.notes.push_back("the declared lab up axis " + signed_axis_name(up) + " is " +
-                           fmt("%.0f", deg_between(superior, up)) +
-                           " deg from the static pose's superior direction (the segments' "
-                           "anatomical y axes), which is nearest " +
-                           signed_axis_name(nearest_axis(superior, Eigen::Vector3d::Zero())) +
-                           ". Fix: check the lab axes you declared");
+      if (auto note = declared_up_note(up, superior,
+                                       "the static pose's superior direction (the segments' "
+                                       "anatomical y axes)"))
+        r_.notes.push_back(std::move(*note));
     } else if (has_frames) {
       up = nearest_axis(superior, Eigen::Vector3d::Zero());
       how = "detected from the static trial: up is the lab axis nearest the segments' superior "
@@ -611,6 +609,19 @@ Eigen::Vector3d nearest_lab_axis(const Eigen::Vector3d& v, const Eigen::Vector3d
     if (best.isZero() || v.dot(e) > v.dot(best)) best = e;
   }
   return best;
+}
+
+std::optional<std::string> declared_up_note(const Eigen::Vector3d& up_lab,
+                                            const Eigen::Vector3d& superior_lab,
+                                            const std::string& measured) {
+  if (superior_lab.norm() < 1e-9) return std::nullopt;
+  const double deg = std::atan2(superior_lab.cross(up_lab).norm(), superior_lab.dot(up_lab)) *
+                     180.0 / std::numbers::pi;
+  if (!(deg > 45.0)) return std::nullopt;
+  return "the declared lab up axis " + signed_axis_name(up_lab) + " is " + fmt("%.0f", deg) +
+         " deg from " + measured + ", which is nearest " +
+         signed_axis_name(nearest_lab_axis(superior_lab, Eigen::Vector3d::Zero())) +
+         ". Fix: check the lab axes you declared";
 }
 
 FrameWindow frame_window(const io::MarkerTrial& trial, const std::string& trial_name,

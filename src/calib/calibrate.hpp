@@ -93,6 +93,13 @@ CalibrationResult calibrate(const CalibTemplate& tmpl, const io::MarkerTrial& tr
 // The signed lab axis (+x, -z, ...) nearest v, other than the axis of `except` (zero: any).
 Eigen::Vector3d nearest_lab_axis(const Eigen::Vector3d& v, const Eigen::Vector3d& except);
 
+// A note when a declared up axis is more than 45 deg from the subject's measured superior
+// direction (`superior_lab`, zero: none measured), saying which axis that is nearest;
+// `measured` says what it was measured from. Nothing otherwise.
+std::optional<std::string> declared_up_note(const Eigen::Vector3d& up_lab,
+                                            const Eigen::Vector3d& superior_lab,
+                                            const std::string& measured);
+
 // Frames [first, first + count) (indices) of the trial from --first-frame (the file's frame
 // number; -1: the first) and --frames (-1: to the end). Throws CalibrationError.
 struct FrameWindow {

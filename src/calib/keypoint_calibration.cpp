@@ -271,6 +271,9 @@ class KeypointCalibrator {
       up = declared->up_lab;
       how_ = std::string(o.lab_axes ? "declared with --lab-up/--lab-forward"
                                     : "declared in the template");
+      up_note_ = declared_up_note(up, superior,
+                                  "the movement's superior direction (the keypoints' vertical "
+                                  "segments: trunk, legs)");
     } else if (superior.norm() > 1e-9) {
       up = nearest(superior, Eigen::Vector3d::Zero());
       how_ = "detected from the movement: up is the lab axis nearest the mean direction of the "
@@ -377,6 +380,7 @@ class KeypointCalibrator {
     k.absent_optional = absent_;
     for (const std::string& a : absent_)
       k.result.notes.push_back("optional keypoint '" + a + "' is not in the trial: not tracked");
+    if (up_note_) k.result.notes.push_back(*up_note_);
     return k;
   }
 
@@ -393,6 +397,7 @@ class KeypointCalibrator {
   bool nominal_ = false;
   LabAxesSpec lab_;
   std::string how_;
+  std::optional<std::string> up_note_;  // a declared up axis far from the measured one
 };
 
 }  // namespace
