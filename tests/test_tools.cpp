@@ -494,6 +494,31 @@ TEST_CASE("watch tally: gaps in frame numbers are loss, restarts are not") {
   CHECK(s["last_stats"]["decode_errors"] == 2);
 }
 
+TEST_CASE("watch tally: a pose without a measured marker has no residual, not a perfect one") {
+  WatchTally tally;
+  const auto pose = [](std::uint64_t frame, int count, double rms) {
+    return json{{"frame", frame},
+                {"units", "mm"},
+                {"occluded", json::array()},
+                {"residual", {{"rms", rms}, {"max", rms}, {"worst", nullptr}, {"count", count}}},
+                {"solver", {{"status", "converged"}, {"iterations", 1}, {"solve_us", 5.0}}}};
+  };
+  // An IMU-only stream: every pose's count is 0 (its rms 0).
+  tally.add_pose(pose(1, 0, 0.0), 0.01);
+  tally.add_pose(pose(2, 0, 0.0), 0.02);
+  CHECK_THAT(tally.live_line(0.03), Catch::Contains("rms none (no marker measured)"));
+  json s = tally.summary();
+  CHECK(s["residual"]["rms_mean"].is_null());
+  CHECK(s["residual"]["poses"] == 0);
+  CHECK_THAT(tally.summary_text(), Catch::Contains("residual none: no pose had a measured marker"));
+  // Markers come: the mean is theirs alone, not diluted by the poses before.
+  tally.add_pose(pose(3, 4, 3.0), 0.04);
+  CHECK_THAT(tally.live_line(0.05), Catch::Contains("rms 3.000 max 3.000 mm"));
+  s = tally.summary();
+  CHECK(s["residual"]["rms_mean"].get<double>() == 3.0);
+  CHECK(s["residual"]["poses"] == 1);
+}
+
 // ---- Recordings from other labs: zeros, files without markers, configs that fit nothing ----
 
 namespace {

@@ -76,6 +76,10 @@ void WatchTally::add_pose(const json& pose, double t_s) {
   if (pose.contains("units") && pose["units"].is_string()) units_ = pose["units"];
   const double rms = number_at(pose, "/residual/rms"_json_pointer, 0.0);
   const double max = number_at(pose, "/residual/max"_json_pointer, 0.0);
+  // A pose without a measured marker (an IMU-only stream, a subject out of the volume) has no
+  // residual: its 0 is not a perfect fit. A pose without a count is taken as fitted.
+  const double residual_count = number_at(pose, "/residual/count"_json_pointer, 1.0);
+  const bool fitted = !(residual_count == 0.0);
   const double occluded = pose.contains("occluded") && pose["occluded"].is_array()
                               ? static_cast<double>(pose["occluded"].size())
                               : 0.0;
@@ -96,14 +100,20 @@ void WatchTally::add_pose(const json& pose, double t_s) {
   }
 
   if (pose.contains("angles") && pose["angles"].is_object()) last_angles_ = pose["angles"];
-  rms_sum_ += rms;
-  residual_max_ = std::max(residual_max_, max);
+  if (fitted) {
+    ++fitted_;
+    rms_sum_ += rms;
+    residual_max_ = std::max(residual_max_, max);
+  }
   occluded_sum_ += occluded;
   ++status_[status];
   if (interval_.start_s < 0.0) interval_.start_s = t_s;
   ++interval_.poses;
-  interval_.rms_sum += rms;
-  interval_.max = std::max(interval_.max, max);
+  if (fitted) {
+    ++interval_.fitted;
+    interval_.rms_sum += rms;
+    interval_.max = std::max(interval_.max, max);
+  }
   interval_.occluded_sum += occluded;
   ++interval_.status[status];
 }
@@ -142,10 +152,17 @@ std::string WatchTally::live_line(double t_s) {
   const double span_s = in.start_s >= 0.0 ? t_s - in.start_s : 0.0;
   const double n = static_cast<double>(std::max<std::uint64_t>(in.poses, 1));
   char buf[512];
-  std::snprintf(buf, sizeof buf, "%6.1f Hz  frame %-8llu rms %.3f max %.3f %s  occluded %.1f  |",
+  char residual[96];
+  if (in.fitted > 0)
+    std::snprintf(residual, sizeof residual, "rms %.3f max %.3f %s",
+                  in.rms_sum / static_cast<double>(in.fitted), in.max,
+                  units_.empty() ? "" : units_.c_str());
+  else
+    std::snprintf(residual, sizeof residual, "rms none (no marker measured)");
+  std::snprintf(buf, sizeof buf, "%6.1f Hz  frame %-8llu %s  occluded %.1f  |",
                 span_s > 0.0 ? static_cast<double>(in.poses) / span_s : 0.0,
-                static_cast<unsigned long long>(last_frame_.value_or(0)), in.rms_sum / n, in.max,
-                units_.empty() ? "" : units_.c_str(), in.occluded_sum / n);
+                static_cast<unsigned long long>(last_frame_.value_or(0)), residual,
+                in.occluded_sum / n);
   std::string line = buf;
   line += status_text(in.status);
   if (last_stats_) {
@@ -184,7 +201,11 @@ json WatchTally::summary() const {
   s["loss_ratio"] = expected > 0.0 ? static_cast<double>(missing_frames_) / expected : 0.0;
   s["pose_rate_hz"] = poses_ > 1 && span_s > 0.0 ? static_cast<double>(poses_ - 1) / span_s : 0.0;
   s["units"] = units_.empty() ? json(nullptr) : json(units_);
-  s["residual"] = {{"rms_mean", rms_sum_ / n}, {"max", residual_max_}};
+  // Over the poses with a measured marker; null when none had one.
+  s["residual"] = {
+      {"rms_mean", fitted_ > 0 ? json(rms_sum_ / static_cast<double>(fitted_)) : json(nullptr)},
+      {"max", fitted_ > 0 ? json(residual_max_) : json(nullptr)},
+      {"poses", fitted_}};
   s["occluded_mean"] = occluded_sum_ / n;
   s["status"] = status_;
   s["solve_us"] = {{"p50", quantile(solve_us_, 0.5)},
@@ -206,17 +227,22 @@ std::string WatchTally::summary_text() const {
                   static_cast<unsigned long long>(undecodable_));
     return buf;
   }
+  char residual[160];
+  if (fitted_ > 0)
+    std::snprintf(residual, sizeof residual, "residual rms mean %.3f, max %.3f %s",
+                  rms_sum_ / static_cast<double>(fitted_), residual_max_, units_.c_str());
+  else
+    std::snprintf(residual, sizeof residual, "residual none: no pose had a measured marker");
   char buf[1024];
   std::snprintf(
       buf, sizeof buf,
       "poses %llu (frames %s..%s), %llu missing in %llu gaps (%.3f%% loss), %llu restarts\n"
-      "residual rms mean %.3f, max %.3f %s; occluded %.2f markers per frame\n"
+      "%s; occluded %.2f markers per frame\n"
       "solve_us p50 %.2f p99 %.2f max %.2f; stats messages %llu, undecodable %llu\nstatus:%s\n",
       static_cast<unsigned long long>(poses_), s["first_frame"].dump().c_str(),
       s["last_frame"].dump().c_str(), static_cast<unsigned long long>(missing_frames_),
       static_cast<unsigned long long>(gap_events_), 100.0 * s["loss_ratio"].get<double>(),
-      static_cast<unsigned long long>(restarts_), s["residual"]["rms_mean"].get<double>(),
-      residual_max_, units_.c_str(), s["occluded_mean"].get<double>(),
+      static_cast<unsigned long long>(restarts_), residual, s["occluded_mean"].get<double>(),
       s["solve_us"]["p50"].get<double>(), s["solve_us"]["p99"].get<double>(),
       s["solve_us"]["max"].get<double>(), static_cast<unsigned long long>(stats_count_),
       static_cast<unsigned long long>(undecodable_), status_text(status_).c_str());

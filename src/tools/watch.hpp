@@ -31,6 +31,7 @@ class WatchTally {
  private:
   struct Interval {
     std::uint64_t poses = 0;
+    std::uint64_t fitted = 0;  // poses with a residual: a measured marker (residual.count > 0)
     double rms_sum = 0.0, max = 0.0, occluded_sum = 0.0;
     std::map<std::string, std::uint64_t> status;
     double start_s = -1.0;
@@ -40,6 +41,7 @@ class WatchTally {
   std::optional<std::uint64_t> first_frame_, last_frame_;
   double first_t_s_ = -1.0, last_t_s_ = -1.0;
   double rms_sum_ = 0.0, residual_max_ = 0.0, occluded_sum_ = 0.0;
+  std::uint64_t fitted_ = 0;  // poses with a residual (residual.count > 0)
   std::string units_;
   std::map<std::string, std::uint64_t> status_;
   std::vector<double> solve_us_, latency_us_;
