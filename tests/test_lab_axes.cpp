@@ -371,19 +371,38 @@ TEST_CASE(
       CHECK(std::abs(value_deg - last_unflipped_deg) <= 180.0);
     }
   }
-  // A jump that lasts (a turn while the markers were away): held off the branch for 0.5 s,
-  // then the branch, so the heading continues from it without a whole turn.
+  // A jump that then goes on moving (a turn while the markers were away): written on from the
+  // frame before, through +180 without a whole-turn step, and kept as the branch after 0.5 s.
+  double value_deg = NAN, previous_deg = -28.0, largest_step_deg = 0.0;
   const double jumped_deg = -28 + 150;
-  double value_deg = NAN;
-  for (int f = 0; f < 80; ++f, t_s += 0.01)
+  for (int f = 0; f < 180; ++f, t_s += 0.01) {
     value_deg =
-        tracker.track(t_s, t.at((jumped_deg + 0.5 * f) / kDeg), visible).coordinates[0] * kDeg;
-  CHECK(value_deg == Approx(jumped_deg + 0.5 * 79).margin(0.1));
-  for (int f = 0; f < 100; ++f, t_s += 0.01)  // on through +180: continuous, not wrapped
-    value_deg =
-        tracker.track(t_s, t.at((jumped_deg + 39.5 + 1.0 * f) / kDeg), visible).coordinates[0] *
-        kDeg;
-  CHECK(value_deg == Approx(jumped_deg + 39.5 + 99).margin(0.1));
+        tracker.track(t_s, t.at((jumped_deg + 1.0 * f) / kDeg), visible).coordinates[0] * kDeg;
+    if (f > 0) largest_step_deg = std::max(largest_step_deg, std::abs(value_deg - previous_deg));
+    previous_deg = value_deg;
+  }
+  CHECK(value_deg == Approx(jumped_deg + 179).margin(0.1));  // 301, not -59
+  CHECK(largest_step_deg == Approx(1.0).margin(0.05));
+}
+
+TEST_CASE("Fast real turns at low frame rates are written as turns, not held as swaps",
+          "[lab_axes][tracker]") {
+  const Turntable t;
+  const std::vector<std::uint8_t> visible(3, 1);
+  // 1000 deg/s at 10 Hz (100 deg a frame), 600 deg/s at 5 Hz, 640 at 4 Hz (160 deg a frame:
+  // no swap can be told from that), 200 deg/s at 2 Hz.
+  for (const auto& [rate_hz, deg_per_s] : {std::pair{10.0, 1000.0}, std::pair{5.0, 600.0},
+                                           std::pair{4.0, 640.0}, std::pair{2.0, 200.0}}) {
+    CAPTURE(rate_hz, deg_per_s);
+    Tracker tracker(t.setup);
+    for (int f = 0; f < 12; ++f) {
+      const double truth_deg = 10.0 + deg_per_s / rate_hz * f;
+      const double value_deg =
+          tracker.track(f / rate_hz, t.at(truth_deg / kDeg), visible).coordinates[0] * kDeg;
+      INFO("frame " << f);
+      CHECK(value_deg == Approx(truth_deg).margin(0.1));
+    }
+  }
 }
 
 TEST_CASE("unwrap_coordinates moves rotations by whole turns of their sign, never translations",

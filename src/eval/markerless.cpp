@@ -124,13 +124,14 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
   // wrong in its file and counts (wrapping each frame's difference hid it).
   std::vector<double> turns_deg(ne, 0.0);
   for (const auto& [c, t] : matched)
-    for (std::size_t f = 0; f < row.frames; ++f)
-      if (std::isfinite(s.coordinates[f * ne + c])) {
-        const double d_deg =
-            (s.coordinates[f * ne + c] - trial.truth.coordinates[f * nt + t]) * kDegPerRad;
+    for (std::size_t f = 0; f < row.frames; ++f) {
+      const double d_deg =
+          (s.coordinates[f * ne + c] - trial.truth.coordinates[f * nt + t]) * kDegPerRad;
+      if (std::isfinite(d_deg)) {
         turns_deg[c] = d_deg - wrap_deg(d_deg);
         break;
       }
+    }
   const auto diff_deg = [&](std::size_t f_est, std::size_t f_truth, std::size_t c, std::size_t t) {
     return (s.coordinates[f_est * ne + c] - trial.truth.coordinates[f_truth * nt + t]) *
                kDegPerRad -

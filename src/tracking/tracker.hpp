@@ -66,9 +66,10 @@ struct TrackResult {
   int worst_marker = -1;        ///< index into the setup's markers, -1 if none measured
   /// Per Model::coordinates: joint angles (radians) and translations (metres).
   /// Rotations are continuous over frames: principal values on the first frame and
-  /// after reset() or a clock that went back; after that the 2 pi-equivalent nearest
-  /// the last value reached by a step of at most 90 deg (a frame jumping further, as a
-  /// left/right swap turns the pelvis 180 deg, does not move that reference for 0.5 s).
+  /// after reset() or a clock that went back; after that the 2 pi-equivalent nearest the
+  /// last value reached by a step a body can make (a frame jumping further, as a left/right
+  /// swap turns the pelvis 180 deg, is written nearest the frame before and does not move
+  /// that reference for 0.5 s).
   std::span<const double> coordinates;
   /// Per segment: its anatomical frame's world rotation, and its base (origin) in the world.
   std::span<const Eigen::Quaterniond> segment_q_world;
