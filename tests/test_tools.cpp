@@ -1240,6 +1240,9 @@ TEST_CASE("A command line fabrik cannot take exits 2 and says what was wrong, he
       {{"solve", "--input", kSourceDir + "/config/default.json", "--output", "o.csv", "--filter-hz",
         "nan"},
        "--filter-hz: 'nan' is not a number"},
+      {{"solve", "--input", kSourceDir + "/config/default.json", "--output", "o.csv", "--filter-hz",
+        "abc"},
+       "--filter-hz: 'abc' is not a number"},  // was "Value abc not in range 0.000000 to ..."
       {{"replay", kSourceDir + "/config/default.json", "--frames", "-1"},
        "--frames: '-1' is below 0"},
       {{"calibrate", "--template", "t.json", "--static", "s.trc", "--output", "o.json",
@@ -1973,7 +1976,7 @@ TEST_CASE("fabrik solve takes samples beyond input.max_abs_coordinate_mm as miss
 // ---- Orientation tables (OpenSense .sto) in fabrik solve ----
 
 TEST_CASE(
-    "An orientation table's bad cell is missing for its sensor only; time going back is "
+    "An orientation table's bad cell is missing for its sensor only, a time going back is "
     "refused") {
   TempFile sto(".sto"), back(".sto"), numbers(".mot");
   const std::string header = "DataRate=100\nDataType=Quaternion\nversion=3\nendheader\n";
@@ -2009,6 +2012,18 @@ TEST_CASE(
   CHECK(t.covers(0.055));
   CHECK_FALSE(t.covers(0.0551));
   CHECK_FALSE(t.covers(NAN));
+
+  // A first row whose first cell is "nan" (a sensor not streaming yet): the table's cells are
+  // quaternions all the same (its DataType says so), that cell missing.
+  TempFile late_start(".sto");
+  std::ofstream(late_start.path()) << header
+                                   << "time\ta_imu\tb_imu\n0\tnan\t1,0,0,0\n"
+                                      "0.01\t1,0,0,0\t1,0,0,0\n";
+  const fabrik::io::OrientationTable l = fabrik::io::read_orientation_table(late_start.path());
+  REQUIRE(l.rows() == 2);
+  CHECK_FALSE(l.at(0, 0).coeffs().allFinite());
+  CHECK(l.at(0, 1).w() == 1.0);
+  CHECK(l.at(1, 0).w() == 1.0);
 
   // Two rows swapped (lines 7 and 8), as the TRC reader refuses them.
   std::ofstream(back.path()) << header
@@ -2091,6 +2106,40 @@ TEST_CASE(
     CHECK(r["orientations"]["sensors_missing_in_table"] == json::array({"calcn_l_imu"}));
     CHECK(r["orientations"]["table_columns_not_used"] == json::array({"foo_imu"}));
   }
+  SECTION("a configured sensor whose column has no usable cell is missing too") {
+    // calcn_l_imu's column kept, every cell of it "nan" (a sensor that never streamed).
+    std::istringstream in(placement_rows(100, 0.0));
+    std::string out, line;
+    std::size_t column = 0;
+    bool table = false;
+    while (std::getline(in, line)) {
+      std::vector<std::string> fields;
+      std::istringstream cells(line);
+      for (std::string f; std::getline(cells, f, '\t');) fields.push_back(f);
+      if (table && column == 0) {
+        column = static_cast<std::size_t>(std::find(fields.begin(), fields.end(), "calcn_l_imu") -
+                                          fields.begin());
+        REQUIRE(column < fields.size());
+      } else if (table) {
+        fields[column] = "nan,nan,nan,nan";
+      }
+      table = table || line == "endheader";
+      for (std::size_t k = 0; k < fields.size(); ++k) out += (k ? "\t" : "") + fields[k];
+      out += "\n";
+    }
+    TempFile silent(".sto");
+    std::ofstream(silent.path()) << out;
+    const auto [code, err] =
+        run_fabrik({"solve", "--config", config.path(), "--orientations", silent.path(), "--output",
+                    joints.path(), "--report", report.path(), "--quiet"},
+                   text.path());
+    CAPTURE(err);
+    REQUIRE(code == 0);
+    CHECK_THAT(slurp(text.path()),
+               Catch::Contains("not in the table   1 of 8 configured sensors (calcn_l_imu)"));
+    const json r = json::parse(slurp(report.path()));
+    CHECK(r["orientations"]["sensors_missing_in_table"] == json::array({"calcn_l_imu"}));
+  }
   SECTION("a table beside the marker trial in time is refused, one covering part is warned") {
     const auto [code, err] =
         run_fabrik({"solve", "--config", config.path(), "--input", static_trc, "--orientations",
@@ -2113,5 +2162,12 @@ TEST_CASE(
                                          ": 240 of 300 marker frames fall outside its time "
                                          "span") &&
                              Catch::Contains("they are tracked without orientations"));
+    // fabrik replay joins them the same way: refused before it streams anything.
+    const auto [replay_code, replay_err] =
+        run_fabrik({"replay", static_trc, "--orientations", late.path(), "--to",
+                    "ipc://" + (fs::temp_directory_path() / "fabrik-late-replay").string()});
+    CHECK(replay_code == 2);
+    CHECK_THAT(replay_err, Catch::Contains(late.path() + ": no marker frame falls within its "
+                                                         "time span"));
   }
 }

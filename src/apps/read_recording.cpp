@@ -4,8 +4,8 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "common/format_number.hpp"
 #include "common/safe_text.hpp"
+#include "config/closest_names.hpp"
 
 namespace fabrik::apps {
 
@@ -16,12 +16,6 @@ void print_warnings(const std::string& command, const std::string& path,
     std::fprintf(stderr, "fabrik %s: warning: %s: %s\n", command.c_str(), safe_lines(path).c_str(),
                  safe_lines(w).c_str());
   }
-}
-
-std::string name_list(const std::vector<std::string>& names) {
-  std::string s;
-  for (std::size_t i = 0; i < names.size() && i < 12; ++i) s += (i ? ", " : "") + names[i];
-  return s + (names.size() > 12 ? ", ..." : "");
 }
 
 io::MarkerTrial read_trial_or_explain(const std::string& command, const std::string& path,
@@ -48,7 +42,7 @@ io::OrientationTable read_orientations_or_explain(const std::string& command,
                    [&](const std::string& n) { return table.find(n) >= 0; }))
     throw std::runtime_error(path + ": shares none of the " + std::to_string(names.size()) +
                              " sensor names of " + config.file + ".\n  config: " +
-                             name_list(names) + "\n  file:   " + name_list(table.sensors) +
+                             name_list(names, 12) + "\n  file:   " + name_list(table.sensors, 12) +
                              "\nFix: use a config calibrated for these sensors");
   return table;
 }
@@ -56,29 +50,9 @@ io::OrientationTable read_orientations_or_explain(const std::string& command,
 void require_time_overlap(const std::string& command, const io::MarkerTrial& trial,
                           const std::string& trial_path, const io::OrientationTable& table,
                           const std::string& table_path) {
-  const std::size_t frames = trial.frames();
-  if (frames == 0 || table.rows() == 0) return;
-  std::size_t outside = 0;
-  for (std::size_t f = 0; f < frames; ++f)
-    if (!table.covers(trial.file_time_s(f))) ++outside;
-  if (outside == 0) return;
-  const auto span = [](double first_s, double last_s) {
-    return format_number("%.9g", first_s) + " to " + format_number("%.9g", last_s) + " s";
-  };
-  const std::string spans = "the markers (" + trial_path + ") span " +
-                            span(trial.file_time_s(0), trial.file_time_s(frames - 1)) +
-                            ", the orientations " + span(table.time_s.front(), table.time_s.back());
-  // Joined on time, a table beside the trial would leave every frame without orientations:
-  // a markers-only result that looks like a joined one.
-  if (outside == frames)
-    throw std::runtime_error(
-        table_path + ": no marker frame falls within its time span: " + spans +
-        ". Fix: give the orientations recorded with this trial, or make the table's time "
-        "column count from the same start as the trial's (the two are joined on their times)");
-  print_warnings(command, table_path,
-                 {std::to_string(outside) + " of " + std::to_string(frames) +
-                  " marker frames fall outside its time span (" + spans +
-                  "): they are tracked without orientations"});
+  std::vector<std::string> warnings;
+  io::check_time_overlap(trial, trial_path, table, table_path, warnings);
+  print_warnings(command, table_path, warnings);
 }
 
 }  // namespace fabrik::apps

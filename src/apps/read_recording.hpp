@@ -29,9 +29,6 @@ void require_time_overlap(const std::string& command, const io::MarkerTrial& tri
                           const std::string& trial_path, const io::OrientationTable& table,
                           const std::string& table_path);
 
-// Names for a message: "a, b, c", the first 12 and ", ..." beyond them.
-std::string name_list(const std::vector<std::string>& names);
-
 // The reader's warnings on stderr, one line each.
 void print_warnings(const std::string& command, const std::string& path,
                     const std::vector<std::string>& warnings);

@@ -10,6 +10,7 @@
 #include "common/ascii_case.hpp"
 #include "common/device_path.hpp"
 #include "common/safe_text.hpp"
+#include "config/closest_names.hpp"
 #include "io/output_file.hpp"
 #include "offline/marker_match.hpp"
 #include "offline/prefilter.hpp"
@@ -192,7 +193,7 @@ void run(const SolveOptions& o) {
           "not in the table   %zu of %zu configured sensors (%s): no orientation for "
           "their segments\n",
           s.sensors_missing_in_table.size(), config.tracker.sensors.sensors.size(),
-          safe_lines(name_list(s.sensors_missing_in_table)).c_str());
+          safe_lines(name_list(s.sensors_missing_in_table, 12)).c_str());
     if (!s.ignored_in_table.empty())
       std::printf("not tracked        %zu table columns (%s...)\n", s.ignored_in_table.size(),
                   s.ignored_in_table.front().c_str());

@@ -176,7 +176,9 @@ OpenSimTable read_opensim_table(const std::string& path, const OpenSimReadOption
   }
   if (t.columns.empty()) throw FormatError(path, "no column labels after 'endheader'");
 
-  std::size_t width = 0;
+  // A quaternion table says so: its cells are 4 wide before any is read, so a first row whose
+  // cell is "nan" or empty is a missing cell (or a row left out), not the table's width.
+  std::size_t width = t.header_value("DataType") == "Quaternion" ? 4 : 0;
   double previous_s = 0.0;
   std::size_t bad_rows = 0, first_bad = 0, unordered_rows = 0, first_unordered = 0;
   std::size_t back_rows = 0, first_back = 0, line_before_back = 0, previous_line = 0;

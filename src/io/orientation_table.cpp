@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "common/ascii_case.hpp"
+#include "common/format_number.hpp"
 #include "io/marker_trial.hpp"
 #include "io/opensim_table.hpp"
 
@@ -96,6 +97,34 @@ OrientationTable read_orientation_table(const std::string& path) {
                          " quaternions are not finite or not of unit length (within 0.01): "
                          "missing for their sensor only");
   return t;
+}
+
+void check_time_overlap(const MarkerTrial& trial, const std::string& trial_path,
+                        const OrientationTable& table, const std::string& table_path,
+                        std::vector<std::string>& warnings) {
+  const std::size_t frames = trial.frames();
+  if (frames == 0 || table.rows() == 0) return;
+  std::size_t outside = 0;
+  for (std::size_t f = 0; f < frames; ++f)
+    if (!table.covers(trial.file_time_s(f))) ++outside;
+  if (outside == 0) return;
+  const auto span = [](double first_s, double last_s) {
+    return format_number("%.9g", first_s) + " to " + format_number("%.9g", last_s) + " s";
+  };
+  const std::string spans = "the markers (" + trial_path + ") span " +
+                            span(trial.file_time_s(0), trial.file_time_s(frames - 1)) +
+                            ", the orientations " + span(table.time_s.front(), table.time_s.back());
+  // Joined on time, a table beside the trial would leave every frame without orientations:
+  // a markers-only result that looks like a joined one.
+  if (outside == frames)
+    throw FormatError(table_path,
+                      "no marker frame falls within its time span: " + spans +
+                          ". Fix: give the orientations recorded with this trial, or make the "
+                          "table's time column count from the same start as the trial's (the "
+                          "two are joined on their times)");
+  warnings.push_back(std::to_string(outside) + " of " + std::to_string(frames) +
+                     " marker frames fall outside its time span (" + spans +
+                     "): they are tracked without orientations");
 }
 
 }  // namespace fabrik::io

@@ -48,6 +48,13 @@ struct OrientationTable {
 // 0.01 reads as missing for its sensor only, the row kept, with a warning.
 OrientationTable read_orientation_table(const std::string& path);
 
+// Joined on time with `trial` (each marker frame takes the table's orientations at its file
+// time, OrientationTable::covers): a FormatError (table_path first) when no frame falls within
+// the table's span, naming both spans; a warning in `warnings` when some frames do not.
+void check_time_overlap(const MarkerTrial& trial, const std::string& trial_path,
+                        const OrientationTable& table, const std::string& table_path,
+                        std::vector<std::string>& warnings);
+
 // True if the file's name ends in .sto (any case): an OpenSim table rather than markers.
 bool is_sto_file(const std::string& path);
 

@@ -16,7 +16,8 @@ RecordingInfo inspect_recording(const std::string& path) {
   info.path = path;
   if (ext == ".sto" || ext == ".mot") {
     info.kind = "table";
-    info.table = read_opensim_table(path, {.refuse_time_back = false});
+    // Described as they are used (a bad cell is missing, its row kept: orientation tables).
+    info.table = read_opensim_table(path, {.bad_cells_missing = true, .refuse_time_back = false});
     return info;
   }
   if (ext != ".trc" && ext != ".c3d") {

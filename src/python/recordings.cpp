@@ -63,7 +63,8 @@ py::dict read_table(const std::string& path) {
   io::OpenSimTable t;
   {
     py::gil_scoped_release unlocked;
-    t = io::read_opensim_table(path);
+    // Described as fabrik info describes it: a bad cell NaN (its row kept), a time going back said.
+    t = io::read_opensim_table(path, {.bad_cells_missing = true, .refuse_time_back = false});
   }
   if (t.columns.empty()) throw io::FormatError(path, "no column labels (time first)");
   const auto rows = static_cast<py::ssize_t>(t.rows);

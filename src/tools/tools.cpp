@@ -99,6 +99,13 @@ void add_replay_command(CLI::App& app) {
         for (const std::string& w : table.warnings)
           std::fprintf(stderr, "fabrik replay: warning: %s: %s\n",
                        safe_lines(a->orientations).c_str(), safe_lines(w).c_str());
+        if (!a->file.empty()) {
+          std::vector<std::string> overlap;
+          io::check_time_overlap(trial, a->file, table, a->orientations, overlap);
+          for (const std::string& w : overlap)
+            std::fprintf(stderr, "fabrik replay: warning: %s: %s\n",
+                         safe_lines(a->orientations).c_str(), safe_lines(w).c_str());
+        }
         o.orientations = &table;
         std::fprintf(stderr, "replay: %s: %zu rows x %zu sensors at %g Hz%s\n",
                      safe_lines(a->orientations).c_str(), table.rows(), table.sensors.size(),
