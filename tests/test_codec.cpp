@@ -55,6 +55,34 @@ Measurements rest_measurements(const Tracker& tracker, const Eigen::Vector3d& of
 
 }  // namespace
 
+TEST_CASE(
+    "Another subject's unknown names are listed once per subject beside a multi-subject "
+    "config's names only",
+    "[codec]") {
+  const std::vector<std::string> names{"Alice:A", "Alice:B"};
+  // Bob's 9 markers, then Carol's one (JSON objects keep their order here: Bob first).
+  std::string p = R"({"frame": 1, "markers": {"Alice:A": [1, 2, 3])";
+  for (int k = 0; k < 9; ++k) p += R"(, "Bob:M)" + std::to_string(k) + R"(": [1, 2, 3])";
+  p += R"(, "Carol:A": [1, 2, 3]}})";
+  std::string err;
+  for (const bool of_subjects : {false, true}) {
+    CAPTURE(of_subjects);
+    MarkerDecoder d(names, 1e-3, 1 << 20);
+    d.set_of_subjects(of_subjects);
+    MarkerFrame f = d.make_frame();
+    REQUIRE(d.decode(bytes(p), f, err));
+    CHECK(f.unknown_count == 10);
+    CHECK(f.unknown_foreign == 10);
+    std::vector<std::string> listed(f.unknown_names.begin(),
+                                    f.unknown_names.begin() + f.unknown_listed);
+    if (of_subjects)  // one name a subject: Carol's is not crowded out by Bob's
+      CHECK(listed == std::vector<std::string>{"Bob:M0", "Carol:A"});
+    else  // one subject's config with prefixed names: every name, up to the list's 8
+      CHECK(listed == std::vector<std::string>{"Bob:M0", "Bob:M1", "Bob:M2", "Bob:M3", "Bob:M4",
+                                               "Bob:M5", "Bob:M6", "Bob:M7"});
+  }
+}
+
 TEST_CASE("A JSON marker frame decodes into metres, in tracker order", "[codec]") {
   MarkerDecoder d(kNames, 1e-3, 1 << 20);
   MarkerFrame f = d.make_frame();

@@ -296,8 +296,8 @@ void read_subjects(const JsonReader& list, const std::string& file,
                               shared + "' and '" + shared + "'",
                           "keep one of them: the stream's '" + s.name + ":" + shared +
                               "' reaches subject " + s.name + " as '" + shared + "'");
-    // A config calibrated from a stream of 'Daphnee:' names listed as 'daphnee': the stream's
-    // names reach no subject, and its other subject's log line could be crowded out.
+    // Listed as 'daphnee', targets named 'Daphnee:X' (calibrated from the stream's names) are
+    // reached by no name of the stream: names are case-sensitive.
     for (const MarkerTarget& m : one.tracker.markers) {
       const std::size_t colon = m.marker.find(':');
       const std::string_view prefix = std::string_view(m.marker).substr(0, colon);

@@ -406,6 +406,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   std::sort(s->marker_names.begin(), s->marker_names.end());
   s->decoder = std::make_unique<MarkerDecoder>(names, config.input_m_per_unit,
                                                config.max_payload_bytes, plausible, sensor_names);
+  s->decoder->set_of_subjects(!config.subjects.empty());
   s->frame = s->decoder->make_frame();
   s->waiting.resize(static_cast<std::size_t>(config.max_backlog_frames));
   s->received_at.resize(s->waiting.size());
@@ -690,12 +691,15 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
     publish_subjects(f, only, received, decode_start);
   try {
     // Look up first: only a name not seen before costs an allocation.
+    const auto first_time = [&](std::string_view name) {
+      if (unknown_seen_.size() >= kMaxUnknownLogged || unknown_seen_.contains(name)) return false;
+      unknown_seen_.emplace(name);
+      return true;
+    };
     const auto report_once = [&](std::string_view name, const char* what) {
-      if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(name)) {
-        unknown_seen_.emplace(name);
+      if (first_time(name))
         spdlog::warn("{} '{}' is not in the {}: ignored (reported once)", what,
                      safe_text(name, 128), *what == 'm' ? "model" : "config");
-      }
     };
     // Another subject's markers (another fabrikd's, in a split): reported
     // once per subject, not once per marker.
@@ -711,8 +715,7 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
                        [&](const SubjectState& c) { return iequals(c.name, subject); });
       if (listed == s.subjects.end()) {
         report_once(subject, "subject");
-      } else if (unknown_seen_.size() < kMaxUnknownLogged && !unknown_seen_.contains(subject)) {
-        unknown_seen_.emplace(subject);  // most often a spelling: said with the config's name
+      } else if (first_time(subject)) {  // most often a spelling: said with the config's name
         spdlog::warn(
             "subject '{}' is not in the config: ignored (reported once; the config has "
             "'{}': names are case-sensitive)",

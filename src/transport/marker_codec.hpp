@@ -100,6 +100,9 @@ class MarkerDecoder {
   bool decode(std::span<const std::uint8_t> payload, MarkerFrame& out, std::string& error) const;
   int index_of(const std::string& name) const;
 
+  // The names are a multi-subject config's: see MarkerNameIndex::of_subjects.
+  void set_of_subjects(bool on) { index_.set_of_subjects(on); }
+
   // Off: every payload goes through the full reader (tests compare the two).
   void set_fast_path(bool on) { fast_path_ = on, fast_skip_ = 0; }
   // Payloads a fast path (JSON or MessagePack) decoded, not declined, since construction.

@@ -77,9 +77,9 @@ inline int count_marker(MarkerNameIndex& names, std::size_t position, std::strin
     ++out.unknown_count;
     const bool foreign = names.foreign(name);
     out.unknown_foreign += foreign ? 1 : 0;
-    // Another subject's names are listed once per subject, so that one subject's many markers
-    // cannot crowd out the next one's (its log line was never written).
-    if (!foreign || !names.has_prefixes() ||
+    // Beside a multi-subject config's subjects, another subject's names are listed once per
+    // subject, so that one subject's many markers cannot take every slot of the list.
+    if (!foreign || !names.of_subjects() ||
         !listed_prefix(out.unknown_names, out.unknown_listed, name.substr(0, name.find(':') + 1)))
       list_unknown_name(out.unknown_names, out.unknown_listed, name);
   }

@@ -45,8 +45,10 @@ class MarkerNameIndex {
            prefixes_.end();
   }
 
-  // Whether some name is "X:...": the index holds subjects' names.
-  bool has_prefixes() const { return !prefixes_.empty(); }
+  // Whether the names are a multi-subject config's (SUBJECT:Marker for each listed subject):
+  // another subject's unknown names are then listed once per subject (see count_marker).
+  bool of_subjects() const { return of_subjects_; }
+  void set_of_subjects(bool on) { of_subjects_ = on; }
 
   // The name's index, or -1 when it is none of the names.
   int find(std::string_view name) const { return slots_[probe_for(name)]; }
@@ -83,7 +85,8 @@ class MarkerNameIndex {
   std::vector<int> slots_;  // index into names_, -1 empty
   std::size_t mask_ = 0;
   std::vector<int> previous_;  // the index (or -1) of the name at each position of the last frame
-  std::vector<std::string> prefixes_;  // the names' distinct "X:" (subjects' prefixes)
+  std::vector<std::string> prefixes_;
+  bool of_subjects_ = false;  // the names' distinct "X:" (subjects' prefixes)
 };
 
 }  // namespace fabrik::wire
