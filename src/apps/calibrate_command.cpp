@@ -101,12 +101,12 @@ void run_calibrate(const CalibrateArgs& a) {
   const bool keypoints = tmpl.kind == calib::TemplateKind::keypoints;
   if (keypoints == !a.static_path.empty())
     throw std::runtime_error(
-        a.template_path +
-        (keypoints ? " is a keypoint template: it calibrates from a movement trial or its "
-                     "nominal lengths. Fix: give --trial or --nominal instead of --static"
-                   : std::string(" is a marker template: it calibrates from a static trial. Fix: "
-                                 "give --static instead of ") +
-                         (a.nominal ? "--nominal" : "--trial")));
+        keypoints ? calib::keypoint_template_not_static(a.template_path) +
+                        ". Fix: give --trial or --nominal instead of --static"
+                  : a.template_path +
+                        " is a marker template: it calibrates from a static trial. Fix: give "
+                        "--static instead of " +
+                        (a.nominal ? "--nominal" : "--trial"));
   calib::CalibrateOptions options = a.options;
   if (!a.lab_up.empty()) {
     const nlohmann::json axes = a.lab_forward.empty()
@@ -155,9 +155,8 @@ void run_calibrate(const CalibrateArgs& a) {
     const Model model = load_model(nlohmann::json::parse(r.model.dump()), "<calibrated model>");
     sensors = calibrated_sensors(tmpl.sensors, model, a.orientations_path, r.config);
   } else if (!tmpl.sensors.entries.empty()) {
-    sensors = "\nnote: the template's " + std::to_string(tmpl.sensors.entries.size()) +
-              " orientation sensors are left out of the config: calibrate them with "
-              "--static-orientations\n";
+    sensors = "\nnote: " + calib::sensors_left_out(tmpl.sensors.entries.size()) +
+              ": calibrate them with --static-orientations\n";
   }
   const DaemonConfig written = write_config(r.config, a.output_path);
   std::cout << calib::calibration_report(r) << sensors << "Wrote " << a.output_path

@@ -494,6 +494,16 @@ CalibTemplate load_template(const nlohmann::json& doc, const std::string& file) 
   return std::move(l.t);
 }
 
+std::string keypoint_template_not_static(const std::string& template_path) {
+  return template_path +
+         " is a keypoint template: it calibrates from a movement trial or its nominal lengths";
+}
+
+std::string sensors_left_out(std::size_t sensors) {
+  return "the template's " + std::to_string(sensors) +
+         " orientation sensors are left out of the config";
+}
+
 CalibTemplate load_template_file(const std::string& path) {
   return load_template(JsonReader::parse_file(path), path);
 }

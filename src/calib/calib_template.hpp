@@ -129,6 +129,13 @@ struct CalibTemplate {
 CalibTemplate load_template(const nlohmann::json& doc, const std::string& file);
 CalibTemplate load_template_file(const std::string& path);
 
+// What a keypoint template given a static trial is told (each caller adds its fix):
+// "PATH is a keypoint template: it calibrates from a movement trial or its nominal lengths".
+std::string keypoint_template_not_static(const std::string& template_path);
+// The note of a calibration that leaves a template's orientation sensors out (each caller adds
+// how to calibrate them): "the template's N orientation sensors are left out of the config".
+std::string sensors_left_out(std::size_t sensors);
+
 // The regression's hip joint centre in the pelvis frame of the regression
 // (origin at the mid-ASIS, x anterior, y superior, z to the right), metres.
 // pelvic_width_m: ASIS to ASIS; pelvic_depth_m: mid-ASIS to the posterior

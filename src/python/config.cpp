@@ -75,9 +75,8 @@ Config config_from_state(const py::tuple& state) {
 // What `fabrik calibrate --template K --static S` says for a keypoint template, with the way
 // out from Python: there is none in the module (no movement-trial calibration bound).
 std::string keypoint_template_refusal(const std::string& template_path) {
-  return template_path +
-         " is a keypoint template: it calibrates from a movement trial or its nominal lengths, "
-         "not from a static trial, and fabrik.calibrate calibrates marker templates only (the "
+  return calib::keypoint_template_not_static(template_path) +
+         ", not from a static trial, and fabrik.calibrate calibrates marker templates only (the "
          "Python module has no keypoint calibration). Fix: fabrik calibrate --template " +
          template_path +
          " --trial MOVEMENT.trc --output subject.json (or --nominal instead of --trial), then "
@@ -87,9 +86,9 @@ std::string keypoint_template_refusal(const std::string& template_path) {
 // The template's orientation sensors are not in the config fabrik.calibrate makes (the module
 // does not calibrate sensors): said as the CLI says it, with the CLI's way to add them.
 std::string sensors_left_out_note(std::size_t sensors) {
-  return "the template's " + std::to_string(sensors) +
-         " orientation sensors are left out of the config: fabrik.calibrate does not calibrate "
-         "sensors; calibrate them with `fabrik calibrate --static-orientations`";
+  return calib::sensors_left_out(sensors) +
+         ": fabrik.calibrate does not calibrate sensors; calibrate them with `fabrik calibrate "
+         "--static-orientations`";
 }
 
 Config calibrate(const std::string& template_path, const std::string& static_path,

@@ -36,7 +36,8 @@ CLI::Validator range(T lo, T hi) {
       [inner](std::string& text) -> std::string {
         if constexpr (std::is_floating_point_v<T>) {
           T value{};
-          if (CLI::detail::lexical_cast(text, value) && std::isnan(value))
+          // CLI11's Range said "Value abc not in range 0.000000 to 1000000.000000".
+          if (!CLI::detail::lexical_cast(text, value) || std::isnan(value))
             return "'" + text + "' is not a number";
         }
         return inner(text);
