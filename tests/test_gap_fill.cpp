@@ -235,6 +235,29 @@ TEST_CASE("The offline fill blends both sides: continuous at both ends of the ga
   CHECK(fill.gaps.size() == hand_markers);  // a never-measured marker has no gap to fill
 }
 
+TEST_CASE(
+    "The offline fill fills one marker's edge gap from the others, not frames where no "
+    "marker is measured",
+    "[gaps]") {
+  Recording r = recording(2.0, true);
+  const int hand = segment_named(*r.model, "r_hand");
+  // The hand's markers hidden for the first 30 frames (the others seen: a one-sided fill), and
+  // every marker hidden in the first 10 and the last 10 frames (nothing to fill from).
+  std::vector<std::uint8_t> visible = hide_segment(r, hand, 0, 30);
+  for (std::size_t f = 0; f < r.frames; ++f)
+    if (f < 10 || f + 10 >= r.frames)
+      for (std::size_t i = 0; i < r.n; ++i) visible[f * r.n + i] = 0;
+  const TwoSidedFill fill = fill_two_sided(r.setup, r.times_s, r.measured_m, visible);
+  for (std::size_t f = 0; f < r.frames; ++f)
+    for (std::size_t i = 0; i < r.n; ++i) {
+      const std::size_t k = f * r.n + i;
+      const bool empty_edge = f < 10 || f + 10 >= r.frames;
+      INFO("frame " << f << ", marker " << i);
+      CHECK(fill.filled[k] == (!empty_edge && !visible[k] ? 1 : 0));
+      CHECK(fill.markers_m[k].allFinite() == !empty_edge);
+    }
+}
+
 TEST_CASE("The offline fill lets the skeleton compete only where two more markers of the "
           "segment hold it through the gap",
           "[gaps][donors]") {

@@ -597,6 +597,55 @@ TEST_CASE("solve summary leaves frames without markers out of the residual and c
   CHECK(mostly[1]["missing_frames"] == 120 + 0);  // frames 50-79 lie inside the first 120
 }
 
+TEST_CASE(
+    "fabrik solve --report carries the file readers' warnings, for a batch that reads no stderr") {
+  MarkerTrial trial = default_model_trial();
+  REQUIRE(trial.rate_hz == 100.0);
+  TempFile file(".trc"), joints(".trc"), report(".json");
+  fabrik::io::write_trc(file.path(), trial);
+  std::string text = slurp(file.path());
+  const std::string rates = "\n100\t100\t";  // DataRate and CameraRate: the Time column's 100 Hz
+  REQUIRE(text.find(rates) != std::string::npos);
+  text.replace(text.find(rates), rates.size(), "\n50\t50\t");
+  std::ofstream(file.path()) << text;
+  const auto [code, err] = run_fabrik({"solve", "--input", file.path(), "--output", joints.path(),
+                                       "--report", report.path(), "--quiet"});
+  CAPTURE(err);
+  REQUIRE(code == 0);
+  const json r = json::parse(slurp(report.path()));
+  REQUIRE(r["warnings"].size() == 1);
+  CHECK_THAT(r["warnings"][0].get<std::string>(),
+             Catch::StartsWith(file.path() + ": the Time column runs at 100 Hz") &&
+                 Catch::Contains("DataRate says 50 Hz"));
+}
+
+TEST_CASE(
+    "Frames before the first measurement have no pose: missing in the outputs, not in the .mot") {
+  const fabrik::DaemonConfig config = fabrik::default_daemon_config();
+  MarkerTrial trial = default_model_trial();
+  for (std::size_t f = 0; f < 5; ++f)  // nothing seen in the first 5 frames
+    for (std::size_t m = 0; m < trial.markers(); ++m)
+      trial.at(f, m).setConstant(std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t f = 60; f < 65; ++f)  // nor in 5 later ones
+    for (std::size_t m = 0; m < trial.markers(); ++m)
+      trial.at(f, m).setConstant(std::numeric_limits<double>::quiet_NaN());
+  const fabrik::TrialSolution s = fabrik::solve_trial(config, trial);
+  CHECK(s.first_measured == 5);
+  const std::size_t joints = s.joints.labels.size(), coords = s.coordinate_names.size();
+  for (std::size_t f = 0; f < 7; ++f) {
+    CAPTURE(f);
+    CHECK(s.joints.at(f, 0).allFinite() == (f >= 5));
+    CHECK(s.model_markers.at(f, 0).allFinite() == (f >= 5));
+    CHECK(std::isfinite(s.coordinates[f * coords]) == (f >= 5));
+  }
+  // A later frame without markers keeps the pose before it, as documented.
+  CHECK(s.joints.at(62, joints - 1).isApprox(s.joints.at(59, joints - 1)));
+  const fabrik::io::OpenSimTable mot = fabrik::angles_table(s);
+  CHECK(mot.rows == trial.frames() - 5);
+  CHECK(mot.time_s.front() == Approx(trial.file_time_s(5)));
+  CHECK(fabrik::solution_summary(s)["frames_before_first_measurement"] == 5);
+}
+
 TEST_CASE("A trial that shares no marker name with the config is refused, with the closest") {
   const fabrik::DaemonConfig config = fabrik::default_daemon_config();
   MarkerTrial trial = default_model_trial();

@@ -87,8 +87,11 @@ void run(const SolveOptions& o) {
         "are tracked as recorded. Fix: leave out --filter-hz, or give the trial's markers "
         "with --input");
   io::MarkerTrial trial;
+  // The readers' warnings, in the report too: a batch reads the report, not stderr.
+  std::vector<std::string> file_warnings;
   if (!o.input.empty()) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
+    for (const std::string& w : trial.warnings) file_warnings.push_back(o.input + ": " + w);
     if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
     if (const std::size_t implausible =
             drop_implausible_samples(trial, config.max_abs_coordinate_m))
@@ -112,6 +115,7 @@ void run(const SolveOptions& o) {
   std::optional<io::OrientationTable> table;
   if (!o.orientations.empty()) {
     table = read_orientations_or_explain("solve", config, o.orientations);
+    for (const std::string& w : table->warnings) file_warnings.push_back(o.orientations + ": " + w);
     if (!o.input.empty()) require_time_overlap("solve", trial, o.input, *table, o.orientations);
     if (!o.quiet)
       std::fprintf(stderr, "fabrik solve: %s (%zu rows at %g Hz, %zu sensors)%s\n",
@@ -144,7 +148,8 @@ void run(const SolveOptions& o) {
   // still stand, and the refusal comes after them.
   const bool angles_refused = !o.angles.empty() && config.tracker.model->coordinates.empty();
   if (!o.angles.empty() && !angles_refused) io::write_opensim_table(o.angles, angles_table(s));
-  const nlohmann::json summary = solution_summary(s);
+  nlohmann::json summary = solution_summary(s);
+  summary["warnings"] = file_warnings;
   if (!o.report.empty()) {
     std::ofstream out = io::open_output_file(o.report);
     out << summary.dump(2) << '\n';
@@ -154,6 +159,11 @@ void run(const SolveOptions& o) {
   std::printf("frames            %zu (%zu without any tracked marker, left out of the residual)\n",
               summary["frames"].get<std::size_t>(),
               summary["frames_without_markers"].get<std::size_t>());
+  if (const auto before = summary["frames_before_first_measurement"].get<std::size_t>())
+    std::printf(
+        "no pose           the first %zu frames, before any measurement: empty in the "
+        "TRC outputs, not in the .mot\n",
+        before);
   if (r["max_marker"].get<std::string>().empty())  // orientations alone: no marker measured
     std::printf("marker residual   none: no marker measured\n");
   else

@@ -150,6 +150,17 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
         {config.tracker.markers[i].marker, missing_frames[i], c < zeros.size() ? zeros[c] : 0});
     if (missing_frames[i] == frames) s.missing_in_trial.push_back(config.tracker.markers[i].marker);
   }
+  // Before the first frame with a measurement the tracker holds its rest posture: no pose of
+  // the subject, so the joint centres, model markers and coordinates are missing there (a
+  // later gap repeats the pose before it; at the start there is none).
+  while (s.first_measured < frames && s.measured[s.first_measured] == 0 &&
+         s.sensors_measured[s.first_measured] == 0)
+    ++s.first_measured;
+  std::fill_n(s.joints.positions_m.begin(), s.first_measured * s.joints.labels.size(),
+              Eigen::Vector3d::Constant(NAN));
+  std::fill_n(s.model_markers.positions_m.begin(), s.first_measured * n,
+              Eigen::Vector3d::Constant(NAN));
+  std::fill_n(s.coordinates.begin(), s.first_measured * s.coordinate_names.size(), NAN);
   // As for markers: a sensor whose column has no usable cell at any frame is missing too.
   for (int k = 0; k < sensor_count; ++k)
     if (orientations && sensor_column[k] >= 0 && frames > 0 && !sensor_ever_measured[k])
@@ -211,35 +222,36 @@ nlohmann::json solution_summary(const TrialSolution& s) {
   std::size_t with_sensors = 0;
   for (double e : s.sensor_rms_rad)
     if (std::isfinite(e)) sensor_sum += e, sensor_max = std::max(sensor_max, e), ++with_sensors;
-  nlohmann::json summary = {{"frames", frames},
-          {"frames_without_markers", frames - with_markers},
-          {"residual_mm",
-           {{"rms_mean", with_markers ? rms_sum / static_cast<double>(with_markers) * 1e3 : 0.0},
-            {"rms_max", rms_max * 1e3},
-            {"max", max_m * 1e3},
-            {"max_frame", s.markers.first_frame + static_cast<long long>(max_frame)},
-            {"max_marker", worst_name},
-            {"worst_marker_most_often", most_often}}},
-          {"solve_us",
-           {{"p50", quantile(s.solve_us, 0.5)},
-            {"p99", quantile(s.solve_us, 0.99)},
-            {"max", quantile(s.solve_us, 1.0)}}},
-          {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
-          {"status", status_count},
-          {"quality", quality_count},
-          {"outliers",
-           {{"samples", outlier_samples},
-            {"frames", outlier_frames},
-            {"percent_of_measured",
-             measured_samples ? 100.0 * static_cast<double>(outlier_samples) /
-                                    static_cast<double>(measured_samples)
-                              : 0.0},
-            {"markers", outlier_markers}}},
-          {"markers_missing_in_trial", s.missing_in_trial},
-          {"filled", filled},
-          {"filled_method", filled_method},
-          {"markers_mostly_missing", mostly_missing},
-          {"trial_labels_not_tracked", s.ignored_in_trial}};
+  nlohmann::json summary = {
+      {"frames", frames},
+      {"frames_without_markers", frames - with_markers},
+      {"frames_before_first_measurement", s.first_measured},
+      {"residual_mm",
+       {{"rms_mean", with_markers ? rms_sum / static_cast<double>(with_markers) * 1e3 : 0.0},
+        {"rms_max", rms_max * 1e3},
+        {"max", max_m * 1e3},
+        {"max_frame", s.markers.first_frame + static_cast<long long>(max_frame)},
+        {"max_marker", worst_name},
+        {"worst_marker_most_often", most_often}}},
+      {"solve_us",
+       {{"p50", quantile(s.solve_us, 0.5)},
+        {"p99", quantile(s.solve_us, 0.99)},
+        {"max", quantile(s.solve_us, 1.0)}}},
+      {"iterations_mean", frames ? it_sum / static_cast<double>(frames) : 0.0},
+      {"status", status_count},
+      {"quality", quality_count},
+      {"outliers",
+       {{"samples", outlier_samples},
+        {"frames", outlier_frames},
+        {"percent_of_measured", measured_samples ? 100.0 * static_cast<double>(outlier_samples) /
+                                                       static_cast<double>(measured_samples)
+                                                 : 0.0},
+        {"markers", outlier_markers}}},
+      {"markers_missing_in_trial", s.missing_in_trial},
+      {"filled", filled},
+      {"filled_method", filled_method},
+      {"markers_mostly_missing", mostly_missing},
+      {"trial_labels_not_tracked", s.ignored_in_trial}};
   if (!s.sensor_rms_rad.empty() && with_sensors + s.sensors_missing_in_table.size() +
                                            s.ignored_in_table.size() > 0) {
     summary["orientations"] = {
@@ -258,7 +270,9 @@ io::OpenSimTable angles_table(const TrialSolution& s) {
   io::OpenSimTable t = io::coordinates_table(s.coordinate_names, true);
   const std::size_t n = s.coordinate_names.size();
   std::vector<double> row(n);
-  for (std::size_t f = 0; f < s.rms_m.size(); ++f) {
+  // From the first frame with a measurement: before it there is no pose to write (OpenSim's
+  // tools read a row of NaN as data).
+  for (std::size_t f = s.first_measured; f < s.rms_m.size(); ++f) {
     for (std::size_t c = 0; c < n; ++c)
       row[c] = s.coordinates[f * n + c] * (s.coordinate_is_rotation[c] ? kDegPerRad : 1.0);
     t.add_row(s.joints.file_time_s(f), row);

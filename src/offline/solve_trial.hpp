@@ -48,6 +48,9 @@ struct TrialSolution {
   std::vector<int> iterations;                // per frame
   std::vector<std::string> status;            // per frame, the solver's stop reason
   std::vector<int> measured;                  // per frame: tracked markers with a measurement
+  // Frames before the first with a measured marker or sensor: no pose (NaN joints, model
+  // markers and coordinates; the .mot starts after them).
+  std::size_t first_measured = 0;
   // Per frame and marker [frame * markers + i]: left out of the solve as an outlier (or
   // relabelled as a swap: outlier_filter.hpp).
   std::vector<std::uint8_t> outlier;

@@ -1,5 +1,6 @@
 #include "two_sided_fill.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace fabrik {
@@ -68,6 +69,12 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
     else any_gap = true;
   }
   if (!any_gap) return fill;
+  // Frames before the first measurement of any marker and after the last have nothing to
+  // fill from: a fill there would hold one pose for as long as the trial's empty edge.
+  std::size_t first_any = frames, last_any = 0;
+  for (std::size_t k = 0; k < frames * n; ++k)
+    if (visible[k]) first_any = std::min(first_any, k / n), last_any = std::max(last_any, k / n);
+  if (first_any == frames) return fill;
   const Pass forward = track_pass(setup, times_s, measured_m, visible, false);
   const Pass backward = track_pass(setup, times_s, measured_m, visible, true);
   const std::size_t segments = setup.model->segments.size();
@@ -87,24 +94,27 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
         ++f;
         continue;
       }
-      const std::size_t first = f;
+      const std::size_t gap_first = f;
       while (f < frames && !visible[f * n + i]) ++f;
-      const bool before = first > 0, after = f < frames;
+      const bool before = gap_first > 0, after = f < frames;
       if (!before && !after) continue;  // never measured: nothing to fill from
+      const std::size_t first = before ? gap_first : std::max(gap_first, first_any);
+      const std::size_t end = after ? f : std::min(f, last_any + 1);
+      if (first >= end) continue;
       // The skeleton's fill: the two predictions blended linearly, weight of
       // the backward one 0 at the last sample before the gap, 1 at the first
       // one after it.
-      skeleton_m.resize(f - first);
-      for (std::size_t g = first; g < f; ++g) {
-        const double w = !before ? 1.0
-                         : !after ? 0.0
-                                  : static_cast<double>(g - first + 1) /
-                                        static_cast<double>(f - first + 1);
+      skeleton_m.resize(end - first);
+      for (std::size_t g = first; g < end; ++g) {
+        const double w =
+            !before  ? 1.0
+            : !after ? 0.0
+                     : static_cast<double>(g - first + 1) / static_cast<double>(end - first + 1);
         const std::size_t k = g * n + i;
         skeleton_m[g - first] = (1.0 - w) * forward.markers_m[k] + w * backward.markers_m[k];
       }
-      FilledGap gap{static_cast<int>(i), first, f, FillMethod::skeleton};
-      out_m.resize(f - first);
+      FilledGap gap{static_cast<int>(i), first, end, FillMethod::skeleton};
+      out_m.resize(end - first);
       double donor_share = 0.0;
       if (use_donors && setup.prediction.donors) {
         if (!frames_ready) {
@@ -122,13 +132,13 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
         for (std::size_t m = 0; m < n; ++m) {
           if (m == i || marker_segments[m] != marker_segments[i]) continue;
           bool held = true;
-          for (std::size_t g = before ? first - 1 : first; g < (after ? f + 1 : f) && held; ++g)
+          for (std::size_t g = before ? first - 1 : first; g < (after ? end + 1 : end) && held; ++g)
             held = visible[g * n + m] != 0;
           holders += held ? 1 : 0;
         }
         const FrameCandidate skeleton{q, origin_m, skeleton_m};
         if (!fill_from_donors(frames, n, times_s, fill.markers_m, visible, static_cast<int>(i),
-                              first, f, donors, out_m, holders >= 2 ? &skeleton : nullptr,
+                              first, end, donors, out_m, holders >= 2 ? &skeleton : nullptr,
                               &donor_share, std::span(nearby).subspan(i * n, n)))
           out_m = skeleton_m;
       } else {
@@ -137,7 +147,7 @@ TwoSidedFill fill_two_sided(const TrackerSetup& setup, std::span<const double> t
       gap.method = donor_share >= 1.0 ? FillMethod::donors
                    : donor_share > 0.0 ? FillMethod::both
                                        : FillMethod::skeleton;
-      for (std::size_t g = first; g < f; ++g) {
+      for (std::size_t g = first; g < end; ++g) {
         fill.markers_m[g * n + i] = out_m[g - first];
         fill.filled[g * n + i] = 1;
       }

@@ -392,3 +392,15 @@ def test_a_missing_template_stops_the_batch(tmp_path, missing):
     assert "usage:" in err and "--template %s: %s" % (template, "no such file" if missing != "."
                                                       else "not a file") in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_row_counts_the_reports_warnings():
+    from fabrik.batch import row_from_report
+    report = {"frames": 10, "residual_mm": {"rms_mean": 1.0, "rms_max": 2.0, "max": 3.0},
+              "outliers": {"samples": 0, "frames": 0}, "frames_without_markers": 0,
+              "solve_us": {"p50": 10.0, "p99": 20.0},
+              "warnings": ["walk.trc: the Time column runs at 30 Hz ...", "walk.trc: ..."]}
+    trial = {"subject": "s", "trial": "walk", "kind": "dynamic"}
+    assert row_from_report(trial, report, "ok")["warnings"] == 2
+    del report["warnings"]  # a report written before the column: none said
+    assert row_from_report(trial, report, "ok")["warnings"] == 0

@@ -37,7 +37,7 @@ OUTPUT_SUFFIXES = {"joints": ".joints.trc", "angles": ".angles.mot", "record": "
 
 COLUMNS = ["subject", "trial", "kind", "status", "frames", "rms_mean_mm", "rms_max_mm", "max_mm",
            "max_marker", "quality_good", "quality_poor", "outlier_samples", "outlier_frames",
-           "gap_runs", "gap_samples", "frames_without_markers", "markers_missing",
+           "gap_runs", "gap_samples", "frames_without_markers", "markers_missing", "warnings",
            "solve_p50_us", "solve_p99_us", "wall_s", "error"]
 # Columns that measure this machine, not the trial: they differ between two runs.
 TIMING_COLUMNS = ("solve_p50_us", "solve_p99_us", "wall_s")
@@ -319,6 +319,7 @@ def row_from_report(trial, report, status, wall_s=""):
         gap_samples=sum(last - first + 1 for runs in filled.values() for first, last in runs),
         frames_without_markers=report["frames_without_markers"],
         markers_missing=len(report.get("markers_missing_in_trial", [])),
+        warnings=len(report.get("warnings", [])),
         solve_p50_us=round(report["solve_us"]["p50"], 2),
         solve_p99_us=round(report["solve_us"]["p99"], 2),
         wall_s=wall_s)
