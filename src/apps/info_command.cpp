@@ -117,7 +117,7 @@ std::string info_text(const io::RecordingInfo& info) {
   const io::RecordingFacts& f = t.source;
   line("format", f.format + " (" + f.number_format + ")");
   line("rate", t.rate_hz > 0.0 ? fmt("%g Hz", t.rate_hz) : "none");
-  line("units", f.units + " (read as metres)");
+  line("units", f.units + " (converted to metres when read)");
   const long long last = static_cast<long long>(t.first_frame) + static_cast<long long>(f.frames) - 1;
   line("frames", std::to_string(f.frames) +
                      (f.frames > 0 ? " (" + std::to_string(t.first_frame) + " to " +

@@ -54,8 +54,9 @@ class Solution:
 
         translations=True: every coordinate, as the .mot of `fabrik solve --angles` has them:
         its columns in its order (coordinate_names), angles in degrees and translations in
-        metres, as OpenSim's Coordinates files have them. Needs pandas (imported here, not at
-        `import fabrik`)."""
+        metres, as OpenSim's Coordinates files have them. Every frame is a row: frames before
+        the first measured one are NaN (the .mot leaves them out). Needs pandas (imported here,
+        not at `import fabrik`)."""
         try:
             import pandas as pd
         except ImportError as e:
