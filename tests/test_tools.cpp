@@ -619,6 +619,20 @@ TEST_CASE(
                  Catch::Contains("DataRate says 50 Hz"));
 }
 
+TEST_CASE("fabrik solve warns of a --filter-hz below one cycle over the trial") {
+  TempFile file(".trc"), joints(".trc");
+  fabrik::io::write_trc(file.path(), default_model_trial());  // 2 s
+  const auto warning_of = [&](const std::string& cutoff_hz) {
+    const auto [code, err] = run_fabrik({"solve", "--input", file.path(), "--output", joints.path(),
+                                         "--filter-hz", cutoff_hz, "--quiet"});
+    CAPTURE(err);
+    CHECK(code == 0);
+    return err.find("is below one cycle over the trial's 2 s") != std::string::npos;
+  };
+  CHECK(warning_of("0.3"));  // 0.6 of a cycle in 2 s
+  CHECK_FALSE(warning_of("6"));
+}
+
 TEST_CASE(
     "Frames before the first measurement have no pose: missing in the outputs, not in the .mot") {
   const fabrik::DaemonConfig config = fabrik::default_daemon_config();
@@ -2150,7 +2164,9 @@ TEST_CASE(
     REQUIRE(code == 0);
     CHECK_THAT(slurp(text.path()),
                Catch::Contains("not in the table   1 of 8 configured sensors (calcn_l_imu)") &&
-                   Catch::Contains("not tracked        1 table columns (foo_imu...)"));
+                   Catch::Contains("not tracked        1 table columns (foo_imu...)") &&
+                   // Orientations alone: every frame's verdict is none, said (0 and 0 were).
+                   Catch::Contains("fit quality       good 0, poor 0, none 100 frames"));
     const json r = json::parse(slurp(report.path()));
     CHECK(r["orientations"]["sensors_missing_in_table"] == json::array({"calcn_l_imu"}));
     CHECK(r["orientations"]["table_columns_not_used"] == json::array({"foo_imu"}));

@@ -103,6 +103,15 @@ void run(const SolveOptions& o) {
       require_shared_markers(config, trial, o.input, "--subject", o.allow_missing_markers,
                              kAllowMissingMarkers);
     if (o.filter_hz > 0.0) {
+      // A cutoff below one cycle over the trial leaves little but the trial's mean: most often
+      // a cutoff written in another unit (0.006 for 6 Hz).
+      const double trial_s = static_cast<double>(trial.frames()) / trial.rate_hz;
+      if (o.filter_hz * trial_s < 1.0)
+        std::fprintf(stderr,
+                     "fabrik solve: warning: --filter-hz %g is below one cycle over the trial's "
+                     "%g s: the markers are flattened to little more than their mean (Pose2Sim's "
+                     "default is 6 Hz)\n",
+                     o.filter_hz, trial_s);
       const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);
       if (!o.quiet)
         std::fprintf(stderr,
@@ -179,11 +188,14 @@ void run(const SolveOptions& o) {
       summary["iterations_mean"].get<double>(), o.output.c_str());
   const auto& out = summary["outliers"];
   const auto& q = summary["quality"];
-  std::printf("fit quality       good %d, poor %d frames (quality thresholds of the config)\n"
-              "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
-              "out of their solve\n",
-              q.value("good", 0), q.value("poor", 0), out["samples"].get<std::size_t>(),
-              out["percent_of_measured"].get<double>(), out["frames"].get<std::size_t>());
+  // Every verdict, none too (frames without a measured marker), as the report counts them.
+  std::printf(
+      "fit quality       good %d, poor %d, none %d frames (quality thresholds of the "
+      "config)\n"
+      "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
+      "out of their solve\n",
+      q.value("good", 0), q.value("poor", 0), q.value("none", 0), out["samples"].get<std::size_t>(),
+      out["percent_of_measured"].get<double>(), out["frames"].get<std::size_t>());
   std::size_t filled_samples = 0;
   for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
   std::printf("gaps filled       %zu samples in %zu runs (both sides)%s\n", filled_samples,
