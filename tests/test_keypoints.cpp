@@ -249,6 +249,11 @@ TEST_CASE("keypoint template mistakes have their own messages", "[keypoints]") {
   nlohmann::json no_rest = doc;
   no_rest["segments"][0]["points"]["r_hip"].erase("rest");
   CHECK_THAT(error(no_rest), Catch::Contains("has no \"rest\" vector"));
+  nlohmann::json zero_rest = doc;  // was said of the calibrated model: "segment ... no extent"
+  zero_rest["segments"][0]["points"]["r_hip"]["rest"] = {0, 0, 0};
+  CHECK_THAT(error(zero_rest), Catch::Contains("bad.json") &&
+                                   Catch::Contains("/segments/0/points/r_hip/rest") &&
+                                   Catch::Contains("has a \"rest\" vector of length 0"));
   nlohmann::json markers_kind = doc;
   markers_kind.erase("kind");
   markers_kind["segments"][0]["markers"] = {{"RHip", nlohmann::json::object()}};

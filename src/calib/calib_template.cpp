@@ -237,6 +237,12 @@ struct Loader {
     if (p.has("rest")) {
       d.has_rest = true;
       d.rest_m = p.at("rest").as_vec3() * scale;
+      // Its direction is the segment's in the standing posture, its length the nominal one:
+      // without either, the calibrated model's segment has no extent (said of the model).
+      if (!(d.rest_m.norm() > 0.0))
+        p.at("rest").fail("point '" + d.name + "' has a \"rest\" vector of length 0",
+                          "give the vector from the segment's base (or \"rest_from\") to the "
+                          "point in the standing posture, OpenSim axes, nominal length");
     } else if (d.rule == PointRule::at && !t.segments[d.segment].base.empty() &&
                !(d.segment == 0 && t.segments[0].base == d.name)) {
       p.fail("point '" + d.name + "' has no \"rest\" vector",
