@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <random>
@@ -345,6 +346,19 @@ TEST_CASE("eval angles: the truth against itself, an offset, a shape, a missing 
   late.add_row(100.0, {0.0});
   CHECK_THROWS_WITH(eval::eval_angles(c, rec.trial, late, "late.mot"),
                     Catch::Contains("no row of late.mot matches a frame of the trial in time"));
+  // The first 10 frames without any marker: no pose there, so those rows are left out and
+  // every figure stays finite (their NaN carried into every later sample).
+  SyntheticRecording blank = rec;
+  for (std::size_t f = 0; f < 10; ++f)
+    for (std::size_t m = 0; m < blank.trial.markers(); ++m)
+      blank.trial.at(f, m).setConstant(std::numeric_limits<double>::quiet_NaN());
+  const eval::AngleReport b = eval::eval_angles(c, blank.trial, ref, "synthetic.mot");
+  CHECK(b.time_s.size() == (rec.trial.frames() + 1) / 2 - 5);  // rows at frames 0, 2, ..., 8 out
+  for (const eval::CoordinateComparison& row : b.rows) {
+    INFO(row.name);
+    CHECK(std::isfinite(row.rms_si));
+    CHECK(row.samples == b.time_s.size());
+  }
 }
 
 namespace {

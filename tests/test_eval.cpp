@@ -3,6 +3,8 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <filesystem>
+#include <limits>
+#include <numbers>
 #include <random>
 #include <string>
 
@@ -199,4 +201,28 @@ TEST_CASE(
   CHECK(s.filled[0].marker == trial.labels[gapped]);
   CHECK(s.filled[0].first == gap_first);
   CHECK(s.filled[0].end == gap_end);
+}
+
+TEST_CASE("The IMU gait report reads a walk whose first frames have no pose (NaN)", "[eval][imu]") {
+  // A knee swinging twice (60 deg peaks), the first 5 frames without a pose: NaN, as
+  // solve_trial writes frames before the first measurement (the report looped for ever on them).
+  fabrik::TrialSolution s;
+  s.coordinate_names = {"knee_angle_r", "hip_flexion_r"};
+  s.coordinate_is_rotation = {1, 1};
+  s.joints.rate_hz = 100.0;
+  const std::size_t frames = 200;
+  const double deg = std::numbers::pi / 180.0;
+  for (std::size_t f = 0; f < frames; ++f) {
+    const bool posed = f >= 5;
+    const double knee_deg = -30.0 - 30.0 * std::sin(2.0 * std::numbers::pi * f / 100.0);
+    s.coordinates.push_back(posed ? knee_deg * deg : std::numeric_limits<double>::quiet_NaN());
+    s.coordinates.push_back(posed ? 10.0 * deg : std::numeric_limits<double>::quiet_NaN());
+    s.status.push_back(posed ? "converged" : "no_targets");
+  }
+  const fabrik::eval::GaitReport g = fabrik::eval::gait_report(s);
+  CHECK(g.frames == frames);
+  REQUIRE(g.strides.size() == 2);
+  for (const fabrik::eval::GaitStride& stride : g.strides)
+    CHECK(stride.knee_flexion_deg == Approx(60.0).margin(0.1));
+  CHECK(g.hip_flexion_max_deg == Approx(10.0));
 }

@@ -47,12 +47,13 @@ io::OrientationTable read_orientations_or_explain(const std::string& command,
   return table;
 }
 
-void require_time_overlap(const std::string& command, const io::MarkerTrial& trial,
-                          const std::string& trial_path, const io::OrientationTable& table,
-                          const std::string& table_path) {
+std::vector<std::string> time_overlap_warnings(const io::MarkerTrial& trial,
+                                               const std::string& trial_path,
+                                               const io::OrientationTable& table,
+                                               const std::string& table_path) {
   std::vector<std::string> warnings;
   io::check_time_overlap(trial, trial_path, table, table_path, warnings);
-  print_warnings(command, table_path, warnings);
+  return warnings;
 }
 
 }  // namespace fabrik::apps

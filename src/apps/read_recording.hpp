@@ -22,12 +22,12 @@ io::OrientationTable read_orientations_or_explain(const std::string& command,
                                                   const DaemonConfig& config,
                                                   const std::string& path);
 
-// Refuses (runtime_error, exit 2) a table that no frame of `trial` falls within
-// (OrientationTable::covers: each marker frame takes the table's orientations at its
-// file time), naming both time spans; one warning on stderr when some frames do not.
-void require_time_overlap(const std::string& command, const io::MarkerTrial& trial,
-                          const std::string& trial_path, const io::OrientationTable& table,
-                          const std::string& table_path);
+// Refuses (FormatError, exit 2) a table that no frame of `trial` falls within
+// (io::check_time_overlap), naming both time spans; the warning when some frames do not.
+std::vector<std::string> time_overlap_warnings(const io::MarkerTrial& trial,
+                                               const std::string& trial_path,
+                                               const io::OrientationTable& table,
+                                               const std::string& table_path);
 
 // The reader's warnings on stderr, one line each.
 void print_warnings(const std::string& command, const std::string& path,

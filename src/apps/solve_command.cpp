@@ -9,6 +9,7 @@
 
 #include "common/ascii_case.hpp"
 #include "common/device_path.hpp"
+#include "common/format_number.hpp"
 #include "common/safe_text.hpp"
 #include "config/closest_names.hpp"
 #include "io/output_file.hpp"
@@ -87,18 +88,21 @@ void run(const SolveOptions& o) {
         "are tracked as recorded. Fix: leave out --filter-hz, or give the trial's markers "
         "with --input");
   io::MarkerTrial trial;
-  // The readers' warnings, in the report too: a batch reads the report, not stderr.
-  std::vector<std::string> file_warnings;
+  // The warnings said on stderr, in the report too: a batch reads the report, not stderr.
+  std::vector<std::string> warnings;
+  const auto warn = [&](const std::string& text) {
+    std::fprintf(stderr, "fabrik solve: warning: %s\n", safe_lines(text).c_str());
+    warnings.push_back(text);
+  };
   if (!o.input.empty()) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
-    for (const std::string& w : trial.warnings) file_warnings.push_back(o.input + ": " + w);
+    for (const std::string& w : trial.warnings) warnings.push_back(o.input + ": " + w);
     if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
     if (const std::size_t implausible =
             drop_implausible_samples(trial, config.max_abs_coordinate_m))
-      std::fprintf(stderr,
-                   "fabrik solve: warning: %zu samples farther than input.max_abs_coordinate_mm "
-                   "(%g mm) from the origin are taken as missing, as fabrikd takes them\n",
-                   implausible, config.max_abs_coordinate_m * 1e3);
+      warn(std::to_string(implausible) + " samples farther than input.max_abs_coordinate_mm (" +
+           format_number("%g", config.max_abs_coordinate_m * 1e3) +
+           " mm) from the origin are taken as missing, as fabrikd takes them");
     if (o.orientations.empty())
       require_shared_markers(config, trial, o.input, "--subject", o.allow_missing_markers,
                              kAllowMissingMarkers);
@@ -107,11 +111,10 @@ void run(const SolveOptions& o) {
       // a cutoff written in another unit (0.006 for 6 Hz).
       const double trial_s = static_cast<double>(trial.frames()) / trial.rate_hz;
       if (o.filter_hz * trial_s < 1.0)
-        std::fprintf(stderr,
-                     "fabrik solve: warning: --filter-hz %g is below one cycle over the trial's "
-                     "%g s: the markers are flattened to little more than their mean (Pose2Sim's "
-                     "default is 6 Hz)\n",
-                     o.filter_hz, trial_s);
+        warn("--filter-hz " + format_number("%g", o.filter_hz) +
+             " is below one cycle over the trial's " + format_number("%g", trial_s) +
+             " s: the markers are flattened to little more than their mean (Pose2Sim's default "
+             "is 6 Hz)");
       const std::size_t dropped = drop_left_out_then_filter(config, trial, o.filter_hz);
       if (!o.quiet)
         std::fprintf(stderr,
@@ -124,8 +127,10 @@ void run(const SolveOptions& o) {
   std::optional<io::OrientationTable> table;
   if (!o.orientations.empty()) {
     table = read_orientations_or_explain("solve", config, o.orientations);
-    for (const std::string& w : table->warnings) file_warnings.push_back(o.orientations + ": " + w);
-    if (!o.input.empty()) require_time_overlap("solve", trial, o.input, *table, o.orientations);
+    for (const std::string& w : table->warnings) warnings.push_back(o.orientations + ": " + w);
+    if (!o.input.empty())
+      for (const std::string& w : time_overlap_warnings(trial, o.input, *table, o.orientations))
+        warn(o.orientations + ": " + w);
     if (!o.quiet)
       std::fprintf(stderr, "fabrik solve: %s (%zu rows at %g Hz, %zu sensors)%s\n",
                    safe_lines(o.orientations).c_str(), table->rows(), table->rate_hz,
@@ -158,7 +163,7 @@ void run(const SolveOptions& o) {
   const bool angles_refused = !o.angles.empty() && config.tracker.model->coordinates.empty();
   if (!o.angles.empty() && !angles_refused) io::write_opensim_table(o.angles, angles_table(s));
   nlohmann::json summary = solution_summary(s);
-  summary["warnings"] = file_warnings;
+  summary["warnings"] = warnings;
   if (!o.report.empty()) {
     std::ofstream out = io::open_output_file(o.report);
     out << summary.dump(2) << '\n';
@@ -171,7 +176,7 @@ void run(const SolveOptions& o) {
   if (const auto before = summary["frames_before_first_measurement"].get<std::size_t>())
     std::printf(
         "no pose           the first %zu frames, before any measurement: empty in the "
-        "TRC outputs, not in the .mot\n",
+        "TRC and CSV outputs, left out of the .mot\n",
         before);
   if (r["max_marker"].get<std::string>().empty())  // orientations alone: no marker measured
     std::printf("marker residual   none: no marker measured\n");

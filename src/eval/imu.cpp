@@ -165,7 +165,7 @@ GaitReport gait_report(const TrialSolution& s) {
       g.hip_flexion_max_deg = std::max(g.hip_flexion_max_deg, value_deg(f, hip));
       const double flexion = -value_deg(f, knee);
       g.knee_flexion_min_deg = std::min(g.knee_flexion_min_deg, flexion);
-      if (flexion <= kSwingKneeDeg) {
+      if (!(flexion > kSwingKneeDeg)) {  // NaN too (no pose before the first measurement)
         ++f;
         continue;
       }

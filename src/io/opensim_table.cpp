@@ -235,7 +235,7 @@ OpenSimTable read_opensim_table(const std::string& path, const OpenSimReadOption
     t.cell_width = width;
     t.add_row(*time_s, cells);
   }
-  if (width == 0) t.cell_width = 1;
+  t.cell_width = width == 0 ? 1 : width;  // a quaternion table without rows says 4 too
   if (bad_rows > 0) {
     t.warnings.push_back(std::to_string(bad_rows) + " rows left out (the first on line " +
                          std::to_string(first_bad) + "): a different number of fields than the " +

@@ -7,7 +7,8 @@
 // of the trial takes the backward prediction alone, one at the end the forward
 // one. That fill competes with fills from donor markers (donor_fill.hpp), each
 // scored on gaps simulated where the marker was measured; the best are
-// averaged by score. A marker never measured is not filled.
+// averaged by score. A marker never measured is not filled, nor frames before the first or
+// after the last frame with any measured marker (nothing to fill them from).
 #pragma once
 
 #include <Eigen/Core>
@@ -34,7 +35,7 @@ struct FilledGap {
 
 struct TwoSidedFill {
   std::size_t frames = 0, n = 0;
-  std::vector<Eigen::Vector3d> markers_m;  // [frame * n + i]: measured, filled, or NaN (never measured)
+  std::vector<Eigen::Vector3d> markers_m;  // [frame * n + i]: measured, filled, or NaN
   std::vector<std::uint8_t> filled;        // [frame * n + i]
   std::vector<FilledGap> gaps;             // by marker, then by frame
 };

@@ -85,8 +85,8 @@ class MarkerNameIndex {
   std::vector<int> slots_;  // index into names_, -1 empty
   std::size_t mask_ = 0;
   std::vector<int> previous_;  // the index (or -1) of the name at each position of the last frame
-  std::vector<std::string> prefixes_;
-  bool of_subjects_ = false;  // the names' distinct "X:" (subjects' prefixes)
+  std::vector<std::string> prefixes_;  // the names' distinct "X:" (subjects' prefixes)
+  bool of_subjects_ = false;           // see of_subjects()
 };
 
 }  // namespace fabrik::wire
