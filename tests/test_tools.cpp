@@ -2220,9 +2220,14 @@ TEST_CASE(
     // 0 to 0.99 s (0.995 s with half a sample): frames 1 to 60 of 300 at 60 Hz.
     const auto [part_code, part_err] =
         run_fabrik({"solve", "--config", config.path(), "--input", static_trc, "--orientations",
-                    walk.path(), "--output", joints.path(), "--quiet"});
+                    walk.path(), "--output", joints.path(), "--report", report.path(), "--quiet"});
     CAPTURE(part_err);
     CHECK(part_code == 0);
+    // In the report too, for a batch that reads no stderr.
+    const json r = json::parse(slurp(report.path()));
+    REQUIRE(r["warnings"].size() == 1);
+    CHECK_THAT(r["warnings"][0].get<std::string>(),
+               Catch::StartsWith(walk.path() + ": 240 of 300 marker frames fall outside"));
     CHECK_THAT(part_err, Catch::Contains("fabrik solve: warning: " + walk.path() +
                                          ": 240 of 300 marker frames fall outside its time "
                                          "span") &&
