@@ -218,7 +218,8 @@ TEST_CASE("TRC reader rejects broken files with the path and the problem", "[io]
       {"a word for a number", header + "60\t60\t1\t1\tmm\n" + names + "1\t0\t1\tabc\t3\n",
        "line 7, column 4: 'abc' is not a number"},
       {"zero rate", header + "0\t0\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
-       "DataRate '0' and CameraRate '0' are not frame rates (0.001 Hz to 1 MHz)"},
+       "DataRate '0' and CameraRate '0' are not frame rates (0.001 Hz to 1 MHz). Fix: write "
+       "the capture's rate in Hz as DataRate (line 3)"},
       {"a rate no capture has", header + "1e-308\t1e308\t1\t1\tmm\n" + names + "1\t0\t1\t2\t3\n",
        "DataRate '1e-308' and CameraRate '1e308' are not frame rates (0.001 Hz to 1 MHz)"},
       {"no rate",
@@ -498,7 +499,8 @@ TEST_CASE("Broken C3D files throw FormatError naming the file and the problem", 
     REQUIRE(keep < valid.size());
     std::vector<char> cut(valid.begin(), valid.begin() + static_cast<std::ptrdiff_t>(keep));
     CHECK_THAT(message_for(cut),
-               Catch::Contains("3D data: truncated: the file holds 15 complete of the 20 frames"));
+               Catch::Contains("3D data: truncated: the file holds 15 complete of the 20 frames") &&
+                   Catch::Contains(". Fix: export or copy the file again (it was cut short)"));
     write_bytes(bad.path(), cut);
     CHECK(read_c3d(bad.path(), {.allow_truncated_data = true}).frames() == 15);
   }

@@ -21,6 +21,19 @@ void print_warnings(const std::string& command, const std::string& path,
 io::MarkerTrial read_trial_or_explain(const std::string& command, const std::string& path,
                                       bool keep_zeros) {
   io::MarkerTrial trial = io::read_trial(path, {.zeros_are_missing = !keep_zeros});
+  // Markers a hundred metres apart are no person's: a solve would drop them as implausible
+  // (or keep the few near the origin), a calibration would write thighs of 400 m.
+  if (trial.source.typical_span_m > io::kLargestMarkerSpan_m) {
+    const auto said =
+        std::find_if(trial.warnings.begin(), trial.warnings.end(),
+                     [](const std::string& w) { return w.starts_with("the markers span"); });
+    if (said != trial.warnings.end()) {
+      const std::string why = *said;
+      trial.warnings.erase(said);
+      print_warnings(command, path, trial.warnings);
+      throw std::runtime_error(path + ": " + why);
+    }
+  }
   print_warnings(command, path, trial.warnings);
   io::require_marker_data(trial, path);
   return trial;

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <numeric>
 #include <optional>
 
 #include "common/ascii_case.hpp"
@@ -25,6 +26,31 @@
 namespace fabrik::apps {
 
 namespace {
+
+// A trial in which no tracked marker has a sample would give a summary, a report and a batch
+// row of nothing, and exit 0: refused, saying why the samples went.
+void require_some_sample(const DaemonConfig& config, const io::MarkerTrial& trial,
+                         const std::string& input, std::size_t implausible) {
+  for (const MarkerTarget& m : config.tracker.markers)
+    if (const int c = trial.find(m.marker); c >= 0)
+      for (std::size_t f = 0; f < trial.frames(); ++f)
+        if (trial.at(f, static_cast<std::size_t>(c)).allFinite()) return;
+  std::string why = "every sample of them is empty";
+  std::string fix = "check that the trial holds this subject's markers";
+  if (implausible > 0) {
+    why = std::to_string(implausible) + " samples were farther than input.max_abs_coordinate_mm (" +
+          format_number("%g", config.max_abs_coordinate_m * 1e3) + " mm) from the origin";
+    fix = "check the file's unit (it says '" + trial.source.units +
+          "'): a file in mm labelled m is 1000 times too large";
+  } else if (std::size_t zeros = 0;
+             (zeros = std::accumulate(trial.source.zero_samples.begin(),
+                                      trial.source.zero_samples.end(), std::size_t{0})) > 0) {
+    why = std::to_string(zeros) + " samples are exactly (0, 0, 0), which is read as missing";
+    fix = "if (0, 0, 0) is a measurement in this file, give --keep-zeros";
+  }
+  throw std::runtime_error(input + ": no tracked marker is measured in any of the " +
+                           std::to_string(trial.frames()) + " frames: " + why + ". Fix: " + fix);
+}
 
 constexpr const char* kAllowMissingMarkers = "--allow-missing-markers";
 
@@ -98,14 +124,16 @@ void run(const SolveOptions& o) {
     trial = read_trial_or_explain("solve", o.input, o.keep_zeros);
     for (const std::string& w : trial.warnings) warnings.push_back(o.input + ": " + w);
     if (!o.subject.empty()) trial = subject_trial(trial, o.subject);
-    if (const std::size_t implausible =
-            drop_implausible_samples(trial, config.max_abs_coordinate_m))
+    const std::size_t implausible = drop_implausible_samples(trial, config.max_abs_coordinate_m);
+    if (implausible)
       warn(std::to_string(implausible) + " samples farther than input.max_abs_coordinate_mm (" +
            format_number("%g", config.max_abs_coordinate_m * 1e3) +
            " mm) from the origin are taken as missing, as fabrikd takes them");
-    if (o.orientations.empty())
+    if (o.orientations.empty()) {
       require_shared_markers(config, trial, o.input, "--subject", o.allow_missing_markers,
                              kAllowMissingMarkers);
+      require_some_sample(config, trial, o.input, implausible);
+    }
     if (o.filter_hz > 0.0) {
       // A cutoff below one cycle over the trial leaves little but the trial's mean: most often
       // a cutoff written in another unit (0.006 for 6 Hz).
@@ -173,11 +201,16 @@ void run(const SolveOptions& o) {
   std::printf("frames            %zu (%zu without any tracked marker, left out of the residual)\n",
               summary["frames"].get<std::size_t>(),
               summary["frames_without_markers"].get<std::size_t>());
-  if (const auto before = summary["frames_before_first_measurement"].get<std::size_t>())
+  const auto before = summary["frames_before_first_measurement"].get<std::size_t>();
+  const auto after = summary["frames_after_last_measurement"].get<std::size_t>();
+  if (before + after > 0)
     std::printf(
-        "no pose           the first %zu frames, before any measurement: empty in the "
-        "TRC and CSV outputs, left out of the .mot\n",
-        before);
+        "no pose           %s: empty in the TRC and CSV outputs, left out of the .mot\n",
+        (before == 0  ? "the last " + std::to_string(after) + " frames, after every measurement"
+         : after == 0 ? "the first " + std::to_string(before) + " frames, before any measurement"
+                      : "the first " + std::to_string(before) + " and the last " +
+                            std::to_string(after) + " frames, outside the measurements")
+            .c_str());
   if (r["max_marker"].get<std::string>().empty())  // orientations alone: no marker measured
     std::printf("marker residual   none: no marker measured\n");
   else
@@ -203,11 +236,15 @@ void run(const SolveOptions& o) {
       out["percent_of_measured"].get<double>(), out["frames"].get<std::size_t>());
   std::size_t filled_samples = 0;
   for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
-  std::printf("gaps filled       %zu samples in %zu runs (both sides)%s\n", filled_samples,
-              s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str());
+  std::printf("gaps filled       %zu samples in %zu runs (both sides)%s%s\n", filled_samples,
+              s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str(),
+              s.solved_on_filled_markers
+                  ? "; joint centres and angles solved again on the filled markers"
+                  : "");
   if (!s.missing_in_trial.empty())
-    std::printf("not in the trial   %zu tracked markers (%s...)\n", s.missing_in_trial.size(),
-                s.missing_in_trial.front().c_str());
+    std::printf("not in the trial   %zu tracked marker%s (%s)\n", s.missing_in_trial.size(),
+                s.missing_in_trial.size() == 1 ? "" : "s",
+                safe_lines(name_list(s.missing_in_trial, 12)).c_str());
   if (summary.contains("orientations")) {
     const auto& so = summary["orientations"];
     std::printf("orientations      %zu frames with sensors; sensor error RMS %.2f deg (mean over "
@@ -222,12 +259,14 @@ void run(const SolveOptions& o) {
           s.sensors_missing_in_table.size(), config.tracker.sensors.sensors.size(),
           safe_lines(name_list(s.sensors_missing_in_table, 12)).c_str());
     if (!s.ignored_in_table.empty())
-      std::printf("not tracked        %zu table columns (%s...)\n", s.ignored_in_table.size(),
-                  s.ignored_in_table.front().c_str());
+      std::printf("not tracked        %zu table column%s (%s)\n", s.ignored_in_table.size(),
+                  s.ignored_in_table.size() == 1 ? "" : "s",
+                  safe_lines(name_list(s.ignored_in_table, 12)).c_str());
   }
   if (!s.ignored_in_trial.empty())
-    std::printf("not tracked        %zu trial labels (%s...)\n", s.ignored_in_trial.size(),
-                s.ignored_in_trial.front().c_str());
+    std::printf("not tracked        %zu trial label%s (%s)\n", s.ignored_in_trial.size(),
+                s.ignored_in_trial.size() == 1 ? "" : "s",
+                safe_lines(name_list(s.ignored_in_trial, 12)).c_str());
   std::fflush(stdout);  // the summary before the refusal on stderr
   if (angles_refused)
     throw std::runtime_error(config.file + ": --angles: the model has no named coordinates, so " +

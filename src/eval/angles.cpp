@@ -106,7 +106,7 @@ AngleReport eval_angles(const DaemonConfig& config, const io::MarkerTrial& trial
     if (index < 0.0 || index >= static_cast<double>(frames)) continue;
     const auto f = static_cast<std::size_t>(index);
     if (std::abs(trial.file_time_s(f) - t) > tolerance_s) continue;
-    if (f < s.first_measured) continue;  // no pose before the first measurement: no comparison
+    if (f < s.first_measured || f >= s.end_measured) continue;  // no pose: no comparison
     rows.push_back(row);
     r.frames.push_back(f);
     r.frame_numbers.push_back(trial.clock().number(f));

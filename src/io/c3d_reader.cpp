@@ -376,7 +376,10 @@ class C3dReader {
                                str(frames) + " frames it declares (" + str(frame_bytes) +
                                " bytes each from byte " + str(data_at) + "; the file has " +
                                str(file_bytes_) + " bytes)";
-      if (!options_.allow_truncated_data) fail("3D data: truncated: " + held);
+      if (!options_.allow_truncated_data)
+        fail("3D data: truncated: " + held +
+             ". Fix: export or copy the file again (it was cut short); `fabrik info` shows "
+             "what the complete frames hold");
       if (complete == 0) fail("3D data: " + held);
       trial.warnings.push_back("3D data: " + held + ": read " + str(complete));
       frames = complete;

@@ -170,26 +170,44 @@ void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options) {
 void warn_about_units(MarkerTrial& trial, const std::string& unit_field) {
   // Bounds far outside any marker set on a person (a hand's cluster spans 50 mm, a gym 30 m),
   // so a right file is never told its unit is wrong.
-  constexpr double kSmallest_m = 0.02, kLargest_m = 100.0;
+  constexpr double kSmallest_m = 0.02, kLargest_m = kLargestMarkerSpan_m;
   constexpr std::size_t kFramesLooked = 200;  // spread over the trial: cheap on long ones
   const std::size_t frames = trial.frames();
-  std::vector<double> spans_m;
+  const auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  // Per frame the bounding box's diagonal (for the warning), and twice the markers' median
+  // distance from their per-axis median (for typical_span_m: one glitching marker 150 m
+  // out, or a few frames of 1e9, leave it a body's size).
+  std::vector<double> spans_m, spreads_m, axis[3], distances_m;
+  std::vector<Eigen::Vector3d> points_m;
   for (std::size_t k = 0; k < std::min(frames, kFramesLooked); ++k) {
     const std::size_t f = k * frames / std::min(frames, kFramesLooked);
     Eigen::Vector3d low = Eigen::Vector3d::Constant(INFINITY), high = -low;
-    std::size_t seen = 0;
+    points_m.clear();
     for (std::size_t m = 0; m < trial.markers(); ++m) {
       const Eigen::Vector3d& p_m = trial.at(f, m);
       if (!p_m.allFinite()) continue;
       low = low.cwiseMin(p_m);
       high = high.cwiseMax(p_m);
-      ++seen;
+      points_m.push_back(p_m);
     }
-    if (seen >= 3) spans_m.push_back((high - low).norm());
+    if (points_m.size() < 3) continue;
+    spans_m.push_back((high - low).norm());
+    Eigen::Vector3d centre_m;
+    for (int a = 0; a < 3; ++a) {
+      axis[a].clear();
+      for (const Eigen::Vector3d& p_m : points_m) axis[a].push_back(p_m[a]);
+      centre_m[a] = median(axis[a]);
+    }
+    distances_m.clear();
+    for (const Eigen::Vector3d& p_m : points_m) distances_m.push_back((p_m - centre_m).norm());
+    spreads_m.push_back(2.0 * median(distances_m));
   }
   if (spans_m.empty()) return;
-  std::nth_element(spans_m.begin(), spans_m.begin() + spans_m.size() / 2, spans_m.end());
-  const double span_m = spans_m[spans_m.size() / 2];
+  const double span_m = median(spans_m);
+  trial.source.typical_span_m = median(spreads_m);
   if (span_m >= kSmallest_m && span_m <= kLargest_m) return;
   const std::optional<double> m_per_unit = metres_per_unit(trial.source.units);
   if (!m_per_unit) return;

@@ -36,6 +36,10 @@ struct TimeSteps {
   double time_s = 0.0, previous_s = 0.0;  ///< its Time and the previous row's
 };
 
+/// No marker set on people spans this in one frame (a gym is 30 m): a file whose markers do is
+/// in another unit than it says (mm labelled m).
+inline constexpr double kLargestMarkerSpan_m = 100.0;
+
 /// What a file says about itself beyond the markers' positions: for messages and `fabrik info`.
 struct RecordingFacts {
   std::string format;         ///< "TRC" or "C3D" (empty for trials made in memory)
@@ -45,6 +49,11 @@ struct RecordingFacts {
   /// Per marker: samples that were exactly (0, 0, 0), which several exporters write for "not
   /// seen". Read as missing unless ReadOptions::zeros_are_missing is false.
   std::vector<std::size_t> zero_samples;
+  /// The markers' spread in a typical frame (metres): twice their median distance from the
+  /// frame's per-axis median, the median over up to 200 frames with 3 markers or more (one
+  /// marker or a few frames of garbage do not move it); NaN when none has. Past
+  /// kLargestMarkerSpan_m the file's unit is wrong (the commands refuse it).
+  double typical_span_m = std::numeric_limits<double>::quiet_NaN();
   /// C3D analog channels and rotations: counted and named, their data is not read.
   std::size_t analog_channels = 0;
   double analog_rate_hz = 0.0;               ///< analog samples per second (0: no channels)

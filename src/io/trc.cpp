@@ -320,7 +320,9 @@ class TrcParser {
     }
     if (!data && !camera) fail("header: DataRate missing (line 2 names the header fields)");
     fail("header: DataRate " + quoted(data.value_or("")) + " and CameraRate " +
-         quoted(camera.value_or("")) + " are not frame rates (0.001 Hz to 1 MHz)");
+         quoted(camera.value_or("")) +
+         " are not frame rates (0.001 Hz to 1 MHz). Fix: write the capture's rate in Hz as "
+         "DataRate (line 3)");
   }
 
   [[noreturn]] void fail(const std::string& problem) const { throw FormatError(path_, problem); }

@@ -12,7 +12,8 @@ namespace {
 // The fix of a trial whose names are not the config's.
 constexpr const char* kConfigFix =
     "use a config made for this marker set (fabrik calibrate --template T --static S writes "
-    "one), or rename the config's target markers to the file's labels";
+    "one), or map the file's labels onto the model's markers in the config's targets.markers, "
+    "e.g. \"R_ASIS\": {\"point\": \"R.ASIS\"} (docs/daemon-config.md)";
 
 // Fewer than half of the config's names in the trial: most likely another marker set or
 // another spelling, whose few shared markers a solve would fit closely (a judgement: a

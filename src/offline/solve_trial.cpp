@@ -79,6 +79,23 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   std::vector<Eigen::Vector3d> measured(n);
   std::vector<std::uint8_t> visible(n);
   std::vector<std::size_t> missing_frames(n, 0);
+  const auto time_of = [&](std::size_t f) {
+    return table_frames ? orientations->time_s[f] - orientations->time_s.front() : trial.time_s(f);
+  };
+  // The sensors' inputs of frame f (a missing one keeps its last orientation, unused).
+  const auto sample_sensors = [&](std::size_t f) {
+    if (!orientations) return;
+    if (table_frames) {
+      for (std::size_t k = 0; k < q_table.size(); ++k) q_table[k] = orientations->at(f, k);
+    } else {
+      orientations->sample(trial.file_time_s(f), q_table);
+    }
+    for (int k = 0; k < sensor_count; ++k) {
+      const int c = sensor_column[k];
+      sensor_visible[k] = c >= 0 && q_table[c].coeffs().allFinite() ? 1 : 0;
+      if (sensor_visible[k]) q_sensor[k] = q_table[c], sensor_ever_measured[k] = 1;
+    }
+  };
   for (std::size_t f = 0; f < frames; ++f) {
     int seen = 0;
     for (int i = 0; i < n; ++i) {
@@ -89,20 +106,8 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
       if (column[i] >= 0 && !visible[i]) ++missing_frames[i];
     }
     s.measured.push_back(seen);
-    double time_s = table_frames ? orientations->time_s[f] - orientations->time_s.front()
-                                 : trial.time_s(f);
-    if (orientations) {
-      if (table_frames) {
-        for (std::size_t k = 0; k < q_table.size(); ++k) q_table[k] = orientations->at(f, k);
-      } else {
-        orientations->sample(trial.file_time_s(f), q_table);
-      }
-      for (int k = 0; k < sensor_count; ++k) {
-        const int c = sensor_column[k];
-        sensor_visible[k] = c >= 0 && q_table[c].coeffs().allFinite() ? 1 : 0;
-        if (sensor_visible[k]) q_sensor[k] = q_table[c], sensor_ever_measured[k] = 1;
-      }
-    }
+    const double time_s = time_of(f);
+    sample_sensors(f);
     const TrackResult& r = tracker.track(time_s, measured, visible, q_sensor, sensor_visible);
     if (on_frame) on_frame(f, time_s, tracker, r);
     s.sensor_rms_rad.push_back(r.sensor_occluded_count < sensor_count ? r.sensor_rms_rad : NAN);
@@ -150,17 +155,49 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
         {config.tracker.markers[i].marker, missing_frames[i], c < zeros.size() ? zeros[c] : 0});
     if (missing_frames[i] == frames) s.missing_in_trial.push_back(config.tracker.markers[i].marker);
   }
-  // Before the first frame with a measurement the tracker holds its rest posture: no pose of
-  // the subject, so the joint centres, model markers and coordinates are missing there (a
-  // later gap repeats the pose before it; at the start there is none).
-  while (s.first_measured < frames && s.measured[s.first_measured] == 0 &&
-         s.sensors_measured[s.first_measured] == 0)
-    ++s.first_measured;
-  std::fill_n(s.joints.positions_m.begin(), s.first_measured * s.joints.labels.size(),
-              Eigen::Vector3d::Constant(NAN));
-  std::fill_n(s.model_markers.positions_m.begin(), s.first_measured * n,
-              Eigen::Vector3d::Constant(NAN));
-  std::fill_n(s.coordinates.begin(), s.first_measured * s.coordinate_names.size(), NAN);
+  // Offline the joint centres and coordinates come from a second pass over the markers with
+  // their gaps filled: the causal pass holds or predicts a segment through a gap, and its
+  // pose lags for a few frames after the markers return (the hand-over); the filled markers
+  // know both sides. The residual, outlier and quality figures stay those of the causal pass
+  // against the measurements, and the model markers what fabrikd publishes live.
+  if (!fill.gaps.empty()) {
+    Tracker again(config.tracker);
+    std::fill(sensor_ever_measured.begin(), sensor_ever_measured.end(), 0);
+    s.joints.positions_m.clear();
+    s.coordinates.clear();
+    for (std::size_t f = 0; f < frames; ++f) {
+      for (int i = 0; i < n; ++i) {
+        measured[i] = s.markers.positions_m[f * n + i];
+        visible[i] = measured[i].allFinite() ? 1 : 0;
+      }
+      sample_sensors(f);
+      const TrackResult& r = again.track(time_of(f), measured, visible, q_sensor, sensor_visible);
+      s.joints.positions_m.insert(s.joints.positions_m.end(), r.joints_world_m.begin(),
+                                  r.joints_world_m.end());
+      s.coordinates.insert(s.coordinates.end(), r.coordinates.begin(), r.coordinates.end());
+    }
+    s.solved_on_filled_markers = true;
+  }
+  // Before the first frame with a measurement the tracker holds its rest posture, after the
+  // last the last pose for as long as the trial's empty tail: no pose of the subject, so the
+  // joint centres, model markers and coordinates are missing there (a gap between measured
+  // frames repeats the pose before it).
+  const auto any_measured = [&](std::size_t f) {
+    return s.measured[f] > 0 || s.sensors_measured[f] > 0;
+  };
+  while (s.first_measured < frames && !any_measured(s.first_measured)) ++s.first_measured;
+  s.end_measured = frames;
+  while (s.end_measured > s.first_measured && !any_measured(s.end_measured - 1)) --s.end_measured;
+  const std::size_t joints = s.joints.labels.size(), coords = s.coordinate_names.size();
+  for (std::size_t f = 0; f < frames; ++f) {
+    if (f == s.first_measured) f = std::max(f, s.end_measured);
+    if (f >= frames) break;
+    std::fill_n(s.joints.positions_m.begin() + static_cast<std::ptrdiff_t>(f * joints), joints,
+                Eigen::Vector3d::Constant(NAN));
+    std::fill_n(s.model_markers.positions_m.begin() + static_cast<std::ptrdiff_t>(f * n), n,
+                Eigen::Vector3d::Constant(NAN));
+    std::fill_n(s.coordinates.begin() + static_cast<std::ptrdiff_t>(f * coords), coords, NAN);
+  }
   // As for markers: a sensor whose column has no usable cell at any frame is missing too.
   for (int k = 0; k < sensor_count; ++k)
     if (orientations && sensor_column[k] >= 0 && frames > 0 && !sensor_ever_measured[k])
@@ -226,6 +263,8 @@ nlohmann::json solution_summary(const TrialSolution& s) {
       {"frames", frames},
       {"frames_without_markers", frames - with_markers},
       {"frames_before_first_measurement", s.first_measured},
+      {"frames_after_last_measurement", frames - s.end_measured},
+      {"solved_on_filled_markers", s.solved_on_filled_markers},
       {"residual_mm",
        {{"rms_mean", with_markers ? rms_sum / static_cast<double>(with_markers) * 1e3 : 0.0},
         {"rms_max", rms_max * 1e3},
@@ -270,9 +309,9 @@ io::OpenSimTable angles_table(const TrialSolution& s) {
   io::OpenSimTable t = io::coordinates_table(s.coordinate_names, true);
   const std::size_t n = s.coordinate_names.size();
   std::vector<double> row(n);
-  // From the first frame with a measurement: before it there is no pose to write (OpenSim's
-  // tools read a row of NaN as data).
-  for (std::size_t f = s.first_measured; f < s.rms_m.size(); ++f) {
+  // From the first frame with a measurement to the last: outside them there is no pose to
+  // write (OpenSim's tools read a row of NaN as data).
+  for (std::size_t f = s.first_measured; f < s.end_measured; ++f) {
     for (std::size_t c = 0; c < n; ++c)
       row[c] = s.coordinates[f * n + c] * (s.coordinate_is_rotation[c] ? kDegPerRad : 1.0);
     t.add_row(s.joints.file_time_s(f), row);

@@ -32,7 +32,7 @@ struct FilledRun {
 };
 
 struct TrialSolution {
-  io::MarkerTrial joints;                     // joint centres per frame (metres)
+  io::MarkerTrial joints;  // joint centres per frame (metres), solved on `markers` offline
   // The tracked markers per frame (metres): the samples as measured (after a prefilter), and
   // where one is missing between or beside measured samples, the two-sided fill
   // (two_sided_fill.hpp); NaN for a marker never measured.
@@ -48,9 +48,14 @@ struct TrialSolution {
   std::vector<int> iterations;                // per frame
   std::vector<std::string> status;            // per frame, the solver's stop reason
   std::vector<int> measured;                  // per frame: tracked markers with a measurement
-  // Frames before the first with a measured marker or sensor: no pose (NaN joints, model
-  // markers and coordinates; the .mot starts after them).
-  std::size_t first_measured = 0;
+  // Frames before the first with a measured marker or sensor, and from one past the last
+  // (`end_measured`): no pose (NaN joints, model markers and coordinates; the .mot has
+  // rows [first_measured, end_measured) only).
+  std::size_t first_measured = 0, end_measured = 0;
+  // Whether the joint centres and coordinates were solved again on `markers` (some gap was
+  // filled): the residual, outlier and quality figures and `model_markers` stay the causal
+  // pass's, as fabrikd tracks live.
+  bool solved_on_filled_markers = false;
   // Per frame and marker [frame * markers + i]: left out of the solve as an outlier (or
   // relabelled as a swap: outlier_filter.hpp).
   std::vector<std::uint8_t> outlier;

@@ -164,8 +164,14 @@ def _cli_error(proc_or_text, limit=600):
     """The CLI's message on one line: the last lines of its stderr."""
     text = proc_or_text if isinstance(proc_or_text, str) else (proc_or_text.stderr or "")
     lines = [ln.strip() for ln in text.replace("\r", "\n").splitlines() if ln.strip()]
-    one = " | ".join(lines[-4:])
-    return one if len(one) <= limit else "..." + one[-limit:]
+    last = lines[-4:]
+    one = " | ".join(last)
+    if len(one) <= limit:
+        return one
+    # The first line names the file and the problem, the last the fix: kept whole, the lists
+    # between them left out (a cut from the front lost the file's name).
+    short = last[0] + " | ... | " + last[-1]
+    return short if len(short) <= limit else "..." + one[-limit:]
 
 
 def _run_cli(cmd, timeout_s):
