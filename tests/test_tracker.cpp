@@ -155,6 +155,58 @@ TEST_CASE("A frame refused for its sizes gives no verdict, not the last frame's"
   CHECK(tracker.posture().segments[0].base_world_m == before.segments[0].base_world_m);
 }
 
+TEST_CASE("A frame with a time that is not finite is refused with a status, the state kept",
+          "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  std::vector<Eigen::Vector3d> pos = sampled_markers(s);
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  tracker.track(0.0, pos, visible);
+  visible[3] = 0;  // a gap whose age must run on through the refused frames
+  for (int f = 1; f <= 10; ++f) tracker.track(0.01 * f, pos, visible);
+  const Posture before = tracker.posture();
+  for (double bad : {double(NAN), double(INFINITY), -double(INFINITY)}) {
+    CAPTURE(bad);
+    const TrackResult& r = tracker.track(bad, pos, visible);
+    CHECK(r.solve.status == SolveStatus::non_finite_input);
+    CHECK(r.quality == FitQuality::none);
+    CHECK(tracker.posture().segments[0].base_world_m == before.segments[0].base_world_m);
+  }
+  // The next frame goes on as if the refused ones had not come: warm, the gap 0.11 s old (a
+  // NaN time read as a long gap started cold and restarted the gap's age).
+  const TrackResult& next = tracker.track(0.11, pos, visible);
+  CHECK_FALSE(next.cold_start);
+  CHECK(next.gap_s[3] == Approx(0.11).margin(1e-9));
+}
+
+TEST_CASE(
+    "A marker's gap age runs on across cold starts and restarts with a clock that went "
+    "back",
+    "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  REQUIRE(s.setup.cold_start.after_gap_s < 1.0);
+  std::vector<Eigen::Vector3d> pos = sampled_markers(s);
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  tracker.track(0.0, pos, visible);
+  visible[3] = 0;
+  // Frames 1 s apart: each starts cold. The age read 0 on every one of them.
+  for (int f = 1; f <= 4; ++f) {
+    const TrackResult& r = tracker.track(1.0 * f, pos, visible);
+    CAPTURE(f);
+    REQUIRE(r.cold_start);
+    CHECK(r.gap_s[3] == Approx(1.0 * f));
+    CHECK(r.gap_s[4] == 0.0);  // measured
+  }
+  // The clock goes back (a source restarted): the age counts from there, not from -996 s.
+  CHECK(tracker.track(-1000.0, pos, visible).gap_s[3] == 0.0);
+  CHECK(tracker.track(-999.99, pos, visible).gap_s[3] == Approx(0.01));
+  // A marker never measured since the start is as old as the stream.
+  Tracker fresh(s.setup);
+  fresh.track(5.0, pos, visible);
+  CHECK(fresh.track(7.0, pos, visible).gap_s[3] == Approx(2.0));
+}
+
 TEST_CASE("A moved-from tracker answers with a status, not a crash", "[tracker]") {
   Scene s = fullbody_scene(0.0);
   Tracker first(s.setup);

@@ -183,6 +183,7 @@ TrackerCore::TrackerCore(TrackerSetup setup)
   orient_q_world_.assign(solver_.orientations().size(), Eigen::Quaterniond::Identity());
   orient_visible_.assign(solver_.orientations().size(), 0);
   gap_s_.assign(n_, 0.0);
+  last_measured_s_.assign(n_, -INFINITY);
   measured_.assign(n_, 0);
   result_.gap_s = gap_s_;
   coordinates_.assign(model().coordinates.size(), 0.0);
@@ -211,6 +212,8 @@ void TrackerCore::reset() {
   coordinates_continue_ = false;
   warm_start_.reset();
   std::fill(last_seen_s_.begin(), last_seen_s_.end(), -INFINITY);
+  std::fill(last_measured_s_.begin(), last_measured_s_.end(), -INFINITY);
+  clock_start_s_ = last_time_s_ = NAN;
   predictor_.reset();
   smoother_.reset();
   mirror_.reset();
@@ -251,6 +254,18 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
     result_.solve.status = SolveStatus::size_mismatch;
     return result_;
   }
+  // A NaN time would read as a long gap (a cold start, every gap's age restarted): refused,
+  // the state kept, as the solver refuses a non-finite target.
+  if (!std::isfinite(time_s)) {
+    clear_verdict();
+    result_.solve.status = SolveStatus::non_finite_input;
+    return result_;
+  }
+  if (!(time_s >= last_time_s_)) {  // the first frame, or the clock went back
+    clock_start_s_ = time_s;
+    std::fill(last_measured_s_.begin(), last_measured_s_.end(), -INFINITY);
+  }
+  last_time_s_ = time_s;
   const bool hold = hold_enabled(setup_);
   int occluded_count = 0, low_confidence = 0;
   const ConfidenceSettings& cs = setup_.confidence;
@@ -385,6 +400,10 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
     if (worst < 0 || d_m > max_m) max_m = d_m, worst = i;
   }
   predictor_.after_solve(time_s, posture_, measured_, input_m_, markers_m_, gap_s_);
+  for (int i = 0; i < n_; ++i) {
+    if (measured_[i]) last_measured_s_[i] = time_s;
+    gap_s_[i] = measured_[i] ? 0.0 : time_s - std::max(last_measured_s_[i], clock_start_s_);
+  }
   // A sample the frame rejected (an outlier, or relabelled by the outlier rule) does not enter
   // the filter: it holds its state as if the sample had not come.
   if (setup_.smoothing.enabled)

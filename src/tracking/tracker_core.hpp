@@ -78,6 +78,11 @@ class TrackerCore {
   std::vector<Eigen::Quaterniond> orient_q_world_;
   std::vector<std::uint8_t> orient_visible_;
   std::vector<double> gap_s_;
+  // A marker's gap age, kept here and not by the predictor (which starts afresh at a cold
+  // start): the time it was last measured, and where the clock began (the first frame, or
+  // one whose time went back: a new recording). NaN: no frame yet.
+  std::vector<double> last_measured_s_;
+  double clock_start_s_ = NAN, last_time_s_ = NAN;
   std::vector<std::uint8_t> measured_;  // per marker, this frame (outliers included)
   MirrorSwap mirror_;
   OneEuroFilter smoother_;
