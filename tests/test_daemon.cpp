@@ -27,15 +27,17 @@
 
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
+#include "log_capture.hpp"
 #include "model_message.hpp"
 #include "socket_client.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "transport/daemon.hpp"
-#include "transport/session_revival.hpp"
 #include "transport/model_codec.hpp"
+#include "transport/session_revival.hpp"
 #include "transport/socket_monitor.hpp"
 
 #include "sanitized.hpp"
+#include "unknown_host.hpp"
 
 using namespace fabrik;
 using nlohmann::json;
@@ -310,6 +312,40 @@ TEST_CASE("Endpoints with an IPv6 literal host are bound and served", "[daemon]"
   test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
   client.handshake();  // a pose came back over IPv6 both ways (it throws after its deadline)
   CHECK(d.daemon.counters().frames_out >= 1);
+}
+
+TEST_CASE("A connected endpoint whose host no resolver knows is logged as a warning at the start",
+          "[daemon]") {
+  // ZeroMQ retries a host no resolver knows for ever, silently.
+  if (const std::string why = test::resolver_cannot_answer(); !why.empty()) {
+    WARN("skipped: " << why);
+    return;
+  }
+  const test::LogCapture log;  // before the daemon: outlives it
+  DaemonConfig c = config_on("tcp://nohost.invalid:5556", "inproc://poses-nohost");
+  c.input.mode = SocketMode::connect;
+  spdlog::default_logger()->set_level(spdlog::level::warn);  // config_on's err hides warnings
+  zmq::context_t context;
+  {
+    RunningDaemon d(context, c);
+    REQUIRE(d.stop_within(5s));  // run() logs the endpoints before its loop looks at the stop
+    CHECK(d.run_error.empty());
+  }
+  CHECK_THAT(log.find("warning",
+                      "the input socket connects to 'tcp://nohost.invalid:5556', but "
+                      "no host is named 'nohost.invalid' ("),
+             Catch::Contains("ZeroMQ keeps trying it, and no markers arrive until the name "
+                             "resolves. Fix: check the host name (/input/endpoint)"));
+  CHECK(log.find("warning", "poses").empty());  // the bound output is not looked up
+  // A connect to an address is not looked up either.
+  const test::LogCapture quiet;
+  c.input.address = "tcp://127.0.0.1:5556";
+  spdlog::default_logger()->set_level(spdlog::level::warn);
+  {
+    RunningDaemon d(context, c);
+    REQUIRE(d.stop_within(5s));
+  }
+  CHECK(quiet.find("warning", "no host").empty());
 }
 
 TEST_CASE("Occluded markers are listed and predicted by the model", "[daemon]") {
@@ -1235,6 +1271,41 @@ TEST_CASE(
   const auto matched =
       client.stats_until([](const json& s) { return s["config_mismatch"] == false; });
   CHECK(matched);
+}
+
+TEST_CASE(
+    "Every unknown name of a stream is logged in time, not only the first few of each frame, "
+    "and the mismatch's closest names come from them all",
+    "[daemon]") {
+  const test::LogCapture log;  // before the daemon: outlives it
+  zmq::context_t context;
+  RunningDaemon d(context, config_on("inproc://markers-rotate", "inproc://poses-rotate"));
+  spdlog::default_logger()->set_level(spdlog::level::warn);  // config_on's err hides warnings
+  test::SocketClient client(context, d.daemon.input_endpoint(), d.daemon.output_endpoint());
+  std::uint64_t frame = client.handshake();
+  // A prop's 8 markers sort first in every frame (Vicon.c3d's "boite:*" before "Daphnee:*"):
+  // only they were ever listed, so the subject's names reached neither log line.
+  json markers = json::object();
+  for (int k = 0; k < 8; ++k) markers["Box:P" + std::to_string(k)] = {0.0, 1000.0 + k, 0.0};
+  const json rest = rest_markers(d.daemon.config());
+  for (const auto& [name, p] : rest.items()) markers["Sub:" + name] = p;
+  REQUIRE(markers.size() > 3 * 8);
+  for (int i = 0; i < 2 * wire::NameMismatchWatch::kFramesInARow; ++i) {
+    client.send(json{{"frame", ++frame}, {"markers", markers}}.dump());
+    REQUIRE(client.receive("pose"));
+  }
+  REQUIRE(d.stop_within(5s));
+  const std::string all = log.all();
+  for (const auto& [name, p] : markers.items()) {
+    CAPTURE(name);
+    const std::string line = "'" + name + "' is not in the model";
+    std::size_t count = 0;
+    for (std::size_t at = all.find(line); at != std::string::npos; at = all.find(line, at + 1))
+      ++count;
+    CHECK(count == 1);
+  }
+  CHECK_THAT(log.find("error", "share none with the config"),
+             Catch::Contains("closest:") && Catch::Contains("(after 'Sub:')"));
 }
 
 TEST_CASE(

@@ -157,6 +157,8 @@ std::string WatchTally::live_line(double t_s) {
     std::snprintf(residual, sizeof residual, "rms %.3f max %.3f %s",
                   in.rms_sum / static_cast<double>(in.fitted), in.max,
                   units_.empty() ? "" : units_.c_str());
+  else if (in.poses == 0)
+    std::snprintf(residual, sizeof residual, "rms none (no pose this interval)");
   else
     std::snprintf(residual, sizeof residual, "rms none (no marker measured)");
   std::snprintf(buf, sizeof buf, "%6.1f Hz  frame %-8llu %s  occluded %.1f  |",

@@ -5,13 +5,14 @@
 #include <algorithm>
 #include <cerrno>
 #include <condition_variable>
-#include <functional>
-#include <type_traits>
 #include <cstring>
+#include <functional>
 #include <iterator>
 #include <optional>
 #include <stdexcept>
 #include <thread>
+#include <tuple>
+#include <type_traits>
 
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -309,6 +310,9 @@ struct Daemon::State {
   // The topics published besides pose, stats and model: the subjects' (pose/NAME,
   // model/NAME) and the views'.
   std::vector<std::string> extra_topics;
+  // A connected endpoint whose host no resolver knows, one line each: ZeroMQ retries it
+  // silently. Looked up here, off the frame loop (a resolver can take seconds).
+  std::vector<std::string> unknown_hosts;
 };
 
 struct Daemon::ReloadJob {
@@ -411,6 +415,17 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   s->waiting.resize(static_cast<std::size_t>(config.max_backlog_frames));
   s->received_at.resize(s->waiting.size());
   s->config_name = safe_text(config.file);
+  for (const auto& [e, role, what] : {std::tuple{&config.input, "input", "no markers arrive"},
+                                      std::tuple{&config.output, "output", "no poses leave"}})
+    if (e->mode == SocketMode::connect)
+      if (const auto unknown = unknown_host(e->address))
+        s->unknown_hosts.push_back(
+            safe_text("the " + std::string(role) + " socket connects to '" + e->address +
+                      "', but " + unknown->problem.substr(unknown->problem.find("no host")) +
+                      ": ZeroMQ keeps trying it, and " + what + " until the name resolves. " +
+                      "Fix: check the host name (" +
+                      (e->option.empty() ? "/" + std::string(role) + "/endpoint" : e->option) +
+                      "), or give the host's address"));
   if (config.subjects.empty())
     s->model_out = encode_model(config.tracker, s->config_name, config.output_units, encoding);
   s->config = std::move(config);
@@ -671,6 +686,11 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
     }
   }
   const MarkerFrame& f = only ? only->frame : s.frame;
+  // The next frame lists the unknown names after this one's (a prop's 8 markers first in
+  // every frame hid a subject's misnamed ones from the log and the mismatch's closest names).
+  const int next_skip = f.unknown_skip + static_cast<int>(f.unknown_names.size());
+  for (MarkerFrame* frame : {&s.frame, only ? &only->frame : nullptr})
+    if (frame) frame->unknown_skip = next_skip < f.unknown_count ? next_skip : 0;
   counters_.rejected_coordinates += static_cast<std::uint64_t>(f.rejected_count);
   counters_.zero_markers += static_cast<std::uint64_t>(f.zero_count);
   counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
@@ -744,7 +764,8 @@ void Daemon::warn_config_mismatch(const MarkerFrame& f) {
   spdlog::error(
       "the stream's marker names share none with the config {} ({} frames in a row): every "
       "frame is solved without targets.{}\nFix: start fabrikd with a config made for this "
-      "marker set (fabrik calibrate), or rename the config's target markers "
+      "marker set (fabrik calibrate), or map the stream's names onto the model's markers in "
+      "the config's targets.markers ({{\"STREAM_NAME\": {{\"point\": \"MODEL_MARKER\"}}}}) "
       "(stats: config_mismatch, unmatched_frames)",
       state_->config_name, NameMismatchWatch::kFramesInARow,
       names_beside(config_names, "stream:", stream_names));
@@ -1176,6 +1197,7 @@ void Daemon::log_endpoints() const {
                state_->subjects.empty()
                    ? std::string()
                    : " for " + std::to_string(state_->subjects.size()) + " subjects");
+  for (const std::string& line : state_->unknown_hosts) spdlog::warn("{}", line);
 }
 
 void Daemon::start_reload(const std::function<DaemonConfig()>& load_config) {

@@ -1,6 +1,7 @@
 #include "marker_codec.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "json_sax_reader.hpp"
@@ -55,8 +56,12 @@ class FrameSax final : public nlohmann::json_sax<json> {
     }
     return number(static_cast<double>(v));
   }
-  bool number_float(number_float_t v, const string_t&) override {
-    if (state_ == State::frame) return fail("\"frame\" must be an unsigned integer, got a float");
+  bool number_float(number_float_t v, const string_t& text) override {
+    if (state_ == State::frame)
+      // The parser gives an integer past 2^64 - 1 as a float: too large, not a fraction.
+      return fail(!text.empty() && text.find_first_not_of("0123456789") == string_t::npos
+                      ? "\"frame\" must be an unsigned integer below 2^64, got a larger one"
+                      : "\"frame\" must be an unsigned integer, got a float");
     return number(v);
   }
   bool string(string_t& s) override {
@@ -167,9 +172,19 @@ class FrameSax final : public nlohmann::json_sax<json> {
   }
   bool parse_error(std::size_t position, const std::string&,
                    const nlohmann::detail::exception& e) override {
-    if (error_.empty())
+    if (error_.empty()) {
+      // The library's own reason, without its "[json.exception.parse_error.N] parse error at
+      // byte N: " prefix (the byte is said once, here).
+      std::string_view why = e.what();
+      if (why.starts_with("[json.exception"))
+        if (const std::size_t close = why.find("] "); close != std::string_view::npos)
+          why.remove_prefix(close + 2);
+      if (why.starts_with("parse error"))
+        if (const std::size_t colon = why.find(": "); colon != std::string_view::npos)
+          why.remove_prefix(colon + 2);
       error_ = "not valid " + std::string(format_) + " at byte " + std::to_string(position) + ": " +
-               e.what();
+               std::string(why);
+    }
     return false;
   }
   const char* format_ = "JSON";
@@ -406,6 +421,17 @@ bool MarkerDecoder::decode(std::span<const std::uint8_t> payload, MarkerFrame& o
   }
   start_frame(out);
   const bool msgpack = detect_encoding(payload) == PayloadEncoding::msgpack;
+  // JSON text starts with an ASCII byte (or a UTF-8 byte order mark): another byte is
+  // MessagePack of something other than a map (0x93: an array), not "JSON at byte 0".
+  if (const std::uint8_t first = payload[0]; !msgpack && first >= 0x80 && first != 0xEF) {
+    char hex[8];
+    std::snprintf(hex, sizeof hex, "0x%02X", first);
+    error = std::string(
+                "a marker frame must be a JSON object or a MessagePack map; the first "
+                "byte, ") +
+            hex + ", starts neither";
+    return false;
+  }
   const std::string_view text(reinterpret_cast<const char*>(payload.data()), payload.size());
   FastFrameTop top;
   bool try_fast = fast_path_;

@@ -44,8 +44,12 @@ struct MarkerFrame {
   int zero_count = 0;      // known markers at exactly (0, 0, 0): taken as occluded
   int known_count = 0;                     // marker names of the config (null ones included)
   int unknown_count = 0;                   // marker names not in the model
-  std::vector<std::string> unknown_names;  // the first unknown_listed of them (cut), for the log
+  std::vector<std::string> unknown_names;  // unknown_listed of them (cut), for the log
   int unknown_listed = 0;
+  // Set by the reader before a decode, kept by it: the list starts after this many unknown
+  // names (the daemon moves it on frame by frame, so that a stream's every unknown name is
+  // listed in time, not only its first few).
+  int unknown_skip = 0;
   // Unknown names "X:..." where no config name starts "X:": another subject's markers (in a
   // split across processes). All of a frame's, not only the listed ones.
   int unknown_foreign = 0;

@@ -79,8 +79,9 @@ inline int count_marker(MarkerNameIndex& names, std::size_t position, std::strin
     out.unknown_foreign += foreign ? 1 : 0;
     // Beside a multi-subject config's subjects, another subject's names are listed once per
     // subject, so that one subject's many markers cannot take every slot of the list.
-    if (!foreign || !names.of_subjects() ||
-        !listed_prefix(out.unknown_names, out.unknown_listed, name.substr(0, name.find(':') + 1)))
+    if (out.unknown_count > out.unknown_skip &&
+        (!foreign || !names.of_subjects() ||
+         !listed_prefix(out.unknown_names, out.unknown_listed, name.substr(0, name.find(':') + 1))))
       list_unknown_name(out.unknown_names, out.unknown_listed, name);
   }
   return i;
