@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -41,10 +42,15 @@ struct Posture {
 
   /// The model's rest posture: every frame parallel to world, joints connected.
   static Posture rest(const Model& model);
-  /// World position (metres) of model point `point` (an index into Model::points).
+  /// World position (metres) of model point `point` (an index into Model::points); NaN for
+  /// an index out of range or a posture of another model.
   Eigen::Vector3d point_world_m(const Model& model, int point) const {
-    const Point& p = model.points[point];
-    return segments[p.segment].to_world(p.p_local_m);
+    if (point < 0 || static_cast<std::size_t>(point) >= model.points.size())
+      return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+    const Point& p = model.points[static_cast<std::size_t>(point)];
+    if (p.segment < 0 || static_cast<std::size_t>(p.segment) >= segments.size())
+      return Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+    return segments[static_cast<std::size_t>(p.segment)].to_world(p.p_local_m);
   }
 };
 

@@ -151,6 +151,17 @@ def test_a_slice_of_a_trial_keeps_its_frame_numbers_and_times(synth_trial):
         fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(
             trial, positions_mm=trial.positions_mm[::2], time_s=trial.time_s[::2],
             frame_numbers=None))
+    # A NaN time was taken (its frame's time came out made up), a zero rate divided by zero.
+    times = trial.time_s.copy()
+    times[5] = np.nan
+    with pytest.raises(ValueError, match="time_s must be finite seconds, but entry 5 is nan"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(trial, time_s=times))
+    with pytest.raises(ValueError, match="rate_hz must be a positive number"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), dataclasses.replace(trial, rate_hz=0.0))
+    # MarkerData.frames keeps positions, times and numbers together: the same solve as above.
+    again = fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), trial.frames(40, 60))
+    np.testing.assert_array_equal(again.frame_numbers, solved.frame_numbers)
+    np.testing.assert_array_equal(again.joints_mm, solved.joints_mm)
 
 
 def test_keep_zeros_holds_for_arrays_as_for_files(synth_trial):

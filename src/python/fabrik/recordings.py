@@ -1,5 +1,6 @@
 """Recordings as NumPy arrays: marker trials (TRC, C3D) and OpenSim tables (MOT, STO)."""
 import os
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Dict, List
 
@@ -27,6 +28,18 @@ class MarkerData:
     def marker(self, name):
         """(frames, 3) mm of one marker (a view)."""
         return self.positions_mm[:, self.names.index(name), :]
+
+    def frames(self, start, stop):
+        """Frames [start, stop) (indices, as a Python slice takes them) as a MarkerData whose
+        positions, times and frame numbers stay together (what solve needs of a part)."""
+        part = slice(start, stop)
+        numbers = self.frame_numbers
+        if numbers is None or not len(numbers):
+            numbers = self.first_frame + np.arange(np.shape(self.positions_mm)[0])
+        return dataclasses.replace(self, positions_mm=self.positions_mm[part],
+                                   time_s=np.asarray(self.time_s)[part],
+                                   frame_numbers=np.asarray(numbers)[part],
+                                   warnings=list(self.warnings))
 
     def frame(self, index):
         """{name: (x, y, z) mm} of one frame, the dict Tracker.track takes (missing markers

@@ -97,7 +97,13 @@ def _first_frame_and_time(markers):
     if times is None or not len(times):
         return first_frame, float("nan")
     times = np.asarray(times, dtype=np.float64)
-    period_s = 1.0 / float(markers.rate_hz)
+    if not np.all(np.isfinite(times)):
+        k = int(np.flatnonzero(~np.isfinite(times))[0])
+        raise ValueError("markers.time_s must be finite seconds, but entry %d is %g" % (k, times[k]))
+    rate_hz = float(markers.rate_hz)
+    if not (np.isfinite(rate_hz) and rate_hz > 0.0):
+        raise ValueError("rate_hz must be a positive number of frames per second (got %g)" % rate_hz)
+    period_s = 1.0 / rate_hz
     # Half a period, step by step and over the whole: a file's Time column rounded to 3
     # decimals is off by far less; another rate (100 Hz data said to be 120) drifts past it.
     off = np.flatnonzero(np.abs(np.diff(times) - period_s) > 0.5 * period_s)
