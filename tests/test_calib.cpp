@@ -142,6 +142,10 @@ TEST_CASE("A marker needed only for a joint centre must be in the static trial",
   const CalibTemplate t = load_template(leg_template(), "leg.json");
   CHECK_THROWS_WITH(calibrate(t, trial, "static.trc"),
                     Catch::Contains("'RKNM' (not in the trial)") && Catch::Contains("Fix:"));
+  // A lab's own spelling: the closest label is named (it was left to the user to find).
+  trial.labels[5] = "R_KNM";
+  CHECK_THROWS_WITH(calibrate(t, trial, "static.trc"),
+                    Catch::Contains("'RKNM' (not in the trial); closest labels: RKNM ~ R_KNM ("));
   // Subject prefixes as Vicon writes them match.
   trial.labels[5] = "Subject:RKNM";
   const CalibrationResult r = calibrate(t, trial, "static.c3d");

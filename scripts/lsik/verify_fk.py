@@ -15,21 +15,30 @@ def main():
     M = st.M0
     cols, mot, deg = read_mot(st.fab_mot)
     col = {c: i for i, c in enumerate(cols)}
-    jn, _, JX = read_trc(st.fab_joints_trc)
+    jn, jt, JX = read_trc(st.fab_joints_trc)
     sc = np.pi / 180 if deg else 1.0
     cmap = {c["name"]: c for c in M.coords}
     legsegs = [M.idx[n] for n in ["pelvis", "l_thigh", "r_thigh", "l_shank", "r_shank", "l_hindfoot", "r_hindfoot"]]
     mk = [i for i in range(len(M.marker_names)) if M.marker_seg[i] in legsegs]
     midx = [st.marker_names.index(M.marker_names[i]) for i in mk]
     errs, res = {}, []
+    # Rows are paired by time (to half a frame: a TRC may round its times): solve writes no
+    # row before the first measured frame, so the .mot can start later than the trial.
+    def row_at(t_s, times_s):
+        k = int(np.argmin(np.abs(times_s - t_s)))
+        if abs(times_s[k] - t_s) > 0.5 * np.median(np.diff(times_s)):
+            raise SystemExit(f"no row at time {t_s:.6f} s")
+        return k
     for f in range(mot.shape[0]):
+        t_s = mot[f, col["time"]]
+        fj, fm = row_at(t_s, jt), row_at(t_s, st.t_s)
         A, B0 = inputs.fabrik_angles(M, mot[f], cols, deg)
         R, B = M.fk(A, B0)
         for j in ["l_hip", "r_hip", "r_knee", "l_knee", "r_ankle", "l_ankle", "r_midtarsal", "l_midtarsal"]:
             s = M.base_name.index(j)
-            errs.setdefault(j, []).append(np.linalg.norm(B[s] - JX[f, jn.index(j)]))
+            errs.setdefault(j, []).append(np.linalg.norm(B[s] - JX[fj, jn.index(j)]))
         W = M.markers_world(R, B)[mk]
-        d = np.linalg.norm(W - st.MEAS_ALL[f, midx], axis=1)
+        d = np.linalg.norm(W - st.MEAS_ALL[fm, midx], axis=1)
         res.append(np.sqrt(np.nanmean(d ** 2)))
         cv = M.coordinate_values(R, B)
         if f in (0, 75, 150):

@@ -11,6 +11,7 @@
 #include <set>
 #include <sstream>
 
+#include "config/closest_names.hpp"
 #include "config/config_error.hpp"
 #include "config/daemon_config.hpp"
 #include "config/model_loader.hpp"
@@ -26,6 +27,11 @@ const Eigen::Vector3d& CalibrationResult::point_world_m(const std::string& name)
 }
 
 namespace {
+
+// Unsigned angle between two directions, robust near 0 and 180 deg.
+double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / std::numbers::pi;
+}
 
 // The subtree carry of a calibrated model with joint limits (docs/joint-limits.md, "Subtree
 // carry": the share that closed most of the gap to the constrained least-squares fit).
@@ -196,6 +202,7 @@ class Calibrator {
     const std::set<std::string> needed = needed_markers();
     std::string absent;
     int n_absent = 0;
+    std::vector<std::string> not_in_trial;
     for (std::size_t m = 0; m < t_.markers.size(); ++m) {
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
       std::size_t n = 0;
@@ -213,16 +220,27 @@ class Calibrator {
       if (n == 0) {
         absent += std::string(n_absent++ ? ", " : "") + "'" + name + "'" +
                   (column_[m] < 0 ? " (not in the trial)" : " (no sample in the window)");
+        if (column_[m] < 0) not_in_trial.push_back(name);
       } else if (n < count_) {
         r_.notes.push_back("marker '" + name + "' is missing in " + std::to_string(count_ - n) +
                            " of the " + std::to_string(count_) +
                            " frames; it is averaged over the others");
       }
     }
+    // A lab's own spelling of the set (R_ASIS for R.ASIS) is most often the reason: the
+    // closest labels say so, as fabrik solve's refusal does.
+    std::string closest;
+    constexpr std::size_t kClosestShown = 6;
+    const std::vector<NameMatch> matches = closest_labels(not_in_trial, trial_.labels);
+    for (std::size_t k = 0; k < std::min(matches.size(), kClosestShown); ++k)
+      closest += std::string(k ? ", " : "; closest labels: ") + matches[k].config_name + " ~ " +
+                 matches[k].trial_label + " (" + matches[k].how + ")";
+    if (matches.size() > kClosestShown)
+      closest += ", ... (" + std::to_string(matches.size()) + " in all)";
     if (n_absent)
       fail(std::to_string(n_absent) + " marker(s) the template needs have no position in frames " +
                std::to_string(r_.first_frame) + " to " +
-               std::to_string(r_.first_frame + r_.frames - 1) + ": " + absent,
+               std::to_string(r_.first_frame + r_.frames - 1) + ": " + absent + closest,
            "use a static trial that has these markers (or choose a window with --first-frame "
            "and --frames where they are visible), or change the template " +
                t_.file);
@@ -347,9 +365,6 @@ class Calibrator {
     const auto [superior, anterior] = static_directions();
     const bool has_frames = superior.norm() > 1e-9;
     const auto nearest_axis = nearest_lab_axis;
-    auto deg_between = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-      return std::atan2(a.cross(b).norm(), a.dot(b)) * 180.0 / 3.141592653589793;
-    };
     Eigen::Vector3d up = Eigen::Vector3d::UnitY();
     std::string how;
     if (declared) {
@@ -361,8 +376,10 @@ class Calibrator {
         r_.notes.push_back(std::move(*note));
     } else if (has_frames) {
       up = nearest_axis(superior, Eigen::Vector3d::Zero());
-      how = "detected from the static trial: up is the lab axis nearest the segments' superior "
-            "(anatomical y) axes, " + fmt("%.1f", deg_between(superior, up)) + " deg from their mean";
+      how =
+          "detected from the static trial: up is the lab axis nearest the segments' superior "
+          "(anatomical y) axes, " +
+          fmt("%.1f", angle_between_deg(superior, up)) + " deg from their mean";
     } else {
       how = "assumed: the template gives no segment frames to detect them from";
     }
@@ -386,7 +403,8 @@ class Calibrator {
     // OpenSim's pelvis angles assume the subject faces about forward: facing
     // sideways, pelvis_rotation sits near 90 deg and tilt and list swap roles;
     // facing backwards, near 180 deg with tilt and list of the other sign.
-    if (const double off = front.norm() > 1e-9 ? deg_between(front, *forward) : 0.0; off > 45.0)
+    if (const double off = front.norm() > 1e-9 ? angle_between_deg(front, *forward) : 0.0;
+        off > 45.0)
       r_.notes.push_back("the subject faces " + signed_axis_name(nearest_axis(front, up)) +
                          " in the static trial, " + fmt("%.0f", off) +
                          " deg from the lab's forward axis " + signed_axis_name(*forward) +
@@ -615,8 +633,7 @@ std::optional<std::string> declared_up_note(const Eigen::Vector3d& up_lab,
                                             const Eigen::Vector3d& superior_lab,
                                             const std::string& measured) {
   if (superior_lab.norm() < 1e-9) return std::nullopt;
-  const double deg = std::atan2(superior_lab.cross(up_lab).norm(), superior_lab.dot(up_lab)) *
-                     180.0 / std::numbers::pi;
+  const double deg = angle_between_deg(superior_lab, up_lab);
   if (!(deg > 45.0)) return std::nullopt;
   return "the declared lab up axis " + signed_axis_name(up_lab) + " is " + fmt("%.0f", deg) +
          " deg from " + measured + ", which is nearest " +
