@@ -2,7 +2,7 @@
 """Frames at a joint bound: how often each limited joint angle of a calibrated model sits at
 (within --tolerance-deg of) the end of its range while `fabrik solve` tracks a trial.
 
-Usage: scripts/joint_bounds.py CONFIG.json TRIAL.trc [--fabrik build/src/apps/fabrik]
+Usage: scripts/joint_bounds.py CONFIG.json TRIAL.trc [--fabrik FABRIK (default: this tree's build, else fabrik on PATH)]
                                [--tolerance-deg 0.5] [--json OUT.json]
 
 CONFIG.json is what `fabrik calibrate` writes. The script adds one coordinate per moving,
@@ -17,6 +17,7 @@ any angle at a bound. Standard library only.
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -39,7 +40,12 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("config")
     ap.add_argument("trial")
-    ap.add_argument("--fabrik", default="build/src/apps/fabrik")
+    # The source tree's build beside this script, else `fabrik` on PATH (an install): the
+    # default once depended on the folder it was run from.
+    built = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "src", "apps",
+                         "fabrik")
+    ap.add_argument("--fabrik", default=built if os.access(built, os.X_OK)
+                    else shutil.which("fabrik") or built)
     ap.add_argument("--tolerance-deg", type=float, default=0.5)
     ap.add_argument("--json")
     a = ap.parse_args()

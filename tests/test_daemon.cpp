@@ -1298,7 +1298,7 @@ TEST_CASE(
   const std::string all = log.all();
   for (const auto& [name, p] : markers.items()) {
     CAPTURE(name);
-    const std::string line = "'" + name + "' is not in the model";
+    const std::string line = "'" + name + "'";
     std::size_t count = 0;
     for (std::size_t at = all.find(line); at != std::string::npos; at = all.find(line, at + 1))
       ++count;

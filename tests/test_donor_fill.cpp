@@ -80,6 +80,32 @@ TEST_CASE("Donor fill: a marker of a rigid cluster is reproduced from the cluste
   }
 }
 
+TEST_CASE(
+    "Donor fill: a gap clipped short of the trial's edge is filled from its one measured "
+    "side",
+    "[gaps][donors]") {
+  // The marker is missing in frames 0-59; the fill is asked for 20-59 only (the frames before
+  // 20 had no marker at all, as two_sided_fill clips them). Frame 19 is no side: the marker
+  // was not measured there. Taken for one, its stale coordinates were blended into the fill.
+  const Scene s;
+  std::vector<std::uint8_t> visible(Scene::frames * Scene::n, 1);
+  std::vector<Eigen::Vector3d> markers_m = s.markers_m;  // NaN where missing, as the fill has them
+  for (std::size_t f = 0; f < 60; ++f) {
+    visible[f * Scene::n + 0] = 0;
+    markers_m[f * Scene::n + 0].setConstant(NAN);
+  }
+  std::vector<Eigen::Vector3d> out(40);
+  REQUIRE(
+      fill_from_donors(Scene::frames, Scene::n, s.times_s, markers_m, visible, 0, 20, 60, {}, out));
+  double worst_m = 0.0;
+  for (std::size_t f = 20; f < 60; ++f) {
+    const double e_m = (out[f - 20] - s.markers_m[f * Scene::n]).norm();
+    worst_m = std::isfinite(e_m) ? std::max(worst_m, e_m) : INFINITY;  // NaN: the stale side
+  }
+  INFO("largest fill error " << worst_m * 1e3 << " mm");
+  CHECK(worst_m < 2e-5);
+}
+
 TEST_CASE("Donor fill: no fill without three donors measured through the gap", "[gaps][donors]") {
   const Scene s;
   std::vector<std::uint8_t> visible(Scene::frames * Scene::n, 1);

@@ -5,7 +5,6 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
-#include <numeric>
 #include <optional>
 
 #include "common/ascii_case.hpp"
@@ -26,31 +25,6 @@
 namespace fabrik::apps {
 
 namespace {
-
-// A trial in which no tracked marker has a sample would give a summary, a report and a batch
-// row of nothing, and exit 0: refused, saying why the samples went.
-void require_some_sample(const DaemonConfig& config, const io::MarkerTrial& trial,
-                         const std::string& input, std::size_t implausible) {
-  for (const MarkerTarget& m : config.tracker.markers)
-    if (const int c = trial.find(m.marker); c >= 0)
-      for (std::size_t f = 0; f < trial.frames(); ++f)
-        if (trial.at(f, static_cast<std::size_t>(c)).allFinite()) return;
-  std::string why = "every sample of them is empty";
-  std::string fix = "check that the trial holds this subject's markers";
-  if (implausible > 0) {
-    why = std::to_string(implausible) + " samples were farther than input.max_abs_coordinate_mm (" +
-          format_number("%g", config.max_abs_coordinate_m * 1e3) + " mm) from the origin";
-    fix = "check the file's unit (it says '" + trial.source.units +
-          "'): a file in mm labelled m is 1000 times too large";
-  } else if (std::size_t zeros = 0;
-             (zeros = std::accumulate(trial.source.zero_samples.begin(),
-                                      trial.source.zero_samples.end(), std::size_t{0})) > 0) {
-    why = std::to_string(zeros) + " samples are exactly (0, 0, 0), which is read as missing";
-    fix = "if (0, 0, 0) is a measurement in this file, give --keep-zeros";
-  }
-  throw std::runtime_error(input + ": no tracked marker is measured in any of the " +
-                           std::to_string(trial.frames()) + " frames: " + why + ". Fix: " + fix);
-}
 
 constexpr const char* kAllowMissingMarkers = "--allow-missing-markers";
 
@@ -132,7 +106,7 @@ void run(const SolveOptions& o) {
     if (o.orientations.empty()) {
       require_shared_markers(config, trial, o.input, "--subject", o.allow_missing_markers,
                              kAllowMissingMarkers);
-      require_some_sample(config, trial, o.input, implausible);
+      require_measured_marker(config, trial, o.input, implausible, "--keep-zeros");
     }
     if (o.filter_hz > 0.0) {
       // A cutoff below one cycle over the trial leaves little but the trial's mean: most often

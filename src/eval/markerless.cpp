@@ -87,7 +87,10 @@ MarkerlessRow evaluate(const std::string& name, const KeypointCorruption& corrup
   const DaemonConfig config = load_daemon_config(cfg.dump(), "<calibrated + overrides>");
   io::MarkerTrial keypoints = trial.keypoints;
   if (o.path == "offline") drop_left_out_then_filter(config, keypoints, o.filter_hz);
-  const TrialSolution s = solve_trial(config, keypoints);
+  // Live: frame by frame, as fabrikd would publish; offline: as fabrik solve (the joints
+  // solved again on the gap-filled keypoints).
+  const TrialSolution s = solve_trial(config, keypoints, {}, nullptr, {},
+                                      o.path == "offline" ? TrialPass::offline : TrialPass::live);
 
   // Joint centres by name.
   DistanceStats all, swapped, clean;

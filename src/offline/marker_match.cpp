@@ -1,6 +1,8 @@
 #include "offline/marker_match.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <numeric>
 #include <stdexcept>
 
 #include "offline/subject_markers.hpp"
@@ -21,16 +23,28 @@ constexpr const char* kConfigFix =
 void require_most_markers(const std::vector<std::string>& names, const io::MarkerTrial& trial,
                           const std::string& trial_path, const std::string& config_file,
                           const std::string& allow_option) {
-  std::vector<std::string> missing, unused;
-  for (const std::string& name : names)
-    if (trial.find(name) < 0) missing.push_back(name);
+  // A label whose column holds no sample counts as missing: 25 of 41 markers blanked under
+  // their labels passed as "ok" and "good" with no pelvis and no legs.
+  std::vector<std::string> missing, unused, empty;
+  for (const std::string& name : names) {
+    const int c = trial.find(name);
+    bool sampled = false;
+    for (std::size_t f = 0; c >= 0 && f < trial.frames() && !sampled; ++f)
+      sampled = trial.at(f, static_cast<std::size_t>(c)).allFinite();
+    if (!sampled) missing.push_back(name);
+    if (c >= 0 && !sampled) empty.push_back(name);
+  }
   const std::size_t shared = names.size() - missing.size();
-  if (2 * shared >= names.size()) return;
+  // None with a sample: require_measured_marker says why (a unit, zeros), which this cannot.
+  if (shared == 0 || 2 * shared >= names.size()) return;
   for (const std::string& label : trial.labels)
     if (std::find(names.begin(), names.end(), label) == names.end()) unused.push_back(label);
   throw std::runtime_error(
       trial_path + ": has only " + std::to_string(shared) + " of the " +
       std::to_string(names.size()) + " marker names of the config " + config_file +
+      (empty.empty() ? std::string()
+                     : " with a sample (" + std::to_string(empty.size()) +
+                           " more are columns without one: " + name_list(empty, 8) + ")") +
       " (fewer than half); tracking it would fit the model to those " + std::to_string(shared) +
       " and report a small residual for them." + names_beside(missing, "file:  ", unused) +
       "\nFix: " + kConfigFix + "; to track with the " + std::to_string(shared) +
@@ -72,6 +86,33 @@ void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& t
                                                               : ", then give " + give_subject) +
                ", or calibrate from this subject's own file)";
   throw std::runtime_error(message);
+}
+
+void require_measured_marker(const DaemonConfig& config, const io::MarkerTrial& trial,
+                             const std::string& trial_path, std::size_t implausible,
+                             const std::string& keep_zeros_option) {
+  for (const MarkerTarget& target : config.tracker.markers)
+    if (const int c = trial.find(target.marker); c >= 0)
+      for (std::size_t f = 0; f < trial.frames(); ++f)
+        if (trial.at(f, static_cast<std::size_t>(c)).allFinite()) return;
+  std::string why = "every sample of them is empty";
+  std::string fix = "check that the trial holds this subject's markers";
+  if (implausible > 0) {
+    char limit_mm[32];
+    std::snprintf(limit_mm, sizeof limit_mm, "%g", config.max_abs_coordinate_m * 1e3);
+    why = std::to_string(implausible) + " samples were farther than input.max_abs_coordinate_mm (" +
+          limit_mm + " mm) from the origin";
+    fix = "check the file's unit (it says '" + trial.source.units +
+          "'): a file in mm labelled m is 1000 times too large";
+  } else if (const std::size_t zeros =
+                 std::accumulate(trial.source.zero_samples.begin(), trial.source.zero_samples.end(),
+                                 std::size_t{0});
+             zeros > 0) {
+    why = std::to_string(zeros) + " samples are exactly (0, 0, 0), which is read as missing";
+    fix = "if (0, 0, 0) is a measurement in this file, give " + keep_zeros_option;
+  }
+  throw std::runtime_error(trial_path + ": no tracked marker is measured in any of the " +
+                           std::to_string(trial.frames()) + " frames: " + why + ". Fix: " + fix);
 }
 
 }  // namespace fabrik

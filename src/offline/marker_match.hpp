@@ -3,6 +3,7 @@
 // come closest is config/closest_names.hpp (the daemon uses it too).
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -23,5 +24,13 @@ namespace fabrik {
 void require_shared_markers(const DaemonConfig& config, const io::MarkerTrial& trial,
                             const std::string& trial_path, const std::string& subject_option = {},
                             bool allow_few = true, const std::string& allow_option = {});
+
+// Throws std::runtime_error when no tracked marker of the config has a sample in any frame (a
+// summary, report and batch row of nothing would follow, and exit 0), saying why: every sample
+// empty, exact zeros read as missing (`keep_zeros_option` keeps them), or `implausible`
+// samples dropped beyond input.max_abs_coordinate_mm (a unit that is wrong).
+void require_measured_marker(const DaemonConfig& config, const io::MarkerTrial& trial,
+                             const std::string& trial_path, std::size_t implausible,
+                             const std::string& keep_zeros_option);
 
 }  // namespace fabrik

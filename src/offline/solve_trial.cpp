@@ -20,7 +20,7 @@ namespace fabrik {
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress,
                           const io::OrientationTable* orientations,
-                          const TrackedFrameHook& on_frame) {
+                          const TrackedFrameHook& on_frame, TrialPass pass) {
   Tracker tracker(config.tracker);
   const Model& model = tracker.model();
   const int n = tracker.marker_count();
@@ -129,7 +129,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
     if (progress && (f % 64 == 0 || f + 1 == frames)) progress(f + 1, frames);
   }
   // Offline both sides of every gap are known: the markers are the measured samples with
-  // their gaps filled from both sides (the joint centres keep the causal prediction). Not
+  // their gaps filled from both sides (the joint centres are solved on them below). Not
   // the model's markers where measured: the fill meets the measurement at a gap's edges, and
   // the fitted markers beside it would step by the fit's misfit there.
   std::vector<double> times_s(frames);
@@ -160,7 +160,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   // pose lags for a few frames after the markers return (the hand-over); the filled markers
   // know both sides. The residual, outlier and quality figures stay those of the causal pass
   // against the measurements, and the model markers what fabrikd publishes live.
-  if (!fill.gaps.empty()) {
+  if (pass == TrialPass::offline && !fill.gaps.empty()) {
     Tracker again(config.tracker);
     std::fill(sensor_ever_measured.begin(), sensor_ever_measured.end(), 0);
     s.joints.positions_m.clear();
@@ -181,7 +181,7 @@ TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& tri
   // Before the first frame with a measurement the tracker holds its rest posture, after the
   // last the last pose for as long as the trial's empty tail: no pose of the subject, so the
   // joint centres, model markers and coordinates are missing there (a gap between measured
-  // frames repeats the pose before it).
+  // frames is solved on the fill across it; the live pass holds the pose before it).
   const auto any_measured = [&](std::size_t f) {
     return s.measured[f] > 0 || s.sensors_measured[f] > 0;
   };

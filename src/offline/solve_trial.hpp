@@ -90,12 +90,17 @@ struct TrialSolution {
 // on the table's rows instead, at the table's times and rate.
 // `on_frame(f, time_s, tracker, result)` (may be empty) sees each frame's result as it is
 // tracked, as the daemon would publish it (`fabrik view --trial` encodes poses from it).
+// `pass`: `offline` solves the joint centres and coordinates again on the gap-filled markers
+// (TrialSolution::solved_on_filled_markers); `live` keeps the causal pass's, as fabrikd
+// publishes them (for an evaluation of the live path, or a caller that needs only on_frame).
 using TrackedFrameHook =
     std::function<void(std::size_t, double, const Tracker&, const TrackResult&)>;
+enum class TrialPass { offline, live };
 TrialSolution solve_trial(const DaemonConfig& config, const io::MarkerTrial& trial,
                           const std::function<void(std::size_t, std::size_t)>& progress = {},
                           const io::OrientationTable* orientations = nullptr,
-                          const TrackedFrameHook& on_frame = {});
+                          const TrackedFrameHook& on_frame = {},
+                          TrialPass pass = TrialPass::offline);
 
 // Frames, residual RMS mean and max, worst marker, solve time quantiles. Frames without any
 // measured marker have no residual: they are left out of the residual figures and counted

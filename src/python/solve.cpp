@@ -109,9 +109,12 @@ py::dict solve_file(const Config& config, const std::string& path, bool keep_zer
   {
     py::gil_scoped_release unlocked;  // a trial takes seconds
     const DaemonConfig tracking = subject_config(*config.config, subject, kSubjectKeyword);
-    const io::MarkerTrial trial = of_subject(read_markers_file(path, keep_zeros), subject);
+    io::MarkerTrial trial = of_subject(read_markers_file(path, keep_zeros), subject);
+    // As fabrik solve and fabrikd: 1e300 in a file is not a measurement.
+    const std::size_t implausible = drop_implausible_samples(trial, tracking.max_abs_coordinate_m);
     require_shared_markers(tracking, trial, path, kSubjectKeyword, allow_missing_markers,
                            kAllowKeyword);
+    require_measured_marker(tracking, trial, path, implausible, "keep_zeros=True");
     s = solve_trial(tracking, trial);
   }
   return solution_dict(std::move(s));
@@ -142,8 +145,10 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
   }
   const DaemonConfig tracking = subject_config(*config.config, subject, kSubjectKeyword);
   trial = of_subject(std::move(trial), subject);
+  const std::size_t implausible = drop_implausible_samples(trial, tracking.max_abs_coordinate_m);
   require_shared_markers(tracking, trial, "the markers", kSubjectKeyword, allow_missing_markers,
                          kAllowKeyword);
+  require_measured_marker(tracking, trial, "the markers", implausible, "keep_zeros=True");
   TrialSolution s;
   {
     py::gil_scoped_release unlocked;

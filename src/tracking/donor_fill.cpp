@@ -26,10 +26,12 @@ bool fill_from_donors(std::size_t frames, std::size_t n, std::span<const double>
                       double* donor_share, std::span<const std::uint8_t> allowed) {
   const auto i = static_cast<std::size_t>(marker);
   if (end <= first || end > frames || i >= n || out.size() != end - first) return false;
-  const bool before = first > 0, after = end < frames;
+  const auto seen = [&](std::size_t f, std::size_t m) { return visible[f * n + m] != 0; };
+  // A side is one where the marker is measured next to the gap: a gap clipped to the frames
+  // in which any marker is seen (two_sided_fill) has no side at its clipped edge.
+  const bool before = first > 0 && seen(first - 1, i), after = end < frames && seen(end, i);
   if (!before && !after) return false;
   const std::size_t lo = before ? first - 1 : first, hi = after ? end : end - 1;  // [lo, hi]
-  const auto seen = [&](std::size_t f, std::size_t m) { return visible[f * n + m] != 0; };
   const auto at = [&](std::size_t f, std::size_t m) -> const Eigen::Vector3d& {
     return markers_m[f * n + m];
   };

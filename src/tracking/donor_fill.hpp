@@ -43,7 +43,8 @@ struct FrameCandidate {
 };
 
 // Marker `marker`'s gap, frames [first, end), of a trial of `frames` frames
-// and `n` markers (markers_m and visible: [frame * n + i], metres). Writes
+// and `n` markers (markers_m and visible: [frame * n + i], metres); its sides are the
+// frames next to it where the marker is measured (a gap may end one frame short of them). Writes
 // end - first positions to `out` and returns true, or returns false (out
 // untouched) when no triple of donors is measured throughout the gap and on
 // its measured sides, none can be scored, or the best scores beyond max_score_m.

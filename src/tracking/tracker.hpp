@@ -51,7 +51,9 @@ struct TrackResult {
   std::span<const Eigen::Vector3d> markers_world_m;  ///< per marker of the setup: model position
   std::span<const std::uint8_t> occluded;            ///< per marker: no valid measurement
   std::span<const std::uint8_t> held;                ///< per marker: occluded but held
-  std::span<const double> gap_s;  ///< per marker: time since last measured (0 when measured)
+  /// per marker: time since last measured (0 when measured, an outlier left out included;
+  /// since the first frame if never, or since a frame whose time went back), across cold starts
+  std::span<const double> gap_s;
   int occluded_count = 0;         ///< markers occluded in this frame
   /// Of those, markers measured but occluded by a confidence below the threshold.
   int low_confidence_count = 0;
@@ -134,7 +136,8 @@ class Tracker {
   /// One frame: measured_world_m[i] belongs to setup().markers[i]; a marker is
   /// occluded when visible[i] is 0 or a coordinate is not finite. time_s is the
   /// frame's time (for the hold policy). Spans of the wrong size give
-  /// SolveStatus::size_mismatch, leave the posture as it was, and a verdict of no frame
+  /// SolveStatus::size_mismatch, and a time that is not finite SolveStatus::non_finite_input:
+  /// both leave the tracker's state as it was and give a verdict of no frame
   /// (quality none, counts and residuals 0); the result's spans keep the last frame's values.
   const TrackResult& track(double time_s, std::span<const Eigen::Vector3d> measured_world_m,
                            std::span<const std::uint8_t> visible);

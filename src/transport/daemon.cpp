@@ -42,6 +42,9 @@ using Clock = std::chrono::steady_clock;
 constexpr int kMaxBatch = 4096;
 constexpr auto kMaxServe = std::chrono::milliseconds(20);
 constexpr std::size_t kMaxUnknownLogged = 256;
+// How long a start or reload waits to learn whether a connected endpoint's host exists (a
+// resolver that does not answer would hold the start for its own timeout, seconds).
+constexpr std::chrono::milliseconds kHostLookupWait{500};
 // How long a stop waits for a reload being read before leaving it behind:
 // short, so that a stop is honoured within 100 ms at any moment.
 constexpr auto kReloadGraceAtStop = std::chrono::milliseconds(20);
@@ -311,7 +314,7 @@ struct Daemon::State {
   // model/NAME) and the views'.
   std::vector<std::string> extra_topics;
   // A connected endpoint whose host no resolver knows, one line each: ZeroMQ retries it
-  // silently. Looked up here, off the frame loop (a resolver can take seconds).
+  // silently. Looked up here, off the frame loop, waiting kHostLookupWait at most.
   std::vector<std::string> unknown_hosts;
 };
 
@@ -418,7 +421,7 @@ std::unique_ptr<Daemon::State> Daemon::prepare_state(DaemonConfig config) {
   for (const auto& [e, role, what] : {std::tuple{&config.input, "input", "no markers arrive"},
                                       std::tuple{&config.output, "output", "no poses leave"}})
     if (e->mode == SocketMode::connect)
-      if (const auto unknown = unknown_host(e->address))
+      if (const auto unknown = unknown_host_within(e->address, kHostLookupWait))
         s->unknown_hosts.push_back(
             safe_text("the " + std::string(role) + " socket connects to '" + e->address +
                       "', but " + unknown->problem.substr(unknown->problem.find("no host")) +
@@ -685,12 +688,13 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
       return;
     }
   }
-  const MarkerFrame& f = only ? only->frame : s.frame;
-  // The next frame lists the unknown names after this one's (a prop's 8 markers first in
-  // every frame hid a subject's misnamed ones from the log and the mismatch's closest names).
+  MarkerFrame& decoded = only ? only->frame : s.frame;
+  const MarkerFrame& f = decoded;
+  // This decoder's next frame lists the unknown names after this one's list (a prop's 8
+  // markers first in every frame hid a subject's misnamed ones from the log and from the
+  // mismatch's closest names). The list holds unknown_names.size() names at most.
   const int next_skip = f.unknown_skip + static_cast<int>(f.unknown_names.size());
-  for (MarkerFrame* frame : {&s.frame, only ? &only->frame : nullptr})
-    if (frame) frame->unknown_skip = next_skip < f.unknown_count ? next_skip : 0;
+  decoded.unknown_skip = next_skip < f.unknown_count ? next_skip : 0;
   counters_.rejected_coordinates += static_cast<std::uint64_t>(f.rejected_count);
   counters_.zero_markers += static_cast<std::uint64_t>(f.zero_count);
   counters_.unknown_markers += static_cast<std::uint64_t>(f.unknown_count);
@@ -721,12 +725,14 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
         spdlog::warn("{} '{}' is not in the {}: ignored (reported once)", what,
                      safe_text(name, 128), *what == 'm' ? "model" : "config");
     };
+    // Markers: the frame's new ones on one line (a misnamed stream's 40 would be 40 lines).
     // Another subject's markers (another fabrikd's, in a split): reported
     // once per subject, not once per marker.
+    std::string fresh;
     for (int k = 0; k < f.unknown_listed; ++k) {
       const std::string& name = f.unknown_names[k];
       if (!other_subject(s, name)) {
-        report_once(name, "marker");
+        if (first_time(name)) fresh += (fresh.empty() ? "'" : ", '") + safe_text(name, 128) + "'";
         continue;
       }
       const std::string_view subject = std::string_view(name).substr(0, name.find(':'));
@@ -742,6 +748,8 @@ void Daemon::serve_frame(std::span<const std::uint8_t> payload, Clock::time_poin
             safe_text(subject, 128), safe_text(listed->name, 128));
       }
     }
+    if (!fresh.empty())
+      spdlog::warn("markers not in the model: {}: ignored (each reported once)", fresh);
     for (int k = 0; k < f.unknown_sensors_listed; ++k)
       report_once(f.unknown_sensor_names[k], "orientation sensor");
     if (warn_mismatch) warn_config_mismatch(f);
@@ -766,9 +774,13 @@ void Daemon::warn_config_mismatch(const MarkerFrame& f) {
       "frame is solved without targets.{}\nFix: start fabrikd with a config made for this "
       "marker set (fabrik calibrate), or map the stream's names onto the model's markers in "
       "the config's targets.markers ({{\"STREAM_NAME\": {{\"point\": \"MODEL_MARKER\"}}}}) "
-      "(stats: config_mismatch, unmatched_frames)",
+      "{}(stats: config_mismatch, unmatched_frames)",
       state_->config_name, NameMismatchWatch::kFramesInARow,
-      names_beside(config_names, "stream:", stream_names));
+      names_beside(config_names, "stream:", stream_names),
+      state_->config.source.kind == SourceKind::none
+          ? ""
+          : "; names behind a subject prefix the source keeps: source_options.subject_prefix "
+            "(docs/vendor-sources.md) ");
 }
 
 namespace {

@@ -4,6 +4,9 @@
 #include <sys/socket.h>
 
 #include <cerrno>
+#include <future>
+#include <memory>
+#include <thread>
 
 #include "config/endpoint_check.hpp"
 
@@ -70,6 +73,30 @@ std::optional<OpenFailure> unknown_host(const std::string& address) {
   return OpenFailure{"cannot connect to '" + address + "': no host is named '" + host + "' (" +
                          ::gai_strerror(error) + ")",
                      "check the name of the host that runs fabrikd, or give its address", 0};
+}
+
+std::optional<OpenFailure> unknown_host_within(const std::string& address,
+                                               std::chrono::milliseconds wait) {
+  if (!tcp_host_name(address)) return std::nullopt;  // nothing to look up
+  using Answer = std::optional<OpenFailure>;
+  auto answer = std::make_shared<std::promise<Answer>>();
+  std::future<Answer> ready = answer->get_future();
+  try {
+    std::thread([answer, address] {
+      try {
+        answer->set_value(unknown_host(address));
+      } catch (...) {  // no memory for the message: no answer
+      }
+    }).detach();
+  } catch (const std::system_error&) {  // no thread to be had: no answer either
+    return std::nullopt;
+  }
+  if (ready.wait_for(wait) != std::future_status::ready) return std::nullopt;
+  try {
+    return ready.get();
+  } catch (const std::future_error&) {  // the thread gave no value
+    return std::nullopt;
+  }
 }
 
 }  // namespace fabrik::wire

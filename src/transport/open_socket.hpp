@@ -3,6 +3,7 @@
 // and the view's --pose all open through here, so one errno gets one advice.
 #pragma once
 
+#include <chrono>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -45,5 +46,11 @@ std::optional<OpenFailure> open_socket(zmq::socket_t& socket, const std::string&
 // address, another transport, or a resolver that could not answer now. Blocks on the
 // resolver: for setup only (`fabrik view --pose`), never on a frame loop.
 std::optional<OpenFailure> unknown_host(const std::string& address);
+
+// The same, waiting at most `wait` for the resolver (a broken one can take many seconds):
+// nothing when it has not answered by then. The lookup goes on in a thread of its own, which
+// ends when the resolver answers.
+std::optional<OpenFailure> unknown_host_within(const std::string& address,
+                                               std::chrono::milliseconds wait);
 
 }  // namespace fabrik::wire

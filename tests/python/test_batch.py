@@ -141,7 +141,10 @@ def test_bad_files_fail_alone_and_the_exit_code_says_so(runs):
                 assert int(r["frames"]) > 0 and 0 < float(r["rms_mean_mm"]) < 5
         by_trial = {(r["subject"], r["trial"]): r["error"] for r in rows}
         assert "walk_unreadable.c3d" in by_trial[("subj02", "walk_unreadable")]
-        assert "shares none" in by_trial[("subj03", "walk_wrong_markers")]
+        # The refusal whole enough to act on: the file, the problem and the fix (a cut from
+        # the front kept only the lists and the fix).
+        wrong = by_trial[("subj03", "walk_wrong_markers")]
+        assert "walk_wrong_markers.trc: shares none" in wrong and "Fix: " in wrong, wrong
         # The subject without a static trial: what was found, and the fix.
         assert "no static trial" in by_trial[(NO_STATIC, "walk01")]
         assert "found 2: walk01.trc, walk02.trc" in by_trial[(NO_STATIC, "walk01")]
@@ -404,3 +407,22 @@ def test_a_row_counts_the_reports_warnings():
     assert row_from_report(trial, report, "ok")["warnings"] == 2
     del report["warnings"]  # a report written before the column: none said
     assert row_from_report(trial, report, "ok")["warnings"] == 0
+
+
+def test_a_static_row_counts_its_calibrations_notes(tmp_path):
+    # A subject who moved in the static window was said in calibration.txt only: the static
+    # row read "warnings 0" and 300 good frames.
+    from fabrik.batch import row_from_report
+    report = {"frames": 10, "residual_mm": {"rms_mean": 1.0, "rms_max": 2.0, "max": 3.0},
+              "outliers": {"samples": 0, "frames": 0}, "frames_without_markers": 0,
+              "solve_us": {"p50": 10.0, "p99": 20.0}, "warnings": ["static.trc: ..."]}
+    notes = tmp_path / "calibration.txt"
+    notes.write_text("segments\n  pelvis ...\nnote: the subject moved in the static window: ...\n"
+                     "note: marker 'RTHI' is missing in 2 of the 300 frames ...\n")
+    static = {"subject": "s", "trial": "static", "kind": "static",
+              "calibration_report": str(notes)}
+    assert row_from_report(static, report, "ok")["warnings"] == 3
+    dynamic = dict(static, kind="dynamic", trial="walk")
+    assert row_from_report(dynamic, report, "ok")["warnings"] == 1  # the subject's notes once
+    gone = dict(static, calibration_report=str(tmp_path / "none.txt"))
+    assert row_from_report(gone, report, "ok")["warnings"] == 1

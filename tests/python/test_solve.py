@@ -162,6 +162,17 @@ def test_a_slice_of_a_trial_keeps_its_frame_numbers_and_times(synth_trial):
     again = fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), trial.frames(40, 60))
     np.testing.assert_array_equal(again.frame_numbers, solved.frame_numbers)
     np.testing.assert_array_equal(again.joints_mm, solved.joints_mm)
+    # Without times (made by hand), frame n at (n - 1) / rate (an IndexError before).
+    untimed = dataclasses.replace(trial, time_s=None).frames(40, 60)
+    np.testing.assert_allclose(untimed.time_s, (trial.frame_numbers[40:60] - 1) / trial.rate_hz)
+    # No tracked marker measured at all: refused, as fabrik solve refuses it (an all-NaN
+    # Solution before), and samples 1000 times too far are dropped as fabrikd drops them.
+    empty = dataclasses.replace(trial, positions_mm=np.full_like(trial.positions_mm, np.nan))
+    with pytest.raises(RuntimeError, match="no tracked marker is measured in any of the"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), empty)
+    far = dataclasses.replace(trial, positions_mm=trial.positions_mm * 1e6)
+    with pytest.raises(RuntimeError, match="farther than input.max_abs_coordinate_mm"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), far)
 
 
 def test_keep_zeros_holds_for_arrays_as_for_files(synth_trial):

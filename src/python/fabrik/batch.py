@@ -164,13 +164,17 @@ def _cli_error(proc_or_text, limit=600):
     """The CLI's message on one line: the last lines of its stderr."""
     text = proc_or_text if isinstance(proc_or_text, str) else (proc_or_text.stderr or "")
     lines = [ln.strip() for ln in text.replace("\r", "\n").splitlines() if ln.strip()]
-    last = lines[-4:]
-    one = " | ".join(last)
+    # The error starts at the last line the CLI prefixes ("fabrik solve: FILE: problem") that
+    # is not a warning; its lists and its fix follow.
+    starts = [k for k, ln in enumerate(lines)
+              if ln.startswith("fabrik ") and ": warning: " not in ln]
+    error = lines[starts[-1]:] if starts else lines[-4:]
+    one = " | ".join(error)
     if len(one) <= limit:
         return one
     # The first line names the file and the problem, the last the fix: kept whole, the lists
     # between them left out (a cut from the front lost the file's name).
-    short = last[0] + " | ... | " + last[-1]
+    short = error[0] + " | ... | " + error[-1]
     return short if len(short) <= limit else "..." + one[-limit:]
 
 
@@ -309,8 +313,19 @@ def _blank_row(trial):
     return row
 
 
+def calibration_notes(report_path):
+    """The notes `fabrik calibrate` printed (its "note: ..." lines in calibration.txt): a
+    subject who moved in the static window, a lab axis far from the pose's, ..."""
+    try:
+        with open(report_path) as f:
+            return [ln[len("note: "):].strip() for ln in f if ln.startswith("note: ")]
+    except OSError:
+        return []
+
+
 def row_from_report(trial, report, status, wall_s=""):
-    """A summary row from `fabrik solve --report` JSON (docs/batch.md lists the columns)."""
+    """A summary row from `fabrik solve --report` JSON (docs/batch.md lists the columns); a
+    static trial's warnings count its calibration's notes too (trial["calibration_report"])."""
     row = _blank_row(trial)
     r = report["residual_mm"]
     filled = report.get("filled", {})
@@ -325,7 +340,9 @@ def row_from_report(trial, report, status, wall_s=""):
         gap_samples=sum(last - first + 1 for runs in filled.values() for first, last in runs),
         frames_without_markers=report["frames_without_markers"],
         markers_missing=len(report.get("markers_missing_in_trial", [])),
-        warnings=len(report.get("warnings", [])),
+        warnings=len(report.get("warnings", [])) + (
+            len(calibration_notes(trial["calibration_report"]))
+            if trial.get("kind") == "static" and trial.get("calibration_report") else 0),
         solve_p50_us=round(report["solve_us"]["p50"], 2),
         solve_p99_us=round(report["solve_us"]["p99"], 2),
         wall_s=wall_s)
@@ -507,7 +524,8 @@ def plan(root, out, template, fabrik, timeout_s, log=None):
             trial = {"fabrik": fabrik, "subject": s["name"], "trial": _trial_id(rel),
                      "kind": "static" if rel in s["statics"] else "dynamic",
                      "input": os.path.join(s["folder"], *rel.split("/")),
-                     "outputs": trial_outputs(out_dir, _trial_id(rel)), "timeout_s": timeout_s}
+                     "outputs": trial_outputs(out_dir, _trial_id(rel)), "timeout_s": timeout_s,
+                     "calibration_report": os.path.join(out_dir, CALIBRATION_REPORT)}
             # A done trial is kept, and a calibration on disk used, even where the subject
             # could not be calibrated now (a rerun without --template after one with it).
             # Other problems (trials that collide, a broken subject.json) fail every trial.

@@ -33,11 +33,15 @@ class MarkerData:
         """Frames [start, stop) (indices, as a Python slice takes them) as a MarkerData whose
         positions, times and frame numbers stay together (what solve needs of a part)."""
         part = slice(start, stop)
+        frames = np.shape(self.positions_mm)[0]
         numbers = self.frame_numbers
         if numbers is None or not len(numbers):
-            numbers = self.first_frame + np.arange(np.shape(self.positions_mm)[0])
+            numbers = self.first_frame + np.arange(frames)
+        times = self.time_s
+        if times is None or not len(times):  # frame n at (n - 1) / rate, as solve takes it
+            times = (np.asarray(numbers, dtype=np.float64) - 1.0) / float(self.rate_hz)
         return dataclasses.replace(self, positions_mm=self.positions_mm[part],
-                                   time_s=np.asarray(self.time_s)[part],
+                                   time_s=np.asarray(times)[part],
                                    frame_numbers=np.asarray(numbers)[part],
                                    warnings=list(self.warnings))
 

@@ -17,9 +17,11 @@ class Solution:
     measured, gaps filled from both sides, NaN for a marker never measured, as `fabrik solve
     --markers` writes them) and model_markers_mm[f] (the model's fitted markers, as fabrikd
     publishes them live; `--model-markers`) in mm; angles_deg[f] (degrees, angle_names order, continuous
-    over frames) and translations_mm[f] (mm); residual RMS/max (mm) over the markers solved with;
-    status: the solver's stop reason (a value, never an exception). time_s and frame_numbers are
-    the source's own. summary: what `fabrik solve --report` writes."""
+    over frames) and translations_mm[f] (mm), solved on markers_mm where gaps were filled
+    (summary["solved_on_filled_markers"]); residual RMS/max (mm), status and quality: the causal
+    pass's (fabrikd's) against the measured markers (the solver's stop reason is a value, never
+    an exception). time_s and frame_numbers are the source's own. summary: what `fabrik solve
+    --report` writes."""
     time_s: np.ndarray
     frame_numbers: np.ndarray
     rate_hz: float
@@ -55,7 +57,7 @@ class Solution:
         translations=True: every coordinate, as the .mot of `fabrik solve --angles` has them:
         its columns in its order (coordinate_names), angles in degrees and translations in
         metres, as OpenSim's Coordinates files have them. Every frame is a row: frames before
-        the first measured one are NaN (the .mot leaves them out). Needs pandas (imported here,
+        the first measured one and after the last are NaN (the .mot leaves them out). Needs pandas (imported here,
         not at `import fabrik`)."""
         try:
             import pandas as pd
