@@ -27,6 +27,7 @@
 #include "bridges/qtm/sim_server.hpp"
 #include "bridges/tcp.hpp"
 #include "qtm_fake_peer.hpp"
+#include "unknown_host.hpp"
 
 using namespace fabrik;
 using namespace fabrik::qtm;
@@ -502,6 +503,27 @@ TEST_CASE("qtm client: each bad peer gives a clear error, the client retries and
       CHECK(stop_s < 0.35);
     }
   }
+}
+
+TEST_CASE(
+    "qtm client: a host no resolver knows is told as a name to check, an IPv6 address in "
+    "brackets",
+    "[qtm][client]") {
+  CHECK(bridges::host_port("::1", 22223) == "[::1]:22223");  // was "::1:22223"
+  CHECK(bridges::host_port("10.0.0.5", 22223) == "10.0.0.5:22223");
+  if (const std::string why = test::resolver_cannot_answer(); !why.empty()) {
+    WARN("skipped: " << why);
+    return;
+  }
+  QtmClientOptions o = options_for(22223);
+  o.host = test::kUnknownHost;
+  ClientThread client(o);
+  REQUIRE(eventually([&] { return client.status.snapshot().errors > 0; }, 10.0));
+  client.stop();
+  const std::string error = client.status.snapshot().last_error;
+  CHECK_THAT(error, Catch::Contains("cannot resolve host") &&
+                        Catch::Contains("check the host's name in the source URL"));
+  CHECK_THAT(error, !Catch::Contains("RT server on"));  // no port or server to check for a name
 }
 
 TEST_CASE("qtm client: the 11th client is refused with QTM's message", "[qtm][client]") {

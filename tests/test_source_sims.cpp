@@ -324,6 +324,20 @@ TEST_CASE(
   CHECK(c.same_occluded);
 }
 
+TEST_CASE("Motive's axes, which NatNet does not state, are said in the log as assumed",
+          "[source][daemon][lab_axes]") {
+  // A Z-up Motive read as Y-up gave pelvis angles at gimbal lock with a "good" fit and no word.
+  const DaemonConfig config = default_daemon_config();
+  const bridges::SimRecording rec = synthetic_recording(config, 60, 100.0);
+  const test::LogCapture log;  // before the daemon: outlives it
+  const Comparison c = through_simulator(Protocol::natnet, config, rec, true, nullptr);
+  CHECK(c.frames > 0);
+  CHECK_THAT(log.find("info", "connected to Motive"),
+             Catch::Contains("Motive's axes taken as its default, Y up and forward +x (NatNet "
+                             "does not state them): if Motive streams Z up, set "
+                             "source_options.axes"));
+}
+
 TEST_CASE("Labels changed mid-stream and a server restart: the renamed marker is occluded and unknown, "
           "the source reconnects and the frames go on",
           "[source][daemon]") {

@@ -665,6 +665,28 @@ TEST_CASE(
   CHECK(fabrik::solution_summary(s)["frames_before_first_measurement"] == 5);
 }
 
+TEST_CASE(
+    "sim natnet and sim qtm bound to every interface name HOST and the client's options "
+    "in their fabrikd hint") {
+  // They said "natnet://0.0.0.0:PORT", which no client can connect to, and left out the
+  // data port a client needs when it is not NatNet's 1511.
+  TempFile trial(".trc");
+  fabrik::io::write_trc(trial.path(), default_model_trial());
+  const auto [code, err] =
+      run_fabrik({"sim", "natnet", trial.path(), "--bind", "0.0.0.0", "--command-port", "0",
+                  "--data-port", "0", "--rate-scale", "100"});
+  CAPTURE(err);
+  CHECK(code == 0);
+  CHECK_THAT(err, Catch::Contains("(fabrikd: \"natnet://HOST:") &&
+                      Catch::Contains(" with \"data_port\": ") &&
+                      Catch::Contains(", HOST: this machine's address)"));
+  const auto [qtm_code, qtm_err] = run_fabrik(
+      {"sim", "qtm", trial.path(), "--bind", "0.0.0.0", "--base-port", "0", "--rate-scale", "100"});
+  CAPTURE(qtm_err);
+  CHECK(qtm_code == 0);
+  CHECK_THAT(qtm_err, Catch::Contains("fabrikd: \"qtm://HOST:"));
+}
+
 TEST_CASE("Frames after the last measurement have no pose either: missing, not in the .mot") {
   const fabrik::DaemonConfig config = fabrik::default_daemon_config();
   MarkerTrial trial = default_model_trial();
@@ -767,10 +789,20 @@ TEST_CASE("Offline the joint centres and angles in a gap are solved on the fille
   CHECK_FALSE(again.solved_on_filled_markers);
   const std::size_t joints = s.joints.labels.size();
   double worst_m = 0.0;
+  std::size_t finite_differs = 0;
   for (std::size_t f = 0; f < gapped.frames(); ++f)
-    for (std::size_t j = 0; j < joints; ++j)
-      worst_m = std::max(worst_m, (s.joints.at(f, j) - again.joints.at(f, j)).norm());
+    for (std::size_t j = 0; j < joints; ++j) {
+      finite_differs += s.joints.at(f, j).allFinite() != again.joints.at(f, j).allFinite();
+      if (s.joints.at(f, j).allFinite())
+        worst_m = std::max(worst_m, (s.joints.at(f, j) - again.joints.at(f, j)).norm());
+    }
+  CHECK(finite_differs == 0);
   CHECK(worst_m < 1e-12);
+  // The live pass keeps the causal joints: what fabrik view --trial draws and what an
+  // evaluation of the live path measures.
+  const fabrik::TrialSolution live =
+      fabrik::solve_trial(config, gapped, {}, nullptr, {}, fabrik::TrialPass::live);
+  CHECK_FALSE(live.solved_on_filled_markers);
   // And nearer the full trial's than the causal pass's, which held or predicted the arm and
   // lagged after the markers came back.
   fabrik::Tracker causal(config.tracker);
@@ -869,6 +901,18 @@ TEST_CASE(
   // Half of them (23 of 45 is more) is tracked.
   trial.labels[22] = config.tracker.markers[22].marker;
   CHECK(refusal(false) == "accepted");
+  // The labels all there, but 23 of the columns without a sample: the same refusal (it passed
+  // as ok and good, the pelvis and legs solved from nothing).
+  MarkerTrial blank = default_model_trial();
+  for (std::size_t f = 0; f < blank.frames(); ++f)
+    for (std::size_t i = 0; i < 23; ++i)
+      blank.at(f, i).setConstant(std::numeric_limits<double>::quiet_NaN());
+  trial = blank;
+  const std::string empty = refusal(false);
+  CHECK_THAT(empty, Catch::StartsWith("walk.trc: has only 22 of the 45 marker names of the "
+                                      "config <embedded>/default.json with a sample (23 more are "
+                                      "columns without one: "));
+  CHECK(refusal(true) == "accepted");
 }
 
 TEST_CASE("A config whose names carry a subject prefix the file's labels lack is told so") {

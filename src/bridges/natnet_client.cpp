@@ -56,7 +56,7 @@ class Connection {
 
   void fail(const std::string& text) { status_.error("NatNet " + where() + ": " + text); }
   void bad(const std::string& text) { status_.bad_packet("NatNet " + where() + ": " + text); }
-  std::string where() const { return o_.host + ":" + std::to_string(o_.command_port); }
+  std::string where() const { return bridges::host_port(o_.host, o_.command_port); }
 
   bool open_sockets() {
     std::string error;

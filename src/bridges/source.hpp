@@ -16,6 +16,12 @@
 
 namespace fabrik::bridges {
 
+// "host:port" for messages, an IPv6 address in brackets ("[::1]:22223", not "::1:22223").
+inline std::string host_port(const std::string& host, std::uint16_t port) {
+  const bool ipv6 = host.find(':') != std::string::npos;
+  return (ipv6 ? "[" + host + "]" : host) + ":" + std::to_string(port);
+}
+
 // Where the frames go, called on the client's thread only.
 class FrameSink {
  public:

@@ -24,6 +24,18 @@ namespace fabrik::tools {
 
 namespace {
 
+// A simulator bound to every interface is reached at one of this machine's addresses: the
+// hint names HOST there, not 0.0.0.0 (which a client cannot connect to).
+bool wildcard(const std::string& bind) {
+  return bind == "0.0.0.0" || bind == "*" || bind == "::" || bind == "[::]";
+}
+std::string url_host(const std::string& bind) {
+  if (wildcard(bind)) return "HOST";
+  return bind.find(':') != std::string::npos && !bind.starts_with("[")
+             ? "[" + safe_lines(bind) + "]"
+             : safe_lines(bind);
+}
+
 std::atomic<bool> g_stop{false};
 extern "C" void on_signal(int) {
   g_stop.store(true);
@@ -444,9 +456,13 @@ void add_sim_command(CLI::App& app) {
       o.bind_address = q->bind;
       o.base_port = port_of(q->base_port, "--base-port");
       qtm::QtmSimServer server(std::move(recording), std::move(script), o);
-      std::fprintf(stderr, "sim qtm: serving on %s port %u (little endian; fabrikd: \"qtm://%s:%u\") and %u (big endian)\n",
-                   safe_lines(q->bind).c_str(), server.port_little_endian(), safe_lines(q->bind).c_str(),
-                   server.port_little_endian(), server.port_big_endian());
+      std::fprintf(stderr,
+                   "sim qtm: serving on %s port %u (little endian; fabrikd: \"qtm://%s:%u\"%s) and "
+                   "%u (big endian)\n",
+                   safe_lines(q->bind).c_str(), server.port_little_endian(),
+                   url_host(q->bind).c_str(), server.port_little_endian(),
+                   wildcard(q->bind) ? ", HOST: this machine's address" : "",
+                   server.port_big_endian());
       serve_until_stopped("sim qtm", server);
     });
   });
@@ -507,11 +523,24 @@ void add_sim_command(CLI::App& app) {
       o.up_axis = n->up_axis;
       o.version = natnet_version_of(n->version).value();  // checked at the parse
       bridges::NatNetSimServer server(std::move(recording), std::move(script), o);
-      std::fprintf(stderr, "sim natnet: commands on %s:%u, data %s port %u (fabrikd: \"natnet://%s:%u\"%s)\n",
-                   safe_lines(n->bind).c_str(), server.command_port(),
-                   o.multicast ? ("to " + safe_lines(o.multicast_group)).c_str() : "unicast,",
-                   server.data_port(), safe_lines(n->bind).c_str(), server.command_port(),
-                   o.multicast ? "" : " with \"natnet_data\": \"unicast\"");
+      // What the client's config needs besides the URL: unicast, or a group and data port
+      // other than NatNet's defaults.
+      std::string options;
+      const auto option = [&](const std::string& text) {
+        options += (options.empty() ? " with " : ", ") + text;
+      };
+      if (!o.multicast) option("\"natnet_data\": \"unicast\"");
+      if (o.multicast && o.multicast_group != bridges::NatNetSimServer::Options{}.multicast_group)
+        option("\"multicast_group\": \"" + safe_lines(o.multicast_group) + "\"");
+      if (o.multicast && server.data_port() != bridges::NatNetSimServer::Options{}.data_port)
+        option("\"data_port\": " + std::to_string(server.data_port()));
+      if (wildcard(n->bind)) options += ", HOST: this machine's address";
+      std::fprintf(
+          stderr,
+          "sim natnet: commands on %s:%u, data %s port %u (fabrikd: \"natnet://%s:%u\"%s)\n",
+          safe_lines(n->bind).c_str(), server.command_port(),
+          o.multicast ? ("to " + safe_lines(o.multicast_group)).c_str() : "unicast,",
+          server.data_port(), url_host(n->bind).c_str(), server.command_port(), options.c_str());
       serve_until_stopped("sim natnet", server);
     });
   });

@@ -141,9 +141,16 @@ SourceInput::Status SourceInput::status() const {
 void SourceInput::log_changes() {
   const bridges::SourceStatus::Snapshot now = status_.snapshot();
   const std::string url = safe_text(config_.url, 128);
+  // Motive says nothing of its axes over NatNet: a Z-up Motive read as Y-up gives pelvis
+  // angles at gimbal lock with a "good" fit. Said once, where the user looks.
+  const bool axes_assumed = config_.kind == SourceKind::natnet && !config_.axes;
   if (now.connections != logged_.connections && now.connected)
-    spdlog::info("source {}: connected to {}{}", url, safe_text(now.server, 128),
-                 now.reconnects > 0 ? fmt::format(" (reconnect {})", now.reconnects) : "");
+    spdlog::info("source {}: connected to {}{}{}", url, safe_text(now.server, 128),
+                 now.reconnects > 0 ? fmt::format(" (reconnect {})", now.reconnects) : "",
+                 axes_assumed && now.connections == 1
+                     ? "; Motive's axes taken as its default, Y up and forward +x (NatNet does "
+                       "not state them): if Motive streams Z up, set source_options.axes"
+                     : "");
   else if (logged_.connected && !now.connected)
     spdlog::warn("source {}: connection lost: {}", url, safe_text(now.last_error, 240));
   if (now.notices != logged_.notices && now.last_notice != logged_.last_notice)

@@ -70,15 +70,23 @@ class Session {
  public:
   Session(const QtmClientOptions& o, bridges::FrameSink& sink, bridges::SourceStatus& status,
           const std::stop_token& stop)
-      : o_(o), sink_(sink), status_(status), stop_(stop), where_(o.host + ":" + std::to_string(o.port)) {}
+      : o_(o),
+        sink_(sink),
+        status_(status),
+        stop_(stop),
+        where_(bridges::host_port(o.host, o.port)) {}
 
   Failure run(bridges::Backoff& backoff) {
     std::string error;
     fd_ = bridges::connect_tcp(o_.host, o_.port, o_.policy.connect_timeout_s, stop_, error);
     if (stop_.stop_requested()) return stopped();
     if (!fd_.valid())
-      return fail("QTM at " + where_ + ": cannot connect (" + error +
-                  "); is QTM running with its RT server on? Its little-endian RT port is base + 1, 22223 by default");
+      return fail(
+          "QTM at " + where_ + ": cannot connect (" + error + ")" +
+          (error.starts_with("cannot resolve host")
+               ? std::string("; check the host's name in the source URL, or give its address")
+               : std::string("; is QTM running with its RT server on? Its little-endian RT "
+                             "port is base + 1, 22223 by default")));
     if (auto f = read_welcome()) return *f;
     if (auto f = negotiate_version()) return *f;
     if (auto f = check_byte_order()) return *f;
