@@ -747,6 +747,12 @@ TEST_CASE("fabrik solve refuses a trial in which no tracked marker is measured, 
     CHECK(code != 0);
     CHECK_THAT(err, Catch::Contains("the markers span "));
   }
+  // The other way: metres labelled mm (a solve reported 528 mm RMS and exited 0).
+  MarkerTrial small = trial;
+  for (Eigen::Vector3d& p : small.positions_m) p *= 1e-3;
+  CHECK_THAT(message_of(small, "mm"), Catch::Contains(".trc: the markers span ") &&
+                                          Catch::Contains("(less than 20 mm, where a body spans "
+                                                          "about a metre)"));
   // Every sample beyond input.max_abs_coordinate_mm where no frame has 3 markers to span.
   MarkerTrial two = trial;
   for (std::size_t f = 0; f < two.frames(); ++f)
@@ -909,9 +915,12 @@ TEST_CASE(
       blank.at(f, i).setConstant(std::numeric_limits<double>::quiet_NaN());
   trial = blank;
   const std::string empty = refusal(false);
-  CHECK_THAT(empty, Catch::StartsWith("walk.trc: has only 22 of the 45 marker names of the "
-                                      "config <embedded>/default.json with a sample (23 more are "
-                                      "columns without one: "));
+  CHECK_THAT(empty, Catch::StartsWith("walk.trc: has samples for only 22 of the 45 markers of "
+                                      "the config <embedded>/default.json (fewer than half): the "
+                                      "columns of 23 of its labels hold none ("));
+  // Its fix is the trial's, not a marker set's (it offered to map the labels, which match).
+  CHECK_THAT(empty, Catch::Contains("\nFix: check the trial's export") &&
+                        !Catch::Contains("file:") && !Catch::Contains("targets.markers"));
   CHECK(refusal(true) == "accepted");
 }
 

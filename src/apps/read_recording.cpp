@@ -22,8 +22,10 @@ io::MarkerTrial read_trial_or_explain(const std::string& command, const std::str
                                       bool keep_zeros) {
   io::MarkerTrial trial = io::read_trial(path, {.zeros_are_missing = !keep_zeros});
   // Markers a hundred metres apart are no person's: a solve would drop them as implausible
-  // (or keep the few near the origin), a calibration would write thighs of 400 m.
-  if (trial.source.typical_span_m > io::kLargestMarkerSpan_m) {
+  // (or keep the few near the origin), a calibration would write thighs of 400 m. Markers a
+  // few millimetres apart neither: a solve fitted them with a residual of 528 mm.
+  if (trial.source.typical_span_m > io::kLargestMarkerSpan_m ||
+      trial.source.typical_span_m < io::kSmallestMarkerSpan_m) {
     const auto said =
         std::find_if(trial.warnings.begin(), trial.warnings.end(),
                      [](const std::string& w) { return w.starts_with("the markers span"); });

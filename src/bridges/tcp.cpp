@@ -77,7 +77,10 @@ Fd connect_tcp(const std::string& host, std::uint16_t port, double timeout_s, co
   addrinfo* found = nullptr;
   const std::string service = std::to_string(port);
   if (const int rc = ::getaddrinfo(host.c_str(), service.c_str(), &hints, &found); rc != 0) {
-    error = "cannot resolve host '" + host + "': " + ::gai_strerror(rc);
+    // A name the resolver says does not exist is the user's to fix; another failure (no
+    // answer now, EAI_AGAIN) the network's.
+    error = (rc == EAI_NONAME ? "no host is named '" + host + "' (" + ::gai_strerror(rc) + ")"
+                              : "cannot resolve host '" + host + "' now: " + ::gai_strerror(rc));
     return Fd();
   }
   error = "no address for host '" + host + "'";

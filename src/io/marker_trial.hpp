@@ -39,6 +39,8 @@ struct TimeSteps {
 /// No marker set on people spans this in one frame (a gym is 30 m): a file whose markers do is
 /// in another unit than it says (mm labelled m).
 inline constexpr double kLargestMarkerSpan_m = 100.0;
+/// Nor this little (a hand's cluster spreads over 50 mm): metres labelled mm.
+inline constexpr double kSmallestMarkerSpan_m = 0.01;
 
 /// What a file says about itself beyond the markers' positions: for messages and `fabrik info`.
 struct RecordingFacts {
@@ -52,7 +54,8 @@ struct RecordingFacts {
   /// The markers' spread in a typical frame (metres): twice their median distance from the
   /// frame's per-axis median, the median over up to 200 frames with 3 markers or more (one
   /// marker or a few frames of garbage do not move it); NaN when none has. Past
-  /// kLargestMarkerSpan_m the file's unit is wrong (the commands refuse it).
+  /// kLargestMarkerSpan_m or below kSmallestMarkerSpan_m the file's unit is wrong (the commands
+  /// refuse it).
   double typical_span_m = std::numeric_limits<double>::quiet_NaN();
   /// C3D analog channels and rotations: counted and named, their data is not read.
   std::size_t analog_channels = 0;

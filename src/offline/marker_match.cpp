@@ -25,30 +25,51 @@ void require_most_markers(const std::vector<std::string>& names, const io::Marke
                           const std::string& allow_option) {
   // A label whose column holds no sample counts as missing: 25 of 41 markers blanked under
   // their labels passed as "ok" and "good" with no pelvis and no legs.
-  std::vector<std::string> missing, unused, empty;
+  std::vector<std::string> absent, unused, empty;
+  std::size_t zero_columns = 0;  // of the empty ones, columns of exact (0, 0, 0) read as missing
+  const std::vector<std::size_t>& zeros = trial.source.zero_samples;
   for (const std::string& name : names) {
     const int c = trial.find(name);
     bool sampled = false;
     for (std::size_t f = 0; c >= 0 && f < trial.frames() && !sampled; ++f)
       sampled = trial.at(f, static_cast<std::size_t>(c)).allFinite();
-    if (!sampled) missing.push_back(name);
-    if (c >= 0 && !sampled) empty.push_back(name);
+    if (c < 0) absent.push_back(name);
+    if (c < 0 || sampled) continue;
+    empty.push_back(name);
+    const auto k = static_cast<std::size_t>(c);
+    zero_columns += k < zeros.size() && zeros[k] > 0 ? 1 : 0;
   }
-  const std::size_t shared = names.size() - missing.size();
+  const std::size_t shared = names.size() - absent.size() - empty.size();
   // None with a sample: require_measured_marker says why (a unit, zeros), which this cannot.
   if (shared == 0 || 2 * shared >= names.size()) return;
   for (const std::string& label : trial.labels)
     if (std::find(names.begin(), names.end(), label) == names.end()) unused.push_back(label);
+  const std::string count = std::to_string(shared) + " of the " + std::to_string(names.size());
+  const std::string keep =
+      "; to track with the " + std::to_string(shared) + " markers it has, give " + allow_option;
+  if (absent.empty()) {  // the labels are the config's: their columns are empty
+    throw std::runtime_error(
+        trial_path + ": has samples for only " + count + " markers of the config " + config_file +
+        " (fewer than half): the columns of " + std::to_string(empty.size()) +
+        " of its labels hold none (" + name_list(empty, 8) + ")" +
+        (zero_columns ? "; " + std::to_string(zero_columns) +
+                            " of them hold exact (0, 0, 0) samples, read as missing"
+                      : std::string()) +
+        ". Tracking it would fit the model to those " + std::to_string(shared) +
+        " and report a small residual for them.\nFix: check the trial's export (those markers "
+        "were not measured, or not exported)" +
+        (zero_columns ? std::string(", or keep the zeros as positions (the keep-zeros option)")
+                      : std::string()) +
+        keep);
+  }
   throw std::runtime_error(
-      trial_path + ": has only " + std::to_string(shared) + " of the " +
-      std::to_string(names.size()) + " marker names of the config " + config_file +
+      trial_path + ": has only " + count + " marker names of the config " + config_file +
       (empty.empty() ? std::string()
                      : " with a sample (" + std::to_string(empty.size()) +
                            " more are columns without one: " + name_list(empty, 8) + ")") +
       " (fewer than half); tracking it would fit the model to those " + std::to_string(shared) +
-      " and report a small residual for them." + names_beside(missing, "file:  ", unused) +
-      "\nFix: " + kConfigFix + "; to track with the " + std::to_string(shared) +
-      " markers it has, give " + allow_option);
+      " and report a small residual for them." + names_beside(absent, "file:  ", unused) +
+      "\nFix: " + kConfigFix + keep);
 }
 
 }  // namespace

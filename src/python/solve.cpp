@@ -31,7 +31,8 @@ std::vector<double> scaled(std::vector<double>&& v, double factor) {
   return std::move(v);
 }
 
-py::dict solution_dict(TrialSolution&& s) {
+// `dropped_samples`: samples past input.max_abs_coordinate_mm taken as missing (Python warns).
+py::dict solution_dict(TrialSolution&& s, std::size_t dropped_samples) {
   const std::size_t frames = s.rms_m.size();
   py::dict d;
   std::vector<double> time_s(frames);
@@ -44,6 +45,7 @@ py::dict solution_dict(TrialSolution&& s) {
   d["frame_numbers"] = owned_array(std::move(numbers), {ss(frames)});
   d["rate_hz"] = s.joints.rate_hz;
   d["summary_json"] = solution_summary(s).dump();
+  d["dropped_samples"] = dropped_samples;
   d["joint_names"] = s.joints.labels;
   d["marker_names"] = s.markers.labels;
   d["joints_mm"] = positions_mm(s.joints);
@@ -106,24 +108,26 @@ py::dict solve_file(const Config& config, const std::string& path, bool keep_zer
                     const std::string& subject, bool allow_missing_markers) {
   require_file(path, "recording");
   TrialSolution s;
+  std::size_t implausible = 0;
   {
     py::gil_scoped_release unlocked;  // a trial takes seconds
     const DaemonConfig tracking = subject_config(*config.config, subject, kSubjectKeyword);
     io::MarkerTrial trial = of_subject(read_markers_file(path, keep_zeros), subject);
     // As fabrik solve and fabrikd: 1e300 in a file is not a measurement.
-    const std::size_t implausible = drop_implausible_samples(trial, tracking.max_abs_coordinate_m);
+    implausible = drop_implausible_samples(trial, tracking.max_abs_coordinate_m);
     require_shared_markers(tracking, trial, path, kSubjectKeyword, allow_missing_markers,
                            kAllowKeyword);
     require_measured_marker(tracking, trial, path, implausible, "keep_zeros=True");
     s = solve_trial(tracking, trial);
   }
-  return solution_dict(std::move(s));
+  return solution_dict(std::move(s), implausible);
 }
 
 py::dict solve_arrays(const Config& config, const std::vector<std::string>& names,
                       const py::array_t<double, py::array::c_style | py::array::forcecast>& mm,
                       double rate_hz, int first_frame, double first_time_s,
-                      const std::string& subject, bool allow_missing_markers) {
+                      const std::string& subject, bool allow_missing_markers,
+                      std::size_t zero_samples) {
   if (mm.ndim() != 3 || mm.shape(1) != ss(names.size()) || mm.shape(2) != 3)
     throw std::invalid_argument("positions_mm: expected shape (frames, " +
                                 std::to_string(names.size()) + ", 3) for " +
@@ -134,6 +138,8 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
   trial.labels = names;
   trial.rate_hz = rate_hz;
   trial.first_frame = first_frame;
+  // Exact zeros Python turned into NaN (keep_zeros=False): said if nothing else is left.
+  if (zero_samples > 0) trial.source.zero_samples = {zero_samples};
   // The data's own first time (a file read into MarkerData keeps its Time column's), as
   // solving the file would; NaN: frame first_frame at (first_frame - 1) / rate.
   if (std::isfinite(first_time_s)) trial.first_time_frames = first_time_s * rate_hz;
@@ -154,7 +160,7 @@ py::dict solve_arrays(const Config& config, const std::vector<std::string>& name
     py::gil_scoped_release unlocked;
     s = solve_trial(tracking, trial);
   }
-  return solution_dict(std::move(s));
+  return solution_dict(std::move(s), implausible);
 }
 
 }  // namespace
@@ -166,7 +172,7 @@ void bind_solve(py::module_& m) {
   m.def("_solve_arrays", &solve_arrays, py::arg("config"), py::arg("names"),
         py::arg("positions_mm"), py::arg("rate_hz"), py::arg("first_frame") = 1,
         py::arg("first_time_s") = std::numeric_limits<double>::quiet_NaN(), py::arg("subject") = "",
-        py::arg("allow_missing_markers") = false);
+        py::arg("allow_missing_markers") = false, py::arg("zero_samples") = 0);
 }
 
 }  // namespace fabrik::python

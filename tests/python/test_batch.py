@@ -426,3 +426,17 @@ def test_a_static_row_counts_its_calibrations_notes(tmp_path):
     assert row_from_report(dynamic, report, "ok")["warnings"] == 1  # the subject's notes once
     gone = dict(static, calibration_report=str(tmp_path / "none.txt"))
     assert row_from_report(gone, report, "ok")["warnings"] == 1
+
+
+def test_a_long_error_keeps_its_file_problem_and_fix():
+    # A refusal whose first line and fix were together over the limit was cut from the
+    # front: the row began "...ll)) (fewer than half)", without the file.
+    from fabrik.batch import _cli_error
+    path = "/lab/" + "long_folder_name/" * 20 + "walk_blank25.trc"
+    text = ("fabrik solve: warning: " + path + ": a reader's warning\n"
+            "fabrik solve: " + path + ": has only 16 of the 41 marker names" + " x" * 200 + "\n"
+            "  config: LASI, ...\n  file:   A, ...\nFix: check the trial" + " y" * 200 + "\n")
+    error = _cli_error(text)
+    assert len(error) <= 1000, len(error)
+    assert error.startswith("fabrik solve: " + path + ": has only 16"), error[:120]
+    assert " | ... | Fix: check the trial" in error

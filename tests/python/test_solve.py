@@ -173,6 +173,16 @@ def test_a_slice_of_a_trial_keeps_its_frame_numbers_and_times(synth_trial):
     far = dataclasses.replace(trial, positions_mm=trial.positions_mm * 1e6)
     with pytest.raises(RuntimeError, match="farther than input.max_abs_coordinate_mm"):
         fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), far)
+    # A few such samples: dropped, said (the CLI says it; Python was silent).
+    glitch = trial.positions_mm.copy()
+    glitch[10:20, 0] = 1e9
+    with pytest.warns(UserWarning, match="10 samples farther than input.max_abs_coordinate_mm"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG),
+                     dataclasses.replace(trial, positions_mm=glitch))
+    # Exact zeros everywhere: the refusal names keep_zeros (it said "every sample is empty").
+    zeros = dataclasses.replace(trial, positions_mm=np.zeros_like(trial.positions_mm))
+    with pytest.raises(RuntimeError, match="exactly \\(0, 0, 0\\).*give keep_zeros=True"):
+        fabrik.solve(fabrik.load_config(DEFAULT_CONFIG), zeros)
 
 
 def test_keep_zeros_holds_for_arrays_as_for_files(synth_trial):

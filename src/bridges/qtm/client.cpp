@@ -83,8 +83,11 @@ class Session {
     if (!fd_.valid())
       return fail(
           "QTM at " + where_ + ": cannot connect (" + error + ")" +
-          (error.starts_with("cannot resolve host")
+          (error.starts_with("no host is named")
                ? std::string("; check the host's name in the source URL, or give its address")
+           : error.starts_with("cannot resolve host")
+               ? std::string("; the network's name service did not answer: check it, or give "
+                             "the host's address")
                : std::string("; is QTM running with its RT server on? Its little-endian RT "
                              "port is base + 1, 22223 by default")));
     if (auto f = read_welcome()) return *f;

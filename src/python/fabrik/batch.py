@@ -160,7 +160,7 @@ def _shown(names, most=10):
 # The tasks. Plain functions of plain values (dicts, strings), so Dask can ship them to any
 # worker; they never raise for a bad trial: failures are values (rows with an error).
 
-def _cli_error(proc_or_text, limit=600):
+def _cli_error(proc_or_text, limit=1000):
     """The CLI's message on one line: the last lines of its stderr."""
     text = proc_or_text if isinstance(proc_or_text, str) else (proc_or_text.stderr or "")
     lines = [ln.strip() for ln in text.replace("\r", "\n").splitlines() if ln.strip()]
@@ -172,10 +172,14 @@ def _cli_error(proc_or_text, limit=600):
     one = " | ".join(error)
     if len(one) <= limit:
         return one
-    # The first line names the file and the problem, the last the fix: kept whole, the lists
-    # between them left out (a cut from the front lost the file's name).
-    short = error[0] + " | ... | " + error[-1]
-    return short if len(short) <= limit else "..." + one[-limit:]
+    # The first line names the file and the problem, the last the fix: kept, the lists between
+    # them left out, each cut at its end where they are still too long (a cut from the front
+    # lost the file's name).
+    half = (limit - len(" | ... | ")) // 2
+    cut = lambda text: text if len(text) <= half else text[:half - 3] + "..."
+    if len(error) == 1:
+        return error[0][:limit - 3] + "..."
+    return cut(error[0]) + " | ... | " + cut(error[-1])
 
 
 def _run_cli(cmd, timeout_s):

@@ -2,6 +2,7 @@
 DataFrame of angles where pandas is installed)."""
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 from typing import List
 
@@ -135,7 +136,9 @@ def solve(config, markers, keep_zeros=False, subject=None, allow_missing_markers
     (refused by default, a RuntimeError naming them: most often another marker set). Releases
     the GIL while it solves. Raises FileNotFoundError/FormatError, ValueError for such frame
     numbers or times (or a name given twice), or RuntimeError when the trial shares no marker
-    name with the config or names no such subject."""
+    name with the config, has fewer than half of them with a sample, has no tracked marker
+    measured at all, or names no such subject. Samples past input.max_abs_coordinate_mm are
+    taken as missing, with a UserWarning."""
     if subject is not None and (not isinstance(subject, str) or not subject or ":" in subject):
         raise ValueError("subject must be a subject's name, the part of a label before ':' "
                          "(got %r)" % (subject,))
@@ -151,17 +154,24 @@ def solve(config, markers, keep_zeros=False, subject=None, allow_missing_markers
             seen.add(name)
         first_frame, first_time_s = _first_frame_and_time(markers)
         positions_mm = np.asarray(markers.positions_mm, dtype=np.float64)
+        zero_samples = 0
         if not keep_zeros:
             # As read_markers does: an exact (0, 0, 0) is a system's way to say "missing".
             zeros = np.all(positions_mm == 0.0, axis=-1)
             if zeros.any():
                 positions_mm = positions_mm.copy()
                 positions_mm[zeros] = np.nan
+                zero_samples = int(zeros.sum())
         d = _fabrik._solve_arrays(config, list(markers.names), positions_mm,
                                   float(markers.rate_hz), first_frame, first_time_s, subject,
-                                  bool(allow_missing_markers))
+                                  bool(allow_missing_markers), zero_samples)
     else:
         d = _fabrik._solve_file(config, os.fspath(markers), keep_zeros, subject,
                                 bool(allow_missing_markers))
     d["summary"] = json.loads(d.pop("summary_json"))
+    dropped = d.pop("dropped_samples")
+    if dropped:  # as fabrik solve warns
+        warnings.warn("%d samples farther than input.max_abs_coordinate_mm from the origin are "
+                      "taken as missing, as fabrikd takes them" % dropped, UserWarning,
+                      stacklevel=2)
     return Solution(**d)
