@@ -1303,6 +1303,27 @@ TEST_CASE("A failed write keeps only an errno a write gives as its reason", "[ou
   }
 }
 
+TEST_CASE("A recording's typical spread: twice the median distance from the per-axis median",
+          "[io][trc]") {
+  // Known answer: at (0,0,0), (1,0,0), (0,1,0), (0,0,1) m the per-axis median is the origin,
+  // the distances 0, 1, 1, 1, their median 1: a spread of 2 m in every frame.
+  MarkerTrial t;
+  t.labels = {"A", "B", "C", "D", "E"};
+  t.rate_hz = 100.0;
+  for (int f = 0; f < 20; ++f) {
+    for (const Eigen::Vector3d& p_m : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0),
+                                       Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(0, 0, 1)})
+      t.positions_m.push_back(p_m);
+    // A fifth marker missing but in 3 frames, where it glitches 5 km away: the median
+    // distance (and so the spread) of those frames is still 1 m (the box's would be 5 km).
+    t.positions_m.push_back(f % 7 == 0 ? Eigen::Vector3d(5000, 0, 0)
+                                       : Eigen::Vector3d::Constant(NAN));
+  }
+  TempFile trc(".trc");
+  write_trc(trc.path(), t, "m");
+  CHECK(read_trc(trc.path()).source.typical_span_m == Approx(2.0).margin(1e-9));
+}
+
 TEST_CASE(
     "A recording whose markers span less than 20 mm or more than 100 m is told its unit may be "
     "wrong, TRC and C3D, a body in its right unit is not",
