@@ -11,6 +11,13 @@ namespace fabrik {
 
 namespace {
 
+// Whether the trial's column `c` (-1: none) holds a measured sample in any frame.
+bool has_sample(const io::MarkerTrial& trial, int c) {
+  for (std::size_t f = 0; c >= 0 && f < trial.frames(); ++f)
+    if (trial.at(f, static_cast<std::size_t>(c)).allFinite()) return true;
+  return false;
+}
+
 // The fix of a trial whose names are not the config's.
 constexpr const char* kConfigFix =
     "use a config made for this marker set (fabrik calibrate --template T --static S writes "
@@ -30,9 +37,7 @@ void require_most_markers(const std::vector<std::string>& names, const io::Marke
   const std::vector<std::size_t>& zeros = trial.source.zero_samples;
   for (const std::string& name : names) {
     const int c = trial.find(name);
-    bool sampled = false;
-    for (std::size_t f = 0; c >= 0 && f < trial.frames() && !sampled; ++f)
-      sampled = trial.at(f, static_cast<std::size_t>(c)).allFinite();
+    const bool sampled = has_sample(trial, c);
     if (c < 0) absent.push_back(name);
     if (c < 0 || sampled) continue;
     empty.push_back(name);
@@ -113,9 +118,7 @@ void require_measured_marker(const DaemonConfig& config, const io::MarkerTrial& 
                              const std::string& trial_path, std::size_t implausible,
                              const std::string& keep_zeros_option) {
   for (const MarkerTarget& target : config.tracker.markers)
-    if (const int c = trial.find(target.marker); c >= 0)
-      for (std::size_t f = 0; f < trial.frames(); ++f)
-        if (trial.at(f, static_cast<std::size_t>(c)).allFinite()) return;
+    if (has_sample(trial, trial.find(target.marker))) return;
   std::string why = "every sample of them is empty";
   std::string fix = "check that the trial holds this subject's markers";
   if (implausible > 0) {

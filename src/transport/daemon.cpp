@@ -773,14 +773,14 @@ void Daemon::warn_config_mismatch(const MarkerFrame& f) {
       "the stream's marker names share none with the config {} ({} frames in a row): every "
       "frame is solved without targets.{}\nFix: start fabrikd with a config made for this "
       "marker set (fabrik calibrate), or map the stream's names onto the model's markers in "
-      "the config's targets.markers ({{\"STREAM_NAME\": {{\"point\": \"MODEL_MARKER\"}}}}) "
-      "{}(stats: config_mismatch, unmatched_frames)",
+      "the config's targets.markers ({{\"STREAM_NAME\": {{\"point\": \"MODEL_MARKER\"}}}})"
+      "{} (stats: config_mismatch, unmatched_frames)",
       state_->config_name, NameMismatchWatch::kFramesInARow,
       names_beside(config_names, "stream:", stream_names),
       state_->config.source.kind == SourceKind::none
           ? ""
           : "; names behind a subject prefix the source keeps: source_options.subject_prefix "
-            "(docs/vendor-sources.md) ");
+            "(docs/vendor-sources.md)");
 }
 
 namespace {
