@@ -1361,15 +1361,52 @@ TEST_CASE(
   write_trc(trc.path(), scaled(1e-3), "mm");
   std::vector<std::string> w = unit_warnings(read_trc(trc.path()));
   REQUIRE(w.size() == 1);
-  CHECK_THAT(w[0], Catch::StartsWith("the markers span 0.8261 mm in a typical frame") &&
+  // Spread: twice the median distance from the per-axis median (0, 0.9, 0.05) mm, of 0.1, 0.1
+  // and 0.8016 mm: 0.2 mm, below the 10 mm the commands refuse; the warning is the refusal.
+  MarkerTrial got = read_trc(trc.path());
+  CHECK_THAT(w[0], Catch::StartsWith("the markers spread over 0.2 mm in a typical frame (less "
+                                     "than 10 mm") &&
                        Catch::Contains("Fix: correct Units (line 3) (metres labelled mm"));
+  CHECK(got.source.unit_problem == w[0]);
   write_c3d(c3d.path(), scaled(1e-3), C3dProcessor::intel, true, "mm");
   w = unit_warnings(read_c3d(c3d.path()));
   REQUIRE(w.size() == 1);
   CHECK_THAT(w[0], Catch::Contains("Fix: correct POINT:UNITS"));
   // Millimetres written under "m": 1000 times too large.
   write_trc(trc.path(), scaled(1e3), "m");
-  w = unit_warnings(read_trc(trc.path()));
+  got = read_trc(trc.path());
+  w = unit_warnings(got);
   REQUIRE(w.size() == 1);
   CHECK_THAT(w[0], Catch::Contains("more than 100 m") && Catch::Contains("mm labelled m"));
+  CHECK(got.source.unit_problem == w[0]);
+  // A body with one marker glitching 150 km away: its bounding box warns, its spread (a body's)
+  // is not refused.
+  MarkerTrial glitch = body;
+  glitch.labels.push_back("GLITCH");
+  glitch.positions_m.clear();
+  for (std::size_t f = 0; f < body.frames(); ++f) {
+    for (std::size_t m = 0; m < body.markers(); ++m) glitch.positions_m.push_back(body.at(f, m));
+    glitch.positions_m.push_back(Eigen::Vector3d(150e3, 0, 0));
+  }
+  write_trc(trc.path(), glitch, "mm");
+  got = read_trc(trc.path());
+  w = unit_warnings(got);
+  REQUIRE(w.size() == 1);
+  CHECK_THAT(w[0], Catch::StartsWith("the markers span "));
+  CHECK(got.source.unit_problem.empty());
+  // Four markers within a millimetre and a fifth a metre off: the box is a body's, the spread
+  // (0.5 mm) is not: refused, though nothing spans under 20 mm.
+  MarkerTrial clump;
+  clump.labels = {"A", "B", "C", "D", "E"};
+  clump.rate_hz = 100.0;
+  for (int f = 0; f < 10; ++f)
+    for (const Eigen::Vector3d& p_mm :
+         {Eigen::Vector3d(0, 1000, 0), Eigen::Vector3d(0.25, 1000, 0),
+          Eigen::Vector3d(-0.25, 1000, 0), Eigen::Vector3d(0, 1000.25, 0),
+          Eigen::Vector3d(1000, 1000, 0)})
+      clump.positions_m.push_back(p_mm / 1000.0);
+  write_trc(trc.path(), clump, "mm");
+  got = read_trc(trc.path());
+  CHECK(got.source.typical_span_m == Approx(0.0005).margin(1e-9));
+  CHECK_THAT(got.source.unit_problem, Catch::StartsWith("the markers spread over 0.5 mm"));
 }

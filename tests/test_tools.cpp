@@ -734,7 +734,7 @@ TEST_CASE("fabrik solve refuses a trial in which no tracked marker is measured, 
   MarkerTrial far = trial;
   for (Eigen::Vector3d& p : far.positions_m) p *= 1e3;
   CHECK_THAT(message_of(far, "m"),
-             Catch::Contains(".trc: the markers span ") &&
+             Catch::Contains(".trc: the markers spread over ") &&
                  Catch::Contains("(more than 100 m, where a body spans about a metre)") &&
                  Catch::Contains("Fix: correct Units (line 3) (mm labelled m"));
   {
@@ -745,13 +745,13 @@ TEST_CASE("fabrik solve refuses a trial in which no tracked marker is measured, 
                     "--static", file.path(), "--output", config.path()});
     CAPTURE(err);
     CHECK(code != 0);
-    CHECK_THAT(err, Catch::Contains("the markers span "));
+    CHECK_THAT(err, Catch::Contains("the markers spread over "));
   }
   // The other way: metres labelled mm (a solve reported 528 mm RMS and exited 0).
   MarkerTrial small = trial;
   for (Eigen::Vector3d& p : small.positions_m) p *= 1e-3;
-  CHECK_THAT(message_of(small, "mm"), Catch::Contains(".trc: the markers span ") &&
-                                          Catch::Contains("(less than 20 mm, where a body spans "
+  CHECK_THAT(message_of(small, "mm"), Catch::Contains(".trc: the markers spread over ") &&
+                                          Catch::Contains("(less than 10 mm, where a body spans "
                                                           "about a metre)"));
   // Every sample beyond input.max_abs_coordinate_mm where no frame has 3 markers to span.
   MarkerTrial two = trial;

@@ -24,17 +24,10 @@ io::MarkerTrial read_trial_or_explain(const std::string& command, const std::str
   // Markers a hundred metres apart are no person's: a solve would drop them as implausible
   // (or keep the few near the origin), a calibration would write thighs of 400 m. Markers a
   // few millimetres apart neither: a solve fitted them with a residual of 528 mm.
-  if (trial.source.typical_span_m > io::kLargestMarkerSpan_m ||
-      trial.source.typical_span_m < io::kSmallestMarkerSpan_m) {
-    const auto said =
-        std::find_if(trial.warnings.begin(), trial.warnings.end(),
-                     [](const std::string& w) { return w.starts_with("the markers span"); });
-    if (said != trial.warnings.end()) {
-      const std::string why = *said;
-      trial.warnings.erase(said);
-      print_warnings(command, path, trial.warnings);
-      throw std::runtime_error(path + ": " + why);
-    }
+  if (!trial.source.unit_problem.empty()) {
+    std::erase(trial.warnings, trial.source.unit_problem);  // said once, as the error
+    print_warnings(command, path, trial.warnings);
+    throw std::runtime_error(path + ": " + trial.source.unit_problem);
   }
   print_warnings(command, path, trial.warnings);
   io::require_marker_data(trial, path);

@@ -40,9 +40,10 @@ void check_repeated_labels(MarkerTrial& trial, const std::string& path, const Re
 // (trial.source.zero_samples), saying which markers and how they were read.
 void warn_about_zeros(MarkerTrial& trial, const ReadOptions& options);
 
-// Adds one warning to `trial` when its markers span less than 20 mm or more than 100 m in a
-// typical frame: a body spans about a metre, so the file's unit (`unit_field`, where it is
-// written) is most likely wrong, e.g. metres labelled mm.
+// Sets trial.source.typical_span_m. Adds one warning to `trial` when its markers span less than
+// 20 mm or more than 100 m in a typical frame: a body spans about a metre, so the file's unit
+// (`unit_field`, where it is written) is most likely wrong, e.g. metres labelled mm. Where the
+// spread is past the bounds the commands refuse, the warning is also trial.source.unit_problem.
 void warn_about_units(MarkerTrial& trial, const std::string& unit_field);
 
 }  // namespace fabrik::io::detail

@@ -207,18 +207,27 @@ void warn_about_units(MarkerTrial& trial, const std::string& unit_field) {
   }
   if (spans_m.empty()) return;
   const double span_m = median(spans_m);
-  trial.source.typical_span_m = median(spreads_m);
-  if (span_m >= kSmallest_m && span_m <= kLargest_m) return;
+  const double spread_m = median(spreads_m);
+  trial.source.typical_span_m = spread_m;
+  // The commands refuse on the spread (robust to a glitching marker); the bounding box, wider,
+  // only warns.
+  const bool refused = spread_m < kSmallestMarkerSpan_m || spread_m > kLargestMarkerSpan_m;
+  if (!refused && span_m >= kSmallest_m && span_m <= kLargest_m) return;
+  const bool small = refused ? spread_m < kSmallestMarkerSpan_m : span_m < kSmallest_m;
   const std::optional<double> m_per_unit = metres_per_unit(trial.source.units);
-  if (!m_per_unit) return;
-  char span[48];
-  std::snprintf(span, sizeof span, "%.4g %s", span_m / *m_per_unit, trial.source.units.c_str());
-  trial.warnings.push_back(std::string("the markers span ") + span + " in a typical frame (" +
-                           (span_m < kSmallest_m ? "less than 20 mm" : "more than 100 m") +
-                           ", where a body spans about a metre): is the unit right? Fix: correct " +
-                           unit_field +
-                           (span_m < kSmallest_m ? " (metres labelled mm read 1000 times too small)"
-                                                 : " (mm labelled m read 1000 times too large)"));
+  const std::string unit = m_per_unit ? trial.source.units : "m";
+  char figure[48];
+  std::snprintf(figure, sizeof figure, "%.4g %s",
+                (refused ? spread_m : span_m) / m_per_unit.value_or(1.0), unit.c_str());
+  std::string bound = small ? (refused ? "less than 10 mm" : "less than 20 mm") : "more than 100 m";
+  std::string message = std::string(refused ? "the markers spread over " : "the markers span ") +
+                        figure + " in a typical frame (" + bound +
+                        ", where a body spans about a metre): is the unit right? Fix: correct " +
+                        unit_field +
+                        (small ? " (metres labelled mm read 1000 times too small)"
+                               : " (mm labelled m read 1000 times too large)");
+  trial.warnings.push_back(message);
+  if (refused) trial.source.unit_problem = std::move(message);
 }
 
 }  // namespace detail

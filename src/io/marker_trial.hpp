@@ -57,6 +57,9 @@ struct RecordingFacts {
   /// kLargestMarkerSpan_m or below kSmallestMarkerSpan_m the file's unit is wrong (the commands
   /// refuse it).
   double typical_span_m = std::numeric_limits<double>::quiet_NaN();
+  /// Set (a sentence with its fix, also among the warnings) when typical_span_m is past
+  /// kLargestMarkerSpan_m or below kSmallestMarkerSpan_m: the commands refuse the file.
+  std::string unit_problem;
   /// C3D analog channels and rotations: counted and named, their data is not read.
   std::size_t analog_channels = 0;
   double analog_rate_hz = 0.0;               ///< analog samples per second (0: no channels)
