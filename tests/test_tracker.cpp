@@ -207,6 +207,41 @@ TEST_CASE(
   CHECK(fresh.track(7.0, pos, visible).gap_s[3] == Approx(2.0));
 }
 
+TEST_CASE(
+    "Frames with nothing measured past the cold-start gap hold the last pose, not the rest "
+    "posture",
+    "[tracker]") {
+  Scene s = fullbody_scene(0.0);
+  Tracker tracker(s.setup);
+  REQUIRE(s.setup.cold_start.after_gap_s == Approx(0.5));
+  std::vector<Eigen::Vector3d> pos = sampled_markers(s);
+  std::vector<std::uint8_t> visible(pos.size(), 1);
+  for (int f = 0; f <= 10; ++f) tracker.track(0.01 * f, pos, visible);
+  const Posture held = tracker.posture();
+  const Posture rest = Posture::rest(*s.model);
+  double turned_rad = 0.0;  // the held pose is not the rest posture
+  for (std::size_t k = 1; k < held.segments.size(); ++k)
+    turned_rad =
+        std::max(turned_rad, held.segments[k].q_world.angularDistance(rest.segments[k].q_world));
+  REQUIRE(turned_rad > 0.1);
+  // Every marker gone for 1 s: at 0.6 s into it the cold start handed back the rest posture.
+  std::fill(visible.begin(), visible.end(), 0);
+  for (int f = 11; f <= 110; ++f) {
+    const TrackResult& r = tracker.track(0.01 * f, pos, visible);
+    CAPTURE(f);
+    REQUIRE(r.solve.status == SolveStatus::no_targets);
+    for (std::size_t k = 0; k < held.segments.size(); ++k) {
+      CHECK(tracker.posture().segments[k].base_world_m == held.segments[k].base_world_m);
+      CHECK(tracker.posture().segments[k].q_world.coeffs() == held.segments[k].q_world.coeffs());
+    }
+  }
+  // The markers back: a cold start, from rest as always, onto them.
+  std::fill(visible.begin(), visible.end(), 1);
+  const TrackResult& back = tracker.track(1.11, pos, visible);
+  CHECK(back.cold_start);
+  CHECK(back.residual_rms_m < 1e-3);
+}
+
 TEST_CASE("A moved-from tracker answers with a status, not a crash", "[tracker]") {
   Scene s = fullbody_scene(0.0);
   Tracker first(s.setup);

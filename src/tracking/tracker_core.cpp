@@ -345,9 +345,15 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
                           std::span(target_world_m_).first(n_),
                           std::span(orient_q_world_).subspan(n_sensors),
                           std::span(orient_visible_).subspan(n_sensors));
+  // Nothing to solve for: a cold start would hand back the rest posture (a jump to a pose no
+  // one held, mid-gap); the last pose is held instead, as before the cold-start gap.
+  const bool any_target = any_point || std::find(orient_visible_.begin(), orient_visible_.end(),
+                                                 1) != orient_visible_.end();
   const auto t0 = std::chrono::steady_clock::now();
-  if (cold) {
-    start_ = rest_;  // same size: copies without allocating
+  if (cold && !any_target) {
+    start_ = posture_;  // same size: copies without allocating
+  } else if (cold) {
+    start_ = rest_;
     if (setup_.cold_start.align)
       align_rigidly(model(), marker_points_, target_world_m_,
                     std::span<const std::uint8_t>(target_visible_).first(n_), start_);
