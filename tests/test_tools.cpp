@@ -717,6 +717,36 @@ TEST_CASE("Frames after the last measurement have no pose either: missing, not i
   for (std::size_t f = 0; f < frames; ++f) CHECK_FALSE(none.joints.at(f, 0).allFinite());
 }
 
+TEST_CASE("An output to stdout gets stdout alone: the text summary goes to stderr") {
+  // stdout redirected to a file, as `> out.json` does: the summary written there after the
+  // output (opened anew at /dev/stdout) overwrote its start; a pipe got both, mixed.
+  TempFile trc(".trc"), out(".json"), joints(".trc");
+  fabrik::io::write_trc(trc.path(), default_model_trial(), "mm");
+  {
+    const auto [code, err] = run_fabrik({"solve", "--input", trc.path(), "--output", joints.path(),
+                                         "--report", "/dev/stdout", "--quiet"},
+                                        out.path());
+    CAPTURE(err);
+    REQUIRE(code == 0);
+    CHECK(json::parse(slurp(out.path())).contains("residual_mm"));
+    CHECK_THAT(err, Catch::Contains("marker residual   RMS "));
+  }
+  {
+    const auto [code, err] = run_fabrik(
+        {"eval", "synthetic", "--seconds", "0.5", "--noise-mm", "0", "--json", "/dev/stdout"},
+        out.path());
+    CAPTURE(err);
+    REQUIRE(code == 0);
+    CHECK(json::parse(slurp(out.path())).at(0).contains("joint_rms_mm"));
+    CHECK_THAT(err, Catch::Contains("Joint centres vs the synthetic truth"));
+  }
+  // Without an output there, the summary stays on stdout.
+  const auto [code, err] = run_fabrik(
+      {"solve", "--input", trc.path(), "--output", joints.path(), "--quiet"}, out.path());
+  REQUIRE(code == 0);
+  CHECK_THAT(slurp(out.path()), Catch::Contains("marker residual   RMS "));
+}
+
 TEST_CASE("fabrik solve refuses a trial in which no tracked marker is measured, saying why") {
   TempFile file(".trc"), joints(".trc"), mot(".mot");
   MarkerTrial trial = default_model_trial();

@@ -3,10 +3,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <iostream>
 #include <map>
 #include <memory>
 
+#include "common/device_path.hpp"
 #include "common/safe_text.hpp"
 #include "eval/eval.hpp"
 #include "io/output_file.hpp"
@@ -67,6 +69,30 @@ std::pair<DaemonConfig, io::MarkerTrial> subject(const EvalArgs& a) {
   return s;
 }
 
+// While an output is stdout (--json /dev/stdout | jq), the text report goes to stderr: mixed
+// in, the JSON did not parse (and in a file stdout was redirected to, the report overwrote it).
+class ReportToStderrIf {
+ public:
+  explicit ReportToStderrIf(std::initializer_list<std::string> outputs) {
+    for (const std::string& path : outputs)
+      if (is_standard_output(path)) {
+        std::cout.flush();
+        saved_ = std::cout.rdbuf(std::cerr.rdbuf());
+        return;
+      }
+  }
+  ~ReportToStderrIf() {
+    if (!saved_) return;
+    std::cout.flush();
+    std::cout.rdbuf(saved_);
+  }
+  ReportToStderrIf(const ReportToStderrIf&) = delete;
+  ReportToStderrIf& operator=(const ReportToStderrIf&) = delete;
+
+ private:
+  std::streambuf* saved_ = nullptr;
+};
+
 void write_json(const std::string& path, const nlohmann::json& j) {
   if (path.empty()) return;
   std::ofstream out = io::open_output_file(path);
@@ -93,6 +119,7 @@ void run(const std::string& which, const EvalArgs& a) {
   }
   files.insert(files.end(), {{"--json", a.json_path}, {"--csv", a.csv_path}});
   tools::require_usable_outputs(files);
+  const ReportToStderrIf report_aside{a.json_path, a.csv_path};
   if (which == "synthetic") {
     const DaemonConfig config =
         a.config_path.empty() ? default_daemon_config() : load_daemon_config_file(a.config_path);
@@ -247,6 +274,7 @@ void add_markerless(CLI::App* eval) {
         files.push_back({"--config-overrides", a->overrides.substr(1), false});
       files.push_back({"--json", a->json_path});
       tools::require_usable_outputs(files);
+      const ReportToStderrIf report_aside{a->json_path};
       require_file(a->o.template_path, "--template");
       if (!a->o.trial_path.empty()) require_file(a->o.trial_path, "--trial");
       if (!a->overrides.empty()) {

@@ -171,14 +171,22 @@ void run(const SolveOptions& o) {
     out << summary.dump(2) << '\n';
     io::finish_output_file(out, o.report);
   }
+  // The summary beside an output on stdout (--report /dev/stdout | jq) would be mixed in.
+  FILE* const summary_to =
+      std::any_of(files.begin(), files.end(),
+                  [](const tools::NamedFile& f) { return f.output && is_standard_output(f.path); })
+          ? stderr
+          : stdout;
   const auto& r = summary["residual_mm"];
-  std::printf("frames            %zu (%zu without any tracked marker, left out of the residual)\n",
-              summary["frames"].get<std::size_t>(),
-              summary["frames_without_markers"].get<std::size_t>());
+  std::fprintf(summary_to,
+               "frames            %zu (%zu without any tracked marker, left out of the residual)\n",
+               summary["frames"].get<std::size_t>(),
+               summary["frames_without_markers"].get<std::size_t>());
   const auto before = summary["frames_before_first_measurement"].get<std::size_t>();
   const auto after = summary["frames_after_last_measurement"].get<std::size_t>();
   if (before + after > 0)
-    std::printf(
+    std::fprintf(
+        summary_to,
         "no pose           %s: empty in the TRC and CSV outputs, left out of the .mot\n",
         (before == 0  ? "the last " + std::to_string(after) + " frames, after every measurement"
          : after == 0 ? "the first " + std::to_string(before) + " frames, before any measurement"
@@ -186,61 +194,64 @@ void run(const SolveOptions& o) {
                             std::to_string(after) + " frames, outside the measurements")
             .c_str());
   if (r["max_marker"].get<std::string>().empty())  // orientations alone: no marker measured
-    std::printf("marker residual   none: no marker measured\n");
+    std::fprintf(summary_to, "marker residual   none: no marker measured\n");
   else
-    std::printf(
+    std::fprintf(
+        summary_to,
         "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
         "frame %lld)\n",
         r["rms_mean"].get<double>(), r["rms_max"].get<double>(), r["max"].get<double>(),
         r["max_marker"].get<std::string>().c_str(), r["max_frame"].get<long long>());
-  std::printf(
-      "solve             p50 %.1f us, p99 %.1f us, %.1f iterations on average\n"
-      "joint centres     %s\n",
-      summary["solve_us"]["p50"].get<double>(), summary["solve_us"]["p99"].get<double>(),
-      summary["iterations_mean"].get<double>(), o.output.c_str());
+  std::fprintf(summary_to,
+               "solve             p50 %.1f us, p99 %.1f us, %.1f iterations on average\n"
+               "joint centres     %s\n",
+               summary["solve_us"]["p50"].get<double>(), summary["solve_us"]["p99"].get<double>(),
+               summary["iterations_mean"].get<double>(), o.output.c_str());
   const auto& out = summary["outliers"];
   const auto& q = summary["quality"];
   // Every verdict, none too (frames without a measured marker), as the report counts them.
-  std::printf(
-      "fit quality       good %d, poor %d, none %d frames (quality thresholds of the "
-      "config)\n"
-      "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
-      "out of their solve\n",
-      q.value("good", 0), q.value("poor", 0), q.value("none", 0), out["samples"].get<std::size_t>(),
-      out["percent_of_measured"].get<double>(), out["frames"].get<std::size_t>());
+  std::fprintf(summary_to,
+               "fit quality       good %d, poor %d, none %d frames (quality thresholds of the "
+               "config)\n"
+               "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
+               "out of their solve\n",
+               q.value("good", 0), q.value("poor", 0), q.value("none", 0),
+               out["samples"].get<std::size_t>(), out["percent_of_measured"].get<double>(),
+               out["frames"].get<std::size_t>());
   std::size_t filled_samples = 0;
   for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
-  std::printf("gaps filled       %zu samples in %zu runs (both sides)%s%s\n", filled_samples,
-              s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str(),
-              s.solved_on_filled_markers
-                  ? "; joint centres and angles solved again on the filled markers"
-                  : "");
+  std::fprintf(
+      summary_to, "gaps filled       %zu samples in %zu runs (both sides)%s%s\n", filled_samples,
+      s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str(),
+      s.solved_on_filled_markers ? "; joint centres and angles solved again on the filled markers"
+                                 : "");
   if (!s.missing_in_trial.empty())
-    std::printf("not in the trial   %zu tracked marker%s (%s)\n", s.missing_in_trial.size(),
-                s.missing_in_trial.size() == 1 ? "" : "s",
-                safe_lines(name_list(s.missing_in_trial, 12)).c_str());
+    std::fprintf(summary_to, "not in the trial   %zu tracked marker%s (%s)\n",
+                 s.missing_in_trial.size(), s.missing_in_trial.size() == 1 ? "" : "s",
+                 safe_lines(name_list(s.missing_in_trial, 12)).c_str());
   if (summary.contains("orientations")) {
     const auto& so = summary["orientations"];
-    std::printf("orientations      %zu frames with sensors; sensor error RMS %.2f deg (mean over "
-                "frames), worst frame %.2f deg\n",
-                so["frames_with_sensors"].get<std::size_t>(),
-                so["sensor_error_deg"]["rms_mean"].get<double>(),
-                so["sensor_error_deg"]["rms_max"].get<double>());
+    std::fprintf(summary_to,
+                 "orientations      %zu frames with sensors; sensor error RMS %.2f deg (mean over "
+                 "frames), worst frame %.2f deg\n",
+                 so["frames_with_sensors"].get<std::size_t>(),
+                 so["sensor_error_deg"]["rms_mean"].get<double>(),
+                 so["sensor_error_deg"]["rms_max"].get<double>());
     if (!s.sensors_missing_in_table.empty())
-      std::printf(
-          "not in the table   %zu of %zu configured sensors (%s): no orientation for "
-          "their segments\n",
-          s.sensors_missing_in_table.size(), config.tracker.sensors.sensors.size(),
-          safe_lines(name_list(s.sensors_missing_in_table, 12)).c_str());
+      std::fprintf(summary_to,
+                   "not in the table   %zu of %zu configured sensors (%s): no orientation for "
+                   "their segments\n",
+                   s.sensors_missing_in_table.size(), config.tracker.sensors.sensors.size(),
+                   safe_lines(name_list(s.sensors_missing_in_table, 12)).c_str());
     if (!s.ignored_in_table.empty())
-      std::printf("not tracked        %zu table column%s (%s)\n", s.ignored_in_table.size(),
-                  s.ignored_in_table.size() == 1 ? "" : "s",
-                  safe_lines(name_list(s.ignored_in_table, 12)).c_str());
+      std::fprintf(summary_to, "not tracked        %zu table column%s (%s)\n",
+                   s.ignored_in_table.size(), s.ignored_in_table.size() == 1 ? "" : "s",
+                   safe_lines(name_list(s.ignored_in_table, 12)).c_str());
   }
   if (!s.ignored_in_trial.empty())
-    std::printf("not tracked        %zu trial label%s (%s)\n", s.ignored_in_trial.size(),
-                s.ignored_in_trial.size() == 1 ? "" : "s",
-                safe_lines(name_list(s.ignored_in_trial, 12)).c_str());
+    std::fprintf(summary_to, "not tracked        %zu trial label%s (%s)\n",
+                 s.ignored_in_trial.size(), s.ignored_in_trial.size() == 1 ? "" : "s",
+                 safe_lines(name_list(s.ignored_in_trial, 12)).c_str());
   std::fflush(stdout);  // the summary before the refusal on stderr
   if (angles_refused)
     throw std::runtime_error(config.file + ": --angles: the model has no named coordinates, so " +

@@ -22,4 +22,17 @@ inline bool is_stream(const std::string& path) {
   return *stream_kind(path) != '\0';
 }
 
+// Whether `path` is where this process's standard output goes (/dev/stdout, /dev/fd/1, or the
+// terminal, pipe or file those name), /dev/null aside: a command's text summary then goes to
+// stderr, so a pipe gets the output alone and a redirected file is not overwritten by it.
+inline bool is_standard_output(const std::string& path) {
+  struct stat at_path {};
+  struct stat out {};
+  struct stat null {};
+  if (path.empty() || ::stat(path.c_str(), &at_path) != 0 || ::fstat(1, &out) != 0) return false;
+  if (S_ISCHR(out.st_mode) && ::stat("/dev/null", &null) == 0 && out.st_rdev == null.st_rdev)
+    return false;
+  return at_path.st_dev == out.st_dev && at_path.st_ino == out.st_ino;
+}
+
 }  // namespace fabrik
