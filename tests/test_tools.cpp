@@ -426,6 +426,53 @@ TEST_CASE("watch --topic tallies the poses of its topic only, not of topics it s
   CHECK(s["last_frame"].get<std::uint64_t>() < 200000000);
 }
 
+TEST_CASE("watch on pose names the subjects' topics of a multi-subject daemon and the fix") {
+  zmq::context_t context;
+  zmq::socket_t pub(context, zmq::socket_type::pub);
+  pub.bind("inproc://watch-subjects");
+  WatchOptions o;
+  o.endpoint = "inproc://watch-subjects";
+  o.seconds = 20.0;  // a bound: it stops at 5 of each long before
+  WatchTally tally;
+  o.stop_requested = [&] {
+    const json others = tally.summary()["other_topics"];
+    return others.value("pose/Alice", 0) >= 5 && others.value("pose/Bob", 0) >= 5;
+  };
+  std::atomic<bool> done{false};
+  std::thread publisher([&] {
+    for (std::uint64_t f = 1; !done && f < 10000000; ++f) {
+      for (const char* topic : {"pose/Alice", "pose/Bob", "posex"}) {
+        const std::string pose = json{{"frame", f}, {"units", "mm"}}.dump();
+        pub.send(zmq::buffer(std::string_view(topic)), zmq::send_flags::sndmore);
+        pub.send(zmq::buffer(pose));
+      }
+      std::this_thread::yield();
+    }
+  });
+  const json s = watch(context, o, tally);
+  done = true;
+  publisher.join();
+  CHECK(tally.poses() == 0);
+  CHECK(s["other_topics"].size() == 2);  // not "posex": another topic, not a subject's
+  CHECK_THAT(tally.summary_text(), Catch::Contains("poses arrived on pose/Alice (") &&
+                                       Catch::Contains("pose/Bob (") &&
+                                       Catch::Contains("Fix: --topic pose/Alice"));
+}
+
+TEST_CASE("watch's summary names the solver's stop beside the contract's status") {
+  WatchTally tally;
+  for (std::uint64_t f = 1; f <= 3; ++f)
+    tally.add_pose(
+        json{{"frame", f},
+             {"units", "mm"},
+             {"residual", {{"rms", 1.0}, {"max", 2.0}, {"count", 3}}},
+             {"solver", {{"status", "converged"}, {"stop", f == 3 ? "converged" : "stalled"}}}},
+        0.01 * static_cast<double>(f));
+  CHECK_THAT(tally.summary_text(),
+             Catch::EndsWith("status: converged 3 (solver stop: converged 1 stalled 2)\n"));
+  CHECK(tally.summary()["stop"]["stalled"] == 2);
+}
+
 TEST_CASE("watch tally: a vendor source's connection shows in the live line, its error when it is down") {
   WatchTally tally;
   CHECK_THAT(tally.live_line(0.0), !Catch::Contains("source"));

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "common/quantile.hpp"
+#include "common/safe_text.hpp"
 #include "wire.hpp"
 
 namespace fabrik::tools {
@@ -86,6 +87,9 @@ void WatchTally::add_pose(const json& pose, double t_s) {
   std::string status = "unknown";
   if (pose.contains("/solver/status"_json_pointer) && pose["solver"]["status"].is_string())
     status = pose["solver"]["status"];
+  // The contract's status says converged for a stalled solve: the stop says how it ended.
+  if (pose.contains("/solver/stop"_json_pointer) && pose["solver"]["stop"].is_string())
+    ++stop_[pose["solver"]["stop"].get<std::string>()];
   const double solve_us = number_at(pose, "/solver/solve_us"_json_pointer);
   if (std::isfinite(solve_us)) solve_us_.push_back(solve_us);
   // End to end, from the source's send to now: the pose echoes the frame's
@@ -210,6 +214,8 @@ json WatchTally::summary() const {
       {"poses", fitted_}};
   s["occluded_mean"] = occluded_sum_ / n;
   s["status"] = status_;
+  s["stop"] = stop_;
+  s["other_topics"] = other_topics_;
   s["solve_us"] = {{"p50", quantile(solve_us_, 0.5)},
                    {"p99", quantile(solve_us_, 0.99)},
                    {"max", quantile(solve_us_, 1.0)}};
@@ -227,7 +233,15 @@ std::string WatchTally::summary_text() const {
                   "poses 0: no pose received; stats messages %llu, undecodable %llu\n",
                   static_cast<unsigned long long>(stats_count_),
                   static_cast<unsigned long long>(undecodable_));
-    return buf;
+    std::string text = buf;
+    if (!other_topics_.empty()) {  // a multi-subject daemon: one topic per subject, no `pose`
+      text += "poses arrived on";
+      for (const auto& [topic, n] : other_topics_)
+        text += " " + safe_lines(topic) + " (" + std::to_string(n) + ")";
+      text += ": one topic per subject. Fix: --topic " + safe_lines(other_topics_.begin()->first) +
+              "\n";
+    }
+    return text;
   }
   char residual[160];
   if (fitted_ > 0)
@@ -248,7 +262,9 @@ std::string WatchTally::summary_text() const {
       s["solve_us"]["p50"].get<double>(), s["solve_us"]["p99"].get<double>(),
       s["solve_us"]["max"].get<double>(), static_cast<unsigned long long>(stats_count_),
       static_cast<unsigned long long>(undecodable_), status_text(status_).c_str());
-  return buf;
+  std::string text = buf;
+  if (!stop_.empty()) text.insert(text.size() - 1, " (solver stop:" + status_text(stop_) + ")");
+  return text;
 }
 
 json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tally) {
@@ -300,6 +316,9 @@ json watch(zmq::context_t& context, const WatchOptions& options, WatchTally& tal
     const std::string_view topic = parts[0].to_string_view();
     if (topic == options.topic) {  // exactly: a subscription also takes longer topics
       tally.add_pose(doc, t_s);
+    } else if (topic.size() > options.topic.size() && topic.starts_with(options.topic) &&
+               topic[options.topic.size()] == '/') {
+      tally.add_other_topic(topic);
     } else if (topic == "stats") {
       tally.add_stats(doc, t_s);
       if (options.live) options.live(tally.live_line(t_s));

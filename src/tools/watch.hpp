@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
@@ -22,6 +23,12 @@ class WatchTally {
   void add_pose(const nlohmann::json& pose, double t_s);
   void add_stats(const nlohmann::json& stats, double t_s);
   void add_undecodable() { ++undecodable_; }
+  // A message under a longer topic than the one watched (`pose/Alice` while watching `pose`):
+  // counted to name in the summary, at most 32 topics.
+  void add_other_topic(std::string_view topic) {
+    if (other_topics_.size() < 32 || other_topics_.contains(std::string(topic)))
+      ++other_topics_[std::string(topic)];
+  }
   // One compact line over what arrived since the previous call.
   std::string live_line(double t_s);
   nlohmann::json summary() const;
@@ -43,7 +50,7 @@ class WatchTally {
   double rms_sum_ = 0.0, residual_max_ = 0.0, occluded_sum_ = 0.0;
   std::uint64_t fitted_ = 0;  // poses with a residual (residual.count > 0)
   std::string units_;
-  std::map<std::string, std::uint64_t> status_;
+  std::map<std::string, std::uint64_t> status_, stop_, other_topics_;
   std::vector<double> solve_us_, latency_us_;
   std::optional<nlohmann::json> last_stats_;
   nlohmann::json last_angles_;  // the latest pose's `angles` (degrees), if it had any
