@@ -2357,6 +2357,30 @@ TEST_CASE(
   CHECK(l.at(0, 1).w() == 1.0);
   CHECK(l.at(1, 0).w() == 1.0);
 
+  // OpenSense's dropout, nan in all four, is said too (it was silent); a tab ending every row
+  // is no extra cell (every row was left out, then the file refused as "0 rows, not
+  // quaternions").
+  TempFile dropout(".sto");
+  std::ofstream(dropout.path()) << header
+                                << "time\ta_imu\tb_imu\t\n0\t1,0,0,0\t1,0,0,0\t\n"
+                                   "0.01\t1,0,0,0\tnan,nan,nan,nan\t\n"
+                                   "0.02\tNaN,NaN,NaN,NaN\tnan,nan,nan,nan\t\n";
+  const fabrik::io::OrientationTable d = fabrik::io::read_orientation_table(dropout.path());
+  REQUIRE(d.rows() == 3);
+  CHECK(d.at(0, 1).w() == 1.0);
+  CHECK_FALSE(d.at(1, 1).coeffs().allFinite());
+  CHECK(d.warnings ==
+        std::vector<std::string>{"3 cells are nan (the first at 0.01 s, column b_imu): missing for "
+                                 "their sensor only"});
+  // A table whose every row is left out says why, not that it holds no quaternions.
+  TempFile no_rows(".sto");
+  std::ofstream(no_rows.path()) << header << "time\ta_imu\n0\t1,0,0,0\t1\n0.01\t1,0,0,0\t1\n";
+  REQUIRE_THROWS_WITH(fabrik::io::read_orientation_table(no_rows.path()),
+                      no_rows.path() +
+                          ": has no row that could be read: 2 rows left out (the "
+                          "first on line 6): a different number of fields than "
+                          "the 2 labels, no time, or a cell that is not a number");
+
   // Two rows swapped (lines 7 and 8), as the TRC reader refuses them.
   std::ofstream(back.path()) << header
                              << "time\ta_imu\n0\t1,0,0,0\n0.02\t1,0,0,0\n0.01\t1,0,0,0\n"

@@ -195,7 +195,9 @@ OpenSimTable read_opensim_table(const std::string& path, const OpenSimReadOption
   };
   while (next(t.columns.size() * kMaxBytesPerCell + 4096)) {
     if (detail::trim(line).empty()) continue;
-    const std::vector<std::string_view> fields = fields_of(line);
+    std::vector<std::string_view> fields = fields_of(line);
+    // A tab ending every row (some exporters) is no empty last cell: the labels skip it too.
+    if (fields.size() == t.columns.size() + 1 && fields.back().empty()) fields.pop_back();
     const std::optional<double> time_s = number(fields[0]);
     if (time_s && std::isfinite(*time_s)) {
       ++timed_rows;
@@ -258,6 +260,7 @@ OpenSimTable read_opensim_table(const std::string& path, const OpenSimReadOption
                                   "again: OpenSim refuses a time column that goes back");
     t.warnings.push_back(what + ": rows kept in the file's order");
   }
+  t.bad_cells = bad_cells;
   if (bad_cells > 0) {
     t.warnings.push_back(std::to_string(bad_cells) + " cells (the first on line " +
                          std::to_string(first_bad_cell) + ", column " + first_bad_column +

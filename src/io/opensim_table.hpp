@@ -34,6 +34,8 @@ struct OpenSimTable {
   std::string cell_kind;    ///< "numbers", or "quaternions (w,x,y,z)" / "3-vectors" when cells
                             // hold comma-separated tuples
   std::size_t cell_width = 1;  ///< numbers per cell
+  /// Cells not of cell_width numbers, read as missing (ReadTableOptions::bad_cells_missing).
+  std::size_t bad_cells = 0;
   /// Rows with a different number of fields, nRows/nColumns that disagree with the table, ...
   std::vector<std::string> warnings;
   std::vector<double> time_s;  ///< per row

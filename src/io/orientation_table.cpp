@@ -66,6 +66,10 @@ OrientationTable read_orientation_table(const std::string& path) {
     throw FormatError(path, "DataType=" + data_type +
                                 ": not orientations. Fix: give a quaternion table "
                                 "(DataType=Quaternion, cells w,x,y,z), as OpenSense writes");
+  if (src.cell_width == 4 && src.columns.size() >= 2 && src.rows == 0)
+    throw FormatError(path,
+                      "has no row that could be read" +
+                          (src.warnings.empty() ? std::string() : ": " + src.warnings.front()));
   if (src.cell_width != 4 || src.columns.size() < 2 || src.rows == 0)
     throw FormatError(path, "holds " + src.cell_kind + " in " +
                                 std::to_string(src.columns.size()) + " columns and " +
@@ -78,12 +82,13 @@ OrientationTable read_orientation_table(const std::string& path) {
   t.rate_hz = src.rate_hz;
   t.rate_source = src.rate_source;
   t.warnings = src.warnings;
-  std::size_t not_unit = 0;
+  std::size_t not_unit = 0, all_nan = 0, first_nan_row = 0, first_nan_column = 0;
   t.q.reserve(src.rows * t.sensors.size());
   for (std::size_t r = 0; r < src.rows; ++r)
     for (std::size_t c = 1; c < src.columns.size(); ++c) {
       const Eigen::Quaterniond q = src.quaternion(r, c);
       if (q.coeffs().array().isNaN().all()) {  // "nan", or not four numbers (said above)
+        if (all_nan++ == 0) first_nan_row = r, first_nan_column = c;
         t.q.emplace_back(kNaN, kNaN, kNaN, kNaN);
       } else if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > 0.01) {
         ++not_unit;
@@ -92,6 +97,14 @@ OrientationTable read_orientation_table(const std::string& path) {
         t.q.push_back(q);
       }
     }
+  // OpenSense writes nan for a sensor's dropout: missing as asked, but said, as other gaps are.
+  if (all_nan > src.bad_cells)
+    t.warnings.push_back(std::to_string(all_nan - src.bad_cells) + " cells are nan (" +
+                         (src.bad_cells == 0
+                              ? "the first at " + format_number("%.9g", src.time_s[first_nan_row]) +
+                                    " s, column " + src.columns[first_nan_column]
+                              : "besides the cells above") +
+                         "): missing for their sensor only");
   if (not_unit > 0)
     t.warnings.push_back(std::to_string(not_unit) +
                          " quaternions are not finite or not of unit length (within 0.01): "
