@@ -7,6 +7,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 
 #include "common/edit_distance.hpp"
 #include "common/safe_text.hpp"
@@ -134,6 +135,42 @@ TEST_CASE("A model or a template given as a daemon config is named for what it i
              Catch::Contains("m.json: at /: this is a model, not a daemon config"));
   CHECK_THAT(error_of([&] { load_daemon_config(R"({"format": "other/2"})", "o.json"); }),
              Catch::Contains("at /format: unsupported format 'other/2'"));
+}
+
+TEST_CASE("A sensors world whose up is not the model's or whose rotation is in radians is refused",
+          "[config][sensors]") {
+  const auto with_world = [](const json& world) {
+    return json{{"format", "fabrikd-config/1"},
+                {"model", "models/fullbody.json"},
+                {"sensors",
+                 {{"world", world}, {"orientations", {{"pelvis_imu", {{"segment", "pelvis"}}}}}}}}
+        .dump();
+  };
+  // OpenSense's z-up sensors on a y-up model, as its tutorial gives them.
+  const DaemonConfig ok =
+      load_daemon_config(with_world({{"rotation_deg", {-90, 0, 0}}, {"up", "y"}}), "c.json");
+  CHECK(ok.sensors.world.rotation_xyz_rad.x() == Approx(-std::numbers::pi / 2));
+  CHECK_NOTHROW(load_daemon_config(with_world({{"rotation_deg", {1.5, 0, 0}}}), "c.json"));
+  CHECK_NOTHROW(load_daemon_config(with_world({{"rotation_deg", {0.0004, 0, 0}}}), "c.json"));
+  // The sensors' own up written where the model's belongs (17 deg of sensor error, no word).
+  CHECK_THAT(error_of([&] {
+               load_daemon_config(with_world({{"up", "z"}}), "c.json");
+             }),
+             Catch::Contains("at /sensors/world/up: the model's vertical is its lab_axes' up "
+                             "(+y), not z") &&
+                 Catch::Contains("\"rotation_deg\""));
+  // OpenSim's sensor_to_opensim_rotations copied as they are: radians.
+  CHECK_THAT(
+      error_of([&] {
+        load_daemon_config(with_world({{"rotation_deg", {-1.5707963267948966, 0, 0}}}), "c.json");
+      }),
+      Catch::Contains("at /sensors/world/rotation_deg: angle -1.57079633 is a multiple of "
+                      "90 deg in radians") &&
+          Catch::Contains("give degrees: -90 for -1.57079633"));
+  CHECK_THAT(error_of([&] {
+               load_daemon_config(with_world({{"rotation_deg", {0, 3.1416, 0}}}), "c.json");
+             }),
+             Catch::Contains("give degrees: 180 for 3.1416"));
 }
 
 TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {

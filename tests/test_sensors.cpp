@@ -5,13 +5,17 @@
 // finds mountings and heading from one pose.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <fstream>
 #include <memory>
 #include <numbers>
 
+#include "calib/calib_template.hpp"
 #include "calib/calibrate.hpp"
 #include "calib/sensor_calibration.hpp"
+#include "config/model_loader.hpp"
 #include "synth/synthetic_motion.hpp"
 #include "synth/synthetic_sensors.hpp"
+#include "temp_file.hpp"
 #include "test_models.hpp"
 #include "tracking/tracker.hpp"
 
@@ -279,4 +283,51 @@ TEST_CASE("The mean of nearby rotations, its spread, and what it skips", "[senso
         1e-12);
   CHECK(spread == Approx(0.1).margin(1e-12));
   CHECK(std::isnan(calib::mean_rotation(std::span(q).last(1), &spread).w()));
+}
+
+TEST_CASE("Zero angles and a template's sensors' world follow the lab axes", "[sensors][calib]") {
+  // The built-in model in a z-up lab with x forward (Vicon's, QTM's).
+  std::ifstream in(std::string(FABRIK_SOURCE_DIR) + "/config/models/fullbody.json");
+  nlohmann::json doc = nlohmann::json::parse(in);
+  doc["lab_axes"] = {{"up", "+z"}, {"forward", "+x"}};
+  const Model zup = load_model(doc, "fullbody_zup.json");
+  REQUIRE(zup.lab_axes.up_lab == Eigen::Vector3d::UnitZ());
+  // OpenSim's zero angles: every anatomical frame on the ground's axes, placed in the lab (the
+  // subject lay along y, its sensors calibrated 17 deg off on OpenSense's walk).
+  const Posture zero = calib::calibration_posture(zup, "zero_angles");
+  for (std::size_t s = 0; s < zup.segments.size(); ++s) {
+    CAPTURE(zup.segments[s].name);
+    const Eigen::Quaterniond q_anatomical = zero.segments[s].q_world * zup.segments[s].q_anatomical;
+    CHECK((q_anatomical * Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitZ()).norm() < 1e-12);
+    CHECK((q_anatomical * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX()).norm() < 1e-12);
+  }
+  // OpenSense's sensors' world (z up, turned -90 deg about x onto a y-up ground) in the z-up
+  // lab: no turn, up z, the heading kept.
+  SensorWorld opensense;
+  opensense.rotation_xyz_rad = Eigen::Vector3d(-90 * kDeg, 0, 0);
+  opensense.up = "y";
+  opensense.heading_rad = 0.7;
+  const LabAxes ground, lab = zup.lab_axes;
+  const SensorWorld in_lab = calib::sensor_world_in_lab(opensense, ground, lab);
+  CHECK(in_lab.rotation_xyz_rad.norm() < 1e-12);
+  CHECK(in_lab.up == "+z");
+  CHECK(in_lab.heading_rad == 0.7);
+  CHECK(in_lab.q_world_sensors().angularDistance(Eigen::Quaterniond(lab.r_from(ground)) *
+                                                 opensense.q_world_sensors()) < 1e-12);
+  // Any turn, any heading: the same physical world.
+  opensense.rotation_xyz_rad = Eigen::Vector3d(0.3, -1.1, 2.0);
+  const SensorWorld turned = calib::sensor_world_in_lab(opensense, ground, lab);
+  CHECK(turned.q_world_sensors().angularDistance(Eigen::Quaterniond(lab.r_from(ground)) *
+                                                 opensense.q_world_sensors()) < 1e-12);
+  CHECK(calib::sensor_world_in_lab(opensense, lab, lab).rotation_xyz_rad ==
+        opensense.rotation_xyz_rad);
+  // A template's up is its lab's (y without lab_axes), as a config's is its model's.
+  std::ifstream tin(std::string(FABRIK_SOURCE_DIR) + "/config/templates/opensense_gait2354.json");
+  nlohmann::json t = nlohmann::json::parse(tin);
+  t["sensors"]["world"]["up"] = "z";
+  test::TempFile up_z(".json");
+  std::ofstream(up_z.path()) << t.dump();
+  CHECK_THROWS_WITH(calib::load_template_file(up_z.path()),
+                    Catch::Contains("at /sensors/world/up: the model's vertical is its "
+                                    "lab_axes' up (+y), not z"));
 }

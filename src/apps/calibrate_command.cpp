@@ -153,7 +153,17 @@ void run_calibrate(const CalibrateArgs& a) {
   std::string sensors;
   if (!a.orientations_path.empty()) {
     const Model model = load_model(nlohmann::json::parse(r.model.dump()), "<calibrated model>");
-    sensors = calibrated_sensors(tmpl.sensors, model, a.orientations_path, r.config);
+    // The template's sensors' world is given in its lab axes (OpenSim's y up without them);
+    // the subject's may be another's (a z-up lab found from the static).
+    LabAxes template_lab;
+    if (tmpl.lab_axes) {
+      template_lab.up_lab = tmpl.lab_axes->up_lab;
+      template_lab.forward_lab = tmpl.lab_axes->forward_lab.value_or(
+          default_forward_lab(tmpl.lab_axes->up_lab).value_or(model.lab_axes.forward_lab));
+    }
+    SensorSection spec = tmpl.sensors;
+    spec.world = calib::sensor_world_in_lab(spec.world, template_lab, model.lab_axes);
+    sensors = calibrated_sensors(spec, model, a.orientations_path, r.config);
   } else if (!tmpl.sensors.entries.empty()) {
     sensors = "\nnote: " + calib::sensors_left_out(tmpl.sensors.entries.size()) +
               ": calibrate them with --static-orientations\n";

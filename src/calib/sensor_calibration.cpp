@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "calibrate.hpp"
+#include "config/lab_axes_json.hpp"
 #include "solver/units.hpp"
 
 namespace fabrik::calib {
@@ -109,8 +110,11 @@ SensorCalibration calibrate_sensors(const SensorSection& spec, const Model& mode
 Posture calibration_posture(const Model& model, const std::string& pose) {
   Posture p = Posture::rest(model);
   if (pose == "rest") return p;
+  // Zero angles are OpenSim's: each anatomical frame on the ground's axes, which the lab axes
+  // place in the lab (a z-up lab's subject stands along z, not lying along y).
+  const Eigen::Quaterniond q_lab_reference(model.lab_axes.r_reference_lab().transpose());
   for (std::size_t s = 0; s < model.segments.size(); ++s)
-    p.segments[s].set_rotation(model.segments[s].q_anatomical.conjugate());
+    p.segments[s].set_rotation(q_lab_reference * model.segments[s].q_anatomical.conjugate());
   connect_joints(model, p);
   return p;
 }
@@ -129,6 +133,19 @@ SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const 
   for (const SensorEntry& e : c.section.entries)
     spread_deg.push_back(spread[static_cast<std::size_t>(table.find(e.sensor))] * kDegPerRad);
   return c;
+}
+
+SensorWorld sensor_world_in_lab(SensorWorld world, const LabAxes& from, const LabAxes& to) {
+  if (from == to) return world;
+  const Eigen::Matrix3d axes =
+      to.r_from(from) *
+      sensors_to_world(world.rotation_xyz_rad, world.up_vector(), 0.0).toRotationMatrix();
+  const Eigen::Vector3d zyx_rad = axes.eulerAngles(2, 1, 0);  // axes = Rz Ry Rx
+  world.rotation_xyz_rad = {zyx_rad[2], zyx_rad[1], zyx_rad[0]};
+  for (int k = 0; k < 3; ++k)  // 1e-14 rad of rounding is 0, written and printed as 0
+    if (std::abs(world.rotation_xyz_rad[k]) < 1e-12) world.rotation_xyz_rad[k] = 0.0;
+  world.up = signed_axis_name(to.up_lab);
+  return world;
 }
 
 std::string calibrate_sensors_into(const SensorSection& spec, const Model& model,

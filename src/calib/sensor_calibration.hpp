@@ -56,6 +56,11 @@ SensorCalibration calibrate_sensors_from_table(const SensorSection& spec, const 
 
 // Calibrates `spec` from `table` (calibrate_sensors_from_table), writes the
 // result into `config`'s "sensors" and returns the report (sensor_report).
+// The same sensors' world in `to`'s lab axes as `world` is in `from`'s (a template's world,
+// written for OpenSim's y-up ground, on a subject calibrated in a z-up lab): its rotation
+// turned with the lab, its up the lab's, its heading kept (about the turned up).
+SensorWorld sensor_world_in_lab(SensorWorld world, const LabAxes& from, const LabAxes& to);
+
 std::string calibrate_sensors_into(const SensorSection& spec, const Model& model,
                                    const io::OrientationTable& table,
                                    const std::string& table_name, nlohmann::ordered_json& config);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/format_number.hpp"
+#include "config/lab_axes_json.hpp"
 #include "solver/units.hpp"
 
 namespace fabrik {
@@ -44,6 +46,19 @@ Eigen::Quaterniond SensorWorld::q_world_sensors() const {
   return sensors_to_world(rotation_xyz_rad, up_vector(), heading_rad);
 }
 
+void check_world_up(const JsonReader& sensors, const SensorSection& section,
+                    const Eigen::Vector3d& up_lab) {
+  if (!sensors.has("world") || !sensors.at("world").has("up") ||
+      section.world.up_vector() == up_lab)
+    return;
+  sensors.at("world").at("up").fail(
+      "the model's vertical is its lab_axes' up (" + signed_axis_name(up_lab) + "), not " +
+          section.world.up,
+      "give \"up\" as the lab_axes' up; the sensors' own world (OpenSense's z-up) is turned "
+      "onto the model's by \"rotation_deg\" ([-90, 0, 0] in degrees for OpenSense on a y-up "
+      "model)");
+}
+
 SensorSection read_sensor_section(const JsonReader& sensors,
                                   const std::vector<std::string>& segments, bool rotations) {
   sensors.expect_object();
@@ -63,6 +78,20 @@ SensorSection read_sensor_section(const JsonReader& sensors,
       const Eigen::Vector3d deg = w.at("rotation_deg").as_vec3();
       if (deg.cwiseAbs().maxCoeff() > 360.0)
         w.at("rotation_deg").fail("angles beyond 360 deg", "give each angle in [-360, 360] degrees");
+      // OpenSim's sensor_to_opensim_rotations are radians: -1.5708 copied here turned the
+      // sensors' world by 1.6 deg, with no word. No one means 90 deg's radians in degrees.
+      constexpr double kQuarterTurn_rad = std::numbers::pi / 2.0;
+      for (int k = 0; k < 3; ++k) {
+        const double turns = std::round(std::abs(deg[k]) / kQuarterTurn_rad);
+        if (turns >= 1.0 && turns <= 4.0 &&
+            std::abs(std::abs(deg[k]) - turns * kQuarterTurn_rad) < 1e-3)
+          w.at("rotation_deg")
+              .fail("angle " + format_number("%.9g", deg[k]) +
+                        " is a multiple of 90 deg in radians (OpenSim's "
+                        "sensor_to_opensim_rotations are radians)",
+                    "give degrees: " + format_number("%.9g", std::copysign(turns * 90.0, deg[k])) +
+                        " for " + format_number("%.9g", deg[k]));
+      }
       out.world.rotation_xyz_rad = deg * kRadPerDeg;
     }
     if (w.has("up")) out.world.up = read_axis_name(w.at("up"));
