@@ -258,12 +258,27 @@ TEST_CASE("Calibration in the rest pose finds mountings and heading", "[sensors]
       CHECK(e.q_segment_sensor.angularDistance(mounting) < 1e-12);
     for (double d : c.mounting_deg) CHECK(d == Approx(90.0).margin(1e-9));
   }
-  SECTION("a missing sensor and a vertical heading axis are refused") {
+  SECTION(
+      "a missing sensor is left out, a missing heading sensor and a vertical heading axis "
+      "are refused") {
     std::vector<Eigen::Quaterniond> q(names.size(), Eigen::Quaterniond::Identity());
     q[3] = Eigen::Quaterniond(0, 0, 0, 0);
+    // As OpenSense's placer: the others placed, imu3 said and left out (it refused them all).
+    const calib::SensorCalibration c = calib::calibrate_sensors(spec, m, rest, names, q);
+    REQUIRE(c.section.entries.size() == names.size() - 1);
+    for (const SensorEntry& e : c.section.entries) CHECK(e.sensor != "imu3");
+    CHECK(c.mounting_deg.size() == names.size() - 1);
+    CHECK_THAT(c.notes.at(0), Catch::StartsWith("no usable orientation in the calibration pose "
+                                                "for: imu3: left out of the config"));
+    q[0] = Eigen::Quaterniond(0, 0, 0, 0);
     CHECK_THROWS_WITH(calib::calibrate_sensors(spec, m, rest, names, q),
-                      Catch::Contains("imu3") && Catch::Contains("no usable orientation"));
-    q[3] = Eigen::Quaterniond::Identity();
+                      Catch::Contains("for 'imu0', the heading's sensor"));
+    std::fill(q.begin(), q.end(), Eigen::Quaterniond(0, 0, 0, 0));
+    spec.world.heading_sensor.clear();
+    CHECK_THROWS_WITH(calib::calibrate_sensors(spec, m, rest, names, q),
+                      Catch::Contains("for any sensor: imu0, imu1"));
+    spec.world.heading_sensor = "imu0";
+    std::fill(q.begin(), q.end(), Eigen::Quaterniond::Identity());
     spec.world.heading_axis = "z";  // the sensors' z is up: -90 deg about x takes it to y
     CHECK_THROWS_WITH(calib::calibrate_sensors(spec, m, rest, names, q),
                       Catch::Contains("within 10 deg of the vertical"));

@@ -61,14 +61,27 @@ SensorCalibration calibrate_sensors(const SensorSection& spec, const Model& mode
         return &q_sensors_sensor[i];
     return nullptr;
   };
+  // As OpenSense's IMU placer, the sensors the recording has are placed; one without a
+  // reading is left out of the config, said. The heading's sensor cannot be.
   std::string missing;
-  for (const SensorEntry& e : spec.entries)
-    if (!reading(e.sensor)) missing += (missing.empty() ? "" : ", ") + e.sensor;
+  std::erase_if(out.section.entries, [&](const SensorEntry& e) {
+    if (reading(e.sensor)) return false;
+    missing += (missing.empty() ? "" : ", ") + e.sensor;
+    return true;
+  });
+  const std::string fix = " (the recording has " + std::to_string(names.size()) +
+                          " sensors). Fix: record every sensor of the template, or remove the "
+                          "missing ones from its \"sensors\"";
+  if (out.section.entries.empty())
+    throw CalibrationError(
+        "no usable orientation in the calibration pose for any sensor: " + missing + fix);
+  if (!world.heading_sensor.empty() && !reading(world.heading_sensor))
+    throw CalibrationError("no usable orientation in the calibration pose for '" +
+                           world.heading_sensor + "', the heading's sensor (heading_from)" + fix);
   if (!missing.empty())
-    throw CalibrationError("no usable orientation in the calibration pose for: " + missing +
-                           " (the recording has " + std::to_string(names.size()) +
-                           " sensors). Fix: record every sensor of the template, or remove "
-                           "the missing ones from its \"sensors\"");
+    out.notes.push_back("no usable orientation in the calibration pose for: " + missing +
+                        ": left out of the config (its segments follow markers or the "
+                        "calibration's posture)");
   for (const std::string& name : names)
     if (std::none_of(spec.entries.begin(), spec.entries.end(),
                      [&](const SensorEntry& e) { return e.sensor == name; }))
