@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
 #include <zmq.hpp>
@@ -252,7 +253,7 @@ TEST_CASE("view http: each security case and the status it returns") {
   }
 }
 
-TEST_CASE("view websocket: more clients than --max-clients get 503") {
+TEST_CASE("view websocket: more clients than --max-clients are told why and closed") {
   WebRoot web;
   view::ViewOptions o = options_for(web);
   o.max_clients = 2;
@@ -261,10 +262,22 @@ TEST_CASE("view websocket: more clients than --max-clients get 503") {
   WsClient b(v.port());
   REQUIRE(a->connected());
   REQUIRE(b.connected());
+  // A 503 would be invisible to the page's script: it is accepted, told, and closed.
   WsClient c(v.port());
-  CHECK_FALSE(c.connected());
-  CHECK(c.handshake_status() == 503);
+  REQUIRE(c.connected());
+  const auto first = c.read();
+  REQUIRE(first);
+  const json told = json::parse(*first);
+  CHECK(told["topic"] == "status");
+  CHECK(told["data"]["stream"] == "rejected");
+  CHECK_THAT(told["data"]["message"].get<std::string>(),
+             Catch::StartsWith("too many viewers (max 2)"));
+  bool closed = false;
+  for (int i = 0; i < 5 && !closed; ++i) closed = !c.read(std::chrono::milliseconds(3000));
+  CHECK(closed);
+  CHECK_FALSE(c.last_error() == boost::beast::error::timeout);  // closed by the view
   CHECK(v.server->counters().rejected_clients == 1);
+  CHECK(v.server->counters().clients.size() == 2);
   a.reset();  // a slot frees when a client goes
   const auto deadline = Clock::now() + std::chrono::seconds(5);
   bool again = false;
@@ -610,6 +623,67 @@ TEST_CASE("view stream status: states from arrivals") {
   CHECK(s.status(6.1, 0)["stream"] == "stalled");
 }
 
+TEST_CASE("view status: poses on pose/NAME while waiting on pose name the subjects and --subject") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  std::atomic<int> notices{0};
+  std::mutex notice_m;
+  std::string notice;
+  o.on_notice = [&](const std::string& text) {
+    std::lock_guard lock(notice_m);
+    notice = text;
+    ++notices;
+  };
+  LiveView v(o);
+  WsClient c(v.port());
+  REQUIRE(c.connected());
+  // Sent until the view's status names both (the subscription is asynchronous).
+  const auto both = [](const json& d) {
+    return d.contains("subjects") && d["subjects"].size() == 2;
+  };
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  for (std::uint64_t f = 1; Clock::now() < deadline && !both(v.server->counters().status); ++f) {
+    for (const char* topic : {"pose/alice", "pose/bob"})
+      v.send(topic, json{{"frame", f}, {"units", "mm"}, {"joints", json::object()}}.dump());
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing, not sync
+  }
+  const auto named = read_until(c, "status", both);
+  REQUIRE(named);
+  CHECK((*named)["stream"] == "waiting");
+  CHECK((*named)["subjects"] == json{"alice", "bob"});
+  CHECK_THAT((*named)["message"].get<std::string>(),
+             Catch::Contains("poses arrive for subjects alice, bob") &&
+                 Catch::Contains("start fabrik view with --subject alice"));
+  CHECK(notices.load() == 1);  // the terminal is told once
+  std::lock_guard lock(notice_m);
+  CHECK_THAT(notice, Catch::Contains("--subject alice"));
+}
+
+TEST_CASE("view --subject: poses and model of pose/NAME and model/NAME only") {
+  WebRoot web;
+  view::ViewOptions o = options_for(web);
+  o.subject = "bob";
+  LiveView v(o);
+  WsClient c(v.port());
+  REQUIRE(c.connected());
+  const auto deadline = Clock::now() + std::chrono::seconds(5);
+  for (std::uint64_t f = 1; Clock::now() < deadline && v.server->counters().poses == 0; ++f) {
+    v.send("pose/alice", json{{"frame", 1000000 + f}, {"units", "mm"}}.dump());
+    v.send("pose/bobby", json{{"frame", 2000000 + f}, {"units", "mm"}}.dump());
+    v.send("pose", json{{"frame", 3000000 + f}, {"units", "mm"}}.dump());
+    v.send("pose/bob", json{{"frame", f}, {"units", "mm"}}.dump());
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // pacing, not sync
+  }
+  const auto pose = read_until(c, "pose", [](const json&) { return true; });
+  REQUIRE(pose);
+  CHECK((*pose)["frame"].get<std::uint64_t>() < 1000000);  // bob's, no other subject's
+  v.send("model/alice", json{{"joints", {"a"}}}.dump());
+  v.send("model/bob", json{{"joints", {"b"}}}.dump());
+  const auto model = read_until(c, "model", [](const json&) { return true; });
+  REQUIRE(model);
+  CHECK((*model)["joints"] == json{"b"});
+}
+
 TEST_CASE("view trial: every frame as the daemon's pose, with a model") {
   const DaemonConfig config = default_daemon_config();
   io::MarkerTrial trial;
@@ -629,6 +703,35 @@ TEST_CASE("view trial: every frame as the daemon's pose, with a model") {
   CHECK(m["data"]["model"]["joints"].size() == config.tracker.model->joints.size());
   CHECK(m["data"]["model"]["markers"].size() == config.tracker.markers.size());
   CHECK(m["data"]["poses"][0]["joints"].size() == config.tracker.model->joints.size());
+  CHECK_FALSE(m["data"]["poses"][0].contains("measured"));  // the config does not ask for it
+}
+
+TEST_CASE(
+    "view trial: the file's times and frame numbers and measured markers when the config asks") {
+  DaemonConfig config = default_daemon_config();
+  config.output_measured_markers = true;
+  io::MarkerTrial trial;
+  trial.rate_hz = 100.0;
+  trial.first_frame = 24;          // a file cut to start at frame 24 ...
+  trial.first_time_frames = 23.0;  // ... at 0.23 s, as its Time column says
+  for (const MarkerTarget& m : config.tracker.markers) trial.labels.push_back(m.marker);
+  const std::size_t frames = 3;
+  for (std::size_t f = 0; f < frames; ++f)
+    for (std::size_t i = 0; i < trial.labels.size(); ++i)
+      trial.positions_m.emplace_back(i == 0 ? NAN : 0.01 * static_cast<double>(i), 1.0, 0.2);
+  const json m = json::parse(view::trial_view(config, trial, "walk.trc").message);
+  CHECK(m["data"]["file"] == "walk.trc");
+  const json& poses = m["data"]["poses"];
+  REQUIRE(poses.size() == frames);
+  CHECK(poses[0]["frame"] == 24);
+  CHECK(poses[0]["time"].get<double>() == Approx(0.23));
+  CHECK(poses[2]["time"].get<double>() == Approx(0.25));
+  // The daemon's own field (PoseEncoder's `measured`): every visible marker, none for the one
+  // missing (NaN) in the file.
+  REQUIRE(poses[1].contains("measured"));
+  CHECK(poses[1]["measured"].size() == trial.labels.size() - 1);
+  CHECK_FALSE(poses[1]["measured"].contains(trial.labels[0]));
+  CHECK(poses[1]["measured"][trial.labels[1]][0].get<double>() == Approx(10.0));  // mm
 }
 
 TEST_CASE("view listen addresses") {
@@ -642,6 +745,15 @@ TEST_CASE("view listen addresses") {
   CHECK_THROWS_AS(view::parse_listen("127.0.0.1:65536"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen(":80"), std::invalid_argument);
   CHECK_THROWS_AS(view::parse_listen("h:8x"), std::invalid_argument);
+}
+
+TEST_CASE("view: the address to open for a wildcard --listen is the host's name") {
+  CHECK(view::url_to_open("0.0.0.0", 8080, "labpc") == "http://labpc:8080/");
+  CHECK(view::url_to_open("::", 8080, "labpc") == "http://labpc:8080/");
+  CHECK(view::url_to_open("0.0.0.0", 8080, "") == "http://127.0.0.1:8080/");
+  CHECK(view::url_to_open("127.0.0.1", 8080, "labpc") == "http://127.0.0.1:8080/");
+  CHECK(view::url_to_open("::1", 8080, "labpc") == "http://[::1]:8080/");
+  CHECK(view::url_to_open("10.1.2.3", 80, "labpc") == "http://10.1.2.3:80/");
 }
 
 TEST_CASE("view --pose: a host name the resolver says does not exist is refused at start") {

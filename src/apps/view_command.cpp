@@ -1,5 +1,6 @@
 #include "view_command.hpp"
 
+#include <unistd.h>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -22,7 +23,8 @@ namespace fabrik::apps {
 namespace {
 
 struct ViewArgs {
-  std::string pose = "tcp://127.0.0.1:5556", listen = "127.0.0.1:8080", web_root, trial, config;
+  std::string pose = "tcp://127.0.0.1:5556", listen = "127.0.0.1:8080", web_root, trial, config,
+              subject;
   double rate_hz = 60.0;
   int max_clients = 16;
 };
@@ -58,6 +60,10 @@ void run(const ViewArgs& a) {
                                 a.listen +
                                 "'. Fix: give fabrikd's pose output (its "
                                 "output.endpoint, e.g. tcp://127.0.0.1:5556), or another --listen");
+  o.subject = a.subject;
+  o.on_notice = [](const std::string& text) {
+    std::fprintf(stderr, "fabrik view: %s\n", safe_lines(text).c_str());
+  };
   o.rate_hz = a.rate_hz;
   o.max_clients = a.max_clients;
   o.max_connections = a.max_clients + 48;  // room for page loads beside the WebSockets
@@ -65,6 +71,8 @@ void run(const ViewArgs& a) {
   if (!std::filesystem::is_regular_file(std::filesystem::path(o.web_root) / "index.html"))
     std::fprintf(stderr, "fabrik view: warning: %s has no index.html: / answers 404\n",
                  safe_lines(o.web_root).c_str());
+  if (!a.trial.empty() && !a.subject.empty())
+    throw std::invalid_argument("--subject goes with a live view, not --trial");
   if (a.trial.empty() && !a.config.empty())
     throw std::invalid_argument("--config goes with --trial (a live view takes fabrikd's model)");
   if (!a.trial.empty()) {
@@ -74,10 +82,10 @@ void run(const ViewArgs& a) {
     require_shared_markers(config, trial, a.trial);
     std::fprintf(stderr, "fabrik view: tracking %s (%zu frames) with %s\n",
                  safe_lines(a.trial).c_str(), trial.frames(), safe_lines(config.file).c_str());
-    view::TrialView t = view::trial_view(config, trial);
+    const std::string file_name = std::filesystem::path(a.trial).filename().string();
+    view::TrialView t = view::trial_view(config, trial, safe_lines(file_name));
     o.trial_message = std::make_shared<const std::string>(std::move(t.message));
-    o.trial_note = "trial " + std::filesystem::path(a.trial).filename().string() + ": " +
-                   std::to_string(t.poses) + " poses";
+    o.trial_note = "trial " + file_name + ": " + std::to_string(t.poses) + " poses";
   }
   zmq::context_t context(1);
   view::ViewServer server(context, o);
@@ -89,10 +97,20 @@ void run(const ViewArgs& a) {
                                 ? ", bound on every address of this host: "
                                   "a sender connects to one of them"
                                 : ", bound";
-  std::printf("fabrik view: %s (%s; page from %s)\n", server.url().c_str(),
+  // 0.0.0.0 cannot be opened: the machine's name (a browser elsewhere uses it; here too).
+  char name[256] = {};
+  const std::string this_host = gethostname(name, sizeof name - 1) == 0 ? name : "";
+  const bool every_address = view::is_wildcard_host(o.listen_host);
+  std::printf("fabrik view: %s (%s; page from %s%s)\n",
+              view::url_to_open(o.listen_host, server.port(), this_host).c_str(),
               o.trial_message ? o.trial_note.c_str()
                               : ("poses from " + server.pose_endpoint() + bound).c_str(),
-              safe_lines(o.web_root).c_str());
+              safe_lines(o.web_root).c_str(),
+              every_address ? ("; listening on every address of this host, on this machine also "
+                               "http://127.0.0.1:" +
+                               std::to_string(server.port()) + "/")
+                                  .c_str()
+                            : "");
   std::fflush(stdout);
   if (!server.loopback_only())
     std::fprintf(stderr, "fabrik view: warning: listening on %s: other machines can connect\n",
@@ -112,12 +130,16 @@ void add_view_command(CLI::App& app) {
   c->add_option("--pose", a->pose,
                 "fabrikd's pose/stats/model output, connected (bind:EP binds it instead)")
       ->capture_default_str();
+  c->add_option("--subject", a->subject,
+                "A multi-subject fabrikd's subject: its poses on topic pose/NAME, its model on "
+                "model/NAME (default: plain pose and model)");
   c->add_option("--listen", a->listen, "HTTP and WebSocket address, HOST:PORT (port 0: any)")
       ->capture_default_str();
   c->add_option("--rate-hz", a->rate_hz, "Poses per second per browser, at most (newest wins)")
       ->capture_default_str()
       ->check(cli::range(0.1, 1000.0));
-  c->add_option("--max-clients", a->max_clients, "WebSocket clients at once; more get 503")
+  c->add_option("--max-clients", a->max_clients,
+                "WebSocket clients at once; more are told so and closed")
       ->capture_default_str()
       ->check(cli::range(1, 1024));
   c->add_option(

@@ -1,5 +1,6 @@
 #include "stream_status.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 #include "common/safe_text.hpp"
@@ -23,6 +24,30 @@ void StreamStatus::add_undecodable(double t_s, const std::string& topic,
   last_reason_ = "topic " + safe_lines(topic.substr(0, 32)) + ": " + safe_lines(r);
 }
 
+namespace {
+// A fabrikd has a few subjects; a flood of topics must not grow the message without bound.
+constexpr std::size_t kMaxSubjects = 16;
+constexpr std::size_t kMaxSubjectChars = 64;
+}  // namespace
+
+bool StreamStatus::add_other_subject(const std::string& name) {
+  const std::string safe = safe_lines(name.substr(0, kMaxSubjectChars));
+  if (other_subjects_.size() >= kMaxSubjects ||
+      std::find(other_subjects_.begin(), other_subjects_.end(), safe) != other_subjects_.end())
+    return false;
+  other_subjects_.push_back(safe);
+  return true;
+}
+
+std::string StreamStatus::subjects_hint() const {
+  if (other_subjects_.empty()) return "";
+  std::string names;
+  for (const std::string& n : other_subjects_) names += (names.empty() ? "" : ", ") + n;
+  return "poses arrive for subjects " + names +
+         " (a multi-subject fabrikd), none on 'pose': " + "start fabrik view with --subject " +
+         other_subjects_.front();
+}
+
 nlohmann::json StreamStatus::status(double t_s, std::size_t clients) {
   if (window_start_s_ < 0.0) window_start_s_ = t_s;
   const double span_s = t_s - window_start_s_;
@@ -43,7 +68,7 @@ nlohmann::json StreamStatus::status(double t_s, std::size_t clients) {
     message = std::string(buf) + ": " + last_reason_;
   } else if (last_pose_s_ < 0.0) {
     stream = "waiting";
-    message = "waiting for poses from " + source_;
+    message = other_subjects_.empty() ? "waiting for poses from " + source_ : subjects_hint();
   } else if (t_s - last_pose_s_ > stall_after_s_) {
     stream = "stalled";
     std::snprintf(buf, sizeof buf, "no pose for %.1f s from ", t_s - last_pose_s_);
@@ -52,11 +77,13 @@ nlohmann::json StreamStatus::status(double t_s, std::size_t clients) {
     stream = "ok";
     message = "poses from " + source_;
   }
-  return {{"stream", stream},
-          {"message", message},
-          {"poses_per_s", rate},
-          {"undecodable", undecodable_},
-          {"clients", clients}};
+  nlohmann::json out = {{"stream", stream},
+                        {"message", message},
+                        {"poses_per_s", rate},
+                        {"undecodable", undecodable_},
+                        {"clients", clients}};
+  if (stream == "waiting" && !other_subjects_.empty()) out["subjects"] = other_subjects_;
+  return out;
 }
 
 }  // namespace fabrik::view

@@ -200,7 +200,15 @@ struct ViewServer::Impl {
   explicit Impl(ViewOptions options)
       : o(std::move(options)),
         files(o.web_root, o.three_root),
-        stream_status(o.stall_after_s, o.trial_message ? "the trial" : o.pose_endpoint) {}
+        stream_status(o.stall_after_s, o.trial_message ? "the trial" : source_name()),
+        pose_topic_text(pose_topic()),
+        model_topic_text(model_topic()) {}
+
+  std::string source_name() const {
+    return o.subject.empty() ? o.pose_endpoint : o.pose_endpoint + " on topic " + pose_topic();
+  }
+  std::string pose_topic() const { return o.subject.empty() ? "pose" : "pose/" + o.subject; }
+  std::string model_topic() const { return o.subject.empty() ? "model" : "model/" + o.subject; }
 
   ViewOptions o;
   WebFiles files;
@@ -212,7 +220,9 @@ struct ViewServer::Impl {
   std::uint64_t pose_seq = 0, stats_seq = 0, model_seq = 0;
   Text stats, model;
   StreamStatus stream_status;
+  const std::string pose_topic_text, model_topic_text;  // what receive() compares with
   std::atomic<bool> notify_pending{false}, stopping{false};
+  bool subjects_noticed = false;  // the SUB thread's: on_notice called
   // Sessions that wait for a new pose with their rate window open, and sessions with a write
   // in flight (whose drops are counted): a pose wakes the Asio thread only when one of them
   // exists. A session waiting for its rate window pulls the newest pose when its timer fires.
@@ -255,12 +265,19 @@ struct ViewServer::Impl {
 // A WebSocket client: model, status, stats and the newest pose, one write at a time.
 class WsSession : public std::enable_shared_from_this<WsSession> {
  public:
-  WsSession(ViewServer::Impl& impl, beast::tcp_stream&& stream, ConnectionSlot&& slot)
-      : impl_(impl), ws_(std::move(stream)), timer_(ws_.get_executor()), slot_(std::move(slot)) {
-    ++impl_.ws_clients;
+  // `rejected`: one client too many, told so (a status the page shows) and closed; it is not
+  // counted among the clients.
+  WsSession(ViewServer::Impl& impl, beast::tcp_stream&& stream, ConnectionSlot&& slot,
+            bool rejected = false)
+      : impl_(impl),
+        ws_(std::move(stream)),
+        timer_(ws_.get_executor()),
+        slot_(std::move(slot)),
+        rejected_(rejected) {
+    if (!rejected_) ++impl_.ws_clients;
   }
   ~WsSession() {
-    --impl_.ws_clients;
+    if (!rejected_) --impl_.ws_clients;
     impl_.sessions.erase(this);
     if (hungry_) impl_.hungry.fetch_sub(1);
     if (writing_) impl_.writing.fetch_sub(1);
@@ -308,6 +325,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
  private:
   void on_accept(beast::error_code ec) {
     if (ec) return;
+    if (rejected_) return reject();
     open_ = true;
     impl_.sessions.insert(this);
     impl_.refresh();
@@ -317,6 +335,24 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
     do_read();
     impl_.update_status();  // its first status counts it among the clients
     pump();
+  }
+
+  // A 503 on the upgrade is invisible to a page's script: the page is told why in a status,
+  // then the view closes ("try again later": the page retries as after any close).
+  void reject() {
+    const int max = impl_.o.max_clients;
+    out_ = topic_message("status", json{{"stream", "rejected"},
+                                        {"message", "too many viewers (max " + std::to_string(max) +
+                                                        "): close another page of this fabrik "
+                                                        "view (or start it with a higher "
+                                                        "--max-clients); retrying"},
+                                        {"clients", impl_.ws_clients},
+                                        {"max_clients", max}});
+    ws_.async_write(net::buffer(*out_), [self = shared_from_this()](beast::error_code ec,
+                                                                    std::size_t) {
+      if (ec) return self->close_now();
+      self->ws_.async_close(websocket::close_code::try_again_later, [self](beast::error_code) {});
+    });
   }
 
   // The page sends nothing the view needs; reading keeps pings, pongs and close working and
@@ -418,6 +454,7 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   beast::flat_buffer in_;
   Text out_;
   bool open_ = false, writing_ = false, timer_armed_ = false, trial_sent_ = false, hungry_ = false;
+  bool rejected_ = false;
   std::uint64_t seen_ = 0, pose_sent_ = 0, model_sent_ = 0, status_sent_ = 0, stats_sent_ = 0;
   std::uint64_t sent_ = 0, dropped_ = 0, busy_ = 0;
   Clock::time_point next_allowed_{};
@@ -470,11 +507,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return reply(http::status::forbidden, "not from this machine's page\n", true);
     if (websocket::is_upgrade(req)) {
       if (req.target() != "/ws" || head_) return reply(http::status::not_found, "not found\n", true);
-      if (impl_.ws_clients >= impl_.o.max_clients) {
-        ++impl_.rejected_clients;
-        return reply(http::status::service_unavailable, "too many clients\n", true);
-      }
-      std::make_shared<WsSession>(impl_, std::move(stream_), std::move(slot_))
+      const bool full = impl_.ws_clients >= impl_.o.max_clients;
+      if (full) ++impl_.rejected_clients;
+      std::make_shared<WsSession>(impl_, std::move(stream_), std::move(slot_), full)
           ->start(parser_->release());
       return;
     }
@@ -650,7 +685,9 @@ void ViewServer::Impl::update_status() {
     data["message"] = o.trial_note;
   }
   const std::string stream = data["stream"];
-  const bool changed = stream != last_stream || data["clients"] != io_status_data["clients"];
+  // A new subject seen while waiting is news too: the page names it at once.
+  const bool changed = stream != last_stream || data["clients"] != io_status_data["clients"] ||
+                       data.value("subjects", json()) != io_status_data.value("subjects", json());
   if (changed || now - last_status_sent >= seconds(o.status_period_s) || !io_status) {
     io_status = topic_message("status", data);
     io_status_data = data;
@@ -691,7 +728,7 @@ void ViewServer::Impl::receive(std::vector<zmq::message_t>& parts) {
   } else {
     try {
       const std::string_view payload = parts[1].to_string_view();
-      if (topic == "pose") {
+      if (topic == pose_topic_text) {
         const bool msgpack = wire::document_encoding(payload) == wire::PayloadEncoding::msgpack;
         const std::optional<std::uint64_t> frame =
             msgpack ? check_pose(payload, true) : quick_json_frame(payload);
@@ -710,19 +747,33 @@ void ViewServer::Impl::receive(std::vector<zmq::message_t>& parts) {
         }
         if (hungry.load() > 0 || writing.load() > 0) notify();
         return;
-      } else if (topic == "stats" || topic == "model") {
+      } else if (topic == "stats" || topic == model_topic_text) {
         // Bounded nesting first: decoding and writing it back are recursive.
         check_document(payload,
                        wire::document_encoding(payload) == wire::PayloadEncoding::msgpack);
-        Text text = topic_message(topic.c_str(), wire::decode_document(payload));
+        const bool is_stats = topic == "stats";
+        Text text = topic_message(is_stats ? "stats" : "model", wire::decode_document(payload));
         std::lock_guard lock(m);
-        if (topic == "stats") {
+        if (is_stats) {
           stats = std::move(text);
           ++stats_seq;
         } else if (!model || *model != *text) {
           model = std::move(text);
           ++model_seq;
         }
+      } else if (o.subject.empty() && topic.starts_with("pose/")) {
+        // A multi-subject fabrikd publishes no plain `pose`: say which subjects there are.
+        std::string hint;
+        {
+          std::lock_guard lock(m);
+          if (!stream_status.add_other_subject(topic.substr(5)) || subjects_noticed ||
+              stream_status.poses() > 0)
+            return;
+          subjects_noticed = true;
+          hint = stream_status.subjects_hint();
+        }
+        if (o.on_notice) o.on_notice(hint);
+        return;
       } else {
         return;  // another topic under a subscribed prefix ("poses"): not ours
       }
@@ -774,7 +825,10 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     s.sub->set(zmq::sockopt::rcvtimeo, 50);
     s.sub->set(zmq::sockopt::rcvhwm, 100);  // 0.1 s at 1 kHz: newest wins, not a backlog
     s.sub->set(zmq::sockopt::maxmsgsize, static_cast<int64_t>(s.o.max_payload_bytes));
-    for (const char* topic : {"pose", "stats", "model"}) s.sub->set(zmq::sockopt::subscribe, topic);
+    // Without --subject, `pose` also catches a multi-subject fabrikd's `pose/NAME` (named to
+    // the user while no plain pose comes).
+    for (const std::string& topic : {s.pose_topic(), std::string("stats"), s.model_topic()})
+      s.sub->set(zmq::sockopt::subscribe, topic);
     const auto failure = wire::open_socket(
         *s.sub, s.o.pose_endpoint, s.o.pose_bind ? SocketMode::bind : SocketMode::connect,
         {"", "with --pose", "connect (leave out bind:)",
@@ -783,7 +837,7 @@ ViewServer::ViewServer(zmq::context_t& context, ViewOptions options)
     if (s.o.pose_bind) {
       // A wildcard port ("tcp://127.0.0.1:*") is chosen by the system: name the port bound.
       s.o.pose_endpoint = s.sub->get(zmq::sockopt::last_endpoint);
-      s.stream_status = StreamStatus(s.o.stall_after_s, s.o.pose_endpoint);
+      s.stream_status = StreamStatus(s.o.stall_after_s, s.source_name());
     }
   }
 }
@@ -854,6 +908,21 @@ ViewCounters ViewServer::counters(std::chrono::milliseconds timeout) {
 
 double ViewServer::cpu_seconds() const {
   return thread_cpu_s(impl_->io_thread) + thread_cpu_s(impl_->sub_thread);
+}
+
+bool is_wildcard_host(const std::string& listen_host) {
+  beast::error_code ec;
+  const net::ip::address a = net::ip::make_address(listen_host, ec);
+  return !ec && a.is_unspecified();
+}
+
+std::string url_to_open(const std::string& listen_host, unsigned short port,
+                        const std::string& this_host) {
+  const std::string h = !is_wildcard_host(listen_host) ? listen_host
+                        : this_host.empty()            ? "127.0.0.1"
+                                                       : this_host;
+  const bool v6 = h.find(':') != std::string::npos;
+  return "http://" + (v6 ? "[" + h + "]" : h) + ":" + std::to_string(port) + "/";
 }
 
 std::pair<std::string, unsigned short> parse_listen(const std::string& text) {

@@ -21,10 +21,13 @@ struct ViewOptions {
   std::string pose_endpoint = "tcp://127.0.0.1:5556";  // connected, as `fabrik watch` does
   bool pose_bind =
       false;  // bound instead (fabrikd's output connects to the view: `--pose bind:EP`)
+  // A multi-subject fabrikd's subject: its poses on `pose/NAME`, its model on `model/NAME`
+  // (empty: plain `pose` and `model`).
+  std::string subject;
   std::string listen_host = "127.0.0.1";
   unsigned short listen_port = 8080;  // 0: any free port (see ViewServer::port)
   double rate_hz = 60.0;              // poses per second per client, at most
-  int max_clients = 16;               // WebSocket clients; more get 503
+  int max_clients = 16;  // WebSocket clients; one more is sent a status "rejected" and closed
   int max_connections = 64;           // TCP connections in all (HTTP ones included)
   std::string web_root;               // the page's files (src/view/web)
   std::string three_root = "/usr/share/javascript/three";
@@ -41,6 +44,9 @@ struct ViewOptions {
   // Called on the SUB thread with each pose's frame number as it arrives (benchmarks); may be
   // empty.
   std::function<void(std::uint64_t frame)> on_pose;
+  // Called once on the SUB thread with what the terminal should hear (poses arrive for
+  // subjects while the view waits on plain `pose`); may be empty.
+  std::function<void(const std::string& text)> on_notice;
 };
 
 // Per WebSocket client, as the Asio thread last saw it.
@@ -52,7 +58,7 @@ struct ClientCounters {
 
 struct ViewCounters {
   std::uint64_t poses = 0, undecodable = 0;
-  std::uint64_t rejected_clients = 0;  // WebSocket upgrades refused with 503
+  std::uint64_t rejected_clients = 0;  // WebSocket clients beyond max_clients, told and closed
   std::vector<ClientCounters> clients;
   nlohmann::json status;  // the last status message's data
 };
@@ -83,6 +89,12 @@ class ViewServer {
  private:
   std::shared_ptr<Impl> impl_;
 };
+
+// The address to open in a browser: http://HOST:PORT/, but for a wildcard --listen (0.0.0.0,
+// ::), which no browser can open, `this_host` (the machine's name; empty: 127.0.0.1).
+std::string url_to_open(const std::string& listen_host, unsigned short port,
+                        const std::string& this_host);
+bool is_wildcard_host(const std::string& listen_host);
 
 // "HOST:PORT" (or "[v6]:PORT") -> host and port; std::invalid_argument otherwise.
 std::pair<std::string, unsigned short> parse_listen(const std::string& text);

@@ -12,11 +12,14 @@ namespace fabrik::view {
 
 
 struct TrialView {
-  std::string message;  // {"topic": "trial", "data": {"model": ..., "poses": [...]}}
+  std::string message;  // {"topic": "trial", "data": {"model": ..., "poses": [...], "file"}}
   std::size_t poses = 0;
 };
 
-// Tracks `trial` with `config`; the poses are JSON in the config's output units.
-TrialView trial_view(const DaemonConfig& config, const io::MarkerTrial& trial);
+// Tracks `trial` with `config`; the poses are JSON in the config's output units, at the file's
+// own times, with `measured` when the config asks for it (output.measured_markers).
+// `file_name` (may be empty) is the message's "file", shown by the page.
+TrialView trial_view(const DaemonConfig& config, const io::MarkerTrial& trial,
+                     const std::string& file_name = "");
 
 }  // namespace fabrik::view
