@@ -25,7 +25,11 @@ stdin, one a line, change what it sends to every client:
              converged, all occluded
     outliers every visible marker rejected as an outlier: no_targets, the
              markers measured and not occluded
+    waiting  no poses and no stats (fabrikd not there), status "waiting" with
+             fabrik view's message "waiting for poses from tcp://..."
     quit
+--start-mode MODE starts in MODE instead of live. --max-clients N: one client
+more is sent a status "rejected" (fabrik view's words) and closed.
 With --synthetic-trial S it sends, on connect, one `trial` message of S seconds of
 poses at 50 Hz and nothing live. With --pose EP it relays a real fabrikd's
 `pose`, `stats` (and `model`, once fabrikd publishes it; until then a model
@@ -232,6 +236,7 @@ def pose(frame, source_hz, up='y'):
 # The modes whose poses rest on no measurement (untracked_pose), and the modes that send poses.
 UNTRACKED_MODES = ('no-targets', 'held', 'outliers')
 POSE_MODES = ('live',) + UNTRACKED_MODES
+MODES = POSE_MODES + ('stall', 'silent', 'garbage', 'waiting')
 
 
 def untracked_pose(frame, still_frame, source_hz, up='y', how='no-targets'):
@@ -260,7 +265,7 @@ class Feed:
 
     def __init__(self, args):
         self.args = args
-        self.mode = 'live'
+        self.mode = args.start_mode
         self.mode_since = time.monotonic()
         self.t0 = time.monotonic()
         self.still_frame = 1   # the posture the untracked modes keep
@@ -488,7 +493,17 @@ class Handler(http.server.BaseHTTPRequestHandler):
         feed = self.server.feed
         ws = WebSocket(self.connection)
         with feed.lock:
-            feed.clients += 1
+            full = feed.args.max_clients and feed.clients >= feed.args.max_clients
+            if not full:
+                feed.clients += 1
+        if full:  # as fabrik view does: told why, then closed (the page retries)
+            ws.send(json.dumps({'topic': 'status', 'data': {
+                'stream': 'rejected', 'clients': feed.clients, 'max_clients': feed.args.max_clients,
+                'message': 'too many viewers (max %d): close another page of this fabrik view (or start '
+                           'it with a higher --max-clients); retrying' % feed.args.max_clients}}))
+            ws._frame(0x8, struct.pack('>H', 1013))
+            ws.closed.wait(2)
+            return
         try:
             self.serve(ws, feed)
         finally:
@@ -501,7 +516,7 @@ class Handler(http.server.BaseHTTPRequestHandler):
         if args.synthetic_trial:
             rate = 50.0
             poses = [pose(f, rate, args.up) for f in range(1, int(args.synthetic_trial * rate) + 1)]
-            send('trial', {'model': feed.model, 'poses': poses})
+            send('trial', {'model': feed.model, 'file': 'synthetic_walk.trc', 'poses': poses})
             ws.closed.wait()
             return
         if feed.relay:
@@ -526,7 +541,11 @@ class Handler(http.server.BaseHTTPRequestHandler):
                 send('pose', {'frame': 'seven', 'joints': []})
                 with feed.lock:
                     feed.undecodable += 1
-            if now >= next_stats and mode != 'silent':
+            if mode == 'waiting' and now >= next_stats:
+                next_stats += 1.0
+                send('status', {'stream': 'waiting', 'message': 'waiting for poses from tcp://127.0.0.1:5556',
+                                'poses_per_s': 0.0, 'undecodable': 0, 'clients': feed.clients})
+            elif now >= next_stats and mode != 'silent':
                 next_stats += 1.0
                 stats = {
                     'uptime_s': round(now - feed.t0, 3), 'frames_in': frames_in, 'frames_out': frames_in,
@@ -600,6 +619,8 @@ def main():
     ap.add_argument('--rate-hz', type=float, default=60.0, help='poses per second sent to each client')
     ap.add_argument('--source-hz', type=float, default=250.0, help='the synthetic stream\'s frame rate')
     ap.add_argument('--up', choices=['y', 'z'], default='y')
+    ap.add_argument('--start-mode', choices=MODES, default='live')
+    ap.add_argument('--max-clients', type=int, default=0, help='0: no limit')
     ap.add_argument('--synthetic-trial', type=float, default=0.0, metavar='SECONDS')
     args = ap.parse_args()
     host, _, port = args.listen.rpartition(':')
@@ -611,7 +632,7 @@ def main():
         cmd = line.strip()
         if cmd == 'quit':
             break
-        if cmd in POSE_MODES + ('stall', 'silent', 'garbage'):
+        if cmd in MODES:
             server.feed.set_mode(cmd)
             print('stub_view_server: mode %s' % cmd, flush=True)
         elif cmd in ('source-down', 'source-up', 'source-none'):

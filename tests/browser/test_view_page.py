@@ -25,8 +25,14 @@ banner, and stats without a source show nothing of one; with the stub, poses
 on which no marker is measured (solver status no_targets, every marker
 occluded, or both) put "not tracked" in the banner and draw the skeleton dim
 with a note on the scene, after the stopped stream's banner and gone with the
-first tracked pose, and a normal stream never shows either; trial mode (stub)
-plays and scrubs; no uncaught exception in the page. Takes a
+first tracked pose, and a normal stream never shows either; with the stub,
+an untracked pose's residual reads "none", the scene is drawn again when the
+stopped banner shrinks it (no new pose) and the status line is marked stale,
+a page with no pose yet shows the grid and the view's waiting message (not
+red), a page beyond --max-clients says why and connects once a place frees,
+the plot picks outlive a reload, no favicon 404 is logged; trial mode (stub)
+plays and scrubs, names its file and leaves out the live figures; no uncaught
+exception in the page. Takes a
 screenshot into DIR (view_page.png, or view_subject01_walk1.png).
 
 Exit codes: 0 passed, 1 failed, 77 skipped (no chromium, no python3-websocket,
@@ -120,13 +126,18 @@ class Tab:
         self.next_id = 0
         self.exceptions = []   # uncaught exceptions in the page
         self.console = []      # console errors and warnings
+        self.browser_log = []  # the browser's own log (failed loads), as text
         self.call('Runtime.enable')
         self.call('Page.enable')
+        self.call('Log.enable')
 
     def _event(self, msg):
         if msg.get('method') == 'Runtime.exceptionThrown':
             d = msg['params']['exceptionDetails']
             self.exceptions.append((d.get('exception') or {}).get('description') or d.get('text'))
+        elif msg.get('method') == 'Log.entryAdded':
+            e = msg['params']['entry']
+            self.browser_log.append(f"{e.get('level')}: {e.get('text')} {e.get('url', '')}")
         elif msg.get('method') == 'Runtime.consoleAPICalled' and msg['params']['type'] in ('error', 'warning'):
             self.console.append(' '.join(str(a.get('value', a.get('description', '')))
                                          for a in msg['params']['args']))
@@ -158,6 +169,21 @@ class Tab:
 
     def navigate(self, url):
         self.call('Page.navigate', url=url)
+
+    def scene_pixels(self):
+        """How many pixels of the middle of the 3D scene are brighter than its
+        background (grid, axes, skeleton): 0 when the canvas was cleared (black,
+        or the page's background) and not drawn again."""
+        rect = self.eval("(() => { const r = document.querySelector('#scene canvas').getBoundingClientRect();"
+                         " return [r.x, r.y, r.width, r.height]; })()")
+        x, y, w, h = rect
+        clip = {'x': x + w * 0.2, 'y': y + h * 0.3, 'width': w * 0.6, 'height': h * 0.6, 'scale': 1}
+        data = self.call('Page.captureScreenshot', timeout_s=60, format='png', clip=clip)['data']
+        width, height, channels, rows = decode_png(base64.b64decode(data))
+        # The background (0x15181c, view.css and scene.js) sums to 77, the grid's dimmest line
+        # (0x2c323a) to 152.
+        return sum(1 for row in rows for i in range(0, width * channels, channels)
+                   if row[i] + row[i + 1] + row[i + 2] > 110)
 
     def screenshot(self, path):
         data = self.call('Page.captureScreenshot', timeout_s=60, format='png')['data']
@@ -201,7 +227,7 @@ class Chromium(Tab):
             browser = Tab.__new__(Tab)  # the browser target: calls only, no page domains
             browser.ws = websocket.create_connection(json.load(r)['webSocketDebuggerUrl'], timeout=30,
                                                      suppress_origin=True)
-            browser.next_id, browser.exceptions, browser.console = 0, [], []
+            browser.next_id, browser.exceptions, browser.console, browser.browser_log = 0, [], [], []
         try:
             target = browser.call('Target.createTarget', url=url, newWindow=True)['targetId']
         finally:
@@ -221,6 +247,44 @@ class Chromium(Tab):
         stop(self.proc)
         self.log.close()
         shutil.rmtree(self.profile, ignore_errors=True)
+
+
+def decode_png(data):
+    """(width, height, channels, rows of bytes) of an 8-bit RGB or RGBA PNG
+    (what Chromium's screenshots are), standard library only."""
+    import struct
+    import zlib
+    assert data[:8] == b'\x89PNG\r\n\x1a\n', 'not a PNG'
+    pos, idat, width = 8, b'', None
+    while pos < len(data):
+        n, kind = struct.unpack('>I4s', data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b'IHDR':
+            width, height, depth, color, _, _, interlace = struct.unpack('>IIBBBBB', body)
+            assert depth == 8 and color in (2, 6) and interlace == 0, f'PNG depth {depth} color {color}'
+            channels = 3 if color == 2 else 4
+        elif kind == b'IDAT':
+            idat += body
+        pos += 12 + n
+    raw, stride, rows, prev = zlib.decompress(idat), width * channels, [], bytearray(width * channels)
+    for r in range(height):
+        f, line = raw[r * (stride + 1)], bytearray(raw[r * (stride + 1) + 1:(r + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - channels] if i >= channels else 0
+            b, c = prev[i], prev[i - channels] if i >= channels else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 0xFF
+            elif f == 2:
+                line[i] = (line[i] + b) & 0xFF
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 0xFF
+            elif f == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 0xFF
+        rows.append(line)
+        prev = line
+    return width, height, channels, rows
 
 
 def stop(proc, timeout_s=5):
@@ -523,10 +587,78 @@ def check_untracked(page, live, bones, markers, out_dir):
               f'{mode} over: tracked poses drawn as such, no banner, no note')
 
 
+def check_scene_after_resize(page, live):
+    """The banner of a stopped stream shrinks the scene: it is drawn again at
+    its new size, with no new pose to trigger a paint."""
+    check(page.scene_pixels() > 200, 'the scene is drawn while the stream runs')
+    live.command('stall')
+    s = wait_for(lambda: (lambda s: s if s['banner'] and 'stopped' in s['banner'] else None)(page.state()), 10,
+                 'the stopped banner')
+    # The banner's layout and the resize it gives are done by the next animation frame.
+    page.eval('new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))')
+    n = page.scene_pixels()
+    check(n > 200, f'the scene is drawn again after the banner shrank it, no pose since ({n} pixels drawn)')
+    check(s['status_stale'] and status_line(page).startswith('STALE'),
+          f'the status line is marked stale under the stopped banner ("{status_line(page)[:60]}")')
+    live.command('live')
+    s = wait_for(lambda: (lambda s: s if s['banner'] is None else None)(page.state()), 10, 'the banner to go')
+    check(not s['status_stale'] and not status_line(page).startswith('STALE'), 'the status line live again')
+
+
+def check_untracked_residual(page, live):
+    live.command('no-targets')
+    wait_for(lambda: page.state()['untracked'], 10, 'untracked poses')
+    line = wait_for(lambda: (lambda t: t if 'residual RMS none' in t else None)(status_line(page)), 5,
+                    'the residual of an untracked pose as none')
+    check('0.00' not in line.split('residual RMS')[1].split('|')[0],
+          f'untracked: the status line says residual RMS none, not 0.00 ("...{line[line.find("residual"):][:50]}")')
+    live.command('live')
+    wait_for(lambda: page.state()['untracked'] is None and page.state()['banner'] is None, 10, 'tracked poses again')
+
+
+def check_waiting_and_rejected(page, chromium, bones, markers, out_dir):
+    """No pose yet: the scene shows its grid and the view's waiting message is
+    on the page (not as an error); one page too many says why and retries."""
+    waiting = Stub('--start-mode', 'waiting', '--max-clients', '1')
+    try:
+        page.navigate(waiting.url)
+        s = wait_for(lambda: (lambda s: s if s and s['model'] and s['banner'] else None)(page.state()), 30,
+                     'the waiting page to get the model and a banner')
+        check('waiting for poses from tcp://127.0.0.1:5556' in s['banner'] and s['banner_kind'] == 'info'
+              and s['received'] == 0, f'no pose yet: the view\'s message shown, not as an error ("{s["banner"]}")')
+        page.eval('new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))')
+        n = page.scene_pixels()
+        check(n > 200, f'no pose yet: the scene shows the grid and axes ({n} pixels drawn)')
+        page.screenshot(os.path.join(out_dir, 'view_page_waiting.png'))
+        extra = chromium.new_tab(waiting.url)
+        s = wait_for(lambda: (lambda s: s if s and s['banner'] and 'too many' in s['banner'] else None)(extra.state()),
+                     30, 'the page beyond --max-clients to say why')
+        check('max 1' in s['banner'], f'one page too many: "{s["banner"]}"')
+        page.navigate('about:blank')  # a place frees: the extra page gets it on a retry
+        s = wait_for(lambda: (lambda s: s if s['connected'] and s['banner'] and 'waiting' in s['banner']
+                              else None)(extra.state()), 15, 'the extra page to connect on a retry')
+        check(True, 'the page beyond --max-clients retried and connected once a place was free')
+    finally:
+        waiting.close()
+
+
+def check_plot_picks_kept(page, url):
+    page.eval("(() => { const s = document.getElementById('angle-pick');"
+              " for (const o of s.options) o.selected = o.value === 'elbow_flex_l';"
+              " s.dispatchEvent(new Event('change')); })()")
+    wait_for(lambda: list(page.state()['plots']) == ['elbow_flex_l'], 5, 'the plot picked')
+    page.navigate(url)
+    s = wait_for(lambda: (lambda s: s if s and s['model'] and s['plots'] else None)(page.state()), 30,
+                 'the page reloaded')
+    check(list(s['plots']) == ['elbow_flex_l'], f'the picked plot is kept across a reload ({list(s["plots"])})')
+
+
 def check_no_exceptions(page):
     if page.console:
         print('  ..  console: ' + ' | '.join(page.console[:5]))
     check(not page.exceptions, f'no uncaught exception in the page {page.exceptions[:3]}')
+    errors = [e for e in page.browser_log if e.startswith('error') and 'favicon' in e]
+    check(not errors, f'no failed favicon load logged {errors[:2]}')
 
 
 # --- Against the stub. ------------------------------------------------------
@@ -578,6 +710,8 @@ def run_stub(out_dir):
         check_banner(page, lambda: live.command('silent'), lambda: live.command('live'),
                      'the server goes silent', ['stopped'])
         check_untracked(page, live, bones, markers, out_dir)
+        check_untracked_residual(page, live)
+        check_scene_after_resize(page, live)
         rate_line = 'fabrikd 250 poses/s'  # the stub's stats, at its default --source-hz
         check_no_source(page, rate_line)
         check_source(page, live)
@@ -586,6 +720,9 @@ def run_stub(out_dir):
                      'the stream stalls (stats without a source again)', ['stopped'])
         check(page.state()['garbage'] > 0, 'the garbage was counted, the page carried on')
         check_no_exceptions(page)
+        check_plot_picks_kept(page, live.url)
+        check_no_exceptions(page)
+        check_waiting_and_rejected(page, page, bones, markers, out_dir)
 
         trial = Stub('--synthetic-trial', '4')
         page.navigate(trial.url)
@@ -607,6 +744,12 @@ def run_stub(out_dir):
         check(sorted(s3['drawn']['occluded']) == sorted(stub.occluded_at(151)),
               'trial: occluded markers drawn occluded in that frame')
         check(s3['banner'] is None and not s3['drawn']['untracked'], 'no banner in trial mode, not drawn untracked')
+        line = status_line(page)
+        check(s3['trial']['file'] == 'synthetic_walk.trc' and line.startswith('trial synthetic_walk.trc')
+              and not any(w in line for w in ('input ', 'fabrikd ', 'dropped ')),
+              f'trial mode: the file named on the status line, no live-only figures ("{line}")')
+        label = page.eval("document.getElementById('scrub-label').textContent")
+        check(label == 'trial 3.02 s, frame 151', f'trial: the pose\'s own time on the slider\'s label ("{label}")')
 
         zup = Stub('--up', 'z')
         try:

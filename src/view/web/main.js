@@ -60,7 +60,8 @@ function onMessage(topic, data, arrivedAtMs, viewAtMs) {
     case 'trial':
       if (data.model) setModel(data.model);
       history.setTrial(data.poses);
-      state.trial = {poses: data.poses, index: 0};
+      state.trial = {poses: data.poses, index: 0,
+                     file: typeof data.file === 'string' && data.file ? data.file.slice(0, 200) : null};
       break;
   }
 }

@@ -4,6 +4,21 @@
 
 const DEFAULT_PICKS = ['hip_flexion_r', 'knee_angle_r', 'ankle_angle_r'];
 export const WINDOW_S = 10;
+// The user's picks outlive a reload (localStorage; a browser that refuses it: the defaults).
+const PICKS_KEY = 'fabrikView.plotPicks';
+
+function storedPicks() {
+  try {
+    const v = JSON.parse(localStorage.getItem(PICKS_KEY) || '[]');
+    return Array.isArray(v) ? v.filter((n) => typeof n === 'string') : [];
+  } catch (e) {
+    return [];
+  }
+}
+
+function storePicks(names) {
+  try { localStorage.setItem(PICKS_KEY, JSON.stringify(names)); } catch (e) { /* not kept */ }
+}
 
 export class AnglePlots {
   constructor(container, select) {
@@ -23,12 +38,14 @@ export class AnglePlots {
       return o;
     }));
     let picks = [...previous].filter((n) => this.coordinates.has(n));
+    if (picks.length === 0) picks = storedPicks().filter((n) => this.coordinates.has(n));
     if (picks.length === 0) picks = DEFAULT_PICKS.filter((n) => this.coordinates.has(n));
     if (picks.length === 0) picks = coordinates.slice(0, 3).map((c) => c.name);
-    this.pick(picks);
+    this.pick(picks, false);  // only the user's own choice is kept
   }
 
-  pick(names) {
+  pick(names, remember = true) {
+    if (remember) storePicks(names);
     for (const o of this.select.options) o.selected = names.includes(o.value);
     this.plots = new Map(names.map((name) => {
       const div = document.createElement('div');

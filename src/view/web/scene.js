@@ -61,6 +61,13 @@ export class SkeletonScene {
     this.scene.add(this.world);
     this.lab = new THREE.Group();     // grid and axes, turned to the lab's up axis
     this.scene.add(this.lab);
+    // Grid and axes from the start (Y-up until a model says otherwise), seen from where the
+    // first pose would be framed: a page waiting for poses shows a scene, not a black box.
+    this.up = new THREE.Vector3(0, 1, 0);
+    this.forward = new THREE.Vector3(1, 0, 0);
+    this.buildLab();
+    this.placeCamera(new THREE.Vector3().addScaledVector(this.up, 0.9));
+    this.framed = false;
     this.resize();
     if (window.ResizeObserver) new ResizeObserver(() => this.resize()).observe(container);
     else window.addEventListener('resize', () => this.resize());
@@ -71,6 +78,17 @@ export class SkeletonScene {
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
     if (this.renderer) this.renderer.setSize(w, h, false);
+    // setSize clears the canvas: draw again now, as no new pose may come (paused, stream stopped).
+    this.render();
+  }
+
+  // The camera beside the subject at `c`, a little ahead and above, looking at it.
+  placeCamera(c) {
+    const side = new THREE.Vector3().crossVectors(this.forward, this.up).normalize();
+    this.controls.target.copy(c);
+    this.camera.position.copy(c).addScaledVector(side, 3.2).addScaledVector(this.forward, 1.2)
+      .addScaledVector(this.up, 1.0);
+    this.controls.update();
   }
 
   setModel(model) {
@@ -134,7 +152,8 @@ export class SkeletonScene {
     this.residuals = new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({color: COLORS.residual}));
     this.residuals.frustumCulled = false;
     this.world.add(this.residuals);
-    this.framed = false;
+    if (!this.framed) this.placeCamera(new THREE.Vector3().addScaledVector(this.up, 0.9));
+    this.framed = false;  // framed again on its first pose
   }
 
   buildLab() {
@@ -236,10 +255,7 @@ export class SkeletonScene {
     for (const p of points) c.add(this.vec(p));
     c.divideScalar(points.length);
     if (!this.framed) {
-      const side = new THREE.Vector3().crossVectors(this.forward, this.up).normalize();
-      this.controls.target.copy(c);
-      this.camera.position.copy(c).addScaledVector(side, 3.2).addScaledVector(this.forward, 1.2)
-        .addScaledVector(this.up, 1.0);
+      this.placeCamera(c);
       this.framed = true;
     } else if (this.options.follow) {
       const shift = c.clone().sub(this.controls.target).multiplyScalar(0.2);

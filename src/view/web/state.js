@@ -22,9 +22,11 @@ export const state = {
   paintMs: [],           // recent arrival -> painted latencies (ms)
   viewPaintMs: [],       // recent arrival at fabrik view -> painted latencies (ms)
   lastPaintMs: null,
-  banner: null,          // error banner text, null when none
+  banner: null,          // banner text, null when none
+  bannerKind: null,      // 'error', or 'info' (the view's word while no pose has come)
+  statusStale: false,    // the status line's figures are of a stream that stopped
   paused: false,
-  trial: null,           // {poses: [...], index} in trial mode
+  trial: null,           // {poses: [...], index, file} in trial mode
   plots: {},             // coordinate -> samples held
   history: {size: 0, index: null},
 };
@@ -102,9 +104,11 @@ export function snapshot() {
     painted: state.painted,
     plots: state.plots,
     banner: state.banner,
+    banner_kind: state.bannerKind,
+    status_stale: state.statusStale,
     untracked: untrackedOf(state.latest, m),
     paused: state.paused,
-    trial: state.trial ? {poses: state.trial.poses.length, index: state.trial.index} : null,
+    trial: state.trial ? {poses: state.trial.poses.length, index: state.trial.index, file: state.trial.file} : null,
     history: state.history,
     source: sourceOf(state.stats),
     stream: state.status ? state.status.stream : null,

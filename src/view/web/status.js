@@ -85,16 +85,25 @@ export class StatusView {
     }));
   }
 
-  // The banner's text, or null: what is wrong, most serious first.
+  // The banner's text, or null: what is wrong, most serious first. Sets this.kind: 'info'
+  // for the server's word while no pose has come yet (not an error), else 'error'.
   bannerText(now) {
     if (state.garbage > this.garbageSeen) { this.garbageSeen = state.garbage; this.garbageAt = now; }
     const st = state.status;
+    this.kind = 'error';
+    // One page too many: the view said why before it closed; the page retries.
+    if (st && st.stream === 'rejected') return `${st.message || 'fabrik view has too many viewers'}`;
     if (!state.connected) return state.messages ? 'Disconnected from fabrik view: reconnecting...' : null;
     if (state.trial) return null;
     if (st && st.stream === 'garbage') return `Garbage on the pose stream: ${st.message || 'undecodable poses'}`;
     // Before the stalled stream and the watchdog: a source down is their cause.
     const src = liveSource(now);
     if (src && !src.connected) return sourceBanner(src);
+    // No pose yet: what the view waits for (a wrong --pose, subjects on pose/NAME).
+    if (state.received === 0 && st && st.stream === 'waiting' && st.message) {
+      this.kind = 'info';
+      return st.message;
+    }
     if (st && st.stream === 'stalled') return `The pose stream stopped: ${st.message || 'no pose from fabrikd'}`;
     if (state.received > 0 && now - state.latestAtMs > STALL_MS)
       return `The pose stream stopped: no pose for ${((now - state.latestAtMs) / 1000).toFixed(0)} s`;
@@ -107,29 +116,51 @@ export class StatusView {
 
   update(now, pose) {
     state.banner = this.bannerText(now);
+    state.bannerKind = state.banner === null ? null : this.kind;
     this.banner.hidden = state.banner === null;
+    this.banner.classList.toggle('info', state.bannerKind === 'info');
     if (state.banner !== null) this.banner.textContent = state.banner;
 
     const s = state.stats || {}, st = state.status || {};
     const r = pose && pose.residual ? pose.residual : {};
     const units = pose && pose.units ? pose.units : 'mm';
     while (this.rateWindow.length && this.rateWindow[0] < now - 1000) this.rateWindow.shift();
-    const parts = [
-      `input ${fmt(this.inputRate, 0, ' Hz')}`,
-      `fabrikd ${fmt(s.pose_rate_hz, 0, ' poses/s')}`,
-      `view ${fmt(st.poses_per_s, 0, ' poses/s')}`,
-      `page ${state.trial ? '-' : this.rateWindow.length + ' poses/s'}`,
-      `latency ${fmt(s.queue_latency_us && s.queue_latency_us.p50, 0)}/${fmt(s.queue_latency_us && s.queue_latency_us.p99, 0, ' us')} (p50/p99), paint ${fmt(state.lastPaintMs, 1, ' ms')}`,
-      `solve ${fmt(s.solve_us && s.solve_us.p50, 1, ' us')}`,
-      `residual RMS ${fmt(r.rms, 2, ' ' + units)}`,
+    // No marker measured: no residual (0.00 would read as a perfect fit), as `fabrik watch` says.
+    const residual = pose && (r.count === 0 || r.quality === 'none') ? 'none (no marker measured)'
+      : fmt(r.rms, 2, ' ' + units);
+    const fit = [
+      `residual RMS ${residual}`,
       `fit ${r.quality || '-'}`,
       `gaps open ${pose ? pose.occluded.length : '-'}`,
-      `dropped ${fmt(s.frames_dropped)}`,
-      `config ${s.config || (state.model && state.model.config) || '-'}`,
-      `stream ${st.stream || (state.connected ? 'connected' : 'connecting')}`,
     ];
-    const src = sourceOf(state.stats);
-    if (src) parts.push(sourcePart(src));
+    const config = `config ${s.config || (state.model && state.model.config) || '-'}`;
+    let parts;
+    if (state.trial) {
+      // Only what a recording has: the live stream's rates, latency and drops are not its.
+      parts = [`trial ${state.trial.file || '(unnamed)'}`, `paint ${fmt(state.lastPaintMs, 1, ' ms')}`,
+               ...fit, config];
+    } else {
+      parts = [
+        `input ${fmt(this.inputRate, 0, ' Hz')}`,
+        `fabrikd ${fmt(s.pose_rate_hz, 0, ' poses/s')}`,
+        `view ${fmt(st.poses_per_s, 0, ' poses/s')}`,
+        `page ${this.rateWindow.length} poses/s`,
+        `latency ${fmt(s.queue_latency_us && s.queue_latency_us.p50, 0)}/${fmt(s.queue_latency_us && s.queue_latency_us.p99, 0, ' us')} (p50/p99), paint ${fmt(state.lastPaintMs, 1, ' ms')}`,
+        `solve ${fmt(s.solve_us && s.solve_us.p50, 1, ' us')}`,
+        ...fit,
+        `dropped ${fmt(s.frames_dropped)}`,
+        config,
+        `stream ${st.stream || (state.connected ? 'connected' : 'connecting')}`,
+      ];
+      const src = sourceOf(state.stats);
+      if (src) parts.push(sourcePart(src));
+    }
+    // A stream that stopped (or a lost connection) leaves the last figures: say they are old.
+    const lastPoseS = (now - state.latestAtMs) / 1000;
+    state.statusStale = !state.trial && state.received > 0 &&
+      (!state.connected || st.stream === 'stalled' || now - state.latestAtMs > STALL_MS);
+    if (state.statusStale) parts.unshift(`STALE: last pose ${lastPoseS.toFixed(0)} s ago, figures as then`);
+    this.line.classList.toggle('stale', state.statusStale);
     this.line.textContent = parts.join(' | ');
 
     const occluded = (pose ? pose.occluded.join(',') : '') + '@' + Math.floor(now / 250);
