@@ -31,7 +31,9 @@ stopped banner shrinks it (no new pose) and the status line is marked stale,
 a page with no pose yet shows the grid and the view's waiting message (not
 red), a page beyond --max-clients says why and connects once a place frees,
 the plot picks outlive a reload, no favicon 404 is logged; trial mode (stub)
-plays and scrubs, names its file and leaves out the live figures; no uncaught
+plays and scrubs, names its file and leaves out the live figures (with fabrikd:
+`fabrik view --trial` with output.measured_markers draws measured markers
+and residual lines); no uncaught
 exception in the page. Takes a
 screenshot into DIR (view_page.png, or view_subject01_walk1.png).
 
@@ -889,7 +891,8 @@ def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
 
         # Offline: the same trial solved by `fabrik view --trial`, one `trial` message.
         trial_port = free_port()
-        trial = subprocess.Popen([fabrik_view, 'view', '--trial', walk, '--config', config,
+        # With output.measured_markers, as the live poses above: measured markers and residual lines.
+        trial = subprocess.Popen([fabrik_view, 'view', '--trial', walk, '--config', measured,
                                   '--listen', f'127.0.0.1:{trial_port}'], stdout=logs['view'],
                                  stderr=subprocess.STDOUT, start_new_session=True)
         procs.append(trial)
@@ -907,6 +910,10 @@ def run_fabrik(out_dir, fabrikd, fabrik, fabrik_view):
         s = wait_for(lambda: (lambda s: s if s['trial']['index'] == 75 else None)(page.state()), 5,
                      'the time slider to index 75')
         check(s['paused'] and s['banner'] is None, f'the time slider shows pose 75 (frame {s["drawn"]["frame"]})')
+        d = s['drawn']
+        check(d['measured'] > 0 and d['residual_lines'] == d['measured'],
+              f'trial with output.measured_markers: {d["measured"]} measured markers and {d["residual_lines"]} '
+              f'residual lines drawn')
         check_no_exceptions(page)
         return 0
     finally:
