@@ -144,8 +144,9 @@ class PyTracker {
 
   static double item_double(PyObject* item, PyObject* key) {
     if (PyFloat_CheckExact(item)) return PyFloat_AS_DOUBLE(item);
-    const double v = PyFloat_AsDouble(item);
-    if (v == -1.0 && PyErr_Occurred()) {
+    // True is an int to Python: read as 1 mm it hid a bug in the caller's data.
+    const double v = PyBool_Check(item) ? -1.0 : PyFloat_AsDouble(item);
+    if (PyBool_Check(item) || (v == -1.0 && PyErr_Occurred())) {
       PyErr_Clear();
       throw py::value_error("marker " + py::str(key).cast<std::string>() +
                             ": coordinates must be numbers (mm), as must a confidence, got " +

@@ -97,6 +97,9 @@ def test_wrong_input_gives_clear_errors(config, frames):
         tracker.track({"LASI": (1, 2)}, 0.0)
     with pytest.raises(ValueError, match="coordinates must be numbers"):
         tracker.track({"LASI": (1, "a", 2)}, 0.0)
+    # True is an int to Python: it was read as 1 mm.
+    with pytest.raises(ValueError, match="coordinates must be numbers.*got True"):
+        tracker.track({"LASI": (1, True, 2)}, 0.0)
     with pytest.raises(TypeError, match="give a dict"):
         tracker.track(object(), 0.0)
     # None and a number became 0-d arrays and were refused for their shape (a ValueError).
