@@ -150,7 +150,17 @@ TEST_CASE("A sensors world whose up is not the model's or whose rotation is in r
   const DaemonConfig ok =
       load_daemon_config(with_world({{"rotation_deg", {-90, 0, 0}}, {"up", "y"}}), "c.json");
   CHECK(ok.sensors.world.rotation_xyz_rad.x() == Approx(-std::numbers::pi / 2));
+  CHECK(ok.sensors.world.up == "y");
   CHECK_NOTHROW(load_daemon_config(with_world({{"rotation_deg", {1.5, 0, 0}}}), "c.json"));
+  // Without "up", the model's: y here, z on a z-up model (it was y whatever the model's).
+  CHECK(load_daemon_config(with_world(json::object()), "c.json").sensors.world.up == "+y");
+  std::ifstream model_file(std::string(FABRIK_SOURCE_DIR) + "/config/models/fullbody.json");
+  json zup = json::parse(with_world(json::object()));
+  zup["model"] = json::parse(model_file);
+  zup["model"]["lab_axes"] = {{"up", "+z"}, {"forward", "+x"}};
+  const DaemonConfig z = load_daemon_config(zup.dump(), "c.json");
+  CHECK(z.sensors.world.up == "+z");
+  CHECK(z.sensors.world.up_vector() == Eigen::Vector3d::UnitZ());
   CHECK_NOTHROW(load_daemon_config(with_world({{"rotation_deg", {0.0004, 0, 0}}}), "c.json"));
   // The sensors' own up written where the model's belongs (17 deg of sensor error, no word).
   CHECK_THAT(error_of([&] {

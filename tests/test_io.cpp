@@ -1322,6 +1322,21 @@ TEST_CASE("A recording's typical spread: twice the median distance from the per-
   TempFile trc(".trc");
   write_trc(trc.path(), t, "m");
   CHECK(read_trc(trc.path()).source.typical_span_m == Approx(2.0).margin(1e-9));
+  // Four more markers at exact zeros, kept as positions (keep-zeros): not seen, left out of
+  // the spread (with them the median distance was 0, the file refused as metres labelled mm).
+  MarkerTrial zeros;
+  zeros.labels = {"A", "B", "C", "D", "E", "F", "G"};
+  zeros.rate_hz = 100.0;
+  for (int f = 0; f < 20; ++f)
+    for (const Eigen::Vector3d& p_m :
+         {Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0), Eigen::Vector3d(0, 0, 1),
+          Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 0),
+          Eigen::Vector3d(0, 0, 0)})
+      zeros.positions_m.push_back(p_m);
+  write_trc(trc.path(), zeros, "m");
+  const MarkerTrial kept = read_trc(trc.path(), {.zeros_are_missing = false});
+  CHECK(kept.source.typical_span_m == Approx(2.0).margin(1e-9));
+  CHECK(kept.source.unit_problem.empty());
 }
 
 TEST_CASE(

@@ -471,6 +471,16 @@ TEST_CASE("watch's summary names the solver's stop beside the contract's status"
   CHECK_THAT(tally.summary_text(),
              Catch::EndsWith("status: converged 3 (solver stop: converged 1 stalled 2)\n"));
   CHECK(tally.summary()["stop"]["stalled"] == 2);
+  // A peer's words: at most 32 kept, a line break shown escaped, not as a new line.
+  for (std::uint64_t k = 0; k < 40; ++k)
+    tally.add_pose(
+        json{{"frame", 10 + k},
+             {"solver",
+              {{"status", "s" + std::to_string(k)}, {"stop", "x\ny" + std::to_string(k)}}}},
+        1.0 + static_cast<double>(k));
+  CHECK(tally.summary()["stop"].size() == 32);
+  CHECK(tally.summary()["status"].size() == 32);
+  CHECK_THAT(tally.summary_text(), !Catch::Contains("x\ny"));
 }
 
 TEST_CASE("watch tally: a vendor source's connection shows in the live line, its error when it is down") {

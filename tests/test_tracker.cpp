@@ -230,6 +230,7 @@ TEST_CASE(
     const TrackResult& r = tracker.track(0.01 * f, pos, visible);
     CAPTURE(f);
     REQUIRE(r.solve.status == SolveStatus::no_targets);
+    CHECK_FALSE(r.cold_start);
     for (std::size_t k = 0; k < held.segments.size(); ++k) {
       CHECK(tracker.posture().segments[k].base_world_m == held.segments[k].base_world_m);
       CHECK(tracker.posture().segments[k].q_world.coeffs() == held.segments[k].q_world.coeffs());

@@ -119,7 +119,7 @@ void run(const std::string& which, const EvalArgs& a) {
   }
   files.insert(files.end(), {{"--json", a.json_path}, {"--csv", a.csv_path}});
   tools::require_usable_outputs(files);
-  const ReportToStderrIf report_aside{a.json_path, a.csv_path};
+  const ReportToStderrIf report_aside{a.json_path, a.csv_path, a.angles_path};
   if (which == "synthetic") {
     const DaemonConfig config =
         a.config_path.empty() ? default_daemon_config() : load_daemon_config_file(a.config_path);

@@ -483,8 +483,8 @@ struct Loader {
       for (const SegmentDef& sd : t.segments) names.push_back(sd.name);
       t.sensors = read_sensor_section(root.at("sensors"), names, false);
       // Without lab_axes a template's sensors' world is OpenSim's ground's: y up.
-      check_world_up(root.at("sensors"), t.sensors,
-                     t.lab_axes ? t.lab_axes->up_lab : LabAxes{}.up_lab);
+      resolve_world_up(root.at("sensors"), t.sensors,
+                       t.lab_axes ? t.lab_axes->up_lab : LabAxes{}.up_lab);
     }
     for (const MarkerDef& m : t.markers)
       if (!m.static_only) return;

@@ -162,7 +162,7 @@ void read_tracking_parts(const JsonReader& root, const std::string& file, Daemon
     std::vector<std::string> segments;
     for (const Segment& seg : model->segments) segments.push_back(seg.name);
     c.sensors = read_sensor_section(root.at("sensors"), segments, true);
-    check_world_up(root.at("sensors"), c.sensors, model->lab_axes.up_lab);
+    resolve_world_up(root.at("sensors"), c.sensors, model->lab_axes.up_lab);
     c.tracker.sensors = sensor_setup(c.sensors, *model);
   }
   const bool has_sensors = !c.tracker.sensors.sensors.empty();

@@ -46,17 +46,21 @@ Eigen::Quaterniond SensorWorld::q_world_sensors() const {
   return sensors_to_world(rotation_xyz_rad, up_vector(), heading_rad);
 }
 
-void check_world_up(const JsonReader& sensors, const SensorSection& section,
-                    const Eigen::Vector3d& up_lab) {
-  if (!sensors.has("world") || !sensors.at("world").has("up") ||
-      section.world.up_vector() == up_lab)
+void resolve_world_up(const JsonReader& sensors, SensorSection& section,
+                      const Eigen::Vector3d& up_lab) {
+  if (!sensors.has("world") || !sensors.at("world").has("up")) {
+    section.world.up = signed_axis_name(up_lab);
     return;
+  }
+  if (section.world.up_vector() == up_lab) return;
   sensors.at("world").at("up").fail(
       "the model's vertical is its lab_axes' up (" + signed_axis_name(up_lab) + "), not " +
           section.world.up,
       "give \"up\" as the lab_axes' up; the sensors' own world (OpenSense's z-up) is turned "
       "onto the model's by \"rotation_deg\" ([-90, 0, 0] in degrees for OpenSense on a y-up "
-      "model)");
+      "model). A config calibrated with the other up (before 2026-12-05): calibrate it again from "
+      "its template (fabrik calibrate --template T.json --static S --static-orientations "
+      "FILE.sto)");
 }
 
 SensorSection read_sensor_section(const JsonReader& sensors,

@@ -61,11 +61,11 @@ bool is_axis_name(const std::string& name);
 SensorSection read_sensor_section(const JsonReader& sensors,
                                   const std::vector<std::string>& segments, bool rotations);
 
-// Fails at "world"/"up" when the section's up is not `up_lab`, the model's (or template's) lab
-// up: `up` is the model's vertical, which the heading turns about, not the sensors' own (a z-up
-// IMU world written there on a y-up model gave 17 deg of sensor error, no word).
-void check_world_up(const JsonReader& sensors, const SensorSection& section,
-                    const Eigen::Vector3d& up_lab);
+// `up` is the model's vertical, which the heading turns about, not the sensors' own (a z-up
+// IMU world written there on a y-up model gave 17 deg of sensor error, no word): absent, it is
+// `up_lab`, the model's (or template's) lab up; given otherwise, fails at "world"/"up".
+void resolve_world_up(const JsonReader& sensors, SensorSection& section,
+                      const Eigen::Vector3d& up_lab);
 
 // The tracker's setup from a section whose segments name segments of `model`.
 SensorSetup sensor_setup(const SensorSection& section, const Model& model);

@@ -191,7 +191,9 @@ void warn_about_units(MarkerTrial& trial, const std::string& unit_field) {
       if (!p_m.allFinite()) continue;
       low = low.cwiseMin(p_m);
       high = high.cwiseMax(p_m);
-      points_m.push_back(p_m);
+      // Exact zeros kept (keep-zeros) are markers not seen, not a body's: half of them at the
+      // origin made the spread 0 and the file "metres labelled mm".
+      if (p_m != Eigen::Vector3d::Zero()) points_m.push_back(p_m);
     }
     if (points_m.size() < 3) continue;
     spans_m.push_back((high - low).norm());

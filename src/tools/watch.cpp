@@ -46,11 +46,20 @@ std::string angles_text(const json& angles) {
 
 std::string status_text(const std::map<std::string, std::uint64_t>& status) {
   std::string s;
-  for (const auto& [name, n] : status) s += " " + name + " " + std::to_string(n);
+  for (const auto& [name, n] : status) s += " " + safe_text(name) + " " + std::to_string(n);
   return s;
 }
 
+// A count per name a peer sends, at most 32 names: a stream of new words cannot grow it.
+void count_name(std::map<std::string, std::uint64_t>& counts, const std::string& name) {
+  if (counts.size() < 32 || counts.contains(name)) ++counts[name];
+}
+
 }  // namespace
+
+void WatchTally::add_other_topic(std::string_view topic) {
+  count_name(other_topics_, std::string(topic));
+}
 
 void WatchTally::add_pose(const json& pose, double t_s) {
   if (!pose.is_object() || !pose.contains("frame") || !pose["frame"].is_number_unsigned()) {
@@ -89,7 +98,7 @@ void WatchTally::add_pose(const json& pose, double t_s) {
     status = pose["solver"]["status"];
   // The contract's status says converged for a stalled solve: the stop says how it ended.
   if (pose.contains("/solver/stop"_json_pointer) && pose["solver"]["stop"].is_string())
-    ++stop_[pose["solver"]["stop"].get<std::string>()];
+    count_name(stop_, pose["solver"]["stop"].get<std::string>());
   const double solve_us = number_at(pose, "/solver/solve_us"_json_pointer);
   if (std::isfinite(solve_us)) solve_us_.push_back(solve_us);
   // End to end, from the source's send to now: the pose echoes the frame's
@@ -110,7 +119,7 @@ void WatchTally::add_pose(const json& pose, double t_s) {
     residual_max_ = std::max(residual_max_, max);
   }
   occluded_sum_ += occluded;
-  ++status_[status];
+  count_name(status_, status);
   if (interval_.start_s < 0.0) interval_.start_s = t_s;
   ++interval_.poses;
   if (fitted) {
@@ -119,7 +128,7 @@ void WatchTally::add_pose(const json& pose, double t_s) {
     interval_.max = std::max(interval_.max, max);
   }
   interval_.occluded_sum += occluded;
-  ++interval_.status[status];
+  count_name(interval_.status, status);
 }
 
 void WatchTally::add_stats(const json& stats, double) {
@@ -237,9 +246,9 @@ std::string WatchTally::summary_text() const {
     if (!other_topics_.empty()) {  // a multi-subject daemon: one topic per subject, no `pose`
       text += "poses arrived on";
       for (const auto& [topic, n] : other_topics_)
-        text += " " + safe_lines(topic) + " (" + std::to_string(n) + ")";
-      text += ": one topic per subject. Fix: --topic " + safe_lines(other_topics_.begin()->first) +
-              "\n";
+        text += " " + safe_text(topic) + " (" + std::to_string(n) + ")";
+      text +=
+          ": one topic per subject. Fix: --topic " + safe_text(other_topics_.begin()->first) + "\n";
     }
     return text;
   }
@@ -263,7 +272,8 @@ std::string WatchTally::summary_text() const {
       s["solve_us"]["max"].get<double>(), static_cast<unsigned long long>(stats_count_),
       static_cast<unsigned long long>(undecodable_), status_text(status_).c_str());
   std::string text = buf;
-  if (!stop_.empty()) text.insert(text.size() - 1, " (solver stop:" + status_text(stop_) + ")");
+  if (!stop_.empty() && text.ends_with('\n'))
+    text.insert(text.size() - 1, " (solver stop:" + status_text(stop_) + ")");
   return text;
 }
 

@@ -25,10 +25,7 @@ class WatchTally {
   void add_undecodable() { ++undecodable_; }
   // A message under a longer topic than the one watched (`pose/Alice` while watching `pose`):
   // counted to name in the summary, at most 32 topics.
-  void add_other_topic(std::string_view topic) {
-    if (other_topics_.size() < 32 || other_topics_.contains(std::string(topic)))
-      ++other_topics_[std::string(topic)];
-  }
+  void add_other_topic(std::string_view topic);
   // One compact line over what arrived since the previous call.
   std::string live_line(double t_s);
   nlohmann::json summary() const;

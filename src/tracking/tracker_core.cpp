@@ -367,7 +367,7 @@ const TrackResult& TrackerCore::track(double time_s, std::span<const Eigen::Vect
   if (cold) solver_.set_options(setup_.solver);
   const auto t1 = std::chrono::steady_clock::now();
   result_.solve_us = std::chrono::duration<double, std::micro>(t1 - t0).count();
-  result_.cold_start = cold;
+  result_.cold_start = cold && any_target;  // a held pose did not start cold
   if (result_.solve.status != SolveStatus::no_targets) {
     warm_ = true;
     last_solved_s_ = time_s;

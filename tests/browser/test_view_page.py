@@ -636,6 +636,12 @@ def check_waiting_and_rejected(page, chromium, bones, markers, out_dir):
         s = wait_for(lambda: (lambda s: s if s and s['banner'] and 'too many' in s['banner'] else None)(extra.state()),
                      30, 'the page beyond --max-clients to say why')
         check('max 1' in s['banner'], f'one page too many: "{s["banner"]}"')
+        # Turned away, it backs off (0.25, 0.5, 1, 2, 4 s), not every 250 ms: a 3 s window (a
+        # measurement, not a wait for an event) holds at most 5 rejections, 12 without.
+        m0 = s['messages']
+        time.sleep(3.0)
+        rejections = extra.state()['messages'] - m0
+        check(rejections <= 5, f'a page turned away backs off: {rejections} messages in 3 s')
         page.navigate('about:blank')  # a place frees: the extra page gets it on a retry
         s = wait_for(lambda: (lambda s: s if s['connected'] and s['banner'] and 'waiting' in s['banner']
                               else None)(extra.state()), 15, 'the extra page to connect on a retry')

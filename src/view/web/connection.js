@@ -42,7 +42,7 @@ export function connect(onMessage, onChange) {
 
   function open() {
     const ws = new WebSocket(url);
-    ws.onopen = () => { state.connected = true; delayMs = 250; onChange(); };
+    ws.onopen = () => { state.connected = true; onChange(); };
     ws.onclose = () => {
       state.connected = false;
       onChange();
@@ -62,6 +62,9 @@ export function connect(onMessage, onChange) {
         onChange();
         return;
       }
+      // Back to quick retries only once let in: a page turned away (too many viewers) is
+      // opened and closed at once, and retried every 250 ms it kept the server busy.
+      if (!(msg.topic === 'status' && msg.data.stream === 'rejected')) delayMs = 250;
       // view_ms: when the pose reached `fabrik view` (wall clock, this machine), on this page's clock.
       const viewAtMs = Number.isFinite(msg.view_ms) ? msg.view_ms - performance.timeOrigin : null;
       onMessage(msg.topic, msg.data, arrivedAtMs, viewAtMs);
