@@ -85,7 +85,7 @@ void run(const ViewArgs& a) {
     const std::string file_name = std::filesystem::path(a.trial).filename().string();
     view::TrialView t = view::trial_view(config, trial, safe_lines(file_name));
     o.trial_message = std::make_shared<const std::string>(std::move(t.message));
-    o.trial_note = "trial " + file_name + ": " + std::to_string(t.poses) + " poses";
+    o.trial_note = "trial " + safe_lines(file_name) + ": " + std::to_string(t.poses) + " poses";
   }
   zmq::context_t context(1);
   view::ViewServer server(context, o);
@@ -99,7 +99,7 @@ void run(const ViewArgs& a) {
                                 : ", bound";
   // 0.0.0.0 cannot be opened: the machine's name (a browser elsewhere uses it; here too).
   char name[256] = {};
-  const std::string this_host = gethostname(name, sizeof name - 1) == 0 ? name : "";
+  const std::string this_host = gethostname(name, sizeof name - 1) == 0 ? safe_text(name) : "";
   const bool every_address = view::is_wildcard_host(o.listen_host);
   std::printf("fabrik view: %s (%s; page from %s%s)\n",
               view::url_to_open(o.listen_host, server.port(), this_host).c_str(),

@@ -221,7 +221,8 @@ void warn_about_units(MarkerTrial& trial, const std::string& unit_field) {
   char figure[48];
   std::snprintf(figure, sizeof figure, "%.4g %s",
                 (refused ? spread_m : span_m) / m_per_unit.value_or(1.0), unit.c_str());
-  std::string bound = small ? (refused ? "less than 10 mm" : "less than 20 mm") : "more than 100 m";
+  const std::string bound =
+      small ? (refused ? "less than 10 mm" : "less than 20 mm") : "more than 100 m";
   std::string message = std::string(refused ? "the markers spread over " : "the markers span ") +
                         figure + " in a typical frame (" + bound +
                         ", where a body spans about a metre): is the unit right? Fix: correct " +

@@ -764,6 +764,7 @@ def run_stub(out_dir):
             page.navigate(zup.url)
             check_loaded(page, bones, markers, timeout_s=30)
             check(page.state()['lab_up'] == [0, 0, 1], 'a Z-up lab: the scene\'s up is +z')
+            check(page.state()['light_up'] == [0, 0, 1], 'a Z-up lab: lit from its up, +z')
             page.screenshot(os.path.join(out_dir, 'view_page_zup.png'))
         finally:
             zup.close()

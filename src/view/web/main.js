@@ -39,6 +39,7 @@ function setModel(model) {
   state.model = model;
   scene.setModel(model);
   state.labUp = scene.up.toArray();
+  state.lightUp = scene.light.position.clone().normalize().toArray();
   plots.setCoordinates(model.coordinates || []);
   status.setSensors(model.sensors || []);
   dirty = true;

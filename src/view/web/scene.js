@@ -55,7 +55,10 @@ export class SkeletonScene {
     this.note.textContent = UNTRACKED_NOTE;
     container.appendChild(this.note);
     this.controls = new OrbitControls(this.camera, this.renderer ? this.renderer.domElement : container);
-    this.scene.add(new THREE.HemisphereLight(0xffffff, 0x303030, 1.0));
+    // Sky from the lab's up (set with the model): from the scene's y, a Z-up lab's markers
+    // were lit from the side, dim, near the untracked grey.
+    this.light = new THREE.HemisphereLight(0xffffff, 0x303030, 1.0);
+    this.scene.add(this.light);
     this.options = {frames: true, measured: true, residuals: true, follow: false};
     this.world = new THREE.Group();   // the model's objects, rebuilt on each model
     this.scene.add(this.world);
@@ -97,6 +100,7 @@ export class SkeletonScene {
     this.up = axisVector(model.lab_axes && model.lab_axes.up, [0, 1, 0]);
     this.forward = axisVector(model.lab_axes && model.lab_axes.forward, [1, 0, 0]);
     this.camera.up.copy(this.up);
+    this.light.position.copy(this.up);
     this.buildLab();
     disposeChildren(this.world);
 

@@ -6,6 +6,7 @@ export const state = {
   connected: false,
   model: null,           // the last `model` message's data
   labUp: null,           // the scene's up axis, from model.lab_axes
+  lightUp: null,         // where the sky light comes from (the lab's up)
   latest: null,          // newest live pose (newest wins)
   latestAtMs: 0,         // performance.now() when it arrived
   latestViewMs: null,    // its arrival at fabrik view (view_ms, page clock), when stamped
@@ -96,6 +97,7 @@ export function snapshot() {
                 segments: (m.segments || []).length, coordinates: (m.coordinates || []).length,
                 sensors: (m.sensors || []).length} : null,
     lab_up: state.labUp,
+    light_up: state.lightUp,
     drawn: state.drawn,
     received: state.received,
     latest_view_ms: state.latestViewMs,
