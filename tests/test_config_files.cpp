@@ -181,6 +181,11 @@ TEST_CASE("A sensors world whose up is not the model's or whose rotation is in r
                load_daemon_config(with_world({{"rotation_deg", {0, 3.1416, 0}}}), "c.json");
              }),
              Catch::Contains("give degrees: 180 for 3.1416"));
+  CHECK_THAT(error_of([&] {
+               load_daemon_config(with_world({{"rotation_deg", {0, 0, 3.14}}}), "c.json");
+             }),
+             Catch::Contains("give degrees: 180 for 3.14"));
+  CHECK_NOTHROW(load_daemon_config(with_world({{"rotation_deg", {1.55, 3.0, 6.2}}}), "c.json"));
 }
 
 TEST_CASE("input.max_abs_coordinate_mm and input.zero_is_missing", "[config]") {

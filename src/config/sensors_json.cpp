@@ -88,7 +88,7 @@ SensorSection read_sensor_section(const JsonReader& sensors,
       for (int k = 0; k < 3; ++k) {
         const double turns = std::round(std::abs(deg[k]) / kQuarterTurn_rad);
         if (turns >= 1.0 && turns <= 4.0 &&
-            std::abs(std::abs(deg[k]) - turns * kQuarterTurn_rad) < 1e-3)
+            std::abs(std::abs(deg[k]) - turns * kQuarterTurn_rad) < 0.01)  // 3.14 too
           w.at("rotation_deg")
               .fail("angle " + format_number("%.9g", deg[k]) +
                         " is a multiple of 90 deg in radians (OpenSim's "
