@@ -2468,8 +2468,13 @@ TEST_CASE(
     CHECK_THAT(slurp(text.path()),
                Catch::Contains("not in the table   1 of 8 configured sensors (calcn_l_imu)") &&
                    Catch::Contains("not tracked        1 table column (foo_imu)") &&
-                   // Orientations alone: every frame's verdict is none, said (0 and 0 were).
-                   Catch::Contains("fit quality       good 0, poor 0, none 100 frames"));
+                   // Orientations alone: said once, not as 41 markers "not in the trial", a fit
+                   // quality of none and 0 outliers of markers never given.
+                   Catch::Contains("frames            100 (orientations alone, no marker input)"));
+    CHECK_THAT(slurp(text.path()),
+               !Catch::Contains("not in the trial") && !Catch::Contains("fit quality") &&
+                   !Catch::Contains("outliers") && !Catch::Contains("marker residual"));
+    CHECK(json::parse(slurp(report.path()))["quality"]["none"] == 100);  // the report's count
     const json r = json::parse(slurp(report.path()));
     CHECK(r["orientations"]["sensors_missing_in_table"] == json::array({"calcn_l_imu"}));
     CHECK(r["orientations"]["table_columns_not_used"] == json::array({"foo_imu"}));

@@ -178,10 +178,16 @@ void run(const SolveOptions& o) {
           ? stderr
           : stdout;
   const auto& r = summary["residual_mm"];
-  std::fprintf(summary_to,
-               "frames            %zu (%zu without any tracked marker, left out of the residual)\n",
-               summary["frames"].get<std::size_t>(),
-               summary["frames_without_markers"].get<std::size_t>());
+  // Orientations alone: the marker lines would only count 41 markers "not in the trial".
+  const bool markers_given = !o.input.empty();
+  if (markers_given)
+    std::fprintf(
+        summary_to,
+        "frames            %zu (%zu without any tracked marker, left out of the residual)\n",
+        summary["frames"].get<std::size_t>(), summary["frames_without_markers"].get<std::size_t>());
+  else
+    std::fprintf(summary_to, "frames            %zu (orientations alone, no marker input)\n",
+                 summary["frames"].get<std::size_t>());
   const auto before = summary["frames_before_first_measurement"].get<std::size_t>();
   const auto after = summary["frames_after_last_measurement"].get<std::size_t>();
   if (before + after > 0)
@@ -193,9 +199,9 @@ void run(const SolveOptions& o) {
                       : "the first " + std::to_string(before) + " and the last " +
                             std::to_string(after) + " frames, outside the measurements")
             .c_str());
-  if (r["max_marker"].get<std::string>().empty())  // orientations alone: no marker measured
+  if (markers_given && r["max_marker"].get<std::string>().empty())
     std::fprintf(summary_to, "marker residual   none: no marker measured\n");
-  else
+  else if (markers_given)
     std::fprintf(
         summary_to,
         "marker residual   RMS %.2f mm (mean over frames; worst frame %.2f mm), max %.2f mm (%s, "
@@ -210,22 +216,24 @@ void run(const SolveOptions& o) {
   const auto& out = summary["outliers"];
   const auto& q = summary["quality"];
   // Every verdict, none too (frames without a measured marker), as the report counts them.
-  std::fprintf(summary_to,
-               "fit quality       good %d, poor %d, none %d frames (quality thresholds of the "
-               "config)\n"
-               "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
-               "out of their solve\n",
-               q.value("good", 0), q.value("poor", 0), q.value("none", 0),
-               out["samples"].get<std::size_t>(), out["percent_of_measured"].get<double>(),
-               out["frames"].get<std::size_t>());
+  if (markers_given)
+    std::fprintf(summary_to,
+                 "fit quality       good %d, poor %d, none %d frames (quality thresholds of the "
+                 "config)\n"
+                 "outliers          %zu marker samples (%.3f %% of measured) in %zu frames, left "
+                 "out of their solve\n",
+                 q.value("good", 0), q.value("poor", 0), q.value("none", 0),
+                 out["samples"].get<std::size_t>(), out["percent_of_measured"].get<double>(),
+                 out["frames"].get<std::size_t>());
   std::size_t filled_samples = 0;
   for (const FilledRun& f : s.filled) filled_samples += f.end - f.first;
-  std::fprintf(
-      summary_to, "gaps filled       %zu samples in %zu runs (both sides)%s%s\n", filled_samples,
-      s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str(),
-      s.solved_on_filled_markers ? "; joint centres and angles solved again on the filled markers"
-                                 : "");
-  if (!s.missing_in_trial.empty())
+  if (markers_given)
+    std::fprintf(
+        summary_to, "gaps filled       %zu samples in %zu runs (both sides)%s%s\n", filled_samples,
+        s.filled.size(), filled_csv.empty() ? "" : (": " + filled_csv).c_str(),
+        s.solved_on_filled_markers ? "; joint centres and angles solved again on the filled markers"
+                                   : "");
+  if (markers_given && !s.missing_in_trial.empty())
     std::fprintf(summary_to, "not in the trial   %zu tracked marker%s (%s)\n",
                  s.missing_in_trial.size(), s.missing_in_trial.size() == 1 ? "" : "s",
                  safe_lines(name_list(s.missing_in_trial, 12)).c_str());
